@@ -1,0 +1,97 @@
+"""The `imm` command line. Each subcommand lives next to the code it drives; this file wires them.
+
+Errors the user can fix (bad files, labels, checkpoints, paths) are printed as one line and exit 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from imm_model.errors import IMMError
+
+# Modules that contribute subcommands: each has `register(subparsers)`. They keep heavy imports
+# (torch, VTK, trame) inside their command functions so `imm --help` and `imm data` stay fast.
+COMMAND_MODULES: dict[str, str] = {
+    "data": "imm_model.cli",
+    "train": "imm_model.training.commands",
+    "evaluate": "imm_model.evaluation.commands",
+    "generate": "imm_model.inference",
+    "explore": "explorer.commands",
+}
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """The `imm data ...` commands."""
+    data = subparsers.add_parser("data", help="inspect datasets and rebuild the bundled sample file")
+    sub = data.add_subparsers(dest="data_command", required=True)
+    summary = sub.add_parser("summary", help="per-class counts, lengths and subjects")
+    summary.add_argument(
+        "--data", type=Path, default=None,
+        help="a bundle .npz, a raw SBU folder or a K3HI folder (default: the bundled sample file)",
+    )
+    summary.set_defaults(func=_cmd_summary)
+    build = sub.add_parser("build-sample", help="rebuild sample_data/sbu_interactions.npz from the raw SBU files")
+    build.add_argument("--raw", type=Path, default=None, help="raw SBU folder (default: ../shared/datasets/sbu_kinect_interaction)")
+    build.add_argument("--out", type=Path, default=None, help="output .npz (default: sample_data/sbu_interactions.npz)")
+    build.set_defaults(func=_cmd_build_sample)
+
+
+def _cmd_summary(args: argparse.Namespace) -> int:
+    from imm_model.data.bundle import load_any, summary_table
+    from imm_model.data.dataset import InteractionDataset
+    from imm_model.paths import SAMPLE_DATA
+
+    path = args.data or SAMPLE_DATA
+    source = load_any(path)
+    kind = "bundle" if isinstance(source, InteractionDataset) else "raw"
+    print(f"{path} ({kind}, {len(source)} sequences)")
+    print(summary_table(source))
+    if not isinstance(source, InteractionDataset) and source.skipped:
+        print(source.report(), file=sys.stderr)
+    return 0
+
+
+def _cmd_build_sample(args: argparse.Namespace) -> int:
+    from imm_model.data.bundle import build_sbu_bundle
+    from imm_model.paths import SAMPLE_DATA, sbu_raw_root
+
+    raw = args.raw or sbu_raw_root()
+    out = args.out or SAMPLE_DATA
+    data = build_sbu_bundle(raw)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    data.save(out)
+    print(f"wrote {out}: {len(data)} sequences, {int(data.lengths.sum())} frames, {out.stat().st_size / 1e6:.2f} MB")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="imm",
+        description="IMM Studio: synthesize a follower's reaction to a leader's motion (Interaction Mix and Match).",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for module in dict.fromkeys(COMMAND_MODULES.values()):
+        try:
+            importlib.import_module(module).register(sub)
+        except ModuleNotFoundError as err:
+            if not module.startswith(err.name or "\0"):
+                raise  # a missing third-party dependency is a real error
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (IMMError, ValueError, KeyError, OSError) as err:
+        msg = err.args[0] if isinstance(err, KeyError) and err.args else err
+        print(f"imm {args.command}: error: {msg}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

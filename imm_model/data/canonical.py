@@ -1,0 +1,105 @@
+"""The canonical frame: the paper's standardization, on which every metric depends.
+
+Both characters are expressed relative to the leader A: A's root joint is moved to the origin and
+A's rotation about the vertical axis is removed, so that A faces one fixed direction (the axis after
+the vertical one: +Z for Kinect's Y-up frame).
+
+Facing is derived from the hips and shoulders: the "across" vector (left hip - right hip) +
+(left shoulder - right shoulder) is projected onto the horizontal plane and forward =
+across x up. On SBU this forward points at the partner in the great majority of sequences
+(checked in tests), i.e. the Kinect left/right labels are not mirrored.
+
+Two modes:
+- ``first_frame`` (default): one rigid transform per sequence, taken from A's first frame. A's
+  motion during the sequence (stepping in to push, leaning back) is kept, which the follower's
+  reaction depends on.
+- ``per_frame``: translation and yaw of A removed at every frame.
+
+Either way the transform is a rotation about the vertical axis plus a translation per frame, so
+bone lengths are unchanged, and `to_world` inverts `to_canonical` exactly (to float precision).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from imm_model.skeleton import Skeleton
+
+CanonicalMode = Literal["first_frame", "per_frame"]
+
+
+def facing_direction(positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    """positions (T, J, 3) -> unit horizontal forward vectors (T, 3) (zero where undefined)."""
+    lhip, rhip, lsh, rsh = skeleton.facing_joints
+    across = (positions[:, lhip] - positions[:, rhip]) + (positions[:, lsh] - positions[:, rsh])
+    up = np.zeros(3)
+    up[skeleton.vertical_axis] = 1.0
+    forward = np.cross(across, up)
+    forward[:, skeleton.vertical_axis] = 0.0
+    norm = np.linalg.norm(forward, axis=-1, keepdims=True)
+    return np.where(norm > 1e-9, forward / np.maximum(norm, 1e-12), 0.0)
+
+
+def _axes(skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit vectors (up, fixed forward, up x forward) of the canonical frame."""
+    up = np.zeros(3)
+    up[skeleton.vertical_axis] = 1.0
+    fwd = np.zeros(3)
+    fwd[(skeleton.vertical_axis + 1) % 3] = 1.0
+    return up, fwd, np.cross(up, fwd)
+
+
+def yaw_rotation(yaw: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    """yaw (T,) radians -> rotation matrices (T, 3, 3) about the vertical axis (Rodrigues)."""
+    up, _, _ = _axes(skeleton)
+    k = np.array([[0, -up[2], up[1]], [up[2], 0, -up[0]], [-up[1], up[0], 0]])
+    s, c = np.sin(yaw)[:, None, None], np.cos(yaw)[:, None, None]
+    return np.eye(3) + s * k + (1 - c) * (k @ k)
+
+
+@dataclass(frozen=True)
+class CanonicalFrame:
+    """Per-frame transform world -> canonical: p_c = R(-yaw_t) (p - origin_t)."""
+
+    yaw: np.ndarray  # (T,) radians: A's facing measured from the fixed forward axis
+    origin: np.ndarray  # (T, 3) metres: A's root position
+    mode: str
+
+    @classmethod
+    def from_leader(
+        cls, leader: np.ndarray, skeleton: Skeleton, mode: CanonicalMode = "first_frame"
+    ) -> "CanonicalFrame":
+        """leader (T, J, 3) world positions of A -> the frame that standardizes them."""
+        if mode not in ("first_frame", "per_frame"):
+            raise ValueError(f"unknown canonical mode {mode!r} (first_frame or per_frame)")
+        _, fwd, side = _axes(skeleton)
+        facing = facing_direction(leader, skeleton)
+        yaw = np.arctan2(facing @ side, facing @ fwd)  # 0 where facing is undefined
+        origin = leader[:, skeleton.root].astype(np.float64)
+        if mode == "first_frame":
+            yaw = np.full(len(leader), yaw[0])
+            origin = np.repeat(origin[:1], len(leader), axis=0)
+        return cls(yaw=yaw.astype(np.float64), origin=origin, mode=mode)
+
+    def to_canonical(self, positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+        """(T, J, 3) world -> (T, J, 3) canonical, float64."""
+        rot_inv = yaw_rotation(-self.yaw, skeleton)  # (T, 3, 3)
+        return np.einsum("tij,tkj->tki", rot_inv, positions - self.origin[:, None, :])
+
+    def to_world(self, positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+        """(T, J, 3) canonical -> (T, J, 3) world, float64. Exact inverse of `to_canonical`."""
+        rot = yaw_rotation(self.yaw, skeleton)
+        return np.einsum("tij,tkj->tki", rot, positions) + self.origin[:, None, :]
+
+    def extended(self, num_frames: int) -> "CanonicalFrame":
+        """The frame for a sequence of another length (first-frame mode only: it is constant)."""
+        if self.mode != "first_frame":
+            raise ValueError("a per-frame canonical frame cannot be applied to a sequence of another length")
+        return CanonicalFrame(
+            yaw=np.full(num_frames, self.yaw[0]),
+            origin=np.repeat(self.origin[:1], num_frames, axis=0),
+            mode=self.mode,
+        )

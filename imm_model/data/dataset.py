@@ -1,0 +1,231 @@
+"""`InteractionDataset`: many interactions in the canonical frame, as flat arrays.
+
+This is what the model trains on, what the studio shows and what `sample_data/` bundles. Frames of
+all sequences are concatenated (F = total frames) and `offsets[i]:offsets[i]+lengths[i]` selects
+sequence i, which keeps the bundle small and loading a single `np.load`.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import zipfile
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from imm_model.data.canonical import CanonicalFrame, CanonicalMode
+from imm_model.data.sequence import Interaction
+from imm_model.errors import DataFormatError
+from imm_model.skeleton import KINECT15, Skeleton
+
+FORMAT_VERSION = 1
+_ARRAYS = ("leader", "follower", "yaw", "origin", "frame_numbers", "lengths", "actions", "held_out")
+
+
+@dataclass
+class InteractionDataset:
+    skeleton: Skeleton
+    class_names: tuple[str, ...]
+    sequence_ids: list[str]
+    subject_pairs: list[str]
+    leader_sources: list[str]
+    leader_rules: list[str]
+    actions: np.ndarray  # (N,) int64 index into class_names
+    lengths: np.ndarray  # (N,) int64 frames per sequence
+    leader: np.ndarray  # (F, J, 3) float32, canonical frame, metres
+    follower: np.ndarray  # (F, J, 3) float32, canonical frame, metres
+    yaw: np.ndarray  # (F,) float64 canonical -> world rotation about the vertical axis
+    origin: np.ndarray  # (F, 3) float64 canonical -> world translation (A's root)
+    frame_numbers: np.ndarray  # (F,) int64 original frame numbers
+    held_out: np.ndarray  # (N,) bool: not seen by the bundled model during training
+    dataset: str = "sbu"
+    canonical_mode: str = "first_frame"
+    info: dict = field(default_factory=dict)  # provenance: source, held-out subject, ...
+
+    # ---- construction -------------------------------------------------------------------
+    @classmethod
+    def from_interactions(
+        cls,
+        interactions: Sequence[Interaction],
+        class_names: Sequence[str],
+        skeleton: Skeleton = KINECT15,
+        mode: CanonicalMode = "first_frame",
+        info: dict | None = None,
+    ) -> "InteractionDataset":
+        if not interactions:
+            raise ValueError("no interactions to build a dataset from")
+        class_names = tuple(class_names)
+        leaders, followers, yaws, origins = [], [], [], []
+        for it in interactions:
+            if it.action not in class_names:
+                raise ValueError(f"{it.sequence_id}: class {it.action!r} not in {class_names}")
+            if it.leader.shape[1:] != (skeleton.num_joints, 3):
+                raise DataFormatError(
+                    f"{it.sequence_id}: {it.leader.shape[1]} joints, skeleton {skeleton.name} has {skeleton.num_joints}"
+                )
+            frame = CanonicalFrame.from_leader(it.leader, skeleton, mode)
+            leaders.append(frame.to_canonical(it.leader, skeleton))
+            followers.append(frame.to_canonical(it.follower, skeleton))
+            yaws.append(frame.yaw)
+            origins.append(frame.origin)
+        return cls(
+            skeleton=skeleton,
+            class_names=class_names,
+            sequence_ids=[it.sequence_id for it in interactions],
+            subject_pairs=[it.subject_pair for it in interactions],
+            leader_sources=[it.leader_source for it in interactions],
+            leader_rules=[it.leader_rule for it in interactions],
+            actions=np.array([class_names.index(it.action) for it in interactions], dtype=np.int64),
+            lengths=np.array([it.num_frames for it in interactions], dtype=np.int64),
+            leader=np.concatenate(leaders).astype(np.float32),
+            follower=np.concatenate(followers).astype(np.float32),
+            yaw=np.concatenate(yaws),
+            origin=np.concatenate(origins),
+            frame_numbers=np.concatenate([it.frame_numbers for it in interactions]).astype(np.int64),
+            held_out=np.zeros(len(interactions), dtype=bool),
+            dataset=interactions[0].dataset,
+            canonical_mode=mode,
+            info=dict(info or {}),
+        )
+
+    # ---- access -------------------------------------------------------------------------
+    def __len__(self) -> int:
+        return len(self.sequence_ids)
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """(N,) first frame of each sequence in the flat arrays."""
+        return np.concatenate([[0], np.cumsum(self.lengths)[:-1]]).astype(np.int64)
+
+    def frames(self, i: int) -> slice:
+        start = int(self.offsets[i])
+        return slice(start, start + int(self.lengths[i]))
+
+    def canonical(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """Sequence i -> (leader, follower), each (T, J, 3) float32 in the canonical frame."""
+        s = self.frames(i)
+        return self.leader[s], self.follower[s]
+
+    def frame_of(self, i: int) -> CanonicalFrame:
+        s = self.frames(i)
+        return CanonicalFrame(yaw=self.yaw[s], origin=self.origin[s], mode=self.canonical_mode)
+
+    def world(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """Sequence i -> (leader, follower) back in world metres, float64."""
+        leader, follower = self.canonical(i)
+        frame = self.frame_of(i)
+        return frame.to_world(leader.astype(np.float64), self.skeleton), frame.to_world(
+            follower.astype(np.float64), self.skeleton
+        )
+
+    def action_name(self, i: int) -> str:
+        return self.class_names[int(self.actions[i])]
+
+    def index_of(self, sequence_id: str) -> int:
+        try:
+            return self.sequence_ids.index(sequence_id)
+        except ValueError:
+            raise KeyError(f"unknown sequence {sequence_id!r}") from None
+
+    def subset(self, indices: Sequence[int] | np.ndarray) -> "InteractionDataset":
+        idx = [int(i) for i in indices]
+        frame_idx = np.concatenate([np.arange(self.frames(i).start, self.frames(i).stop) for i in idx]) if idx else np.zeros(0, int)
+        pick = lambda xs: [xs[i] for i in idx]  # noqa: E731
+        return InteractionDataset(
+            skeleton=self.skeleton,
+            class_names=self.class_names,
+            sequence_ids=pick(self.sequence_ids),
+            subject_pairs=pick(self.subject_pairs),
+            leader_sources=pick(self.leader_sources),
+            leader_rules=pick(self.leader_rules),
+            actions=self.actions[idx],
+            lengths=self.lengths[idx],
+            leader=self.leader[frame_idx],
+            follower=self.follower[frame_idx],
+            yaw=self.yaw[frame_idx],
+            origin=self.origin[frame_idx],
+            frame_numbers=self.frame_numbers[frame_idx],
+            held_out=self.held_out[idx],
+            dataset=self.dataset,
+            canonical_mode=self.canonical_mode,
+            info=dict(self.info),
+        )
+
+    # ---- persistence --------------------------------------------------------------------
+    def metadata(self) -> dict:
+        return {
+            "format_version": FORMAT_VERSION,
+            "dataset": self.dataset,
+            "canonical_mode": self.canonical_mode,
+            "skeleton": self.skeleton.to_dict(),
+            "class_names": list(self.class_names),
+            "sequence_ids": self.sequence_ids,
+            "subject_pairs": self.subject_pairs,
+            "leader_sources": self.leader_sources,
+            "leader_rules": self.leader_rules,
+            "info": self.info,
+        }
+
+    def save(self, path: Path | str) -> None:
+        """Write a compressed .npz, byte-for-byte reproducible (fixed zip timestamps and order)."""
+        path = Path(path)
+        arrays = {name: np.ascontiguousarray(getattr(self, name)) for name in _ARRAYS}
+        arrays["metadata"] = np.frombuffer(json.dumps(self.metadata(), sort_keys=True).encode(), dtype=np.uint8)
+        tmp = path.with_suffix(path.suffix + ".tmp")
+        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=9) as zf:
+            for name in sorted(arrays):
+                buf = io.BytesIO()
+                np.lib.format.write_array(buf, arrays[name], allow_pickle=False)
+                zi = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+                zi.compress_type = zipfile.ZIP_DEFLATED
+                zi.external_attr = 0o644 << 16
+                zf.writestr(zi, buf.getvalue(), compresslevel=9)
+        tmp.replace(path)
+
+    @classmethod
+    def load(cls, path: Path | str) -> "InteractionDataset":
+        """Read a bundle written by `save`. Never unpickles: a malformed file gives a one-line error."""
+        path = Path(path)
+        if not path.exists():
+            raise DataFormatError(f"{path}: data file not found")
+        try:
+            with np.load(path, allow_pickle=False) as npz:
+                arrays = {name: npz[name] for name in _ARRAYS}
+                meta = json.loads(npz["metadata"].tobytes().decode())
+        except KeyError as err:
+            raise DataFormatError(f"{path}: not an IMM interaction bundle (missing {err})") from None
+        except Exception as err:
+            raise DataFormatError(f"{path}: unreadable interaction bundle ({type(err).__name__}: {err})") from None
+        if meta.get("format_version") != FORMAT_VERSION:
+            raise DataFormatError(f"{path}: bundle format {meta.get('format_version')} (this version reads {FORMAT_VERSION})")
+        skeleton = Skeleton.from_dict(meta["skeleton"])
+        ds = cls(
+            skeleton=skeleton,
+            class_names=tuple(meta["class_names"]),
+            sequence_ids=list(meta["sequence_ids"]),
+            subject_pairs=list(meta["subject_pairs"]),
+            leader_sources=list(meta["leader_sources"]),
+            leader_rules=list(meta["leader_rules"]),
+            dataset=meta["dataset"],
+            canonical_mode=meta["canonical_mode"],
+            info=meta.get("info", {}),
+            **arrays,
+        )
+        ds.validate(str(path))
+        return ds
+
+    def validate(self, where: str = "dataset") -> None:
+        n, f = len(self.sequence_ids), int(self.lengths.sum())
+        if not (len(self.actions) == len(self.lengths) == len(self.held_out) == len(self.subject_pairs) == n):
+            raise DataFormatError(f"{where}: per-sequence arrays disagree on the number of sequences")
+        if self.leader.shape != (f, self.skeleton.num_joints, 3) or self.follower.shape != self.leader.shape:
+            raise DataFormatError(f"{where}: pose arrays have shape {self.leader.shape}, expected ({f}, {self.skeleton.num_joints}, 3)")
+        if len(self.yaw) != f or self.origin.shape != (f, 3) or len(self.frame_numbers) != f:
+            raise DataFormatError(f"{where}: canonical-frame arrays do not match the {f} frames")
+        if not (np.isfinite(self.leader).all() and np.isfinite(self.follower).all()):
+            raise DataFormatError(f"{where}: NaN or infinite positions")
+        if n and (self.actions.min() < 0 or self.actions.max() >= len(self.class_names)):
+            raise DataFormatError(f"{where}: class index outside 0..{len(self.class_names) - 1}")

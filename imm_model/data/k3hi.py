@@ -1,0 +1,122 @@
+"""Reader for K3HI as shipped by InterFormer (`Skeletons/<class>/<n>/skeleton_{A,B}.mat`).
+
+Each file holds one variable `curve_B`, float64 (45, T), coordinate-major: rows 0-14 x, 15-29 y,
+30-44 z, in the same normalized convention as SBU (so the same metric formulas apply). Its joint
+order differs from SBU's and is mapped onto the shared 15-joint Kinect skeleton here.
+The actor is the first file of each line in Train.txt/Test.txt; sequences those lists do not cover
+fall back to the motion-energy rule.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from imm_model.data.leader import LeaderChoice, actor_by_motion_energy, check_leader_choice
+from imm_model.data.loading import LoadResult, load_many
+from imm_model.data.sbu import normalized_to_metres
+from imm_model.data.sequence import Interaction
+from imm_model.errors import DataFormatError
+
+K3HI_CLASSES: tuple[str, ...] = (
+    "approaching", "departing", "exchanging", "kicking", "pointing", "punching", "pushing", "shaking",
+)
+# KINECT15 joint i is K3HI joint K3HI_TO_KINECT15[i]
+# (K3HI: 0 head, 1 neck, 2 L-sh, 3 R-sh, 4 L-elb, 5 R-elb, 6 L-hand, 7 R-hand, 8 torso, 9 L-hip,
+#  10 R-hip, 11 L-knee, 12 R-knee, 13 L-foot, 14 R-foot).
+K3HI_TO_KINECT15 = np.array([0, 1, 8, 2, 4, 6, 3, 5, 7, 9, 11, 13, 10, 12, 14])
+
+
+def read_mat_skeleton(path: Path) -> np.ndarray:
+    """One `skeleton_X.mat` -> (T, 15, 3) positions in normalized units, KINECT15 joint order."""
+    from scipy.io import loadmat
+
+    try:
+        mat = loadmat(str(path))
+    except FileNotFoundError:
+        raise DataFormatError(f"{path}: file not found") from None
+    except Exception as err:  # scipy raises several types for corrupt files
+        raise DataFormatError(f"{path}: unreadable .mat file ({type(err).__name__}: {err})") from None
+    if "curve_B" not in mat:
+        keys = [k for k in mat if not k.startswith("__")]
+        raise DataFormatError(f"{path}: no 'curve_B' variable (found {keys})")
+    arr = np.asarray(mat["curve_B"])
+    if arr.ndim != 2 or arr.shape[0] != 45:
+        raise DataFormatError(f"{path}: curve_B has shape {arr.shape}, expected (45, T)")
+    if not np.issubdtype(arr.dtype, np.number):
+        raise DataFormatError(f"{path}: curve_B is not numeric ({arr.dtype})")
+    arr = arr.astype(np.float64)
+    if arr.shape[1] == 0:
+        raise DataFormatError(f"{path}: empty sequence (no frames)")
+    if not np.isfinite(arr).all():
+        raise DataFormatError(f"{path}: frame {int(np.argwhere(~np.isfinite(arr))[0, 1])}: NaN or infinite value")
+    if arr.shape[1] < 2:
+        raise DataFormatError(f"{path}: only 1 frame; at least 2 are needed")
+    xyz = arr.reshape(3, 15, -1).transpose(2, 1, 0)  # (T, 15, 3)
+    return xyz[:, K3HI_TO_KINECT15]
+
+
+def read_actor_lists(root: Path) -> dict[str, str]:
+    """'kicking/12' -> 'A' | 'B' from Train.txt and Test.txt (first file = actor)."""
+    actors: dict[str, str] = {}
+    for name in ("Train.txt", "Test.txt"):
+        path = root / name
+        if not path.exists():
+            continue
+        for line in path.read_text().splitlines():
+            parts = line.split()
+            if len(parts) != 2:
+                continue
+            first = Path(parts[0])
+            actors[f"{first.parts[-3]}/{first.parts[-2]}"] = first.stem.rsplit("_", 1)[-1]
+    return actors
+
+
+def read_k3hi_sequence(folder: Path, leader: LeaderChoice = "actor", actors: dict[str, str] | None = None) -> Interaction:
+    check_leader_choice(leader)
+    action, number = folder.parts[-2], folder.parts[-1]
+    if action not in K3HI_CLASSES:
+        raise DataFormatError(f"{folder}: unknown class folder {action!r}")
+    a_pos = read_mat_skeleton(folder / "skeleton_A.mat")
+    b_pos = read_mat_skeleton(folder / "skeleton_B.mat")
+    if len(a_pos) != len(b_pos):
+        raise DataFormatError(f"{folder}: skeleton_A has {len(a_pos)} frames but skeleton_B {len(b_pos)}")
+    people = normalized_to_metres(np.stack([a_pos, b_pos]))
+    sequence_id = f"{action}/{number}"
+    if leader in ("left", "right"):
+        # K3HI files carry no left/right placement: use the lower mean image-x (metric X is flipped).
+        order = np.argsort(-people[:, :, :, 0].mean(axis=(1, 2)))
+        a, rule = int(order[0] if leader == "left" else order[1]), leader
+    elif actors and sequence_id in actors:
+        a, rule = (0 if actors[sequence_id] == "A" else 1), "k3hi_list"
+    else:
+        a, rule = actor_by_motion_energy(people[0], people[1]), "motion_energy"
+    return Interaction(
+        sequence_id=sequence_id,
+        dataset="k3hi",
+        action=action,
+        subject_pair="",
+        leader=people[a],
+        follower=people[1 - a],
+        leader_source="AB"[a],
+        leader_rule=rule,
+        frame_numbers=np.arange(len(a_pos)),
+    )
+
+
+def load_k3hi(root: Path | str, leader: LeaderChoice = "actor", strict: bool = False) -> LoadResult:
+    """Load all 312 K3HI sequences (8 classes). Bad folders are skipped and reported unless strict."""
+    root = Path(root)
+    skeletons = root / "Skeletons"
+    if not skeletons.is_dir():
+        raise DataFormatError(f"{root}: K3HI folder not found (expected {skeletons})")
+    check_leader_choice(leader)
+    folders = sorted(
+        (p.parent for p in skeletons.glob("*/*/skeleton_A.mat")),
+        key=lambda p: (p.parts[-2], int(p.parts[-1]) if p.parts[-1].isdigit() else 10**9, p.parts[-1]),
+    )
+    if not folders:
+        raise DataFormatError(f"{skeletons}: no <class>/<n>/skeleton_A.mat files found")
+    actors = read_actor_lists(root)
+    return load_many(folders, lambda f: read_k3hi_sequence(f, leader, actors), strict=strict, class_names=K3HI_CLASSES)

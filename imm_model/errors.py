@@ -1,0 +1,17 @@
+"""Errors raised at the library's boundary. Each carries a one-line message naming the problem."""
+
+
+class IMMError(Exception):
+    """Base class: the CLI prints `str(err)` as one line instead of a traceback."""
+
+
+class DataFormatError(IMMError, ValueError):
+    """A data file is malformed (names the file and, where it applies, the line)."""
+
+
+class CheckpointError(IMMError, ValueError):
+    """A checkpoint is missing, corrupt or does not match the model/data."""
+
+
+class LabelError(IMMError, ValueError):
+    """A label vector has the wrong length, unknown class names or non-finite values."""
