@@ -9,6 +9,7 @@ import argparse
 import importlib
 import sys
 from collections.abc import Sequence
+from importlib.metadata import entry_points
 from pathlib import Path
 
 from imm_model.errors import IMMError
@@ -20,8 +21,10 @@ COMMAND_MODULES: dict[str, str] = {
     "train": "imm_model.training.commands",
     "evaluate": "imm_model.evaluation.commands",
     "generate": "imm_model.inference",
-    "explore": "explorer.commands",
 }
+# Front ends built on the library (the studio) add commands through this entry-point group, so the
+# library never imports them by name.
+PLUGIN_GROUP = "imm.commands"
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -80,6 +83,8 @@ def build_parser() -> argparse.ArgumentParser:
         except ModuleNotFoundError as err:
             if not module.startswith(err.name or "\0"):
                 raise  # a missing third-party dependency is a real error
+    for entry in entry_points(group=PLUGIN_GROUP):
+        entry.load().register(sub)
     return parser
 
 

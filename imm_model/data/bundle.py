@@ -14,7 +14,7 @@ from imm_model.data.sbu import PAPER_CLASSES, load_sbu
 from imm_model.data.splits import subjects_of
 from imm_model.errors import DataFormatError
 
-# The bundled model is trained with this subject held out (fold loso-s04: 28 sequences).
+# The bundled model is trained with this subject held out (fold loso-s04: 49 of 197 sequences).
 BUNDLED_HELD_OUT_SUBJECT = "s04"
 
 SBU_CITATION = (
