@@ -1,0 +1,1 @@
+"""Evaluation: the paper's AFD, per-joint error, the nearest-neighbour baseline and the CLI."""

@@ -1,0 +1,60 @@
+"""Metrics as the paper defines them.
+
+AFD (average frame distance): for one sequence, the mean over its valid frames of the Euclidean norm
+of the difference between the synthesized and the ground-truth follower pose vectors (15 joints x 3
+= 45 numbers). The paper reports it in SBU's normalized units, so both poses are first put back in
+the world (inverse canonical transform) and into those units; the transform is affine per axis, so
+this is exact. Per class = mean over that class's test sequences.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from imm_model.data.canonical import CanonicalFrame
+from imm_model.data.sbu import metres_to_normalized
+from imm_model.skeleton import Skeleton
+
+
+def frame_distances(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
+    """pred, gt (T, J, 3) in the same units -> (T,) norm of the per-frame pose-vector difference."""
+    if pred.shape != gt.shape:
+        raise ValueError(f"prediction shape {pred.shape} differs from ground truth {gt.shape}")
+    diff = (np.asarray(pred, np.float64) - np.asarray(gt, np.float64)).reshape(len(gt), -1)
+    return np.linalg.norm(diff, axis=-1)
+
+
+def afd(
+    pred_canonical: np.ndarray,
+    gt_canonical: np.ndarray,
+    frame: CanonicalFrame,
+    skeleton: Skeleton,
+    units: str = "normalized",
+) -> float:
+    """AFD of one sequence. units: "normalized" (SBU dataset units, as in the paper) or "metres"."""
+    if units == "metres":
+        # The canonical transform is rigid, so distances are the same in the canonical frame.
+        return float(frame_distances(pred_canonical, gt_canonical).mean())
+    if units != "normalized":
+        raise ValueError(f"units must be 'normalized' or 'metres', not {units!r}")
+    pred = metres_to_normalized(frame.to_world(np.asarray(pred_canonical, np.float64), skeleton))
+    gt = metres_to_normalized(frame.to_world(np.asarray(gt_canonical, np.float64), skeleton))
+    return float(frame_distances(pred, gt).mean())
+
+
+def mpjpe_mm(pred_canonical: np.ndarray, gt_canonical: np.ndarray) -> float:
+    """Mean per-joint position error in millimetres (positions in metres)."""
+    diff = np.asarray(pred_canonical, np.float64) - np.asarray(gt_canonical, np.float64)
+    return float(np.linalg.norm(diff, axis=-1).mean() * 1000.0)
+
+
+def per_class_mean(values: Mapping[int, float], actions: np.ndarray, class_names: Sequence[str]) -> dict[str, float]:
+    """{sequence index: value} -> {class name: mean over that class's sequences} (classes present only)."""
+    out: dict[str, float] = {}
+    for c, name in enumerate(class_names):
+        vals = [v for i, v in values.items() if actions[i] == c]
+        if vals:
+            out[name] = float(np.mean(vals))
+    return out
