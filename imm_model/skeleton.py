@@ -62,7 +62,7 @@ class Skeleton:
         }
 
     @classmethod
-    def from_dict(cls, d: dict) -> "Skeleton":
+    def from_dict(cls, d: dict) -> Skeleton:
         return cls(
             name=str(d["name"]),
             joint_names=tuple(d["joint_names"]),

@@ -71,7 +71,7 @@ class CanonicalFrame:
     @classmethod
     def from_leader(
         cls, leader: np.ndarray, skeleton: Skeleton, mode: CanonicalMode = "first_frame"
-    ) -> "CanonicalFrame":
+    ) -> CanonicalFrame:
         """leader (T, J, 3) world positions of A -> the frame that standardizes them."""
         if mode not in ("first_frame", "per_frame"):
             raise ValueError(f"unknown canonical mode {mode!r} (first_frame or per_frame)")
@@ -94,7 +94,7 @@ class CanonicalFrame:
         rot = yaw_rotation(self.yaw, skeleton)
         return np.einsum("tij,tkj->tki", rot, positions) + self.origin[:, None, :]
 
-    def extended(self, num_frames: int) -> "CanonicalFrame":
+    def extended(self, num_frames: int) -> CanonicalFrame:
         """The frame for a sequence of another length (first-frame mode only: it is constant)."""
         if self.mode != "first_frame":
             raise ValueError("a per-frame canonical frame cannot be applied to a sequence of another length")

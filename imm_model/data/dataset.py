@@ -54,7 +54,7 @@ class InteractionDataset:
         skeleton: Skeleton = KINECT15,
         mode: CanonicalMode = "first_frame",
         info: dict | None = None,
-    ) -> "InteractionDataset":
+    ) -> InteractionDataset:
         if not interactions:
             raise ValueError("no interactions to build a dataset from")
         class_names = tuple(class_names)
@@ -130,7 +130,7 @@ class InteractionDataset:
         except ValueError:
             raise KeyError(f"unknown sequence {sequence_id!r}") from None
 
-    def subset(self, indices: Sequence[int] | np.ndarray) -> "InteractionDataset":
+    def subset(self, indices: Sequence[int] | np.ndarray) -> InteractionDataset:
         idx = [int(i) for i in indices]
         frame_idx = np.concatenate([np.arange(self.frames(i).start, self.frames(i).stop) for i in idx]) if idx else np.zeros(0, int)
         pick = lambda xs: [xs[i] for i in idx]  # noqa: E731
@@ -186,7 +186,7 @@ class InteractionDataset:
         tmp.replace(path)
 
     @classmethod
-    def load(cls, path: Path | str) -> "InteractionDataset":
+    def load(cls, path: Path | str) -> InteractionDataset:
         """Read a bundle written by `save`. Never unpickles: a malformed file gives a one-line error."""
         path = Path(path)
         if not path.exists():

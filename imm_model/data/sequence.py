@@ -36,7 +36,7 @@ class Interaction:
         p = self.subject_pair
         return tuple(p[i : i + 3] for i in range(0, len(p), 3)) if p else ()
 
-    def swapped(self) -> "Interaction":
+    def swapped(self) -> Interaction:
         """Role-swap augmentation: B becomes the leader and A the follower."""
         return replace(
             self,
