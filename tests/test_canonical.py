@@ -1,0 +1,66 @@
+"""Canonical-frame invariants on the real SBU sequences (bundled file)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from imm_model.data.canonical import CanonicalFrame, facing_direction
+from imm_model.data.dataset import InteractionDataset
+from imm_model.data.sbu import read_sbu_sequence
+from imm_model.skeleton import KINECT15
+
+from .test_data_readers import FIXTURES
+
+
+def test_leader_root_at_origin_and_facing_fixed_at_reference_frame(sample_data):
+    for i in range(len(sample_data)):
+        leader, _ = sample_data.canonical(i)
+        np.testing.assert_allclose(leader[0, KINECT15.root], 0.0, atol=1e-5)
+        np.testing.assert_allclose(facing_direction(leader[:1].astype(np.float64), KINECT15)[0], [0, 0, 1], atol=1e-5)
+
+
+def test_follower_stands_in_front_of_the_leader(sample_data):
+    # The facing rule (across x up) must point at the partner; a mirrored rule would give ~0.
+    ahead = [sample_data.canonical(i)[1][0, KINECT15.root, 2] > 0 for i in range(len(sample_data))]
+    assert np.mean(ahead) > 0.95
+
+
+def test_round_trip_is_exact_and_bone_lengths_unchanged(sample_data):
+    for i in range(0, len(sample_data), 7):
+        leader_w, follower_w = sample_data.world(i)
+        frame = sample_data.frame_of(i)
+        for world in (leader_w, follower_w):
+            canon = frame.to_canonical(world, KINECT15)
+            np.testing.assert_allclose(frame.to_world(canon, KINECT15), world, atol=1e-12)
+            np.testing.assert_allclose(KINECT15.bone_lengths(canon), KINECT15.bone_lengths(world), atol=1e-12)
+
+
+def test_bundle_world_matches_the_raw_file():
+    # The bundle stores float32 canonical poses; back in the world they match the raw metres to float32 precision.
+    it = read_sbu_sequence(FIXTURES / "sbu/s01s02/03/001/skeleton_pos.txt")
+    data = InteractionDataset.from_interactions([it], class_names=("kicking",))
+    leader_w, follower_w = data.world(0)
+    np.testing.assert_allclose(leader_w, it.leader, atol=2e-6)
+    np.testing.assert_allclose(follower_w, it.follower, atol=2e-6)
+
+
+@pytest.mark.parametrize("yaw_deg", [0, 37, 180, -120])
+def test_per_frame_mode_removes_every_frames_rotation(yaw_deg):
+    it = read_sbu_sequence(FIXTURES / "sbu/s01s02/03/001/skeleton_pos.txt")
+    # Rotate the whole scene about the vertical axis: the canonical result must not change.
+    rot = CanonicalFrame(yaw=np.full(it.num_frames, np.radians(yaw_deg)), origin=np.zeros((it.num_frames, 3)), mode="x")
+    rotated = rot.to_world(it.leader, KINECT15)
+    for mode in ("first_frame", "per_frame"):
+        a = CanonicalFrame.from_leader(it.leader, KINECT15, mode)
+        b = CanonicalFrame.from_leader(rotated, KINECT15, mode)
+        np.testing.assert_allclose(a.to_canonical(it.leader, KINECT15), b.to_canonical(rotated, KINECT15), atol=1e-9)
+    frame = CanonicalFrame.from_leader(it.leader, KINECT15, "per_frame")
+    canon = frame.to_canonical(it.leader, KINECT15)
+    np.testing.assert_allclose(canon[:, KINECT15.root], 0.0, atol=1e-12)
+    np.testing.assert_allclose(facing_direction(canon, KINECT15), np.tile([0, 0, 1.0], (it.num_frames, 1)), atol=1e-9)
+
+
+def test_unknown_mode_is_rejected():
+    with pytest.raises(ValueError, match="canonical mode"):
+        CanonicalFrame.from_leader(np.zeros((3, 15, 3)), KINECT15, "sideways")  # type: ignore[arg-type]
