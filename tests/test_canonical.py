@@ -64,3 +64,15 @@ def test_per_frame_mode_removes_every_frames_rotation(yaw_deg):
 def test_unknown_mode_is_rejected():
     with pytest.raises(ValueError, match="canonical mode"):
         CanonicalFrame.from_leader(np.zeros((3, 15, 3)), KINECT15, "sideways")  # type: ignore[arg-type]
+
+
+def test_role_swap_recanonicalizes_on_the_follower(sample_data):
+    sub = sample_data.subset([0, 50, 120])
+    swapped = sub.role_swapped()
+    for i in range(len(sub)):
+        leader_w, follower_w = sub.world(i)
+        new_leader_w, new_follower_w = swapped.world(i)
+        np.testing.assert_allclose(new_leader_w, follower_w, atol=1e-5)
+        np.testing.assert_allclose(new_follower_w, leader_w, atol=1e-5)
+        np.testing.assert_allclose(swapped.canonical(i)[0][0, KINECT15.root], 0.0, atol=1e-5)
+    assert swapped.sequence_ids[0].endswith(":swapped") and swapped.action_name(1) == sub.action_name(1)

@@ -154,6 +154,31 @@ class InteractionDataset:
             info=dict(self.info),
         )
 
+    def role_swapped(self) -> InteractionDataset:
+        """Role-swap augmentation: every sequence with B as the leader, re-canonicalized on B."""
+        interactions = []
+        for i in range(len(self)):
+            leader, follower = self.world(i)
+            s = self.frames(i)
+            interactions.append(
+                Interaction(
+                    sequence_id=f"{self.sequence_ids[i]}:swapped",
+                    dataset=self.dataset,
+                    action=self.action_name(i),
+                    subject_pair=self.subject_pairs[i],
+                    leader=follower,
+                    follower=leader,
+                    leader_source=f"not {self.leader_sources[i]}",
+                    leader_rule=f"swapped({self.leader_rules[i]})",
+                    frame_numbers=self.frame_numbers[s],
+                )
+            )
+        swapped = InteractionDataset.from_interactions(
+            interactions, self.class_names, self.skeleton, self.canonical_mode, info=self.info  # type: ignore[arg-type]
+        )
+        swapped.held_out = self.held_out.copy()
+        return swapped
+
     # ---- persistence --------------------------------------------------------------------
     def metadata(self) -> dict:
         return {
