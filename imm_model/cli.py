@@ -84,8 +84,20 @@ def build_parser() -> argparse.ArgumentParser:
             if not module.startswith(err.name or "\0"):
                 raise  # a missing third-party dependency is a real error
     for entry in entry_points(group=PLUGIN_GROUP):
-        entry.load().register(sub)
+        try:
+            entry.load().register(sub)
+        except ImportError as err:  # e.g. the studio extra is not installed: say so when it is asked for
+            _register_unavailable(sub, entry.name, f"{err} (install the extras: pip install -e '.[studio]')")
     return parser
+
+
+def _register_unavailable(subparsers: argparse._SubParsersAction, name: str, reason: str) -> None:
+    def fail(args: argparse.Namespace) -> int:
+        raise IMMError(f"`imm {name}` is not available here: {reason}")
+
+    p = subparsers.add_parser(name, help=f"(not available: {reason})", add_help=False)
+    p.add_argument("rest", nargs=argparse.REMAINDER)
+    p.set_defaults(func=fail)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -63,3 +63,18 @@ def test_summary_on_raw_sbu_and_k3hi(capsys, sbu_root, k3hi_root):
 def test_imm_entry_point_help_runs_as_a_program():
     res = subprocess.run([sys.executable, "-m", "imm_model.cli", "--help"], capture_output=True, text=True, timeout=60)
     assert res.returncode == 0 and "data" in res.stdout
+
+
+def test_a_front_end_that_cannot_import_gives_a_one_line_error(monkeypatch, capsys):
+    import imm_model.cli as cli
+
+    class BrokenEntry:
+        name = "explore"
+
+        def load(self):
+            raise ModuleNotFoundError("No module named 'trame'")
+
+    monkeypatch.setattr(cli, "entry_points", lambda group: [BrokenEntry()])
+    assert cli.main(["explore", "--port", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("imm explore: error:") and "No module named 'trame'" in err and "\n" not in err
