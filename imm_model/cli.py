@@ -96,12 +96,14 @@ def _register_unavailable(subparsers: argparse._SubParsersAction, name: str, rea
         raise IMMError(f"`imm {name}` is not available here: {reason}")
 
     p = subparsers.add_parser(name, help=f"(not available: {reason})", add_help=False)
-    p.add_argument("rest", nargs=argparse.REMAINDER)
-    p.set_defaults(func=fail)
+    p.set_defaults(func=fail, ignores_extra_arguments=True)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    if extra and not getattr(args, "ignores_extra_arguments", False):
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
     try:
         return int(args.func(args) or 0)
     except (IMMError, ValueError, KeyError, OSError) as err:
