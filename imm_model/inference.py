@@ -1,0 +1,287 @@
+"""The inference API the studio builds on, and the `imm generate` command.
+
+    model = ReactionModel.load("sample_data/imm_sbu.safetensors")
+    follower = model.synthesize(leader_world, {"kicking": 1.0, "hugging": 0.5})  # (T, J, 3) metres
+
+Labels are multi-hot: one float per class (+1 perform, 0 neutral, -1 avoid, fractions blend, values
+beyond 1 exaggerate), given as {class name: value} (missing classes are 0) or a length-C sequence.
+World input is standardized with the leader's canonical frame (mode saved in the checkpoint), the
+generator runs in that frame, and the follower is mapped back to the leader's world frame.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from imm_model.errors import CheckpointError, DataFormatError, LabelError
+
+MAX_LENGTH_FACTOR = 10  # inputs longer than this times the longest training sequence are refused
+
+
+class ReactionModel:
+    """A trained generator with what is needed to use it: classes, skeleton, canonical mode."""
+
+    def __init__(self, generator, meta: dict[str, Any], path: Path | None = None):
+        from imm_model.skeleton import Skeleton
+
+        self.generator = generator.eval()
+        self.config = generator.cfg
+        self.info: dict[str, Any] = meta
+        self.path = path
+        self.class_names: tuple[str, ...] = tuple(meta["class_names"])
+        self.skeleton: Skeleton = Skeleton.from_dict(meta["skeleton"])
+        self.held_out_subject: str | None = meta.get("held_out_subject")
+        self.canonical_mode: str = meta.get("canonical_mode", "first_frame")
+        self.max_length: int = MAX_LENGTH_FACTOR * int(meta.get("max_train_length", 46))
+
+    # ---- loading --------------------------------------------------------------------------
+    @classmethod
+    def load(cls, path: Path | str | None = None) -> ReactionModel:
+        """Load a checkpoint (default: the bundled one). Any problem -> CheckpointError (one line)."""
+        from imm_model.checkpoint import load_checkpoint, load_module_state, prefixed
+        from imm_model.model import Generator, ModelConfig
+        from imm_model.paths import SAMPLE_CHECKPOINT
+        from imm_model.skeleton import Skeleton
+
+        path = Path(path) if path is not None else SAMPLE_CHECKPOINT
+        tensors, meta = load_checkpoint(path)
+        try:
+            cfg = ModelConfig.from_dict(meta["model_config"])
+            skeleton = Skeleton.from_dict(meta["skeleton"])
+            classes = list(meta["class_names"])
+        except (KeyError, TypeError, ValueError) as err:
+            raise CheckpointError(f"{path}: sidecar lacks a valid model description ({type(err).__name__}: {err})") from None
+        if cfg.num_classes != len(classes) or cfg.num_joints != skeleton.num_joints:
+            raise CheckpointError(f"{path}: model config disagrees with the class names or the skeleton")
+        generator = Generator(cfg)
+        load_module_state(generator, prefixed(tensors, "generator"), "generator", path)
+        return cls(generator, meta, path)
+
+    # ---- labels and inputs ----------------------------------------------------------------
+    def label_vector(self, label: Mapping[str, float] | Sequence[float] | np.ndarray, scale: float = 1.0) -> np.ndarray:
+        """A label (name -> value mapping, or one value per class) -> (C,) float32, times `scale`."""
+        c = len(self.class_names)
+        if isinstance(label, Mapping):
+            unknown = [k for k in label if k not in self.class_names]
+            if unknown:
+                raise LabelError(f"unknown class {unknown[0]!r}; classes: {', '.join(self.class_names)}")
+            vec = np.zeros(c, dtype=np.float64)
+            for k, v in label.items():
+                vec[self.class_names.index(k)] = _as_float(v, k)
+        else:
+            if isinstance(label, str | bytes):
+                raise LabelError("a label is a mapping {class: value} or a sequence of numbers, not a string")
+            try:
+                vec = np.asarray(label, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise LabelError("label values must be numbers") from None
+            if vec.ndim != 1 or len(vec) != c:
+                raise LabelError(f"label has shape {vec.shape}; expected {c} values ({', '.join(self.class_names)})")
+        scale = _as_float(scale, "scale")
+        vec = vec * scale
+        if not np.isfinite(vec).all():
+            raise LabelError("label values must be finite (no NaN or infinity)")
+        return vec.astype(np.float32)
+
+    def check_leader(self, leader: np.ndarray) -> np.ndarray:
+        """Validate a (T, J, 3) leader motion -> float64 array, else DataFormatError (one line)."""
+        try:
+            arr = np.asarray(leader, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise DataFormatError("leader motion must be a numeric (T, J, 3) array") from None
+        j = self.skeleton.num_joints
+        if arr.ndim == 2 and arr.shape[1] == 3 * j:
+            arr = arr.reshape(len(arr), j, 3)
+        if arr.ndim != 3 or arr.shape[2] != 3:
+            raise DataFormatError(f"leader motion has shape {arr.shape}; expected (frames, {j}, 3)")
+        if arr.shape[1] != j:
+            raise DataFormatError(f"leader motion has {arr.shape[1]} joints; the {self.skeleton.name} skeleton has {j}")
+        if len(arr) == 0:
+            raise DataFormatError("leader motion is empty (0 frames)")
+        if len(arr) < 2:
+            raise DataFormatError("leader motion has 1 frame; at least 2 are needed")
+        if len(arr) > self.max_length:
+            raise DataFormatError(f"leader motion has {len(arr)} frames; at most {self.max_length} "
+                                  f"({MAX_LENGTH_FACTOR}x the longest training sequence) are supported")
+        if not np.isfinite(arr).all():
+            raise DataFormatError("leader motion contains NaN or infinite values")
+        return arr
+
+    # ---- synthesis ------------------------------------------------------------------------
+    def synthesize(self, leader_world: np.ndarray, label, scale: float = 1.0) -> np.ndarray:
+        """Leader (T, J, 3) world metres + label -> follower (T, J, 3) in the same world frame (float32)."""
+        from imm_model.data.canonical import CanonicalFrame
+
+        leader = self.check_leader(leader_world)
+        vec = self.label_vector(label, scale)
+        frame = CanonicalFrame.from_leader(leader, self.skeleton, self.canonical_mode)
+        follower = self.synthesize_canonical(frame.to_canonical(leader, self.skeleton), vec)
+        return frame.to_world(follower.astype(np.float64), self.skeleton).astype(np.float32)
+
+    def synthesize_canonical(self, leader_canonical: np.ndarray, label_vector: np.ndarray) -> np.ndarray:
+        """Leader (T, J, 3) canonical + (C,) label vector -> follower (T, J, 3) canonical, float32."""
+        import torch
+
+        t = len(leader_canonical)
+        with torch.inference_mode():
+            x = torch.as_tensor(np.asarray(leader_canonical, dtype=np.float32).reshape(1, t, -1))
+            lab = torch.as_tensor(np.asarray(label_vector, dtype=np.float32).reshape(1, -1))
+            out = self.generator(x, lab, torch.tensor([t]))
+        return out.numpy().reshape(t, -1, 3)
+
+    def synthesize_batch_canonical(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> list[np.ndarray]:
+        """N leaders (T_i, J, 3) canonical + (N, C) label vectors -> N followers (T_i, J, 3)."""
+        out, lengths = self._run_batch(leaders, label_vectors, latent=False)
+        return [out[i, : lengths[i]].reshape(lengths[i], -1, 3).copy() for i in range(len(leaders))]
+
+    def latent(self, leader_world: np.ndarray, label, scale: float = 1.0) -> np.ndarray:
+        """Per-sequence embedding (D,): the hierarchical encoder outputs averaged over frames."""
+        from imm_model.data.canonical import CanonicalFrame
+
+        leader = self.check_leader(leader_world)
+        vec = self.label_vector(label, scale)
+        frame = CanonicalFrame.from_leader(leader, self.skeleton, self.canonical_mode)
+        return self.latent_canonical_batch([frame.to_canonical(leader, self.skeleton)], vec[None])[0]
+
+    def latent_canonical_batch(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> np.ndarray:
+        """N canonical leaders + (N, C) label vectors -> (N, D) embeddings."""
+        out, _ = self._run_batch(leaders, label_vectors, latent=True)
+        return out
+
+    def _run_batch(self, leaders: list[np.ndarray], label_vectors: np.ndarray, latent: bool) -> tuple[np.ndarray, np.ndarray]:
+        import torch
+
+        from imm_model.data.batching import pad_sequences
+
+        labels = np.asarray(label_vectors, dtype=np.float32).reshape(len(leaders), -1)
+        if labels.shape[1] != len(self.class_names):
+            raise LabelError(f"label vectors have {labels.shape[1]} values; expected {len(self.class_names)}")
+        lengths = np.array([len(a) for a in leaders])
+        x, mask = pad_sequences([np.asarray(a, dtype=np.float32).reshape(len(a), -1) for a in leaders])
+        with torch.inference_mode():
+            lab, lens = torch.from_numpy(labels), torch.from_numpy(lengths)
+            if latent:
+                h = self.generator.encode(x, lab, lens)
+                m = mask[..., None].float()
+                return ((h * m).sum(1) / m.sum(1)).numpy(), lengths
+            return self.generator(x, lab, lens).numpy(), lengths
+
+
+def _as_float(v, name: str) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        raise LabelError(f"value for {name!r} is not a number: {v!r}") from None
+
+
+@functools.lru_cache(maxsize=4)
+def _cached_model(path: str) -> ReactionModel:
+    return ReactionModel.load(path)
+
+
+def _model(checkpoint: ReactionModel | Path | str | None) -> ReactionModel:
+    from imm_model.paths import SAMPLE_CHECKPOINT
+
+    if isinstance(checkpoint, ReactionModel):
+        return checkpoint
+    return _cached_model(str(Path(checkpoint) if checkpoint is not None else SAMPLE_CHECKPOINT))
+
+
+def synthesize(leader_motion: np.ndarray, label, scale: float = 1.0, checkpoint=None) -> np.ndarray:
+    """Follower (T, J, 3) world metres for a world-space leader, with the bundled model by default."""
+    return _model(checkpoint).synthesize(leader_motion, label, scale)
+
+
+def latent(leader_motion: np.ndarray, label, scale: float = 1.0, checkpoint=None) -> np.ndarray:
+    """Per-sequence embedding (D,) of a world-space leader + label, with the bundled model by default."""
+    return _model(checkpoint).latent(leader_motion, label, scale)
+
+
+# ---- `imm generate` ----------------------------------------------------------------------------
+def parse_label(text: str, class_names: Sequence[str]) -> dict[str, float] | list[float]:
+    """'kicking=1,hugging=0.5' -> mapping; '1,0,0,0,0.5,0' -> list (one value per class)."""
+    parts = [p.strip() for p in text.split(",") if p.strip()]
+    if not parts:
+        raise LabelError("empty --label")
+    if all("=" in p for p in parts):
+        out: dict[str, float] = {}
+        for p in parts:
+            k, v = p.split("=", 1)
+            out[k.strip()] = _as_float(v.strip(), k.strip())
+        return out
+    if any("=" in p for p in parts):
+        raise LabelError("--label mixes name=value and plain values")
+    if len(parts) == 1 and parts[0] in class_names:
+        return {parts[0]: 1.0}
+    return [_as_float(p, f"class {i}") for i, p in enumerate(parts)]
+
+
+def read_leader_file(path: Path) -> np.ndarray:
+    """An .npz with a `leader` (T, J, 3) array, or an SBU skeleton_pos.txt -> world metres."""
+    from imm_model.data.leader import actor_by_motion_energy
+    from imm_model.data.sbu import normalized_to_metres, parse_skeleton_file, read_sbu_sequence
+
+    if not path.is_file():
+        raise DataFormatError(f"{path}: leader file not found")
+    if path.suffix == ".npz":
+        try:
+            with np.load(path, allow_pickle=False) as npz:
+                if "leader" not in npz:
+                    raise DataFormatError(f"{path}: no 'leader' array (found {', '.join(npz.files) or 'none'})")
+                return np.asarray(npz["leader"], dtype=np.float64)
+        except DataFormatError:
+            raise
+        except Exception as err:
+            raise DataFormatError(f"{path}: unreadable .npz ({type(err).__name__})") from None
+    try:
+        return read_sbu_sequence(path).leader
+    except DataFormatError as err:
+        if "class folder" not in str(err) and "unknown" not in str(err):
+            raise
+    _, positions = parse_skeleton_file(path)  # a skeleton_pos.txt outside the dataset's folder layout
+    metres = normalized_to_metres(positions)
+    return metres[actor_by_motion_energy(metres[0], metres[1])]
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser("generate", help="synthesize the follower's reaction to a leader motion")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--leader", type=Path, help="an .npz with a 'leader' (T, 15, 3) array in metres, or an SBU skeleton_pos.txt")
+    src.add_argument("--sequence", help="a sequence id of the bundled data, e.g. s01s02/03/001 (its leader is used)")
+    p.add_argument("--label", required=True, help="e.g. kicking=1,hugging=0.5 or one value per class: 1,0,0,0,0.5,0")
+    p.add_argument("--scale", type=float, default=1.0, help="multiplies the label vector (default 1)")
+    p.add_argument("--out", type=Path, required=True, help="output .npz (follower, leader, label; world metres)")
+    p.add_argument("--checkpoint", type=Path, default=None, help="default: the bundled model")
+    p.add_argument("--data", type=Path, default=None, help="dataset for --sequence (default: the bundled sample)")
+    p.set_defaults(func=_cmd_generate)
+
+
+def _cmd_generate(args: argparse.Namespace) -> int:
+    import torch
+
+    torch.set_num_threads(2)
+    model = ReactionModel.load(args.checkpoint)
+    if args.sequence:
+        from imm_model.data.dataset import InteractionDataset
+        from imm_model.paths import SAMPLE_DATA
+
+        data = InteractionDataset.load(args.data or SAMPLE_DATA)
+        leader = data.world(data.index_of(args.sequence))[0]
+    else:
+        leader = read_leader_file(args.leader)
+    vec = model.label_vector(parse_label(args.label, model.class_names), args.scale)
+    follower = model.synthesize(leader, vec)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = args.out.with_name(args.out.name + ".tmp.npz")
+    np.savez(tmp, follower=follower, leader=np.asarray(leader, np.float32), label=vec,
+             class_names=np.array(model.class_names), scale=np.float32(args.scale))
+    tmp.replace(args.out)
+    desc = ", ".join(f"{n}={v:g}" for n, v in zip(model.class_names, vec, strict=True) if v != 0) or "all zero"
+    print(f"wrote {args.out}: follower {follower.shape[0]} frames x {follower.shape[1]} joints (label {desc})")
+    return 0

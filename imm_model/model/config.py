@@ -1,0 +1,58 @@
+"""Model sizes as a typed config. `paper_model_config` gives the paper's SBU sizes."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields
+
+BODY_PARTS = ("left_arm", "right_arm", "left_leg", "right_leg", "trunk")
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    num_joints: int = 15
+    num_classes: int = 6
+    # Joint indices of the five body-part streams (the sixth stream is the whole body + label).
+    body_parts: tuple[tuple[int, ...], ...] = field(default_factory=tuple)
+    stream_embed: int = 64  # width of the per-stream fully connected layer
+    encoder_hidden: int = 40  # per direction: a Bi-LSTM slice is 2 * 40 = 80 (paper, SBU)
+    decoder_hidden: int = 240  # per direction: the attentive Bi-LSTM decoder is 480 wide (paper, SBU)
+    attention_dim: int = 128  # additive attention v^T tanh(W h_t + U h_s)
+    disc_hidden: int = 64  # per direction, two Bi-LSTM layers
+    dropout: float = 0.0  # on the concatenated encodings and the decoder output
+
+    @property
+    def pose_dim(self) -> int:
+        return 3 * self.num_joints
+
+    @property
+    def num_streams(self) -> int:
+        return len(self.body_parts) + 1
+
+    @property
+    def latent_dim(self) -> int:
+        return self.num_streams * 2 * self.encoder_hidden
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["body_parts"] = [list(p) for p in self.body_parts]
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> ModelConfig:
+        known = {f.name for f in fields(cls)}
+        unknown = set(d) - known
+        if unknown:
+            raise ValueError(f"unknown model config keys {sorted(unknown)}")
+        d = dict(d)
+        if "body_parts" in d:
+            d["body_parts"] = tuple(tuple(int(j) for j in p) for p in d["body_parts"])
+        return cls(**d)
+
+
+def model_config_for(skeleton, num_classes: int, **overrides) -> ModelConfig:
+    """The config for a dataset's skeleton and classes (body parts in BODY_PARTS order)."""
+    missing = [p for p in BODY_PARTS if p not in skeleton.body_parts]
+    if missing:
+        raise ValueError(f"skeleton {skeleton.name} lacks body parts {missing}")
+    parts = tuple(tuple(skeleton.body_parts[p]) for p in BODY_PARTS)
+    return ModelConfig(num_joints=skeleton.num_joints, num_classes=num_classes, body_parts=parts, **overrides)

@@ -1,0 +1,57 @@
+"""Building blocks: a Bi-LSTM that respects padding, and frame-level additive attention.
+
+Padding sits at the end of each sequence. A forward LSTM never sees it before a valid frame, but
+the backward direction of `nn.LSTM(bidirectional=True)` would start from it. `BiLSTM` therefore
+runs the backward direction on each sequence reversed within its own length (`reverse_index`),
+so valid frames' states are exactly those of the unpadded sequence.
+"""
+
+from __future__ import annotations
+
+import torch
+import torch.nn as nn
+
+
+def reverse_index(lengths: torch.Tensor, max_len: int) -> torch.Tensor:
+    """(B,) lengths -> (B, T) indices that reverse each sequence's first L_b frames (an involution)."""
+    t = torch.arange(max_len, device=lengths.device).expand(len(lengths), max_len)
+    rev = lengths[:, None] - 1 - t
+    return torch.where(rev >= 0, rev, t)
+
+
+def gather_time(x: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    """x (B, T, D), index (B, T) -> x[b, index[b, t]]."""
+    return x.gather(1, index[:, :, None].expand(-1, -1, x.shape[-1]))
+
+
+class BiLSTM(nn.Module):
+    """One bidirectional LSTM layer: (B, T, D_in) -> (B, T, 2H), padding-exact."""
+
+    def __init__(self, input_size: int, hidden_size: int):
+        super().__init__()
+        self.fwd = nn.LSTM(input_size, hidden_size, batch_first=True)
+        self.bwd = nn.LSTM(input_size, hidden_size, batch_first=True)
+
+    def forward(self, x: torch.Tensor, rev: torch.Tensor) -> torch.Tensor:
+        out_f, _ = self.fwd(x)
+        out_b, _ = self.bwd(gather_time(x, rev))
+        return torch.cat([out_f, gather_time(out_b, rev)], dim=-1)
+
+
+class AdditiveAttention(nn.Module):
+    """Bahdanau attention over all frames, computed for every query frame at once.
+
+    score(t, s) = v^T tanh(W h_t + U h_s), softmax over valid s; context_t = sum_s a(t, s) h_s.
+    """
+
+    def __init__(self, dim: int, attention_dim: int):
+        super().__init__()
+        self.query = nn.Linear(dim, attention_dim, bias=False)
+        self.key = nn.Linear(dim, attention_dim)
+        self.v = nn.Linear(attention_dim, 1, bias=False)
+
+    def forward(self, h: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        # h (B, T, D), mask (B, T) bool -> context (B, T, D)
+        scores = self.v(torch.tanh(self.query(h)[:, :, None] + self.key(h)[:, None])).squeeze(-1)  # (B, T, T)
+        scores = scores.masked_fill(~mask[:, None, :], float("-inf"))
+        return torch.softmax(scores, dim=-1) @ h

@@ -1,0 +1,1 @@
+"""Training: recipes (config), losses, augmentation, the loop, and the `imm train` command."""

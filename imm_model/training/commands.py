@@ -1,0 +1,65 @@
+"""`imm train`: train one LOSO fold, all seven, or on all data; optionally export the generator."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser("train", help="train the reaction model (one LOSO fold, all folds, or all data)")
+    p.add_argument("--config", default="imm", help="named recipe (imm, paper) or a JSON file of overrides")
+    p.add_argument("--fold", default="s04", help="held-out subject sXX, 'all' (the 7 LOSO folds) or 'none' (all data)")
+    p.add_argument("--out", type=Path, required=True, help="run directory (fold-sXX/ subfolders are created in it)")
+    p.add_argument("--data", type=Path, default=None, help="dataset bundle (default: the bundled SBU sample)")
+    p.add_argument("--epochs", type=int, default=None, help="override the recipe's number of epochs")
+    p.add_argument("--seed", type=int, default=None, help="override the recipe's seed")
+    p.add_argument("--resume", action="store_true", help="continue from each fold's last.safetensors")
+    p.add_argument("--export", type=Path, default=None, help="copy the (single fold's) best generator to this .safetensors")
+    p.add_argument("--threads", type=int, default=2, help="torch CPU threads (default 2)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_train)
+
+
+def fold_dir(out: Path, subject: str | None) -> Path:
+    return out / (f"fold-{subject}" if subject else "fold-none")
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    import json
+
+    import torch
+
+    from imm_model.data.dataset import InteractionDataset
+    from imm_model.data.splits import all_subjects
+    from imm_model.paths import SAMPLE_DATA
+    from imm_model.training.config import load_config
+    from imm_model.training.trainer import Trainer, export_generator
+
+    torch.set_num_threads(args.threads)
+    cfg = load_config(args.config, epochs=args.epochs, seed=args.seed)
+    data = InteractionDataset.load(args.data or SAMPLE_DATA)
+    subjects = all_subjects(data.subject_pairs)
+    if args.fold == "all":
+        folds: list[str | None] = list(subjects)
+    elif args.fold == "none":
+        folds = [None]
+    elif args.fold in subjects:
+        folds = [args.fold]
+    else:
+        raise ValueError(f"--fold {args.fold!r}: expected one of {subjects}, 'all' or 'none'")
+    if args.export and len(folds) != 1:
+        raise ValueError("--export needs a single fold")
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=1) + "\n")
+    for subject in folds:
+        trainer = Trainer(cfg, data, subject, fold_dir(args.out, subject))
+        if args.resume and (trainer.out / "last.safetensors").exists():
+            trainer.resume()
+        state = trainer.fit(progress=not args.quiet)
+        print(f"fold {subject or 'none'}: best validation AFD {state.best_val:.4f} m at epoch {state.best_epoch} "
+              f"({state.epoch} epochs) -> {trainer.out / 'best.safetensors'}")
+        if args.export:
+            export_generator(trainer.out / "best.safetensors", args.export)
+            print(f"exported generator to {args.export}")
+    return 0

@@ -1,0 +1,292 @@
+"""The training loop for one fold: conditional GAN + L1 + bone + continuity, best-on-validation.
+
+Run directory (one per fold): log.csv, curves.png, best.safetensors/.json (lowest validation AFD),
+last.safetensors/.json (full state for --resume, every `checkpoint_every` epochs and at the end).
+Randomness is re-derived from (seed, epoch) at every epoch start, so resuming from a saved epoch
+continues exactly as an uninterrupted run would, and the same seed gives identical weights on CPU.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+import imm_model
+from imm_model.checkpoint import (
+    load_checkpoint,
+    load_module_state,
+    optimizer_from_tensors,
+    optimizer_to_tensors,
+    prefixed,
+    save_checkpoint,
+)
+from imm_model.data.batching import LengthBucketSampler
+from imm_model.data.dataset import InteractionDataset
+from imm_model.data.splits import loso_fold, validation_split
+from imm_model.errors import CheckpointError
+from imm_model.model import Discriminator, Generator, model_config_for
+from imm_model.training import losses
+from imm_model.training.config import TrainConfig
+from imm_model.training.data import Augmenter, PaddedData
+
+LOG_FIELDS = ("epoch", "adv_weight", "l1", "bone", "cont", "adv", "d_loss", "d_real_acc", "val_afd_m", "val_l1", "seconds")
+
+
+def derive_seed(*parts: int) -> int:
+    return int(np.random.SeedSequence([int(p) for p in parts]).generate_state(1)[0])
+
+
+def adversarial_weight(cfg: TrainConfig, epoch: int) -> float:
+    """0 during warm-up, then a linear ramp to lambda_adv (epochs count from 0)."""
+    if epoch < cfg.adv_warmup_epochs:
+        return 0.0
+    if cfg.adv_ramp_epochs <= 0:
+        return cfg.lambda_adv
+    return cfg.lambda_adv * min(1.0, (epoch - cfg.adv_warmup_epochs + 1) / cfg.adv_ramp_epochs)
+
+
+def build_models(cfg: TrainConfig, data: InteractionDataset, seed: int) -> tuple[Generator, Discriminator]:
+    torch.manual_seed(seed)
+    mcfg = model_config_for(data.skeleton, len(data.class_names), **cfg.model)
+    return Generator(mcfg), Discriminator(mcfg, spectral_norm=cfg.d_spectral_norm)
+
+
+def make_optimizer(cfg: TrainConfig, params, lr: float) -> torch.optim.Optimizer:
+    if cfg.optimizer == "adam":
+        return torch.optim.Adam(params, lr=lr, betas=(0.5, 0.999), weight_decay=cfg.weight_decay)
+    if cfg.optimizer == "rmsprop":
+        return torch.optim.RMSprop(params, lr=lr, weight_decay=cfg.weight_decay)
+    raise ValueError(f"unknown optimizer {cfg.optimizer!r} (adam or rmsprop)")
+
+
+@dataclass
+class FoldState:
+    epoch: int = 0  # next epoch to run
+    best_val: float = math.inf
+    best_epoch: int = -1
+    history: list[dict] = field(default_factory=list)
+
+
+class Trainer:
+    def __init__(self, cfg: TrainConfig, data: InteractionDataset, subject: str | None, out_dir: Path | str):
+        self.cfg, self.data, self.subject = cfg, data, subject
+        self.out = Path(out_dir)
+        if subject is None:  # train on everything (no held-out subject); validation still carved out
+            train = np.arange(len(data))
+        else:
+            train = loso_fold(data.subject_pairs, subject).train
+        self.train_idx, self.val_idx = validation_split(train, data.actions, cfg.val_fraction, seed=cfg.seed)
+        self.padded = PaddedData.from_dataset(data)
+        self.G, self.D = build_models(cfg, data, cfg.seed)
+        self._set_normalization()
+        self.opt_g = make_optimizer(cfg, self.G.parameters(), cfg.lr_g)
+        self.opt_d = make_optimizer(cfg, self.D.parameters(), cfg.lr_d)
+        swap = torch.tensor([c in cfg.role_swap_classes for c in data.class_names])
+        self.augment = Augmenter(data.skeleton, cfg.mirror_prob, cfg.rotate_deg, cfg.role_swap_prob, swap)
+        self.bones = torch.tensor(data.skeleton.bones, dtype=torch.int64)
+        self.state = FoldState()
+
+    # ---- setup ----------------------------------------------------------------------------
+    def _set_normalization(self) -> None:
+        frames = np.concatenate([np.arange(self.data.frames(i).start, self.data.frames(i).stop) for i in self.train_idx])
+        a = self.data.leader[frames].reshape(len(frames), -1)
+        b = self.data.follower[frames].reshape(len(frames), -1)
+        self.G.set_normalization(a.mean(0), np.maximum(a.std(0), 1e-2), b.mean(0), np.maximum(b.std(0), 1e-2))
+        self.D.follower_mean.copy_(self.G.follower_mean)
+        self.D.follower_std.copy_(self.G.follower_std)
+
+    def meta(self, kind: str) -> dict:
+        d = self.data
+        return {
+            "kind": kind,
+            "code_version": imm_model.__version__,
+            "model_config": self.G.cfg.to_dict(),
+            "train_config": self.cfg.to_dict(),
+            "d_spectral_norm": self.cfg.d_spectral_norm,
+            "skeleton": d.skeleton.to_dict(),
+            "class_names": list(d.class_names),
+            "canonical_mode": d.canonical_mode,
+            "dataset": d.dataset,
+            "held_out_subject": self.subject,
+            "max_train_length": int(d.lengths[self.train_idx].max()),
+            "training": {
+                "fold": f"loso-{self.subject}" if self.subject else "all",
+                "epoch": self.state.epoch,
+                "best_epoch": self.state.best_epoch,
+                "best_val_afd_m": None if math.isinf(self.state.best_val) else self.state.best_val,
+                "train_sequences": len(self.train_idx),
+                "val_sequence_ids": [d.sequence_ids[i] for i in self.val_idx],
+                "seed": self.cfg.seed,
+            },
+        }
+
+    # ---- checkpoints ----------------------------------------------------------------------
+    def weights(self) -> dict[str, torch.Tensor]:
+        t = {f"generator.{k}": v for k, v in self.G.state_dict().items()}
+        t.update({f"discriminator.{k}": v for k, v in self.D.state_dict().items()})
+        return t
+
+    def save_best(self) -> None:
+        save_checkpoint(self.out / "best.safetensors", self.weights(), self.meta("best"))
+
+    def save_last(self) -> None:
+        tg, mg = optimizer_to_tensors(self.opt_g, "optim_g")
+        td, md = optimizer_to_tensors(self.opt_d, "optim_d")
+        meta = self.meta("last") | {"optim_g": mg, "optim_d": md, "history": self.state.history,
+                                    "best_val": self.state.best_val if math.isfinite(self.state.best_val) else None}
+        save_checkpoint(self.out / "last.safetensors", self.weights() | tg | td, meta)
+
+    def resume(self) -> None:
+        path = self.out / "last.safetensors"
+        tensors, meta = load_checkpoint(path)
+        if meta.get("train_config") != self.cfg.to_dict():
+            raise CheckpointError(f"{path}: saved with a different training config; resume with the same --config/--seed")
+        load_module_state(self.G, prefixed(tensors, "generator"), "generator", path)
+        load_module_state(self.D, prefixed(tensors, "discriminator"), "discriminator", path)
+        optimizer_from_tensors(self.opt_g, tensors, meta["optim_g"], "optim_g")
+        optimizer_from_tensors(self.opt_d, tensors, meta["optim_d"], "optim_d")
+        tr = meta["training"]
+        best = meta.get("best_val")
+        self.state = FoldState(epoch=tr["epoch"], best_val=math.inf if best is None else best,
+                               best_epoch=tr["best_epoch"], history=list(meta["history"]))
+
+    # ---- one epoch ------------------------------------------------------------------------
+    def train_epoch(self, epoch: int) -> dict:
+        cfg = self.cfg
+        torch.manual_seed(derive_seed(cfg.seed, epoch, 0))  # dropout
+        gen = torch.Generator().manual_seed(derive_seed(cfg.seed, epoch, 1))  # augmentation
+        sampler = LengthBucketSampler(self.data.lengths, self.train_idx, cfg.batch_size, seed=cfg.seed)
+        sampler.set_epoch(epoch)
+        w_adv = adversarial_weight(cfg, epoch)
+        use_d = cfg.lambda_adv > 0
+        sums = dict.fromkeys(("l1", "bone", "cont", "adv", "d_loss", "d_real_acc"), 0.0)
+        n = 0
+        self.G.train()
+        self.D.train()
+        for batch in sampler:
+            idx = torch.as_tensor(batch)
+            leader, follower, lengths, actions = self.augment(self.padded, idx, gen)
+            mask = torch.arange(leader.shape[1])[None] < lengths[:, None]
+            labels = torch.nn.functional.one_hot(actions, len(self.data.class_names)).float()
+            fake = self.G(leader, labels, lengths)
+            if use_d:  # discriminator step(s): G's output detached, D alone is updated
+                self.D.requires_grad_(True)
+                for _ in range(cfg.d_steps):
+                    logits = self.D(torch.cat([follower, fake.detach()]), torch.cat([lengths, lengths]))
+                    real_logits, fake_logits = logits.chunk(2)
+                    d_loss = losses.discriminator_loss(real_logits, fake_logits, actions, cfg.label_smoothing)
+                    self.opt_d.zero_grad(set_to_none=True)
+                    d_loss.backward()
+                    self.opt_d.step()
+                sums["d_loss"] += float(d_loss.detach())
+                sums["d_real_acc"] += float((real_logits.argmax(-1) == actions).float().mean())
+            # generator step: D frozen (no gradient accumulates in it, and it is not stepped)
+            l1 = losses.masked_l1(fake, follower, mask)
+            bone = losses.bone_loss(fake, follower, self.bones, mask)
+            cont = losses.continuity_loss(fake, follower, mask)
+            g_loss = cfg.lambda_l1 * l1 + cfg.lambda_bone * bone + cfg.lambda_cont * cont
+            if use_d and w_adv > 0:
+                self.D.requires_grad_(False)
+                adv = losses.generator_adv_loss(self.D(fake, lengths), actions)
+                g_loss = g_loss + w_adv * adv
+                sums["adv"] += float(adv)
+            self.opt_g.zero_grad(set_to_none=True)
+            g_loss.backward()
+            self.opt_g.step()
+            sums["l1"] += float(l1)
+            sums["bone"] += float(bone)
+            sums["cont"] += float(cont)
+            n += 1
+        return {k: v / n for k, v in sums.items()} | {"adv_weight": w_adv}
+
+    @torch.inference_mode()
+    def validate(self) -> dict:
+        self.G.eval()
+        idx = torch.as_tensor(self.val_idx)
+        leader, follower, lengths, actions = self.padded.batch(idx)
+        mask = torch.arange(leader.shape[1])[None] < lengths[:, None]
+        labels = torch.nn.functional.one_hot(actions, len(self.data.class_names)).float()
+        pred = self.G(leader, labels, lengths)
+        return {"val_afd_m": float(losses.afd_metres(pred, follower, mask).mean()),
+                "val_l1": float(losses.masked_l1(pred, follower, mask))}
+
+    # ---- the loop -------------------------------------------------------------------------
+    def fit(self, epochs: int | None = None, progress: bool = True) -> FoldState:
+        from tqdm import tqdm
+
+        cfg = self.cfg
+        total = epochs if epochs is not None else cfg.epochs
+        self.out.mkdir(parents=True, exist_ok=True)
+        self._write_log_header()
+        desc = f"train {self.subject or 'all'}"
+        bar = tqdm(range(self.state.epoch, total), desc=desc, disable=not progress, leave=False, dynamic_ncols=True)
+        for epoch in bar:
+            t0 = time.perf_counter()
+            row = {"epoch": epoch} | self.train_epoch(epoch) | self.validate()
+            row["seconds"] = time.perf_counter() - t0
+            self.state.history.append(row)
+            self.state.epoch = epoch + 1
+            self._append_log(row)
+            if row["val_afd_m"] < self.state.best_val:
+                self.state.best_val, self.state.best_epoch = row["val_afd_m"], epoch
+                self.save_best()
+            bar.set_postfix(l1=f"{row['l1']:.4f}", val=f"{row['val_afd_m']:.4f}", best=f"{self.state.best_val:.4f}@{self.state.best_epoch}")
+            stop = cfg.patience > 0 and epoch + 1 >= cfg.min_epochs and epoch - self.state.best_epoch >= cfg.patience
+            if (epoch + 1) % cfg.checkpoint_every == 0 or stop or epoch + 1 == total:
+                self.save_last()
+                self.plot()
+            if stop:
+                break
+        return self.state
+
+    def _write_log_header(self) -> None:
+        path = self.out / "log.csv"
+        with path.open("w", newline="") as f:  # rewritten from history, so a resumed log has no duplicates
+            w = csv.DictWriter(f, fieldnames=LOG_FIELDS, extrasaction="ignore")
+            w.writeheader()
+            w.writerows(self.state.history)
+
+    def _append_log(self, row: dict) -> None:
+        with (self.out / "log.csv").open("a", newline="") as f:
+            csv.DictWriter(f, fieldnames=LOG_FIELDS, extrasaction="ignore").writerow(row)
+
+    def plot(self) -> None:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        h = self.state.history
+        if not h:
+            return
+        ep = [r["epoch"] for r in h]
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+        for key in ("l1", "cont", "adv", "d_loss"):
+            axes[0].plot(ep, [r[key] for r in h], label=key)
+        axes[0].set_yscale("log")
+        axes[0].set_title("training losses")
+        axes[0].legend()
+        axes[1].plot(ep, [r["val_afd_m"] for r in h], label="validation AFD (m)")
+        axes[1].axvline(self.state.best_epoch, color="k", ls=":", label=f"best epoch {self.state.best_epoch}")
+        axes[1].set_title(f"validation ({self.subject or 'all'} held out)")
+        axes[1].legend()
+        for ax in axes:
+            ax.set_xlabel("epoch")
+        fig.tight_layout()
+        tmp = self.out / "curves.tmp.png"
+        fig.savefig(tmp, dpi=80)
+        plt.close(fig)
+        tmp.replace(self.out / "curves.png")
+
+
+def export_generator(best: Path | str, out: Path | str) -> None:
+    """Copy a run's best checkpoint as a generator-only checkpoint (what inference needs)."""
+    tensors, meta = load_checkpoint(best)
+    gen = {k: v for k, v in tensors.items() if k.startswith("generator.")}
+    save_checkpoint(out, gen, {k: v for k, v in meta.items() if k != "format"} | {"kind": "generator"})

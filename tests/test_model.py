@@ -1,0 +1,89 @@
+"""Generator/discriminator: shapes, padding-exactness (masking), label conditioning, losses."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from imm_model.model import Discriminator, Generator, model_config_for
+from imm_model.model.layers import reverse_index
+from imm_model.skeleton import KINECT15
+from imm_model.training import losses
+
+SMALL = dict(stream_embed=16, encoder_hidden=8, decoder_hidden=16, attention_dim=8, disc_hidden=8)
+
+
+@pytest.fixture(scope="module")
+def models():
+    torch.manual_seed(0)
+    cfg = model_config_for(KINECT15, 6, **SMALL)
+    return Generator(cfg).eval(), Discriminator(cfg, spectral_norm=True).eval()
+
+
+def test_config_round_trip():
+    cfg = model_config_for(KINECT15, 6, **SMALL)
+    assert type(cfg).from_dict(cfg.to_dict()) == cfg
+    assert cfg.num_streams == 6 and cfg.latent_dim == 6 * 2 * 8
+    with pytest.raises(ValueError, match="unknown model config"):
+        type(cfg).from_dict(cfg.to_dict() | {"bogus": 1})
+
+
+def test_reverse_index_reverses_within_length():
+    rev = reverse_index(torch.tensor([3, 5]), 5)
+    assert rev.tolist() == [[2, 1, 0, 3, 4], [4, 3, 2, 1, 0]]
+
+
+def test_shapes(models):
+    G, D = models
+    x, lab, L = torch.randn(3, 11, 45), torch.eye(6)[:3], torch.tensor([11, 7, 4])
+    assert G(x, lab, L).shape == (3, 11, 45)
+    assert G.encode(x, lab, L).shape == (3, 11, G.cfg.latent_dim)
+    assert D(x, L).shape == (3, 7)
+
+
+def test_padding_changes_nothing(models):
+    """A sequence's output is the same alone or padded in a batch with longer ones (both LSTM directions)."""
+    G, D = models
+    torch.manual_seed(1)
+    short, long = torch.randn(1, 6, 45), torch.randn(1, 13, 45)
+    lab = torch.eye(6)[[2]]
+    with torch.no_grad():
+        alone = G(short, lab, torch.tensor([6]))
+        d_alone = D(short, torch.tensor([6]))
+        padded = torch.cat([torch.cat([short, 100 * torch.randn(1, 7, 45)], 1), long])  # garbage in the padding
+        batch = G(padded, torch.cat([lab, lab]), torch.tensor([6, 13]))
+        d_batch = D(padded, torch.tensor([6, 13]))
+    torch.testing.assert_close(batch[0, :6], alone[0], atol=1e-5, rtol=1e-5)
+    torch.testing.assert_close(d_batch[0], d_alone[0], atol=1e-5, rtol=1e-5)
+
+
+def test_label_conditions_output(models):
+    G, _ = models
+    x, L = torch.randn(1, 9, 45), torch.tensor([9])
+    with torch.no_grad():
+        a = G(x, torch.eye(6)[[0]], L)
+        b = G(x, torch.eye(6)[[3]], L)
+    assert not torch.allclose(a, b)
+
+
+def test_losses_ignore_padding():
+    bones = torch.tensor(KINECT15.bones)
+    pred, gt = torch.randn(2, 5, 45), torch.randn(2, 5, 45)
+    mask = torch.tensor([[1, 1, 1, 0, 0], [1, 1, 1, 1, 1]], dtype=torch.bool)
+    pred2 = pred.clone()
+    pred2[0, 3:] += 50.0
+    for fn in (losses.masked_l1, losses.continuity_loss):
+        assert fn(pred, gt, mask) == pytest.approx(float(fn(pred2, gt, mask)))
+    assert losses.bone_loss(pred, gt, bones, mask) == pytest.approx(float(losses.bone_loss(pred2, gt, bones, mask)))
+    assert losses.afd_metres(pred, gt, mask)[0] == pytest.approx(float(losses.afd_metres(pred2, gt, mask)[0]))
+    assert float(losses.masked_l1(gt, gt, mask)) == 0.0
+
+
+def test_discriminator_loss_targets():
+    actions = torch.tensor([0, 2])
+    real = torch.full((2, 7), -10.0)
+    real[0, 0] = real[1, 2] = 10.0
+    fake = torch.full((2, 7), -10.0)
+    fake[:, 6] = 10.0
+    assert float(losses.discriminator_loss(real, fake, actions)) < 1e-3
+    assert float(losses.generator_adv_loss(fake, actions)) > 10
