@@ -1,0 +1,617 @@
+"""The studio's page: trame + Vuetify 3 layout, state and controllers for one user.
+
+One process serves one user (see launcher.py), so trame's shared state is that user's state.
+State keys and controllers are named for what the user does (play, scrub, mix, pick, export).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from pathlib import Path
+
+import numpy as np
+from trame.app import asynchronous
+from trame.ui.vuetify3 import SinglePageWithDrawerLayout
+from trame.widgets import html, plotly
+from trame.widgets import vtk as vtk_widgets
+from trame.widgets import vuetify3 as v3
+
+from explorer import charts
+from explorer.latent import METHODS, LatentMap
+from explorer.palette import CHARACTER_TITLES, CHARACTERS, class_color, display_name
+from explorer.scene import CAMERA_PRESETS, CHARACTER_KEYS, Scene, floor_height
+from explorer.session import FPS, Session
+
+SPEEDS = [0.25, 0.5, 1.0, 1.5, 2.0]
+CHART_PERIOD_S = 0.25  # the distance chart's cursor follows playback at most 4x a second
+
+
+def _one_line(err: BaseException) -> str:
+    text = str(err.args[0] if isinstance(err, KeyError) and err.args else err) or type(err).__name__
+    return text.strip().splitlines()[0]
+
+
+class Studio:
+    def __init__(self, server, session: Session, latent: LatentMap, *, export_dir: Path, start_index: int | None = None):
+        self.server = server
+        self.session = session
+        self.latent = latent
+        self.export_dir = Path(export_dir)
+        data = session.data
+        self.scene = Scene(data.skeleton, floor_height(data.leader, data.follower, data.skeleton))
+        self._mix_pending = False
+        self._mix_task = None
+        self._play_task = None
+        self._last_chart = 0.0
+        self._distances = np.zeros(1)
+        self._init_state()
+        self._bind()
+        self.ui = self._build_ui()
+        self.load_sequence(session.index if start_index is None else start_index)
+
+    # ---- state ---------------------------------------------------------------------------
+    @property
+    def state(self):
+        return self.server.state
+
+    @property
+    def ctrl(self):
+        return self.server.controller
+
+    def _init_state(self) -> None:
+        s, d = self.state, self.session.data
+        names = self.session.class_names
+        s.update(
+            {
+                "class_names": [display_name(n) for n in names],
+                "class_colors": [class_color(i) for i in range(len(names))],
+                "class_filter_items": [{"title": "all classes", "value": ""}] + [{"title": display_name(n), "value": n} for n in names],
+                "pair_filter_items": [{"title": "all subject pairs", "value": ""}]
+                + [{"title": p + ("  (held out)" if self._pair_held_out(p) else ""), "value": p} for p in sorted(set(d.subject_pairs))],
+                "class_filter": "",
+                "pair_filter": "",
+                "held_filter": "all",
+                "sequence_items": [],
+                "sequence_index": 0,
+                "sequence_title": "",
+                "sequence_held_out": False,
+                "frame": 0,
+                "num_frames": 1,
+                "time_text": "",
+                "playing": False,
+                "speed": 1.0,
+                "loop": True,
+                "scale": 1.0,
+                "label_text": "",
+                "scene_layout": "overlay",
+                "show_leader": True,
+                "show_ground_truth": True,
+                "show_synthesized": True,
+                "projection": "tsne",
+                "projection_busy": False,
+                "afd_text": "",
+                "error": "",
+                "notice": "",
+                "mix_count": 0,  # increments after each re-synthesis (tests and benchmarks wait on it)
+                "held_out_subject": d.info.get("held_out_subject", ""),
+            }
+        )
+        for i in range(len(names)):
+            s[f"w_{i}"] = 0.0
+
+    def _pair_held_out(self, pair: str) -> bool:
+        d = self.session.data
+        return any(h for p, h in zip(d.subject_pairs, d.held_out, strict=True) if p == pair)
+
+    def _bind(self) -> None:
+        s, c = self.state, self.ctrl
+        s.change("class_filter", "pair_filter", "held_filter")(self.on_filter_change)
+        s.change("sequence_index")(self.on_sequence_picked)
+        s.change("frame")(self.on_frame_change)
+        s.change(*[f"w_{i}" for i in range(len(self.session.class_names))], "scale")(self.on_mix_change)
+        s.change("scene_layout")(self.on_layout_change)
+        s.change("show_leader", "show_ground_truth", "show_synthesized")(self.on_visibility_change)
+        s.change("projection")(self.on_projection_change)
+        s.change("playing")(self.on_playing_change)
+        c.match_label = self.match_label
+        c.reset_label = self.reset_label
+        c.pick_latent_point = self.pick_latent_point
+        c.set_camera = self.set_camera
+        c.step_frame = self.step_frame
+        c.export_npz = self.export_npz
+        c.export_video = self.export_video
+
+    def _guard(fn):  # noqa: N805 - decorator: user-facing errors become the page's one-line alert
+        def wrapper(self, *args, **kwargs):
+            try:
+                return fn(self, *args, **kwargs)
+            except Exception as err:  # the page must never go blank on a bad input
+                self.state.error = f"{type(err).__name__}: {_one_line(err)}" if not str(err) else _one_line(err)
+                return None
+
+        wrapper.__name__ = fn.__name__
+        return wrapper
+
+    # ---- sequences -----------------------------------------------------------------------
+    def filtered_indices(self) -> list[int]:
+        s = self.state
+        held = {"all": None, "held": True, "seen": False}[s.held_filter or "all"]
+        return self.session.filter(s.class_filter or None, s.pair_filter or None, held)
+
+    def _sequence_items(self) -> list[dict]:
+        rows = self.session.rows()
+        return [{"title": rows[i].title, "value": i} for i in self.filtered_indices()]
+
+    def on_filter_change(self, **_):
+        items = self._sequence_items()
+        self.state.sequence_items = items
+        values = [it["value"] for it in items]
+        if values and self.state.sequence_index not in values:
+            self.state.sequence_index = values[0]
+
+    @_guard
+    def on_sequence_picked(self, sequence_index, **_):
+        if sequence_index is None or int(sequence_index) == self.session.index:
+            return
+        self.load_sequence(int(sequence_index))
+
+    @_guard
+    def load_sequence(self, index: int) -> None:
+        """Pick a sequence: its own class becomes the label ("match"), playback restarts at frame 0."""
+        ses, s = self.session, self.state
+        ses.select(index)
+        with s:
+            s.sequence_index = index
+            s.sequence_items = self._sequence_items()
+            if index not in [it["value"] for it in s.sequence_items]:
+                s.sequence_items = [{"title": ses.rows()[index].title, "value": index}] + s.sequence_items
+            row = ses.rows()[index]
+            s.sequence_title = f"{row.sequence_id} · {display_name(row.class_name)}"
+            s.sequence_held_out = row.held_out
+            s.num_frames = ses.num_frames
+            s.frame = 0
+            self._write_label_state()
+            self.scene.set_sequence(ses.leader, ses.ground_truth, ses.synth, 0)
+            self.scene.set_camera(self.scene.camera_preset)
+            self._after_mix(force_chart=True)
+            s.error = ""
+        self.ctrl.view_update()
+
+    # ---- label mixing --------------------------------------------------------------------
+    def _write_label_state(self) -> None:
+        for i, w in enumerate(self.session.weights):
+            self.state[f"w_{i}"] = round(float(w), 3)
+        self.state.scale = self.session.scale
+        self.state.label_text = self.session.label_text()
+
+    def on_mix_change(self, **_):
+        """Coalesce slider messages: the latest mix wins, at most one synthesis in flight, no fixed
+        debounce delay (that would be added to every slider's latency)."""
+        self._mix_pending = True
+        if self._mix_task is None or self._mix_task.done():
+            self._mix_task = asynchronous.create_task(self._mix_loop())
+
+    async def _mix_loop(self):
+        while self._mix_pending:
+            await asyncio.sleep(0)  # let already-queued slider messages land first
+            self._mix_pending = False
+            self.apply_mix()
+
+    @_guard
+    def apply_mix(self) -> None:
+        s, ses = self.state, self.session
+        weights = [float(s[f"w_{i}"] or 0.0) for i in range(len(ses.class_names))]
+        scale = float(s.scale if s.scale is not None else 1.0)
+        if np.allclose(weights, ses.weights) and abs(scale - ses.scale) < 1e-9 and ses.synth is not None and s.mix_count:
+            return
+        ses.set_label(weights, scale)
+        self.scene.set_synthesized(ses.synth)
+        self.ctrl.view_update()  # the picture first: it is what the user is watching
+        with s:
+            s.label_text = ses.label_text()
+            self._after_mix(force_chart=True)
+            s.error = ""
+
+    def _after_mix(self, force_chart: bool = False) -> None:
+        """Review numbers, distance chart and latent star for the current synthesized follower."""
+        s, ses = self.state, self.session
+        self._distances = ses.distances_m()
+        s.afd_text = f"AFD {ses.afd():.3f} (SBU normalized units) · mean {self._distances.mean():.3f} m"
+        self._update_time()
+        self._update_distance_chart(force=force_chart)
+        self._update_latent_figure()
+        s.mix_count = (s.mix_count or 0) + 1
+
+    def match_label(self):
+        self._set_label_controls(None)
+
+    def reset_label(self):
+        self._set_label_controls(np.zeros(len(self.session.class_names)))
+
+    def _set_label_controls(self, weights) -> None:
+        if weights is None:
+            weights = np.eye(len(self.session.class_names))[self.session.own_class]
+        with self.state:
+            for i, w in enumerate(weights):
+                self.state[f"w_{i}"] = float(w)
+            self.state.scale = 1.0
+
+    # ---- playback ------------------------------------------------------------------------
+    def _update_time(self) -> None:
+        s = self.state
+        f, n = int(s.frame or 0), self.session.num_frames
+        s.time_text = f"frame {f + 1}/{n} · {f / FPS:.2f} s / {(n - 1) / FPS:.2f} s"
+
+    def on_frame_change(self, frame, **_):
+        self.scene.set_frame(int(frame or 0))
+        self.ctrl.view_update()
+        self._update_time()
+        self._update_distance_chart()
+
+    def step_frame(self, delta: int):
+        n = self.session.num_frames
+        self.state.frame = int(np.clip(int(self.state.frame or 0) + int(delta), 0, n - 1))
+
+    def on_playing_change(self, playing, **_):
+        if playing and (self._play_task is None or self._play_task.done()):
+            if int(self.state.frame or 0) >= self.session.num_frames - 1:
+                self.state.frame = 0
+            self._play_task = asynchronous.create_task(self._play_loop())
+
+    async def _play_loop(self):
+        """Advance on a wall-clock schedule: sleep until each frame's deadline (a loop that never
+        yields starves the image delivery), drop frames rather than fall behind."""
+        loop = asyncio.get_running_loop()
+        deadline = loop.time()
+        while self.state.playing:
+            period = 1.0 / (FPS * float(self.state.speed or 1.0))
+            deadline += period
+            await asyncio.sleep(max(0.0, deadline - loop.time()))
+            now = loop.time()
+            if now - deadline > period:
+                deadline = now
+            if not self.state.playing:
+                break
+            with self.state:
+                nxt = int(self.state.frame or 0) + 1
+                if nxt >= self.session.num_frames:
+                    if self.state.loop:
+                        nxt = 0
+                    else:
+                        self.state.playing = False
+                        nxt = self.session.num_frames - 1
+                self.state.frame = nxt
+        with self.state:
+            self._update_distance_chart(force=True)
+
+    # ---- view ----------------------------------------------------------------------------
+    def on_layout_change(self, scene_layout, **_):
+        self.scene.set_layout(scene_layout)
+        self.ctrl.view_update()
+
+    def on_visibility_change(self, show_leader, show_ground_truth, show_synthesized, **_):
+        for key, on in zip(CHARACTER_KEYS, (show_leader, show_ground_truth, show_synthesized), strict=True):
+            self.scene.set_visible(key, bool(on))
+        self.ctrl.view_update()
+
+    def set_camera(self, preset: str):
+        self.scene.set_camera(preset)
+        self.ctrl.view_update()
+
+    # ---- charts --------------------------------------------------------------------------
+    def _update_distance_chart(self, force: bool = False) -> None:
+        now = time.monotonic()
+        if not force and self.state.playing and now - self._last_chart < CHART_PERIOD_S:
+            return
+        self._last_chart = now
+        self.state.distance_figure = charts.distance_figure(self._distances, int(self.state.frame or 0), FPS)
+
+    def _update_latent_figure(self) -> None:
+        s, ses, d = self.state, self.session, self.session.data
+        method = s.projection or "tsne"
+        if not self.latent.has(method):
+            return
+        z = ses.model.latent_canonical_batch([ses.leader], ses.label_vector()[None, :])[0]
+        mix_xy = self.latent.place(z, method)
+        s.latent_figure = charts.latent_figure(
+            self.latent.coords[method],
+            d.actions,
+            d.held_out,
+            d.sequence_ids,
+            ses.class_names,
+            ses.index,
+            mix_xy,
+            ses.label_text(),
+            method,
+        )
+
+    def on_projection_change(self, projection, **_):
+        if projection not in METHODS:
+            return
+        if self.latent.has(projection):
+            self._update_latent_figure()
+            return
+        self.state.projection_busy = True
+        asynchronous.create_task(self._compute_projection(projection))
+
+    async def _compute_projection(self, method: str):
+        try:
+            await asyncio.to_thread(self.latent.ensure, method)
+        except Exception as err:
+            with self.state:
+                self.state.error = f"{method} projection failed: {_one_line(err)}"
+                self.state.projection = "tsne"
+        with self.state:
+            self.state.projection_busy = False
+            self._update_latent_figure()
+
+    @_guard
+    def pick_latent_point(self, index):
+        if index is None:
+            return
+        index = int(index[0] if isinstance(index, list | tuple) else index)
+        with self.state:
+            self.state.class_filter = ""
+            self.state.pair_filter = ""
+            self.state.held_filter = "all"
+        self.load_sequence(index)
+
+    # ---- export --------------------------------------------------------------------------
+    @_guard
+    def export_npz(self):
+        data = self.session.export_npz()
+        name = self.session.export_name("npz")
+        self._save_copy(name, data)
+        return self.server.protocol.addAttachment(memoryview(data))
+
+    @_guard
+    def export_video(self, fmt: str = "gif"):
+        import imageio.v3 as iio
+
+        images = self.scene.frames()
+        self.ctrl.view_update()
+        name = self.session.export_name(fmt)
+        if fmt == "mp4":
+            # even sizes for yuv420p
+            images = [im[: im.shape[0] // 2 * 2, : im.shape[1] // 2 * 2] for im in images]
+            data = iio.imwrite("<bytes>", np.stack(images), extension=".mp4", fps=FPS, codec="libx264")
+        else:
+            data = iio.imwrite("<bytes>", np.stack(images), extension=".gif", duration=1000.0 / FPS, loop=0)
+        self._save_copy(name, data)
+        return self.server.protocol.addAttachment(memoryview(data))
+
+    def _save_copy(self, name: str, data: bytes) -> None:
+        try:
+            self.export_dir.mkdir(parents=True, exist_ok=True)
+            (self.export_dir / name).write_bytes(data)
+            self.state.notice = f"saved {self.export_dir / name}"
+        except OSError as err:
+            self.state.notice = f"download only (could not save a copy: {_one_line(err)})"
+
+    # ---- layout --------------------------------------------------------------------------
+    def _build_ui(self):
+        names = self.session.class_names
+        with SinglePageWithDrawerLayout(self.server, full_height=True) as layout:
+            layout.title.set_text("IMM Studio")
+            self.server.state.trame__title = "IMM Studio"
+            with layout.toolbar as tb:
+                tb.density = "compact"
+                tb.color = "#263238"
+                tb.theme = "dark"
+                v3.VSpacer()
+                v3.VChip(
+                    "{{ sequence_title }}",
+                    size="small",
+                    variant="outlined",
+                    classes="mr-2",
+                    id="sequence-chip",
+                )
+                v3.VChip(
+                    "held out: never seen in training",
+                    v_if="sequence_held_out",
+                    size="small",
+                    color="amber",
+                    variant="flat",
+                    classes="mr-2",
+                )
+                v3.VChip("seen in training", v_else=True, size="small", color="blue-grey-lighten-3", variant="flat", classes="mr-2")
+                v3.VSpacer()
+                with v3.VBtnToggle(v_model=("scene_layout",), density="compact", mandatory=True, variant="outlined", classes="mr-3"):
+                    v3.VBtn("Overlay", value="overlay", size="small")
+                    v3.VBtn("Side by side", value="side_by_side", size="small")
+                for preset in CAMERA_PRESETS:
+                    v3.VBtn(
+                        "reset" if preset == "default" else preset,
+                        size="small",
+                        variant="text",
+                        prepend_icon="mdi-camera-retake" if preset == "default" else None,
+                        click=(self.ctrl.set_camera, f"['{preset}']"),
+                    )
+                with v3.VMenu():
+                    with v3.Template(v_slot_activator="{ props }"):
+                        v3.VBtn("Export", v_bind="props", size="small", variant="tonal", prepend_icon="mdi-download", classes="ml-2")
+                    with v3.VList(density="compact"):
+                        v3.VListItem(
+                            title="Synthesized follower (.npz)",
+                            click="utils.download('follower.npz', trigger('export_npz'), 'application/octet-stream')",
+                        )
+                        v3.VListItem(
+                            title="Animation (.gif)", click="utils.download('studio.gif', trigger('export_video', ['gif']), 'image/gif')"
+                        )
+                        v3.VListItem(
+                            title="Animation (.mp4)", click="utils.download('studio.mp4', trigger('export_video', ['mp4']), 'video/mp4')"
+                        )
+
+            with layout.drawer as drawer:
+                drawer.width = 330
+                with html.Div(classes="pa-3"):
+                    html.Div("Sequence", classes="text-overline")
+                    v3.VSelect(
+                        label="Class",
+                        v_model=("class_filter",),
+                        items=("class_filter_items",),
+                        density="compact",
+                        hide_details=True,
+                        classes="mb-2",
+                    )
+                    v3.VSelect(
+                        label="Subject pair",
+                        v_model=("pair_filter",),
+                        items=("pair_filter_items",),
+                        density="compact",
+                        hide_details=True,
+                        classes="mb-2",
+                    )
+                    with v3.VBtnToggle(
+                        v_model=("held_filter",), density="compact", mandatory=True, variant="outlined", divided=True, classes="mb-2"
+                    ):
+                        v3.VBtn("all", value="all", size="x-small")
+                        v3.VBtn("held out", value="held", size="x-small")
+                        v3.VBtn("seen", value="seen", size="x-small")
+                    v3.VAutocomplete(
+                        label="Sequence",
+                        v_model=("sequence_index",),
+                        items=("sequence_items",),
+                        density="compact",
+                        hide_details=True,
+                        id="sequence-picker",
+                    )
+                    html.Div(
+                        "Held out = subject {{ held_out_subject }}: the bundled model never saw these (generalization); "
+                        "the others were in its training set (memorization).",
+                        classes="text-caption text-medium-emphasis mt-1",
+                    )
+                    v3.VDivider(classes="my-3")
+                    with html.Div(classes="d-flex align-center"):
+                        html.Div("Label mix", classes="text-overline")
+                        v3.VSpacer()
+                        v3.VBtn("match", size="x-small", variant="tonal", click=self.ctrl.match_label, id="match-label", classes="mr-1")
+                        v3.VBtn("reset", size="x-small", variant="tonal", click=self.ctrl.reset_label, id="reset-label")
+                    for i, name in enumerate(names):
+                        with html.Div(classes="d-flex align-center", style="height: 30px"):
+                            html.Div(
+                                display_name(name), classes="text-body-2", style=f"width: 118px; color: {class_color(i)}; font-weight: 600"
+                            )
+                            v3.VSlider(
+                                v_model=(f"w_{i}",),
+                                min=-1,
+                                max=1,
+                                step=0.05,
+                                density="compact",
+                                hide_details=True,
+                                color=class_color(i),
+                                track_color="grey-lighten-2",
+                                classes=f"class-slider slider-{name}",
+                                id=f"slider-{i}",
+                            )
+                            html.Div(
+                                f"{{{{ (w_{i} >= 0 ? '+' : '') + Number(w_{i}).toFixed(2) }}}}",
+                                classes="text-caption ml-1",
+                                style="width: 38px; text-align: right",
+                            )
+                    with html.Div(classes="d-flex align-center", style="height: 30px"):
+                        html.Div("scale", classes="text-body-2", style="width: 118px; font-weight: 600")
+                        v3.VSlider(v_model=("scale",), min=0, max=2, step=0.05, density="compact", hide_details=True, id="scale-slider")
+                        html.Div("{{ Number(scale).toFixed(2) }}", classes="text-caption ml-1", style="width: 38px; text-align: right")
+                    html.Div("{{ label_text }}", classes="text-body-2 mt-1 pa-2 rounded bg-grey-lighten-4", id="label-text")
+                    v3.VDivider(classes="my-3")
+                    html.Div("Characters", classes="text-overline")
+                    for key, var in zip(CHARACTER_KEYS, ("show_leader", "show_ground_truth", "show_synthesized"), strict=True):
+                        v3.VCheckbox(
+                            v_model=(var,),
+                            label=CHARACTER_TITLES[key],
+                            color=CHARACTERS[key],
+                            density="compact",
+                            hide_details=True,
+                            base_color=CHARACTERS[key],
+                            style=f"color: {CHARACTERS[key]}",
+                        )
+
+            with layout.content:
+                with v3.VContainer(fluid=True, classes="pa-2 fill-height d-flex flex-column align-stretch", style="gap: 6px"):
+                    v3.VAlert(
+                        "{{ error }}",
+                        v_if="error",
+                        type="error",
+                        density="compact",
+                        closable=True,
+                        click_close="error = ''",
+                        id="error-alert",
+                    )
+                    with html.Div(style="flex: 1 1 60%; min-height: 320px; position: relative; width: 100%", classes="rounded border"):
+                        view = vtk_widgets.VtkRemoteView(
+                            self.scene.render_window,
+                            ref="view",
+                            interactive_ratio=1,
+                            interactive_quality=70,
+                            still_quality=88,
+                        )
+                        self.ctrl.view_update = view.update
+                        with html.Div(style="position: absolute; left: 8px; top: 6px; pointer-events: none", classes="text-caption"):
+                            for key in CHARACTER_KEYS:
+                                html.Span(
+                                    "● " + CHARACTER_TITLES[key], style=f"color: {CHARACTERS[key]}; font-weight: 600; margin-right: 10px"
+                                )
+                    with html.Div(classes="d-flex align-center", style="width: 100%; gap: 8px"):
+                        v3.VBtn(icon="mdi-skip-previous", size="small", variant="text", click=(self.ctrl.step_frame, "[-1]"))
+                        v3.VBtn(
+                            icon=("playing ? 'mdi-pause' : 'mdi-play'",),
+                            size="small",
+                            color="primary",
+                            click="playing = !playing",
+                            id="play-button",
+                        )
+                        v3.VBtn(icon="mdi-skip-next", size="small", variant="text", click=(self.ctrl.step_frame, "[1]"))
+                        v3.VSlider(
+                            v_model=("frame",),
+                            min=0,
+                            max=("num_frames - 1",),
+                            step=1,
+                            hide_details=True,
+                            density="compact",
+                            id="frame-slider",
+                            style="flex: 1 1 auto",
+                        )
+                        html.Div("{{ time_text }}", classes="text-caption", style="width: 190px", id="time-text")
+                        v3.VSelect(
+                            v_model=("speed",),
+                            items=("speeds", [{"title": f"{x:g}×", "value": x} for x in SPEEDS]),
+                            density="compact",
+                            hide_details=True,
+                            style="max-width: 92px",
+                            variant="outlined",
+                        )
+                        v3.VCheckbox(v_model=("loop",), label="loop", density="compact", hide_details=True, style="flex: 0 0 auto")
+                    with html.Div(classes="d-flex", style="flex: 0 0 250px; width: 100%; gap: 8px"):
+                        with v3.VCard(variant="outlined", style="flex: 1 1 50%", classes="pa-1"):
+                            with html.Div(classes="d-flex align-center px-2"):
+                                html.Div("Per-frame distance, ground truth vs synthesized", classes="text-caption font-weight-bold")
+                                v3.VSpacer()
+                                html.Div("{{ afd_text }}", classes="text-caption", id="afd-text")
+                            plotly.Figure(
+                                state_variable_name="distance_figure",
+                                display_mode_bar=False,
+                                style="height: 215px",
+                                responsive=True,
+                            )
+                        with v3.VCard(variant="outlined", style="flex: 1 1 50%", classes="pa-1"):
+                            with html.Div(classes="d-flex align-center px-2"):
+                                html.Div("Latent map: click a point to load it", classes="text-caption font-weight-bold")
+                                v3.VProgressCircular(v_if="projection_busy", indeterminate=True, size=14, width=2, classes="ml-2")
+                                v3.VSpacer()
+                                with v3.VBtnToggle(
+                                    v_model=("projection",), density="compact", mandatory=True, variant="outlined", divided=True
+                                ):
+                                    v3.VBtn("t-SNE", value="tsne", size="x-small")
+                                    v3.VBtn("UMAP", value="umap", size="x-small", id="umap-button")
+                            plotly.Figure(
+                                state_variable_name="latent_figure",
+                                display_mode_bar=False,
+                                style="height: 215px",
+                                responsive=True,
+                                click=(self.ctrl.pick_latent_point, "[$event.points[0].customdata]"),
+                                id="latent-plot",
+                            )
+                    v3.VSnackbar("{{ notice }}", model_value=("!!notice",), timeout=4000, update_modelValue="notice = ''")
+        return layout

@@ -1,0 +1,140 @@
+"""Plotly figures as plain dicts (what trame-plotly puts in state): cheap to rebuild on every change."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from explorer.palette import SYNTHESIZED, class_color, display_name
+
+FONT = {"family": "Roboto, sans-serif", "size": 11}
+
+
+def distance_figure(distances: np.ndarray, frame: int, fps: float) -> dict:
+    t = np.arange(len(distances))
+    return {
+        "data": [
+            {
+                "type": "scatter",
+                "mode": "lines",
+                "x": t.tolist(),
+                "y": np.round(distances, 4).tolist(),
+                "line": {"color": SYNTHESIZED, "width": 2},
+                "hovertemplate": "frame %{x}: %{y:.3f} m<extra></extra>",
+                "name": "distance",
+            }
+        ],
+        "layout": {
+            "margin": {"l": 48, "r": 10, "t": 8, "b": 34},
+            "font": FONT,
+            "xaxis": {"title": {"text": f"frame ({fps:g} fps)"}, "range": [0, max(1, len(distances) - 1)], "zeroline": False},
+            "yaxis": {"title": {"text": "GT vs synth (m)"}, "rangemode": "tozero"},
+            "shapes": [
+                {
+                    "type": "line",
+                    "x0": frame,
+                    "x1": frame,
+                    "yref": "paper",
+                    "y0": 0,
+                    "y1": 1,
+                    "line": {"color": "#333", "width": 1.5, "dash": "dot"},
+                }
+            ],
+            "showlegend": False,
+            "plot_bgcolor": "#ffffff",
+            "paper_bgcolor": "rgba(0,0,0,0)",
+            "autosize": True,
+        },
+    }
+
+
+def latent_figure(
+    coords: np.ndarray,
+    actions: np.ndarray,
+    held_out: np.ndarray,
+    sequence_ids: Sequence[str],
+    class_names: Sequence[str],
+    current_index: int,
+    mix_xy: np.ndarray | None,
+    mix_text: str,
+    method: str,
+) -> dict:
+    """One trace per class (legend = class colors); held-out sequences as open circles; the current
+    sequence ringed in black; the current mix as a green star (green = synthesized, as in 3D)."""
+    data = []
+    for c, name in enumerate(class_names):
+        idx = np.flatnonzero(actions == c)
+        if not len(idx):
+            continue
+        data.append(
+            {
+                "type": "scatter",
+                "mode": "markers",
+                "name": display_name(name),
+                "x": np.round(coords[idx, 0], 3).tolist(),
+                "y": np.round(coords[idx, 1], 3).tolist(),
+                "customdata": idx.tolist(),
+                "text": [sequence_ids[i] + (" (held out)" if held_out[i] else "") for i in idx],
+                "hovertemplate": "%{text}<extra>" + display_name(name) + "</extra>",
+                "marker": {
+                    "color": class_color(c),
+                    "size": 8,
+                    "symbol": ["circle-open" if held_out[i] else "circle" for i in idx],
+                    "line": {"width": 1.5, "color": class_color(c)},
+                },
+            }
+        )
+    cur = coords[current_index]
+    data.append(
+        {
+            "type": "scatter",
+            "mode": "markers",
+            "name": "this sequence (match)",
+            "x": [float(cur[0])],
+            "y": [float(cur[1])],
+            "customdata": [int(current_index)],
+            "hovertemplate": f"{sequence_ids[current_index]} with its own label<extra></extra>",
+            "marker": {"size": 15, "symbol": "circle-open", "color": "#111", "line": {"width": 2.5, "color": "#111"}},
+        }
+    )
+    if mix_xy is not None:
+        data.append(
+            {
+                "type": "scatter",
+                "mode": "markers",
+                "name": "current mix (synth)",
+                "x": [float(mix_xy[0])],
+                "y": [float(mix_xy[1])],
+                "customdata": [int(current_index)],
+                "hovertemplate": mix_text.replace("%", "%%") + "<extra>current mix</extra>",
+                "marker": {"size": 18, "symbol": "star", "color": SYNTHESIZED, "line": {"width": 1.5, "color": "#111"}},
+            }
+        )
+    return {
+        "data": data,
+        "layout": {
+            "margin": {"l": 8, "r": 8, "t": 8, "b": 8},
+            "font": FONT,
+            "xaxis": {"visible": False},
+            "yaxis": {"visible": False},
+            "legend": {"orientation": "v", "x": 1.0, "xanchor": "left", "y": 1, "font": {"size": 10}},
+            "hovermode": "closest",
+            "plot_bgcolor": "#ffffff",
+            "paper_bgcolor": "rgba(0,0,0,0)",
+            "annotations": [
+                {
+                    "text": method.upper() if method == "umap" else "t-SNE",
+                    "x": 0,
+                    "y": 1,
+                    "xref": "paper",
+                    "yref": "paper",
+                    "showarrow": False,
+                    "xanchor": "left",
+                    "font": {"size": 10, "color": "#777"},
+                }
+            ],
+            "uirevision": method,  # keep the user's zoom while the star moves
+            "autosize": True,
+        },
+    }

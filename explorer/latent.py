@@ -1,0 +1,137 @@
+"""The latent map: every sequence's embedding projected to 2D (t-SNE or UMAP), cached on disk.
+
+Points are the model's per-sequence embeddings of each leader with the sequence's own one-hot label
+("real / match"). The current mix (leader + mixed label) is placed on the existing map by
+inverse-distance-weighted k-nearest neighbours in latent space: t-SNE cannot embed new points, UMAP's
+`transform` costs tens of ms and a numba warm-up, while the kNN placement costs well under 1 ms, is
+the same for both methods and never moves the map under the user (docs/explorer.md).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from imm_model.data.dataset import InteractionDataset
+
+METHODS = ("tsne", "umap")
+CACHE_VERSION = "1"  # bump when embeddings or projections are computed differently
+KNN = 8
+
+
+def default_cache_dir() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "imm-studio"
+
+
+def file_digest(path: Path | str, chunk: int = 1 << 20) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        while block := f.read(chunk):
+            h.update(block)
+    return h.hexdigest()
+
+
+def cache_key(checkpoint: Path | str, data: Path | str) -> str:
+    """Hash of the checkpoint's and the data's bytes: a retrained model or rebuilt bundle misses."""
+    h = hashlib.sha256(f"v{CACHE_VERSION}".encode())
+    for p in (checkpoint, data):
+        h.update(file_digest(p).encode())
+        # A sidecar (e.g. the checkpoint's .json config) changes the model too.
+        side = Path(p).with_suffix(".json")
+        if side.exists():
+            h.update(file_digest(side).encode())
+    return h.hexdigest()[:24]
+
+
+def one_hot_labels(model, data: InteractionDataset) -> np.ndarray:
+    c = len(data.class_names)
+    eye = np.eye(c, dtype=np.float32)
+    return np.stack([np.asarray(model.label_vector(list(eye[a])), np.float32) for a in data.actions])
+
+
+def embed_all(model, data: InteractionDataset) -> np.ndarray:
+    leaders = [data.canonical(i)[0] for i in range(len(data))]
+    return np.asarray(model.latent_canonical_batch(leaders, one_hot_labels(model, data)), np.float32)
+
+
+def project(latents: np.ndarray, method: str, seed: int = 0) -> np.ndarray:
+    """(N, D) -> (N, 2), standardized features, deterministic for a seed."""
+    x = _standardize(latents, latents)
+    if method == "tsne":
+        from sklearn.manifold import TSNE
+
+        perplexity = float(min(30.0, max(2.0, (len(x) - 1) / 3)))
+        y = TSNE(n_components=2, perplexity=perplexity, init="pca", random_state=seed, max_iter=1000).fit_transform(x)
+    elif method == "umap":
+        import umap  # slow import (numba); only when asked for
+
+        y = umap.UMAP(n_components=2, n_neighbors=min(15, len(x) - 1), min_dist=0.15, random_state=seed).fit_transform(x)
+    else:
+        raise ValueError(f"projection must be one of {METHODS}, not {method!r}")
+    return np.asarray(y, np.float32)
+
+
+def _standardize(x: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    mu, sd = ref.mean(0), ref.std(0) + 1e-6
+    return (np.asarray(x, np.float64) - mu) / sd
+
+
+@dataclass
+class LatentMap:
+    latents: np.ndarray  # (N, D) embeddings with each sequence's own one-hot label
+    coords: dict[str, np.ndarray] = field(default_factory=dict)  # method -> (N, 2)
+    path: Path | None = None  # cache file, when cached
+
+    @classmethod
+    def build(cls, model, data: InteractionDataset, cache_dir: Path | None, key: str | None, methods=("tsne",)) -> LatentMap:
+        """Load from `cache_dir/<key>.npz` or compute (embeddings + the requested projections) and save."""
+        path = Path(cache_dir) / f"latent-{key}.npz" if (cache_dir and key) else None
+        if path and path.exists():
+            try:
+                with np.load(path, allow_pickle=False) as z:
+                    lm = cls(z["latents"], {m: z[m] for m in METHODS if m in z.files}, path)
+                if len(lm.latents) == len(data):
+                    for m in methods:
+                        lm.ensure(m)
+                    return lm
+            except Exception:  # a corrupt cache file is recomputed, never fatal
+                pass
+        lm = cls(embed_all(model, data), {}, path)
+        for m in methods:
+            lm.ensure(m)
+        return lm
+
+    def has(self, method: str) -> bool:
+        return method in self.coords
+
+    def ensure(self, method: str) -> np.ndarray:
+        if method not in self.coords:
+            self.coords[method] = project(self.latents, method)
+            self.save()
+        return self.coords[method]
+
+    def save(self) -> None:
+        if not self.path:
+            return
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = self.path.with_name(self.path.name + f".{os.getpid()}.tmp")
+        with open(tmp, "wb") as f:
+            np.savez(f, latents=self.latents, **self.coords)
+        tmp.replace(self.path)  # atomic: several studio processes may share the cache
+
+    def place(self, latent: np.ndarray, method: str, k: int = KNN) -> np.ndarray:
+        """A new embedding -> 2D, as the inverse-distance-weighted mean of its k nearest neighbours'
+        positions on the map (standardized latent space)."""
+        coords = self.coords[method]
+        x = _standardize(self.latents, self.latents)
+        q = _standardize(np.asarray(latent).reshape(1, -1), self.latents)[0]
+        d = np.linalg.norm(x - q, axis=1)
+        k = min(k, len(d))
+        nn = np.argpartition(d, k - 1)[:k]
+        w = 1.0 / (d[nn] + 1e-6)
+        return (coords[nn] * w[:, None]).sum(0) / w.sum()

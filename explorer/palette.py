@@ -1,0 +1,30 @@
+"""Colors shared by the 3D view, the legend, the charts and the latent plot.
+
+Characters follow the paper's figures (leader blue, ground truth red, synthesized green). Classes
+use the rest of the tab10 palette, so a class color is never mistaken for a character.
+"""
+
+from __future__ import annotations
+
+LEADER = "#1f5fd6"
+GROUND_TRUTH = "#d62728"
+SYNTHESIZED = "#2ca02c"
+
+CHARACTERS = {"leader": LEADER, "ground_truth": GROUND_TRUTH, "synthesized": SYNTHESIZED}
+CHARACTER_TITLES = {"leader": "Leader (A)", "ground_truth": "Ground truth (B)", "synthesized": "Synthesized (B)"}
+
+CLASS_COLORS = ["#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#bcbd22", "#17becf", "#7f7f7f", "#aec7e8"]
+
+
+def class_color(index: int) -> str:
+    return CLASS_COLORS[index % len(CLASS_COLORS)]
+
+
+def rgb(hex_color: str) -> tuple[float, float, float]:
+    """'#rrggbb' -> (r, g, b) floats in [0, 1] for VTK."""
+    h = hex_color.lstrip("#")
+    return tuple(int(h[i : i + 2], 16) / 255.0 for i in (0, 2, 4))  # type: ignore[return-value]
+
+
+def display_name(class_name: str) -> str:
+    return class_name.replace("_", " ")

@@ -1,0 +1,219 @@
+"""The PyVista scene: three stick figures (leader, ground truth, synthesized), a floor grid, captions.
+
+Built once per process. A frame change only overwrites point coordinates of persistent meshes (the
+tube and sphere filters re-run on their inputs); a layout change only moves actors. Nothing is
+rebuilt while the user plays, scrubs or mixes labels.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+# EGL (Mesa llvmpipe on CPU machines) renders off screen without an X server; set before VTK loads.
+os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+
+import pyvista as pv  # noqa: E402
+import vtk  # noqa: E402
+from vtk.util.numpy_support import vtk_to_numpy  # noqa: E402
+
+from explorer.palette import CHARACTER_TITLES, CHARACTERS, rgb  # noqa: E402
+from imm_model.skeleton import Skeleton  # noqa: E402
+
+CHARACTER_KEYS = ("leader", "ground_truth", "synthesized")
+LAYOUTS = ("overlay", "side_by_side")
+CAMERA_PRESETS = ("default", "front", "side", "top")
+SIDE_SPACING = 1.5  # metres between figures in the side-by-side layout
+BACKGROUND = "#f4f5f7"
+
+
+class StickFigure:
+    """Bones as tubes and joints as spheres around one persistent polydata of J points."""
+
+    def __init__(self, plotter: pv.Plotter, skeleton: Skeleton, color: str, bone_radius: float = 0.022, joint_radius: float = 0.034):
+        j = skeleton.num_joints
+        self.poly = pv.PolyData(np.zeros((j, 3), np.float32))
+        self.poly.lines = np.array([[2, p, c] for p, c in skeleton.bones]).ravel()
+        self._points = vtk_to_numpy(self.poly.GetPoints().GetData())  # a view: writes go straight to VTK
+
+        tube = vtk.vtkTubeFilter()
+        tube.SetInputData(self.poly)
+        tube.SetRadius(bone_radius)
+        tube.SetNumberOfSides(10)
+        tube.CappingOn()
+        sphere = vtk.vtkSphereSource()
+        sphere.SetRadius(joint_radius)
+        sphere.SetThetaResolution(12)
+        sphere.SetPhiResolution(10)
+        glyph = vtk.vtkGlyph3D()
+        glyph.SetInputData(self.poly)
+        glyph.SetSourceConnection(sphere.GetOutputPort())
+        glyph.ScalingOff()
+        self.filters = (tube, glyph)
+        kw = dict(color=rgb(color), smooth_shading=True, ambient=0.25, diffuse=0.75, specular=0.2)
+        self.actors = [plotter.add_mesh(tube, **kw), plotter.add_mesh(glyph, **kw)]
+
+    def set_pose(self, joints: np.ndarray) -> None:
+        self._points[:] = joints
+        self.poly.GetPoints().Modified()
+
+    def set_visible(self, visible: bool) -> None:
+        for a in self.actors:
+            a.SetVisibility(bool(visible))
+
+    def place(self, origin: tuple[float, float, float], position: tuple[float, float, float], yaw_deg: float) -> None:
+        for a in self.actors:
+            a.SetOrigin(*origin)
+            a.SetOrientation(0.0, yaw_deg, 0.0)
+            a.SetPosition(*position)
+
+
+class Scene:
+    def __init__(self, skeleton: Skeleton, floor_y: float, window_size: tuple[int, int] = (900, 620)):
+        pv.global_theme.multi_samples = 0  # MSAA costs ~3x per frame on llvmpipe (docs/explorer.md)
+        self.plotter = pv.Plotter(off_screen=True, window_size=list(window_size))
+        self.plotter.set_background(BACKGROUND)
+        self.plotter.enable_lightkit()
+        self.skeleton = skeleton
+        self.floor_y = float(floor_y)
+        self.figures = {k: StickFigure(self.plotter, skeleton, CHARACTERS[k]) for k in CHARACTER_KEYS}
+        self.captions = {k: self._caption(CHARACTER_TITLES[k], CHARACTERS[k]) for k in CHARACTER_KEYS}
+        self._floor_actors = self._floor()
+        self.layout = "overlay"
+        self.visible = {k: True for k in CHARACTER_KEYS}
+        self.sequences: dict[str, np.ndarray] = {}
+        self.frame = 0
+        self.camera_preset = "default"
+
+    @property
+    def render_window(self):
+        return self.plotter.ren_win
+
+    # ---- building blocks ----------------------------------------------------------------
+    def _caption(self, text: str, color: str):
+        actor = vtk.vtkBillboardTextActor3D()
+        actor.SetInput(text)
+        prop = actor.GetTextProperty()
+        prop.SetFontSize(18)
+        prop.SetBold(True)
+        prop.SetColor(*rgb(color))
+        prop.SetJustificationToCentered()
+        actor.SetVisibility(False)
+        self.plotter.renderer.AddActor(actor)
+        return actor
+
+    def _floor(self):
+        size, n = 9.0, 18
+        plane = pv.Plane(center=(0, self.floor_y, 0.5), direction=(0, 1, 0), i_size=size, j_size=size, i_resolution=n, j_resolution=n)
+        solid = self.plotter.add_mesh(plane, color="#e3e6eb", ambient=0.6, diffuse=0.4, specular=0.0)
+        grid = self.plotter.add_mesh(
+            plane.translate((0, 0.002, 0), inplace=False), style="wireframe", color="#b9bec8", line_width=1, lighting=False
+        )
+        return [solid, grid]
+
+    # ---- content ------------------------------------------------------------------------
+    def set_sequence(self, leader: np.ndarray, ground_truth: np.ndarray, synthesized: np.ndarray, frame: int = 0) -> None:
+        self.sequences = {"leader": leader, "ground_truth": ground_truth, "synthesized": synthesized}
+        self._apply_layout()
+        self.set_frame(frame)
+
+    def set_synthesized(self, synthesized: np.ndarray) -> None:
+        """New label mix: only the green figure changes, at the current frame."""
+        self.sequences["synthesized"] = synthesized
+        self.figures["synthesized"].set_pose(synthesized[min(self.frame, len(synthesized) - 1)])
+
+    def set_frame(self, frame: int) -> None:
+        if not self.sequences:
+            return
+        t = len(self.sequences["leader"])
+        self.frame = int(np.clip(frame, 0, t - 1))
+        for k, seq in self.sequences.items():
+            self.figures[k].set_pose(seq[self.frame])
+
+    def set_visible(self, key: str, visible: bool) -> None:
+        self.visible[key] = bool(visible)
+        self.figures[key].set_visible(visible)
+        self.captions[key].SetVisibility(bool(visible) and self.layout == "side_by_side")
+
+    def set_layout(self, layout: str) -> None:
+        if layout not in LAYOUTS:
+            raise ValueError(f"layout must be one of {LAYOUTS}")
+        self.layout = layout
+        self._apply_layout()
+        self.set_camera(self.camera_preset)
+
+    def _apply_layout(self) -> None:
+        """Overlay: the canonical frame as is. Side by side: each figure on its own spot along X, the
+        followers turned 180° about their first-frame root so that all three face the same way."""
+        if not self.sequences:
+            return
+        top = float(max(s[..., 1].max() for s in self.sequences.values())) + 0.25
+        for slot, k in enumerate(CHARACTER_KEYS):
+            fig, cap = self.figures[k], self.captions[k]
+            if self.layout == "overlay":
+                fig.place((0, 0, 0), (0, 0, 0), 0.0)
+                cap.SetVisibility(False)
+                continue
+            root = self.sequences[k][0, self.skeleton.root]
+            dx = (slot - 1) * SIDE_SPACING
+            yaw = 0.0 if k == "leader" else 180.0
+            fig.place((float(root[0]), 0.0, float(root[2])), (dx - float(root[0]), 0.0, -float(root[2])), yaw)
+            cap.SetPosition(dx, top, 0.0)
+            cap.SetVisibility(self.visible[k])
+
+    # ---- camera -------------------------------------------------------------------------
+    def _extent(self) -> tuple[np.ndarray, float]:
+        if self.layout == "side_by_side" or not self.sequences:
+            center = np.array([0.0, self.floor_y + 0.9, 0.0])
+            return center, 2.6
+        pts = np.concatenate([s.reshape(-1, 3) for s in self.sequences.values()])
+        lo, hi = pts.min(0), pts.max(0)
+        lo[1] = min(lo[1], self.floor_y)
+        return (lo + hi) / 2, float(np.linalg.norm(hi - lo) / 2)
+
+    def set_camera(self, preset: str = "default") -> None:
+        if preset not in CAMERA_PRESETS:
+            raise ValueError(f"camera preset must be one of {CAMERA_PRESETS}")
+        self.camera_preset = preset
+        center, radius = self._extent()
+        direction = {
+            "default": (0.75, 0.38, 0.55) if self.layout == "overlay" else (0.25, 0.3, 1.0),
+            "front": (0.0, 0.12, 1.0),  # along the leader's facing direction (+Z)
+            "side": (1.0, 0.12, 0.0),  # profile of both characters: the paper's view
+            "top": (0.0, 1.0, 0.001),
+        }[preset]
+        d = np.asarray(direction, float)
+        d /= np.linalg.norm(d)
+        cam = self.plotter.camera
+        cam.focal_point = tuple(center)
+        cam.position = tuple(center + d * radius * 3.0)
+        cam.up = (0.0, 0.0, -1.0) if preset == "top" else (0.0, 1.0, 0.0)
+        cam.view_angle = 30.0
+        self.plotter.renderer.ResetCameraClippingRange()
+
+    # ---- output -------------------------------------------------------------------------
+    def render(self) -> None:
+        self.render_window.Render()
+
+    def screenshot(self) -> np.ndarray:
+        """(H, W, 3) uint8 of the current view."""
+        self.render()
+        return np.asarray(self.plotter.screenshot(return_img=True))[..., :3]
+
+    def frames(self, start: int = 0) -> list[np.ndarray]:
+        """Every frame of the current sequence as an image; restores the current frame afterwards."""
+        keep = self.frame
+        images = []
+        for f in range(start, len(self.sequences["leader"])):
+            self.set_frame(f)
+            images.append(self.screenshot())
+        self.set_frame(keep)
+        return images
+
+
+def floor_height(leader: np.ndarray, follower: np.ndarray, skeleton: Skeleton) -> float:
+    """Floor = low percentile of both characters' foot heights over the whole data set."""
+    feet = [i for i, n in enumerate(skeleton.joint_names) if "foot" in n or "ankle" in n] or list(range(skeleton.num_joints))
+    y = np.concatenate([leader[:, feet, skeleton.vertical_axis].ravel(), follower[:, feet, skeleton.vertical_axis].ravel()])
+    return float(np.percentile(y, 1.0)) - 0.03

@@ -1,0 +1,192 @@
+"""One user's studio session without any UI: the chosen sequence, the mixed label, the synthesized
+follower and its review numbers. The trame app (app.py) only maps this onto widgets, so all of it is
+unit-testable without a browser.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from explorer.palette import display_name
+from imm_model.data.dataset import InteractionDataset
+from imm_model.errors import CheckpointError
+from imm_model.evaluation.metrics import afd, frame_distances
+
+FPS = 15.0  # SBU's frame rate
+
+
+class ReactionModelLike(Protocol):
+    """What the studio needs from `imm_model.inference.ReactionModel`."""
+
+    class_names: Sequence[str]
+    skeleton: Any
+
+    def label_vector(self, label: Any, scale: float = 1.0) -> np.ndarray: ...
+    def synthesize_canonical(self, leader: np.ndarray, label_vector: np.ndarray) -> np.ndarray: ...
+    def latent_canonical_batch(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> np.ndarray: ...
+
+
+def load_model(checkpoint: Path, data: InteractionDataset) -> ReactionModelLike:
+    """Load the checkpoint and refuse one that does not fit the data (one-line CheckpointError)."""
+    from imm_model.inference import ReactionModel
+
+    checkpoint = Path(checkpoint)
+    if not checkpoint.exists():
+        raise CheckpointError(f"{checkpoint}: checkpoint not found")
+    model = ReactionModel.load(checkpoint)
+    check_compatible(model, data, str(checkpoint))
+    return model
+
+
+def check_compatible(model: ReactionModelLike, data: InteractionDataset, where: str = "checkpoint") -> None:
+    if tuple(model.class_names) != tuple(data.class_names):
+        raise CheckpointError(f"{where}: classes {', '.join(model.class_names)} do not match the data's {', '.join(data.class_names)}")
+    ms, ds = model.skeleton, data.skeleton
+    if tuple(ms.joint_names) != tuple(ds.joint_names) or tuple(ms.parents) != tuple(ds.parents):
+        raise CheckpointError(
+            f"{where}: skeleton {getattr(ms, 'name', '?')} ({len(ms.joint_names)} joints) does not match "
+            f"the data's {ds.name} ({len(ds.joint_names)} joints)"
+        )
+
+
+def label_words(weights: Sequence[float], class_names: Sequence[str], scale: float = 1.0) -> str:
+    """[0, 0, 1, 1, 0, 0] -> 'shaking hands +1, hugging +1' (scale shown when it is not 1)."""
+    parts = [f"{display_name(n)} {w:+.2g}" for n, w in zip(class_names, weights, strict=True) if abs(w) > 1e-6]
+    text = ", ".join(parts) if parts else "neutral (all classes 0)"
+    if abs(scale - 1.0) > 1e-6:
+        text += f"  × {scale:.2g}"
+    return text
+
+
+@dataclass(frozen=True)
+class SequenceRow:
+    index: int
+    sequence_id: str
+    class_name: str
+    subject_pair: str
+    held_out: bool
+    frames: int
+
+    @property
+    def title(self) -> str:
+        mark = "  [held out]" if self.held_out else ""
+        return f"{self.sequence_id} · {display_name(self.class_name)} · {self.frames} fr{mark}"
+
+
+class Session:
+    def __init__(self, data: InteractionDataset, model: ReactionModelLike, index: int = 0) -> None:
+        check_compatible(model, data, "model")
+        self.data = data
+        self.model = model
+        self.class_names = tuple(data.class_names)
+        self.weights = np.zeros(len(self.class_names), np.float32)
+        self.scale = 1.0
+        self.index = -1
+        self.synth: np.ndarray | None = None
+        self.select(index)
+
+    # ---- sequences ----------------------------------------------------------------------
+    def rows(self) -> list[SequenceRow]:
+        d = self.data
+        return [
+            SequenceRow(i, d.sequence_ids[i], d.action_name(i), d.subject_pairs[i], bool(d.held_out[i]), int(d.lengths[i]))
+            for i in range(len(d))
+        ]
+
+    def filter(self, class_name: str | None = None, subject_pair: str | None = None, held_out: bool | None = None) -> list[int]:
+        return [
+            r.index
+            for r in self.rows()
+            if (not class_name or r.class_name == class_name)
+            and (not subject_pair or r.subject_pair == subject_pair)
+            and (held_out is None or r.held_out == held_out)
+        ]
+
+    def select(self, index: int, match_label: bool = True) -> None:
+        """Load sequence `index`; by default its own class becomes the label (the "match" preset)."""
+        if not 0 <= index < len(self.data):
+            raise IndexError(f"sequence {index} outside 0..{len(self.data) - 1}")
+        self.index = int(index)
+        self.leader, self.ground_truth = self.data.canonical(self.index)
+        if match_label:
+            self.match()
+        else:
+            self.synthesize()
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.leader.shape[0])
+
+    @property
+    def own_class(self) -> int:
+        return int(self.data.actions[self.index])
+
+    # ---- label --------------------------------------------------------------------------
+    def match(self) -> np.ndarray:
+        w = np.zeros(len(self.class_names), np.float32)
+        w[self.own_class] = 1.0
+        return self.set_label(w, 1.0)
+
+    def reset(self) -> np.ndarray:
+        return self.set_label(np.zeros(len(self.class_names), np.float32), 1.0)
+
+    def set_label(self, weights: Sequence[float], scale: float | None = None) -> np.ndarray:
+        w = np.clip(np.asarray(weights, np.float32).reshape(-1), -1.0, 1.0)
+        if w.shape != (len(self.class_names),):
+            raise ValueError(f"{len(w)} label weights for {len(self.class_names)} classes")
+        self.weights = w
+        if scale is not None:
+            self.scale = float(scale)
+        return self.synthesize()
+
+    def label_vector(self) -> np.ndarray:
+        return np.asarray(self.model.label_vector([float(x) for x in self.weights], scale=self.scale), np.float32)
+
+    def label_text(self) -> str:
+        return label_words(self.weights, self.class_names, self.scale)
+
+    # ---- synthesis and review -----------------------------------------------------------
+    def synthesize(self) -> np.ndarray:
+        out = np.asarray(self.model.synthesize_canonical(self.leader, self.label_vector()), np.float32)
+        if out.shape != self.ground_truth.shape:
+            raise ValueError(f"model returned shape {out.shape}, expected {self.ground_truth.shape}")
+        self.synth = out
+        return out
+
+    def distances_m(self) -> np.ndarray:
+        """(T,) per-frame distance between GT and synthesized 45-d pose vectors, metres."""
+        return frame_distances(self.synth, self.ground_truth)
+
+    def afd(self) -> float:
+        """The paper's AFD (SBU normalized units) of the synthesized follower against ground truth."""
+        return afd(self.synth, self.ground_truth, self.data.frame_of(self.index), self.data.skeleton, units="normalized")
+
+    def export_npz(self) -> bytes:
+        """The synthesized follower (and its inputs) as an .npz file's bytes."""
+        import io
+
+        buf = io.BytesIO()
+        np.savez_compressed(
+            buf,
+            follower_canonical=self.synth,
+            leader_canonical=self.leader,
+            ground_truth_canonical=self.ground_truth,
+            label_vector=self.label_vector(),
+            weights=self.weights,
+            scale=np.float32(self.scale),
+            class_names=np.array(self.class_names),
+            joint_names=np.array(self.data.skeleton.joint_names),
+            sequence_id=np.array(self.data.sequence_ids[self.index]),
+            fps=np.float32(FPS),
+        )
+        return buf.getvalue()
+
+    def export_name(self, ext: str) -> str:
+        sid = self.data.sequence_ids[self.index].replace("/", "-")
+        mix = "_".join(f"{n[:5]}{w:+.1f}" for n, w in zip(self.class_names, self.weights, strict=True) if w) or "neutral"
+        return f"{sid}_{mix}.{ext}"

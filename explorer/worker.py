@@ -1,0 +1,117 @@
+"""One studio process = one user: loads data + model, builds the page, serves it on its own port.
+
+Started by the launcher (launcher.py) as `python -m explorer.worker ...`. It talks to the launcher
+with single lines on stdout (`IMM-WORKER READY <port>` or `IMM-WORKER ERROR <message>`) and exits when
+its user has been gone for `--idle-exit` seconds or when the launcher goes away (stdin closes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import threading
+import time
+from pathlib import Path
+
+PREFIX = "IMM-WORKER"
+
+
+def _say(*words: object) -> None:
+    sys.stdout.write(" ".join([PREFIX, *map(str, words)]) + "\n")
+    sys.stdout.flush()
+
+
+def parse_args(argv=None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(prog="python -m explorer.worker")
+    p.add_argument("--data", type=Path, required=True)
+    p.add_argument("--checkpoint", type=Path, required=True)
+    p.add_argument("--cache-dir", type=Path, default=None)
+    p.add_argument("--export-dir", type=Path, default=Path("imm-exports"))
+    p.add_argument("--host", default="127.0.0.1")
+    p.add_argument("--port", type=int, default=0)
+    p.add_argument("--sequence", default=None, help="sequence id or index to open first")
+    p.add_argument("--idle-exit", type=float, default=60.0, help="seconds without a client before exiting (after the first one)")
+    p.add_argument("--watch-stdin", action="store_true", help="exit when stdin closes (the launcher died)")
+    return p.parse_args(argv)
+
+
+def load_everything(args: argparse.Namespace):
+    """Data, model and latent map; raises IMMError/OSError with one-line messages."""
+    from explorer.latent import LatentMap, cache_key, default_cache_dir
+    from explorer.session import load_model
+    from imm_model.data.dataset import InteractionDataset
+
+    data = InteractionDataset.load(args.data)
+    model = load_model(args.checkpoint, data)
+    cache_dir = args.cache_dir or default_cache_dir()
+    latent = LatentMap.build(model, data, cache_dir, cache_key(args.checkpoint, args.data))
+    return data, model, latent
+
+
+def start_index(data, sequence: str | None) -> int:
+    if sequence is None:
+        held = [i for i in range(len(data)) if data.held_out[i]]
+        return held[0] if held else 0  # open on a sequence the model never saw: the honest default
+    return int(sequence) if sequence.isdigit() else data.index_of(sequence)
+
+
+def serve(data, model, latent, args: argparse.Namespace) -> int:
+    from trame.app import get_server
+    from wslink.websocket import LinkProtocol
+
+    from explorer.app import Studio
+    from explorer.remote import patch_image_delivery
+    from explorer.session import Session
+
+    patch_image_delivery()
+    server = get_server("imm-studio", client_type="vue3")
+    session = Session(data, model, start_index(data, args.sequence))
+    Studio(server, session, latent, export_dir=args.export_dir)
+
+    clients: set[str] = set()
+    last_seen = [time.monotonic()]
+    ever = [False]
+
+    class ClientTracker(LinkProtocol):
+        def onConnect(self, request, client_id):
+            clients.add(client_id)
+            ever[0] = True
+
+        def onClose(self, client_id):
+            clients.discard(client_id)
+            last_seen[0] = time.monotonic()
+
+    server.add_protocol_to_configure(lambda protocol: protocol.registerLinkProtocol(ClientTracker()))
+
+    def idle_watch():
+        while True:
+            time.sleep(1.0)
+            if ever[0] and not clients and time.monotonic() - last_seen[0] > args.idle_exit:
+                os._exit(0)
+
+    def stdin_watch():
+        sys.stdin.read()  # returns at EOF: the launcher is gone
+        os._exit(0)
+
+    threading.Thread(target=idle_watch, daemon=True).start()
+    if args.watch_stdin:
+        threading.Thread(target=stdin_watch, daemon=True).start()
+    server.controller.on_server_ready.add(lambda **_: _say("READY", server.port))
+    server.start(host=args.host, port=args.port, open_browser=False, show_connection_info=False, disable_logging=True)
+    return 0
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    try:
+        data, model, latent = load_everything(args)
+    except Exception as err:  # one line for the launcher / terminal, never a traceback
+        msg = str(err.args[0] if isinstance(err, KeyError) and err.args else err).strip().splitlines()
+        _say("ERROR", msg[0] if msg else type(err).__name__)
+        return 2
+    return serve(data, model, latent, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
