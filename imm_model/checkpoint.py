@@ -41,6 +41,7 @@ def save_checkpoint(path: Path | str, tensors: dict[str, torch.Tensor], meta: di
     tensors = {k: v.detach().contiguous().clone() for k, v in tensors.items()}
     _atomic_write(path, lambda tmp: save_file(tensors, str(tmp), metadata={"imm": json.dumps(meta, sort_keys=True)}))
     _atomic_write(sidecar_path(path), lambda tmp: tmp.write_text(text + "\n"))
+    os.chmod(path, 0o644)
 
 
 def load_checkpoint(path: Path | str) -> tuple[dict[str, torch.Tensor], dict[str, Any]]:

@@ -84,8 +84,9 @@ class ReactionModel:
             if vec.ndim != 1 or len(vec) != c:
                 raise LabelError(f"label has shape {vec.shape}; expected {c} values ({', '.join(self.class_names)})")
         scale = _as_float(scale, "scale")
-        vec = vec * scale
-        if not np.isfinite(vec).all():
+        with np.errstate(all="ignore"):
+            vec = vec * scale
+        if not (np.isfinite(vec).all() and np.isfinite(scale)):
             raise LabelError("label values must be finite (no NaN or infinity)")
         return vec.astype(np.float32)
 

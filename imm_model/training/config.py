@@ -26,6 +26,7 @@ class TrainConfig:
     lambda_l1: float = 1.0
     lambda_bone: float = 0.01
     lambda_cont: float = 1.0
+    lambda_afd: float = 0.0  # direct per-frame pose-vector distance (the AFD itself, metres); 0 in the paper
     adv_warmup_epochs: int = 0  # adversarial weight 0 for these epochs (reconstruction warm-up) ...
     adv_ramp_epochs: int = 0  # ... then ramped linearly to lambda_adv over these epochs
     label_smoothing: float = 0.0  # on D's real-class targets
@@ -36,6 +37,7 @@ class TrainConfig:
     rotate_deg: float = 0.0  # uniform yaw of both characters in [-rotate_deg, rotate_deg]
     role_swap_prob: float = 0.0  # B becomes the leader (re-canonicalized), for role_swap_classes only
     role_swap_classes: tuple[str, ...] = ()
+    ema_decay: float = 0.0  # >0: validate, select and ship an exponential moving average of G's weights
     # Model selection.
     val_fraction: float = 0.15
     patience: int = 0  # early stopping: stop after this many epochs without a better validation AFD (0 = never)

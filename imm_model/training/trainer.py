@@ -8,6 +8,7 @@ continues exactly as an uninterrupted run would, and the same seed gives identic
 
 from __future__ import annotations
 
+import copy
 import csv
 import math
 import time
@@ -85,6 +86,7 @@ class Trainer:
         self.padded = PaddedData.from_dataset(data)
         self.G, self.D = build_models(cfg, data, cfg.seed)
         self._set_normalization()
+        self.G_ema = copy.deepcopy(self.G).requires_grad_(False) if cfg.ema_decay > 0 else None
         self.opt_g = make_optimizer(cfg, self.G.parameters(), cfg.lr_g)
         self.opt_d = make_optimizer(cfg, self.D.parameters(), cfg.lr_d)
         swap = torch.tensor([c in cfg.role_swap_classes for c in data.class_names])
@@ -127,8 +129,15 @@ class Trainer:
         }
 
     # ---- checkpoints ----------------------------------------------------------------------
+    @property
+    def shipped_generator(self) -> Generator:
+        """The generator that is validated and saved as `generator.*`: the EMA copy if there is one."""
+        return self.G_ema if self.G_ema is not None else self.G
+
     def weights(self) -> dict[str, torch.Tensor]:
-        t = {f"generator.{k}": v for k, v in self.G.state_dict().items()}
+        t = {f"generator.{k}": v for k, v in self.shipped_generator.state_dict().items()}
+        if self.G_ema is not None:
+            t.update({f"generator_train.{k}": v for k, v in self.G.state_dict().items()})
         t.update({f"discriminator.{k}": v for k, v in self.D.state_dict().items()})
         return t
 
@@ -145,9 +154,14 @@ class Trainer:
     def resume(self) -> None:
         path = self.out / "last.safetensors"
         tensors, meta = load_checkpoint(path)
-        if meta.get("train_config") != self.cfg.to_dict():
+        same = lambda d: {k: v for k, v in d.items() if k != "epochs"}  # noqa: E731 (more epochs is fine)
+        if same(meta.get("train_config") or {}) != same(self.cfg.to_dict()):
             raise CheckpointError(f"{path}: saved with a different training config; resume with the same --config/--seed")
-        load_module_state(self.G, prefixed(tensors, "generator"), "generator", path)
+        if self.G_ema is not None:
+            load_module_state(self.G_ema, prefixed(tensors, "generator"), "generator", path)
+            load_module_state(self.G, prefixed(tensors, "generator_train"), "generator_train", path)
+        else:
+            load_module_state(self.G, prefixed(tensors, "generator"), "generator", path)
         load_module_state(self.D, prefixed(tensors, "discriminator"), "discriminator", path)
         optimizer_from_tensors(self.opt_g, tensors, meta["optim_g"], "optim_g")
         optimizer_from_tensors(self.opt_d, tensors, meta["optim_d"], "optim_d")
@@ -191,28 +205,37 @@ class Trainer:
             bone = losses.bone_loss(fake, follower, self.bones, mask)
             cont = losses.continuity_loss(fake, follower, mask)
             g_loss = cfg.lambda_l1 * l1 + cfg.lambda_bone * bone + cfg.lambda_cont * cont
+            if cfg.lambda_afd > 0:
+                g_loss = g_loss + cfg.lambda_afd * losses.afd_metres(fake, follower, mask).mean()
             if use_d and w_adv > 0:
                 self.D.requires_grad_(False)
                 adv = losses.generator_adv_loss(self.D(fake, lengths), actions)
                 g_loss = g_loss + w_adv * adv
-                sums["adv"] += float(adv)
+                sums["adv"] += float(adv.detach())
             self.opt_g.zero_grad(set_to_none=True)
             g_loss.backward()
             self.opt_g.step()
-            sums["l1"] += float(l1)
-            sums["bone"] += float(bone)
-            sums["cont"] += float(cont)
+            if self.G_ema is not None:
+                self._update_ema()
+            sums["l1"] += float(l1.detach())
+            sums["bone"] += float(bone.detach())
+            sums["cont"] += float(cont.detach())
             n += 1
         return {k: v / n for k, v in sums.items()} | {"adv_weight": w_adv}
 
+    @torch.no_grad()
+    def _update_ema(self) -> None:
+        for e, p in zip(self.G_ema.parameters(), self.G.parameters(), strict=True):
+            e.lerp_(p, 1.0 - self.cfg.ema_decay)
+
     @torch.inference_mode()
     def validate(self) -> dict:
-        self.G.eval()
+        G = self.shipped_generator.eval()
         idx = torch.as_tensor(self.val_idx)
         leader, follower, lengths, actions = self.padded.batch(idx)
         mask = torch.arange(leader.shape[1])[None] < lengths[:, None]
         labels = torch.nn.functional.one_hot(actions, len(self.data.class_names)).float()
-        pred = self.G(leader, labels, lengths)
+        pred = G(leader, labels, lengths)
         return {"val_afd_m": float(losses.afd_metres(pred, follower, mask).mean()),
                 "val_l1": float(losses.masked_l1(pred, follower, mask))}
 

@@ -1,0 +1,156 @@
+"""Training: recipes, schedule, determinism, exact resume, checkpoint safety, and that it learns."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import pytest
+import torch
+
+from imm_model.checkpoint import load_checkpoint, save_checkpoint
+from imm_model.cli import main
+from imm_model.errors import CheckpointError
+from imm_model.inference import ReactionModel
+from imm_model.training.config import IMM, PAPER, TrainConfig, load_config
+from imm_model.training.trainer import Trainer, adversarial_weight, export_generator
+
+TINY = replace(
+    IMM,
+    model=dict(stream_embed=16, encoder_hidden=8, decoder_hidden=16, attention_dim=8, disc_hidden=8, dropout=0.1),
+    epochs=4, checkpoint_every=2, adv_warmup_epochs=1, adv_ramp_epochs=2, ema_decay=0.9, role_swap_prob=0.5,
+    role_swap_classes=("hugging",),
+)
+
+
+def weights(trainer: Trainer) -> dict[str, torch.Tensor]:
+    return {k: v.clone() for k, v in trainer.weights().items()}
+
+
+def assert_same(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for k in a:
+        assert torch.equal(a[k], b[k]), k
+
+
+def test_named_and_file_configs(tmp_path):
+    assert load_config("paper") == PAPER and PAPER.optimizer == "rmsprop" and PAPER.batch_size == 16
+    assert (PAPER.lambda_l1, PAPER.lambda_bone, PAPER.lambda_cont, PAPER.lambda_adv) == (1.0, 0.01, 1.0, 1.0)
+    assert TrainConfig.from_dict(IMM.to_dict()) == IMM
+    f = tmp_path / "r.json"
+    f.write_text(json.dumps({"base": "paper", "epochs": 3}))
+    cfg = load_config(str(f), seed=5)
+    assert cfg.epochs == 3 and cfg.optimizer == "rmsprop" and cfg.seed == 5
+    f.write_text(json.dumps({"epochz": 3}))
+    with pytest.raises(ValueError, match="unknown training config keys"):
+        load_config(str(f))
+    with pytest.raises(ValueError, match="unknown config"):
+        load_config("nope")
+
+
+def test_adversarial_ramp():
+    cfg = replace(IMM, lambda_adv=0.5, adv_warmup_epochs=2, adv_ramp_epochs=4)
+    assert [adversarial_weight(cfg, e) for e in range(7)] == [0, 0, 0.125, 0.25, 0.375, 0.5, 0.5]
+
+
+@pytest.mark.slow
+def test_same_seed_same_weights_and_exact_resume(sample_data, tmp_path):
+    straight = Trainer(TINY, sample_data, "s04", tmp_path / "a")
+    straight.fit(progress=False)
+    again = Trainer(TINY, sample_data, "s04", tmp_path / "b")
+    again.fit(progress=False)
+    assert_same(weights(straight), weights(again))
+
+    first = Trainer(TINY, sample_data, "s04", tmp_path / "c")
+    first.fit(epochs=2, progress=False)
+    resumed = Trainer(TINY, sample_data, "s04", tmp_path / "c")
+    resumed.resume()
+    assert resumed.state.epoch == 2
+    resumed.fit(progress=False)
+    assert_same(weights(straight), weights(resumed))
+    assert [r["epoch"] for r in resumed.state.history] == [0, 1, 2, 3]
+    log = (tmp_path / "c" / "log.csv").read_text().splitlines()
+    assert len(log) == 5 and (tmp_path / "c" / "curves.png").exists()
+
+    other = Trainer(replace(TINY, seed=1), sample_data, "s04", tmp_path / "d")
+    other.fit(epochs=1, progress=False)
+    assert not torch.equal(other.G.out.weight, straight.G.out.weight)
+
+
+@pytest.mark.slow
+def test_short_training_lowers_validation_afd(sample_data, tmp_path):
+    cfg = replace(IMM, model=TINY.model | {"decoder_hidden": 32}, epochs=8, lambda_adv=0.05, adv_warmup_epochs=4)
+    trainer = Trainer(cfg, sample_data, "s04", tmp_path)
+    before = trainer.validate()["val_afd_m"]
+    state = trainer.fit(progress=False)
+    assert state.best_val < 0.8 * before
+    assert any(r["adv"] > 0 for r in state.history)  # the adversarial term was on
+
+
+@pytest.fixture(scope="module")
+def checkpoint(sample_data, tmp_path_factory):
+    out = tmp_path_factory.mktemp("ck")
+    trainer = Trainer(replace(TINY, epochs=1), sample_data, "s04", out)
+    trainer.fit(progress=False)
+    export_generator(out / "best.safetensors", out / "gen.safetensors")
+    return out
+
+
+def test_checkpoint_round_trip(checkpoint, sample_data):
+    tensors, meta = load_checkpoint(checkpoint / "best.safetensors")
+    assert meta["held_out_subject"] == "s04" and meta["class_names"] == list(sample_data.class_names)
+    assert meta["skeleton"] == sample_data.skeleton.to_dict() and meta["canonical_mode"] == "first_frame"
+    assert "code_version" in meta and "training" in meta
+    model = ReactionModel.load(checkpoint / "gen.safetensors")
+    assert not any(k.startswith("discriminator") for k in load_checkpoint(checkpoint / "gen.safetensors")[0])
+    leader = sample_data.canonical(0)[0]
+    full = ReactionModel.load(checkpoint / "best.safetensors")
+    v = model.label_vector({"kicking": 1})
+    assert (model.synthesize_canonical(leader, v) == full.synthesize_canonical(leader, v)).all()
+
+
+def _one_line_error(path):
+    with pytest.raises(CheckpointError) as err:
+        ReactionModel.load(path)
+    assert "\n" not in str(err.value) and path.stem in str(err.value)
+    return str(err.value)
+
+
+def test_corrupt_checkpoints_raise_one_line(checkpoint, tmp_path):
+    src = (checkpoint / "gen.safetensors").read_bytes()
+    side = (checkpoint / "gen.json").read_text()
+
+    def write(name: str, data: bytes, sidecar: str | None = side):
+        p = tmp_path / f"{name}.safetensors"
+        p.write_bytes(data)
+        if sidecar is not None:
+            p.with_suffix(".json").write_text(sidecar)
+        return p
+
+    _one_line_error(write("truncated", src[: len(src) // 2]))
+    _one_line_error(write("garbage", b"\x00\xff" * 500))
+    _one_line_error(write("empty", b""))
+    _one_line_error(tmp_path / "missing.safetensors")
+    _one_line_error(write("badsidecar", src, "{not json"))
+    # wrong architecture: the sidecar describes a bigger decoder than the weights
+    meta = json.loads(side)
+    meta["model_config"]["decoder_hidden"] = 64
+    assert "shape" in _one_line_error(write("arch", src, json.dumps(meta)))
+    # missing key
+    tensors, meta = load_checkpoint(checkpoint / "gen.safetensors")
+    del tensors["generator.out.weight"]
+    save_checkpoint(tmp_path / "missing_key.safetensors", tensors, {k: v for k, v in meta.items() if k != "format"})
+    assert "missing key" in _one_line_error(tmp_path / "missing_key.safetensors")
+
+
+def test_cli_train_one_epoch_and_resume(tmp_path, capsys):
+    cfg = tmp_path / "tiny.json"
+    cfg.write_text(json.dumps(TINY.to_dict() | {"epochs": 1}))
+    out = tmp_path / "run"
+    assert main(["train", "--config", str(cfg), "--fold", "s04", "--out", str(out), "--quiet",
+                 "--export", str(tmp_path / "exp.safetensors")]) == 0
+    assert (out / "fold-s04" / "best.safetensors").exists() and (tmp_path / "exp.json").exists()
+    assert main(["train", "--config", str(cfg), "--fold", "s04", "--out", str(out), "--quiet", "--resume", "--epochs", "2"]) == 0
+    assert "2 epochs" in capsys.readouterr().out
+    assert main(["train", "--config", "paper", "--fold", "s99", "--out", str(out)]) == 2
+    assert "s99" in capsys.readouterr().err
