@@ -104,6 +104,11 @@ def serve(data, model, latent, args: argparse.Namespace) -> int:
 
 def main(argv=None) -> int:
     args = parse_args(argv)
+    import torch
+
+    # One intra-op thread: the model's per-request work is a few ms, and several studio processes
+    # (plus rendering) share the cores; more threads made each synthesis 4x slower here.
+    torch.set_num_threads(1)
     try:
         data, model, latent = load_everything(args)
     except Exception as err:  # one line for the launcher / terminal, never a traceback

@@ -1,0 +1,56 @@
+"""`imm explore`: start the studio (registered through the `imm.commands` entry point).
+
+trame/VTK/torch are imported by the studio processes only, so `imm --help` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "explore",
+        help="open the studio: watch, mix and compare synthesized reactions in the browser",
+        description="Start IMM Studio (a local web app). Each browser tab gets its own studio process.",
+    )
+    p.add_argument("--data", type=Path, default=None, help="interaction bundle .npz (default: the bundled SBU sample)")
+    p.add_argument("--checkpoint", type=Path, default=None, help="model checkpoint .safetensors (default: the bundled one)")
+    p.add_argument("--port", type=int, default=8080, help="port to listen on; 0 picks a free one (printed). Default 8080")
+    p.add_argument(
+        "--host", default="127.0.0.1",
+        help="address to bind (default 127.0.0.1: this machine only; 0.0.0.0 exposes the studio to your network)",
+    )  # fmt: skip
+    p.add_argument("--no-browser", action="store_true", help="do not open a browser window")
+    p.add_argument("--cache-dir", type=Path, default=None, help="latent-map cache (default: ~/.cache/imm-studio)")
+    p.add_argument("--export-dir", type=Path, default=Path("imm-exports"), help="where exports are also saved (default ./imm-exports)")
+    p.add_argument("--max-clients", type=int, default=8, help="most browser tabs served at once (one process each). Default 8")
+    p.add_argument("--sequence", default=None, help="sequence id (e.g. s04s02/01/001) or index to open first")
+    p.set_defaults(func=run_explore)
+
+
+def run_explore(args: argparse.Namespace) -> int:
+    from explorer.launcher import LaunchConfig, LaunchError, launch
+    from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA
+
+    data = args.data or SAMPLE_DATA
+    checkpoint = args.checkpoint or SAMPLE_CHECKPOINT
+    for what, path in (("data file", data), ("checkpoint", checkpoint)):
+        if not Path(path).is_file():
+            print(f"imm explore: error: {what} not found: {path}", file=sys.stderr)
+            return 2
+    if not 0 <= args.port <= 65535:
+        print(f"imm explore: error: --port must be 0..65535, not {args.port}", file=sys.stderr)
+        return 2
+    config = LaunchConfig(
+        data=Path(data).resolve(), checkpoint=Path(checkpoint).resolve(), host=args.host, port=args.port,
+        cache_dir=args.cache_dir.resolve() if args.cache_dir else None, export_dir=args.export_dir.resolve(),
+        max_clients=max(1, args.max_clients), open_browser=not args.no_browser, sequence=args.sequence,
+    )  # fmt: skip
+    try:
+        return launch(config)
+    except LaunchError as err:
+        print(f"imm explore: error: {err}", file=sys.stderr)
+        return 2

@@ -1,0 +1,204 @@
+"""`imm explore`'s front door: one studio process per browser client.
+
+A trame server shares one state among all its clients, so two people on one server would move each
+other's sliders. The launcher listens on the public port; each visit to `/` takes a warm worker
+process (explorer/worker.py, already loaded and listening on its own port), redirects the browser to
+it and starts the next spare in the background. Workers exit when their user has gone.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import errno
+import html
+import os
+import socket
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from explorer.worker import PREFIX
+
+
+class LaunchError(Exception):
+    """A user-facing start-up problem: printed as one line, exit code 2."""
+
+
+@dataclass
+class Worker:
+    process: asyncio.subprocess.Process
+    port: int = 0
+    ready: asyncio.Future = field(default_factory=lambda: asyncio.get_running_loop().create_future())
+
+
+@dataclass
+class LaunchConfig:
+    data: Path
+    checkpoint: Path
+    host: str = "127.0.0.1"
+    port: int = 0
+    cache_dir: Path | None = None
+    export_dir: Path = Path("imm-exports")
+    max_clients: int = 8
+    spares: int = 1
+    idle_exit: float = 60.0
+    open_browser: bool = True
+    sequence: str | None = None
+
+
+def bind_socket(host: str, port: int) -> socket.socket:
+    """Bind now, so a busy port is reported before anything slow starts."""
+    sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host, port))
+    except OSError as err:
+        sock.close()
+        if err.errno == errno.EADDRINUSE:
+            raise LaunchError(f"port {port} on {host} is already in use (choose another with --port, or --port 0 for a free one)") from None
+        raise LaunchError(f"cannot listen on {host}:{port}: {err.strerror or err}") from None
+    sock.listen(64)
+    sock.setblocking(False)
+    return sock
+
+
+class Launcher:
+    def __init__(self, config: LaunchConfig):
+        self.config = config
+        self.spares: list[Worker] = []
+        self.busy: list[Worker] = []
+        self.url = ""
+
+    # ---- workers -------------------------------------------------------------------------
+    async def spawn(self) -> Worker:
+        c = self.config
+        cmd = [sys.executable, "-m", "explorer.worker", "--data", str(c.data), "--checkpoint", str(c.checkpoint),
+               "--host", c.host, "--port", "0", "--export-dir", str(c.export_dir), "--idle-exit", str(c.idle_exit),
+               "--watch-stdin"]  # fmt: skip
+        if c.cache_dir:
+            cmd += ["--cache-dir", str(c.cache_dir)]
+        if c.sequence:
+            cmd += ["--sequence", c.sequence]
+        env = {**os.environ, "OMP_NUM_THREADS": "1", "VTK_DEFAULT_OPENGL_WINDOW": "vtkEGLRenderWindow"}
+        proc = await asyncio.create_subprocess_exec(*cmd, stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE, env=env)
+        w = Worker(proc)
+        asyncio.get_running_loop().create_task(self._read(w))
+        return w
+
+    async def _read(self, w: Worker) -> None:
+        assert w.process.stdout is not None
+        while line := await w.process.stdout.readline():
+            text = line.decode(errors="replace").strip()
+            if not text.startswith(PREFIX + " "):
+                continue
+            kind, _, rest = text[len(PREFIX) + 1 :].partition(" ")
+            if kind == "READY" and not w.ready.done():
+                w.port = int(rest)
+                w.ready.set_result(True)
+            elif kind == "ERROR" and not w.ready.done():
+                w.ready.set_exception(LaunchError(rest))
+        code = await w.process.wait()
+        if not w.ready.done():
+            w.ready.set_exception(LaunchError(f"studio process exited with code {code} before it was ready"))
+        for pool in (self.spares, self.busy):
+            if w in pool:
+                pool.remove(w)
+
+    def _top_up(self) -> None:
+        want = min(self.config.spares, self.config.max_clients - len(self.busy)) - len(self.spares)
+        for _ in range(max(0, want)):
+            self.spares.append(None)  # type: ignore[arg-type]  # placeholder until spawn returns
+            asyncio.get_running_loop().create_task(self._add_spare())
+
+    async def _add_spare(self) -> None:
+        w = await self.spawn()
+        self.spares[self.spares.index(None)] = w  # type: ignore[arg-type]
+
+    async def take(self) -> Worker:
+        """A ready worker for a new client (waits for the spare when it is still loading)."""
+        while None in self.spares:
+            await asyncio.sleep(0.02)
+        if not self.spares:
+            if len(self.busy) >= self.config.max_clients:
+                raise LaunchError(f"the studio is serving its maximum of {self.config.max_clients} clients; close one and reload")
+            self.spares.append(await self.spawn())
+        w = self.spares.pop(0)
+        self.busy.append(w)
+        self._top_up()
+        await w.ready
+        return w
+
+    # ---- http ----------------------------------------------------------------------------
+    async def handle(self, request):
+        from aiohttp import web
+
+        try:
+            w = await self.take()
+        except LaunchError as err:
+            return web.Response(status=503, content_type="text/html", text=_error_page(str(err)))
+        host = request.url.host or self.config.host
+        raise web.HTTPFound(f"http://{host}:{w.port}/")
+
+    async def run(self, sock: socket.socket) -> int:
+        from aiohttp import web
+
+        t0 = time.monotonic()
+        first = await self.spawn()
+        self.spares.append(first)
+        try:
+            await first.ready  # bad data/checkpoint fail here, before any URL is printed
+        except LaunchError:
+            await self.shutdown()
+            raise
+        app = web.Application()
+        app.router.add_get("/", self.handle)
+        runner = web.AppRunner(app, access_log=None)
+        await runner.setup()
+        await web.SockSite(runner, sock).start()
+        port = sock.getsockname()[1]
+        shown = "localhost" if self.config.host in ("127.0.0.1", "localhost") else self.config.host
+        self.url = f"http://{shown}:{port}/"
+        print(
+            f"IMM Studio ready at {self.url} ({time.monotonic() - t0:.1f} s; one studio process per browser tab, Ctrl+C to stop)",
+            flush=True,
+        )
+        if self.config.open_browser:
+            import webbrowser
+
+            webbrowser.open(self.url)
+        try:
+            await asyncio.Event().wait()
+        finally:
+            await runner.cleanup()
+            await self.shutdown()
+        return 0
+
+    async def shutdown(self) -> None:
+        for w in [*self.spares, *self.busy]:
+            if w is not None and w.process.returncode is None:
+                w.process.terminate()
+        for w in [*self.spares, *self.busy]:
+            if w is not None:
+                try:
+                    await asyncio.wait_for(w.process.wait(), 5)
+                except (TimeoutError, ProcessLookupError):
+                    w.process.kill()
+
+
+def _error_page(message: str) -> str:
+    return (
+        "<!doctype html><title>IMM Studio</title><body style='font-family:sans-serif;padding:2em'>"
+        f"<h2>IMM Studio</h2><p style='color:#b00020'>{html.escape(message)}</p></body>"
+    )
+
+
+def launch(config: LaunchConfig) -> int:
+    sock = bind_socket(config.host, config.port)
+    launcher = Launcher(config)
+    try:
+        return asyncio.run(launcher.run(sock))
+    except KeyboardInterrupt:
+        return 0
+    finally:
+        sock.close()
