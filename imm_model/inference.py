@@ -28,9 +28,11 @@ class ReactionModel:
     """A trained generator with what is needed to use it: classes, skeleton, canonical mode."""
 
     def __init__(self, generator, meta: dict[str, Any], path: Path | None = None):
+        from imm_model.model.fast import FastGenerator
         from imm_model.skeleton import Skeleton
 
         self.generator = generator.eval()
+        self.fast = FastGenerator(self.generator)  # same numbers, ~4x faster for one unpadded sequence
         self.config = generator.cfg
         self.info: dict[str, Any] = meta
         self.path = path
@@ -133,7 +135,7 @@ class ReactionModel:
         with torch.inference_mode():
             x = torch.as_tensor(np.asarray(leader_canonical, dtype=np.float32).reshape(1, t, -1))
             lab = torch.as_tensor(np.asarray(label_vector, dtype=np.float32).reshape(1, -1))
-            out = self.generator(x, lab, torch.tensor([t]))
+            out = self.fast(x, lab)
         return out.numpy().reshape(t, -1, 3)
 
     def synthesize_batch_canonical(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> list[np.ndarray]:

@@ -87,3 +87,14 @@ def test_discriminator_loss_targets():
     fake[:, 6] = 10.0
     assert float(losses.discriminator_loss(real, fake, actions)) < 1e-3
     assert float(losses.generator_adv_loss(fake, actions)) > 10
+
+
+def test_fast_generator_matches(models):
+    from imm_model.model.fast import FastGenerator
+
+    G, _ = models
+    fast = FastGenerator(G)
+    x, lab = torch.randn(1, 17, 45), torch.tensor([[0.5, 0, -1, 0, 2, 0]])
+    with torch.no_grad():
+        torch.testing.assert_close(fast(x, lab), G(x, lab, torch.tensor([17])), atol=1e-5, rtol=1e-5)
+        torch.testing.assert_close(fast.encode(x, lab), G.encode(x, lab, torch.tensor([17])), atol=1e-5, rtol=1e-5)
