@@ -299,6 +299,12 @@ class Studio:
         self.scene.set_camera(preset)
         self.ctrl.view_update()
 
+    def push_view(self, **_):
+        """Send a new picture. The web app only re-encodes a view whose render window is newer than
+        the last image, and moving points or toggling actors does not touch the window: mark it."""
+        self.scene.render_window.Modified()
+        self._view.update()
+
     # ---- charts --------------------------------------------------------------------------
     def _update_distance_chart(self, force: bool = False) -> None:
         now = time.monotonic()
@@ -547,7 +553,8 @@ class Studio:
                             interactive_quality=70,
                             still_quality=88,
                         )
-                        self.ctrl.view_update = view.update
+                        self._view = view
+                        self.ctrl.view_update = self.push_view
                         with html.Div(style="position: absolute; left: 8px; top: 6px; pointer-events: none", classes="text-caption"):
                             for key in CHARACTER_KEYS:
                                 html.Span(

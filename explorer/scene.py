@@ -51,7 +51,7 @@ class StickFigure:
         glyph.SetSourceConnection(sphere.GetOutputPort())
         glyph.ScalingOff()
         self.filters = (tube, glyph)
-        kw = dict(color=rgb(color), smooth_shading=True, ambient=0.25, diffuse=0.75, specular=0.2)
+        kw = dict(color=rgb(color), smooth_shading=True, ambient=0.3, diffuse=0.7, specular=0.25)
         self.actors = [plotter.add_mesh(tube, **kw), plotter.add_mesh(glyph, **kw)]
 
     def set_pose(self, joints: np.ndarray) -> None:
@@ -74,7 +74,9 @@ class Scene:
         pv.global_theme.multi_samples = 0  # MSAA costs ~3x per frame on llvmpipe (docs/explorer.md)
         self.plotter = pv.Plotter(off_screen=True, window_size=list(window_size))
         self.plotter.set_background(BACKGROUND)
-        self.plotter.enable_lightkit()
+        # One camera-following light: a light kit (5 lights) doubled llvmpipe's per-frame cost.
+        self.plotter.remove_all_lights()
+        self.plotter.add_light(pv.Light(light_type="headlight", intensity=1.0))
         self.skeleton = skeleton
         self.floor_y = float(floor_y)
         self.figures = {k: StickFigure(self.plotter, skeleton, CHARACTERS[k]) for k in CHARACTER_KEYS}
@@ -106,7 +108,7 @@ class Scene:
     def _floor(self):
         size, n = 9.0, 18
         plane = pv.Plane(center=(0, self.floor_y, 0.5), direction=(0, 1, 0), i_size=size, j_size=size, i_resolution=n, j_resolution=n)
-        solid = self.plotter.add_mesh(plane, color="#e3e6eb", ambient=0.6, diffuse=0.4, specular=0.0)
+        solid = self.plotter.add_mesh(plane, color="#eef0f4", ambient=0.8, diffuse=0.2, specular=0.0)
         grid = self.plotter.add_mesh(
             plane.translate((0, 0.002, 0), inplace=False), style="wireframe", color="#b9bec8", line_width=1, lighting=False
         )

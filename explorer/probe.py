@@ -1,0 +1,130 @@
+"""Drive a running studio from Python: start `imm explore` in a subprocess and open it in headless
+Chromium with Playwright. Shared by tests/test_explorer_browser.py and benchmarks/explorer_latency.py.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = [
+    "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+    "--disable-background-networking", "--disable-component-update", "--disable-sync",
+]  # fmt: skip
+URL_RE = re.compile(r"IMM Studio ready at (http://\S+)")
+VIEW_IMG = ".v-main .rounded.border img"
+
+
+class StudioProcess:
+    """`imm explore --port 0 --no-browser` in a subprocess; `url` once it printed its address."""
+
+    def __init__(self, *extra: str, cache_dir: Path | None = None, timeout: float = 60.0):
+        cmd = [sys.executable, "-m", "imm_model.cli", "explore", "--port", "0", "--no-browser", *extra]
+        if cache_dir:
+            cmd += ["--cache-dir", str(cache_dir)]
+        self.started = time.monotonic()
+        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+        self.lines: list[str] = []
+        self.url = ""
+        self.ready_s = float("nan")
+        seen = threading.Event()
+
+        def pump(stream):
+            for line in stream:
+                self.lines.append(line.rstrip())
+                m = URL_RE.search(line)
+                if m and not self.url:
+                    self.url, self.ready_s = m.group(1), time.monotonic() - self.started
+                    seen.set()
+            seen.set()
+
+        for s in (self.proc.stdout, self.proc.stderr):
+            threading.Thread(target=pump, args=(s,), daemon=True).start()
+        deadline = time.monotonic() + timeout
+        while not self.url and self.proc.poll() is None and time.monotonic() < deadline:
+            seen.wait(0.05)
+        if not self.url:
+            self.stop()
+            raise RuntimeError("studio did not start: " + " | ".join(self.lines[-5:]))
+
+    def stop(self) -> None:
+        """Stop the launcher and its studio processes (its own process group, started above)."""
+        if self.proc.poll() is None:
+            try:
+                os.killpg(self.proc.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                return
+            try:
+                self.proc.wait(10)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()
+
+
+def launch_chromium(playwright):
+    return playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
+
+
+def open_studio(browser, url: str, width: int = 1400, height: int = 900, timeout_ms: int = 60000):
+    """A new page on the studio, returned once the remote 3D view shows a real picture."""
+    page = browser.new_page(viewport={"width": width, "height": height})
+    page.goto(url, timeout=timeout_ms)
+    wait_for_view(page, timeout_ms)
+    return page
+
+
+def wait_for_view(page, timeout_ms: int = 60000) -> None:
+    page.wait_for_function(
+        f"() => {{ const i = document.querySelector('{VIEW_IMG}'); return i && i.complete && i.naturalWidth > 100 }}",
+        timeout=timeout_ms,
+    )
+
+
+def state(page, key: str):
+    return page.evaluate("k => window.trame.state.get(k)", key)
+
+
+def set_state(page, key: str, value) -> None:
+    page.evaluate("([k, v]) => window.trame.state.set(k, v)", [key, value])
+
+
+def view_pixels(page) -> np.ndarray:
+    """(H, W, 3) uint8 of the 3D view as the browser shows it."""
+    from io import BytesIO
+
+    from PIL import Image
+
+    png = page.locator(VIEW_IMG).screenshot()
+    return np.asarray(Image.open(BytesIO(png)).convert("RGB"))
+
+
+def color_mask(rgb: np.ndarray, hex_color: str, tol: int = 60) -> np.ndarray:
+    """Pixels within `tol` (per channel) of a character color; shading darkens, so compare hue-ish."""
+    h = hex_color.lstrip("#")
+    target = np.array([int(h[i : i + 2], 16) for i in (0, 2, 4)], float)
+    px = rgb.astype(float)
+    # Normalize brightness: compare chromaticity, and require a saturated pixel (not grey floor).
+    sat = px.max(-1) - px.min(-1)
+    chroma = px / (px.sum(-1, keepdims=True) + 1e-6)
+    tchroma = target / target.sum()
+    close = np.abs(chroma - tchroma).max(-1) < tol / 765.0
+    return close & (sat > 60)
+
+
+def count_colors(rgb: np.ndarray, colors: Sequence[str]) -> list[int]:
+    return [int(color_mask(rgb, c).sum()) for c in colors]
