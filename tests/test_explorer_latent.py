@@ -1,0 +1,75 @@
+"""Latent map: cache key, on-disk cache, kNN placement of the current mix."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("sklearn")
+
+
+class TinyModel:
+    """Stands in for ReactionModel's embedding call: deterministic features of leader + label."""
+
+    def __init__(self, data):
+        self.class_names = data.class_names
+        self.calls = 0
+
+    def label_vector(self, label, scale=1.0):
+        return np.asarray(label, np.float32) * scale
+
+    def latent_canonical_batch(self, leaders, label_vectors):
+        self.calls += 1
+        feats = np.stack([np.concatenate([a.mean(0).ravel(), a.std(0).ravel()]) for a in leaders])
+        return np.concatenate([feats, 3 * np.asarray(label_vectors)], 1).astype(np.float32)
+
+
+def test_cache_key_follows_file_contents(tmp_path):
+    from explorer.latent import cache_key
+
+    a, b = tmp_path / "a.safetensors", tmp_path / "d.npz"
+    a.write_bytes(b"weights-1")
+    b.write_bytes(b"data")
+    k1 = cache_key(a, b)
+    assert k1 == cache_key(a, b)
+    a.write_bytes(b"weights-2")
+    assert cache_key(a, b) != k1
+    a.write_bytes(b"weights-1")
+    a.with_suffix(".json").write_text("{}")  # the checkpoint's sidecar is part of the model
+    assert cache_key(a, b) != k1
+
+
+def test_build_caches_and_places(tmp_path, sample_data, monkeypatch):
+    from explorer import latent
+
+    model = TinyModel(sample_data)
+    lm = latent.LatentMap.build(model, sample_data, tmp_path, "k1")
+    xy = lm.coords["tsne"]
+    assert xy.shape == (len(sample_data), 2) and np.isfinite(xy).all()
+    assert (tmp_path / "latent-k1.npz").exists()
+
+    # Second build: read from disk, no embedding and no projection recomputed.
+    monkeypatch.setattr(latent, "project", lambda *a, **k: pytest.fail("projection recomputed despite the cache"))
+    again = latent.LatentMap.build(model, sample_data, tmp_path, "k1")
+    assert model.calls == 1
+    np.testing.assert_array_equal(again.coords["tsne"], xy)
+
+    # A point equal to an existing embedding lands on that point; any point lands inside the map.
+    np.testing.assert_allclose(again.place(again.latents[7], "tsne"), xy[7], atol=1e-2)
+    p = again.place(again.latents[7] + 0.5, "tsne")
+    assert (xy.min(0) <= p).all() and (p <= xy.max(0)).all()
+
+
+def test_corrupt_cache_is_recomputed(tmp_path, sample_data):
+    from explorer import latent
+
+    (tmp_path / "latent-bad.npz").write_bytes(b"not a zip")
+    lm = latent.LatentMap.build(TinyModel(sample_data), sample_data, tmp_path, "bad")
+    assert lm.coords["tsne"].shape == (len(sample_data), 2)
+
+
+def test_unknown_projection(sample_data):
+    from explorer.latent import project
+
+    with pytest.raises(ValueError, match="projection must be one of"):
+        project(np.zeros((5, 3)), "pca")

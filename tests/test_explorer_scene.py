@@ -1,0 +1,73 @@
+"""The PyVista scene off screen: poses move points in place; layouts, visibility and camera presets."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pyvista")
+
+
+@pytest.fixture(scope="module")
+def scene(sample_data):
+    from explorer.scene import Scene, floor_height
+
+    sc = Scene(sample_data.skeleton, floor_height(sample_data.leader, sample_data.follower, sample_data.skeleton), (320, 240))
+    leader, follower = sample_data.canonical(0)
+    sc.set_sequence(leader, follower, follower + np.float32([0.0, 0.0, 0.3]))
+    sc.set_camera("default")
+    yield sc
+    sc.plotter.close()
+
+
+def _count(img, hex_color):
+    from explorer.probe import color_mask
+
+    return int(color_mask(img, hex_color).sum())
+
+
+def test_frame_moves_points_in_place(scene, sample_data):
+    fig = scene.figures["leader"]
+    actors = [id(a) for a in scene.plotter.renderer.GetActors()]
+    points_before = fig.poly.GetPoints()
+    scene.set_frame(5)
+    np.testing.assert_allclose(fig.poly.points, sample_data.canonical(0)[0][5], atol=1e-6)
+    assert fig.poly.GetPoints() is points_before  # same VTK array, only its values changed
+    scene.set_frame(10_000)  # clamped
+    assert scene.frame == int(sample_data.lengths[0]) - 1
+    assert [id(a) for a in scene.plotter.renderer.GetActors()] == actors  # nothing rebuilt
+
+
+def test_three_colors_visible_and_hideable(scene):
+    from explorer.palette import GROUND_TRUTH, LEADER, SYNTHESIZED
+
+    img = scene.screenshot()
+    assert all(_count(img, c) > 50 for c in (LEADER, GROUND_TRUTH, SYNTHESIZED))
+    scene.set_visible("synthesized", False)
+    assert _count(scene.screenshot(), SYNTHESIZED) < 20
+    scene.set_visible("synthesized", True)
+
+
+def test_layouts_and_cameras(scene):
+    from explorer.scene import CAMERA_PRESETS
+
+    overlay = scene.screenshot()
+    scene.set_layout("side_by_side")
+    assert scene.captions["leader"].GetVisibility()
+    assert not np.array_equal(overlay, scene.screenshot())
+    scene.set_layout("overlay")
+    assert not scene.captions["leader"].GetVisibility()
+    shots = []
+    for preset in CAMERA_PRESETS:
+        scene.set_camera(preset)
+        shots.append(scene.screenshot())
+    assert len({s.tobytes() for s in shots}) == len(CAMERA_PRESETS)
+    with pytest.raises(ValueError):
+        scene.set_layout("grid")
+
+
+def test_export_frames(scene):
+    keep = scene.frame
+    frames = scene.frames()
+    assert len(frames) == len(scene.sequences["leader"]) and frames[0].shape[2] == 3
+    assert scene.frame == keep

@@ -1,0 +1,103 @@
+"""Studio logic without a browser: session (label mixing, synthesis, review numbers, export)."""
+
+from __future__ import annotations
+
+import io
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from imm_model.errors import CheckpointError
+from imm_model.paths import SAMPLE_CHECKPOINT
+
+pytest.importorskip("trame")
+
+
+@pytest.fixture(scope="module")
+def model(sample_data):
+    if not SAMPLE_CHECKPOINT.exists():
+        pytest.skip(f"bundled checkpoint missing: {SAMPLE_CHECKPOINT}")
+    from explorer.session import load_model
+
+    return load_model(SAMPLE_CHECKPOINT, sample_data)
+
+
+@pytest.fixture()
+def session(sample_data, model):
+    from explorer.session import Session
+
+    return Session(sample_data, model, index=0)
+
+
+def test_label_words():
+    from explorer.session import label_words
+
+    names = ("kicking", "pushing", "shaking_hands", "hugging")
+    assert label_words([0, 0, 1, 1], names) == "shaking hands +1, hugging +1"
+    assert label_words([0.5, -1, 0, 0], names, scale=2) == "kicking +0.5, pushing -1  × 2"
+    assert label_words([0, 0, 0, 0], names).startswith("neutral")
+
+
+def test_select_matches_own_class(session, sample_data):
+    i = int(np.flatnonzero(sample_data.actions == 3)[0])
+    session.select(i)
+    assert session.weights.tolist() == [1.0 if c == 3 else 0.0 for c in range(len(sample_data.class_names))]
+    assert session.label_text() == "hugging +1"
+    assert session.synth.shape == session.ground_truth.shape == sample_data.canonical(i)[1].shape
+
+
+def test_mixing_changes_synthesis(session):
+    session.match()
+    matched = session.synth.copy()
+    w = session.weights.copy()
+    w[(session.own_class + 1) % len(w)] = 1.0
+    session.set_label(w)
+    assert not np.allclose(session.synth, matched)
+    session.reset()
+    assert session.label_text().startswith("neutral")
+    session.set_label(session.weights, scale=0.0)
+    assert np.isfinite(session.synth).all()
+
+
+def test_review_numbers(session, sample_data):
+    d = session.distances_m()
+    assert d.shape == (session.num_frames,) and (d >= 0).all()
+    manual = np.linalg.norm((session.synth - session.ground_truth).reshape(session.num_frames, -1), axis=1)
+    np.testing.assert_allclose(d, manual, rtol=1e-5)
+    assert np.isfinite(session.afd()) and session.afd() > 0
+
+
+def test_filters(session, sample_data):
+    held = session.filter(held_out=True)
+    assert held and all(sample_data.held_out[i] for i in held)
+    kick = session.filter(class_name="kicking")
+    assert kick and all(sample_data.action_name(i) == "kicking" for i in kick)
+    pair = sample_data.subject_pairs[5]
+    assert all(sample_data.subject_pairs[i] == pair for i in session.filter(subject_pair=pair))
+    assert "[held out]" in session.rows()[held[0]].title
+
+
+def test_export_npz_roundtrip(session):
+    raw = session.export_npz()
+    with np.load(io.BytesIO(raw)) as z:
+        np.testing.assert_array_equal(z["follower_canonical"], session.synth)
+        assert z["follower_canonical"].shape == session.ground_truth.shape
+        assert list(z["class_names"]) == list(session.class_names)
+    assert session.export_name("npz").endswith(".npz") and "/" not in session.export_name("npz")
+
+
+def test_mismatched_model_is_one_line(sample_data):
+    from explorer.session import check_compatible
+
+    wrong_classes = SimpleNamespace(class_names=("a", "b"), skeleton=sample_data.skeleton)
+    with pytest.raises(CheckpointError, match="classes a, b do not match"):
+        check_compatible(wrong_classes, sample_data, "ckpt")
+    sk = sample_data.skeleton
+    wrong_skel = SimpleNamespace(
+        class_names=sample_data.class_names,
+        skeleton=SimpleNamespace(name="other", joint_names=sk.joint_names[:-1], parents=sk.parents[:-1]),
+    )
+    with pytest.raises(CheckpointError, match="skeleton other") as err:
+        check_compatible(wrong_skel, sample_data, "ckpt")
+    assert "\n" not in str(err.value)
