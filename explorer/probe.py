@@ -128,3 +128,33 @@ def color_mask(rgb: np.ndarray, hex_color: str, tol: int = 60) -> np.ndarray:
 
 def count_colors(rgb: np.ndarray, colors: Sequence[str]) -> list[int]:
     return [int(color_mask(rgb, c).sum()) for c in colors]
+
+
+def watch_view_images(page) -> None:
+    """Count pictures the browser has decoded in the 3D view, with their performance.now() times
+    (window.__immImages), so a test can wait for the picture that follows an action."""
+    page.evaluate(
+        """(sel) => {
+        if (window.__immImages) return;
+        window.__immImages = [];
+        const img = document.querySelector(sel);
+        img.addEventListener('load', () => window.__immImages.push(performance.now()));
+    }""",
+        VIEW_IMG,
+    )
+
+
+def images_seen(page) -> int:
+    return page.evaluate("() => window.__immImages.length")
+
+
+def wait_for_new_image(page, after: int, timeout_ms: int = 10000) -> None:
+    page.wait_for_function("(n) => window.__immImages.length > n", arg=after, timeout=timeout_ms)
+
+
+def press_slider(page, css: str, key: str) -> None:
+    """Move a Vuetify slider as a user does with the keyboard (End = max, Home = min, arrows = step)."""
+    page.bring_to_front()  # background tabs are throttled by Chromium
+    thumb = page.locator(f"{css} .v-slider-thumb")
+    thumb.focus()
+    page.keyboard.press(key)

@@ -6,11 +6,18 @@ whose JPEG was not encoded yet when it was first asked for. Nearly every interac
 path, so slider -> new picture took ~550 ms. trame-vtk 2.11 offers no setting for it; we lower the
 wait to STALE_WAIT_S for every image-delivery protocol this process creates. Measured effect in
 docs/explorer.md.
+
+Same place, second fix: when the JPEG is still not ready at the retry, trame-vtk's retry asks for
+`delta >= wait * (retries + 1)` while it was scheduled after `wait`, so a second miss in a row never
+re-sends and the browser keeps the previous picture (seen under CPU load: the slider moved, the
+picture did not). The retry below re-sends every `wait` until the image is ready (at most
+STALE_RETRIES times).
 """
 
 from __future__ import annotations
 
 STALE_WAIT_S = 0.02
+STALE_RETRIES = 100  # 2 s of retries at 20 ms
 _patched = False
 
 
@@ -26,5 +33,12 @@ def patch_image_delivery(wait_s: float = STALE_WAIT_S) -> None:
         original_init(self, *args, **kwargs)
         self.delta_stale_time_before_render = wait_s
 
+    def render_stale_image(self, v_id, stale_count=0):
+        if self.stale_handler_count.get(v_id, 0) > 0:
+            self.stale_handler_count[v_id] -= 1
+        if self.last_stale_time.get(v_id, 0) != 0 and stale_count < STALE_RETRIES:
+            self.push_render(v_id, False, stale_count + 1)
+
     pid.vtkWebPublishImageDelivery.__init__ = __init__
+    pid.vtkWebPublishImageDelivery.render_stale_image = render_stale_image
     _patched = True

@@ -1,0 +1,160 @@
+"""The studio in headless Chromium: the page, the 3D picture, mixing, the latent map, playback and
+five independent clients. Needs /usr/bin/chromium (Debian package); never downloads a browser."""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from imm_model.paths import REPO_ROOT, SAMPLE_CHECKPOINT
+
+pytestmark = [
+    pytest.mark.browser,
+    pytest.mark.timeout(240),
+    pytest.mark.skipif(not os.path.exists("/usr/bin/chromium"), reason="needs /usr/bin/chromium (apt-get install -y chromium)"),
+    pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason=f"bundled checkpoint missing: {SAMPLE_CHECKPOINT}"),
+]
+sync_api = pytest.importorskip("playwright.sync_api")
+probe = pytest.importorskip("explorer.probe")
+ARTIFACTS = REPO_ROOT / "test-artifacts"
+
+
+@pytest.fixture(scope="module")
+def studio(tmp_path_factory):
+    with probe.StudioProcess(cache_dir=tmp_path_factory.mktemp("studio-cache")) as s:
+        yield s
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with sync_api.sync_playwright() as p:
+        b = probe.launch_chromium(p)
+        yield b
+        b.close()
+
+
+@pytest.fixture(scope="module")
+def page(studio, browser):
+    pg = probe.open_studio(browser, studio.url)
+    probe.watch_view_images(pg)
+    yield pg
+    pg.close()
+
+
+def shot(page, name: str) -> Path:
+    ARTIFACTS.mkdir(exist_ok=True)
+    path = ARTIFACTS / f"{name}.png"
+    page.screenshot(path=str(path))
+    return path
+
+
+def colors(page) -> list[int]:
+    from explorer.palette import GROUND_TRUTH, LEADER, SYNTHESIZED
+
+    return probe.count_colors(probe.view_pixels(page), [LEADER, GROUND_TRUTH, SYNTHESIZED])
+
+
+def test_page_shows_three_skeletons(page):
+    shot(page, "studio-loaded")
+    leader, gt, synth = colors(page)
+    assert min(leader, gt, synth) > 300, (leader, gt, synth)
+    assert page.title() == "IMM Studio"
+    assert probe.state(page, "label_text")  # the label in words
+
+
+def test_class_slider_changes_follower(page):
+    from explorer.palette import SYNTHESIZED
+    from explorer.probe import color_mask
+
+    names = probe.state(page, "class_names")
+    own = [i for i in range(len(names)) if probe.state(page, f"w_{i}") == 1.0][0]
+    other = (own + 1) % len(names)
+    before_px = color_mask(probe.view_pixels(page), SYNTHESIZED)
+    n_img, n_mix = probe.images_seen(page), probe.state(page, "mix_count")
+    probe.press_slider(page, f".slider-{names[other].replace(' ', '_')}", "End")
+    page.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=10000)
+    probe.wait_for_new_image(page, n_img)
+    time.sleep(0.3)
+    assert probe.state(page, f"w_{other}") == 1.0
+    assert names[other] in probe.state(page, "label_text")
+    after_px = color_mask(probe.view_pixels(page), SYNTHESIZED)
+    changed = int((before_px ^ after_px).sum())
+    shot(page, "studio-mixed")
+    assert changed > 100, f"only {changed} green pixels changed"
+    page.click("#match-label")
+    page.wait_for_function(f"() => window.trame.state.get('w_{other}') === 0", timeout=10000)
+
+
+def test_latent_click_switches_sequence(page):
+    fig = probe.state(page, "latent_figure")
+    current = probe.state(page, "sequence_index")
+    # Click the most isolated point of the first class (plotly picks the closest point to the mouse).
+    xy = np.array([[x, y] for tr in fig["data"] for x, y in zip(tr["x"], tr["y"], strict=True)])
+    first = fig["data"][0]
+    mine = np.c_[first["x"], first["y"]]
+    gaps = [np.sort(np.linalg.norm(xy - p, axis=1))[1] for p in mine]
+    order = [j for j in np.argsort(gaps)[::-1] if first["customdata"][j] != current]
+    k = int(order[0])
+    target = first["customdata"][k]
+    point = page.locator("#latent-plot .scatterlayer .trace").first.locator(".point").nth(k)
+    box = point.bounding_box()
+    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    page.mouse.click(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    page.wait_for_function(f"() => window.trame.state.get('sequence_index') !== {current}", timeout=10000)
+    assert probe.state(page, "sequence_index") == target
+    assert probe.state(page, "frame") == 0
+    shot(page, "studio-picked")
+
+
+def test_play_advances_frames(page):
+    page.click("#play-button")
+    try:
+        page.wait_for_function("() => window.trame.state.get('frame') >= 4", timeout=15000)
+    finally:
+        page.click("#play-button")
+    page.wait_for_function("() => window.trame.state.get('playing') === false", timeout=5000)
+
+
+def test_five_clients_are_independent(studio, browser):
+    pages = []
+    try:
+        for _ in range(5):
+            pg = probe.open_studio(browser, studio.url, width=1200, height=800, timeout_ms=90000)
+            probe.watch_view_images(pg)
+            pages.append(pg)
+        ports = {pg.url.split(":")[2].split("/")[0] for pg in pages}
+        assert len(ports) == 5, "each client must get its own studio process"
+        texts = [probe.state(pg, "label_text") for pg in pages]
+        # Client 0 mixes in a class; the others must not move.
+        names = probe.state(pages[0], "class_names")
+        own = [i for i in range(len(names)) if probe.state(pages[0], f"w_{i}") == 1.0][0]
+        other = (own + 2) % len(names)
+        n_mix = probe.state(pages[0], "mix_count")
+        probe.press_slider(pages[0], f".slider-{names[other].replace(' ', '_')}", "End")
+        pages[0].wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=10000)
+        time.sleep(0.5)
+        assert probe.state(pages[0], "label_text") != texts[0]
+        for pg, text in zip(pages[1:], texts[1:], strict=True):
+            assert probe.state(pg, "label_text") == text
+            assert probe.state(pg, f"w_{other}") == 0
+        # Every client still answers a slider promptly while the others are open.
+        delays = []
+        for pg in pages:
+            n_img = probe.images_seen(pg)
+            t0 = time.monotonic()
+            probe.press_slider(pg, f".slider-{names[(own + 3) % len(names)].replace(' ', '_')}", "ArrowRight")
+            try:
+                probe.wait_for_new_image(pg, n_img, timeout_ms=10000)
+            except Exception:
+                print("no picture", probe.state(pg, "label_text"), probe.state(pg, "mix_count"), probe.images_seen(pg), n_img)
+                raise
+            delays.append(time.monotonic() - t0)
+        pages[-1].screenshot(path=str(ARTIFACTS / "studio-client5.png"))
+        assert max(delays) < 3.0, f"slider -> picture per client: {np.round(delays, 2)} s"
+    finally:
+        for pg in pages:
+            pg.close()
