@@ -35,6 +35,7 @@ class TrainConfig:
     # Augmentation of training batches.
     mirror_prob: float = 0.0  # swap left/right joints and flip the lateral axis
     rotate_deg: float = 0.0  # uniform yaw of both characters in [-rotate_deg, rotate_deg]
+    time_warp: float = 0.0  # resample each sequence to length * U(1 - w, 1 + w) (linear interpolation)
     role_swap_prob: float = 0.0  # B becomes the leader (re-canonicalized), for role_swap_classes only
     role_swap_classes: tuple[str, ...] = ()
     ema_decay: float = 0.0  # >0: validate, select and ship an exponential moving average of G's weights

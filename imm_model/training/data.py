@@ -59,17 +59,18 @@ class Augmenter:
     """Random mirror / yaw / role swap of a batch (both characters transformed alike)."""
 
     def __init__(self, skeleton: Skeleton, mirror_prob: float, rotate_deg: float, role_swap_prob: float,
-                 swap_class_mask: torch.Tensor):
+                 swap_class_mask: torch.Tensor, time_warp: float = 0.0):
         self.perm = torch.tensor(mirror_permutation(skeleton))
         self.vertical = skeleton.vertical_axis
         self.lateral = (skeleton.vertical_axis + 2) % 3  # up x forward (X for Y-up, +Z forward)
         self.forward = (skeleton.vertical_axis + 1) % 3
         self.mirror_prob, self.rotate_deg, self.role_swap_prob = mirror_prob, rotate_deg, role_swap_prob
         self.swap_class_mask = swap_class_mask  # (C,) bool
+        self.time_warp = time_warp
 
     @property
     def active(self) -> bool:
-        return self.mirror_prob > 0 or self.rotate_deg > 0 or self.role_swap_prob > 0
+        return self.mirror_prob > 0 or self.rotate_deg > 0 or self.role_swap_prob > 0 or self.time_warp > 0
 
     def __call__(self, data: PaddedData, idx: torch.Tensor, gen: torch.Generator):
         leader, follower, lengths, actions = data.batch(idx)
@@ -93,4 +94,22 @@ class Augmenter:
             poses[..., self.forward] = c * f - s * lat
             poses[..., self.lateral] = s * f + c * lat
         poses = poses.flatten(-2)
+        if self.time_warp > 0:
+            poses, lengths = self._warp(poses, lengths, gen)
         return poses[0], poses[1], lengths, actions
+
+    def _warp(self, poses: torch.Tensor, lengths: torch.Tensor, gen: torch.Generator):
+        """poses (2, B, T, D): each sequence resampled to round(L * U(1-w, 1+w)) frames (at least 2)."""
+        factor = 1 + (torch.rand(len(lengths), generator=gen) * 2 - 1) * self.time_warp
+        new = torch.clamp((lengths * factor).round().long(), min=2)
+        t_new = int(new.max())
+        t = torch.arange(t_new)[None].float()  # (1, T')
+        src = t * (lengths - 1)[:, None] / (new - 1)[:, None].float()  # (B, T') source positions
+        src = torch.minimum(src, (lengths - 1)[:, None].float())
+        lo = src.floor().long()
+        hi = torch.minimum(lo + 1, (lengths - 1)[:, None])
+        w = (src - lo)[None, :, :, None]
+        idx = lambda i: i[None, :, :, None].expand(2, -1, -1, poses.shape[-1])  # noqa: E731
+        out = (1 - w) * poses.gather(2, idx(lo)) + w * poses.gather(2, idx(hi))
+        valid = (t < new[:, None])[None, :, :, None]
+        return torch.where(valid, out, torch.zeros(())), new

@@ -36,7 +36,8 @@ from imm_model.training import losses
 from imm_model.training.config import TrainConfig
 from imm_model.training.data import Augmenter, PaddedData
 
-LOG_FIELDS = ("epoch", "adv_weight", "l1", "bone", "cont", "adv", "d_loss", "d_real_acc", "val_afd_m", "val_l1", "seconds")
+LOG_FIELDS = ("epoch", "adv_weight", "l1", "bone", "cont", "adv", "d_loss", "d_real_acc", "d_fake_acc", "val_afd_m", "val_l1",
+              "seconds")
 
 
 def derive_seed(*parts: int) -> int:
@@ -90,7 +91,7 @@ class Trainer:
         self.opt_g = make_optimizer(cfg, self.G.parameters(), cfg.lr_g)
         self.opt_d = make_optimizer(cfg, self.D.parameters(), cfg.lr_d)
         swap = torch.tensor([c in cfg.role_swap_classes for c in data.class_names])
-        self.augment = Augmenter(data.skeleton, cfg.mirror_prob, cfg.rotate_deg, cfg.role_swap_prob, swap)
+        self.augment = Augmenter(data.skeleton, cfg.mirror_prob, cfg.rotate_deg, cfg.role_swap_prob, swap, cfg.time_warp)
         self.bones = torch.tensor(data.skeleton.bones, dtype=torch.int64)
         self.state = FoldState()
 
@@ -179,11 +180,11 @@ class Trainer:
         sampler.set_epoch(epoch)
         w_adv = adversarial_weight(cfg, epoch)
         use_d = cfg.lambda_adv > 0
-        sums = dict.fromkeys(("l1", "bone", "cont", "adv", "d_loss", "d_real_acc"), 0.0)
+        sums = dict.fromkeys(("l1", "bone", "cont", "adv", "d_loss", "d_real_acc", "d_fake_acc"), 0.0)
         n = 0
         self.G.train()
         self.D.train()
-        for batch in sampler:
+        for k, batch in enumerate(sampler):
             idx = torch.as_tensor(batch)
             leader, follower, lengths, actions = self.augment(self.padded, idx, gen)
             mask = torch.arange(leader.shape[1])[None] < lengths[:, None]
@@ -199,7 +200,8 @@ class Trainer:
                     d_loss.backward()
                     self.opt_d.step()
                 sums["d_loss"] += float(d_loss.detach())
-                sums["d_real_acc"] += float((real_logits.argmax(-1) == actions).float().mean())
+                sums["d_real_acc"] += float((real_logits.argmax(-1) == actions).float().mean())  # right class
+                sums["d_fake_acc"] += float((fake_logits.argmax(-1) == fake_logits.shape[-1] - 1).float().mean())  # "fake"
             # generator step: D frozen (no gradient accumulates in it, and it is not stepped)
             l1 = losses.masked_l1(fake, follower, mask)
             bone = losses.bone_loss(fake, follower, self.bones, mask)
@@ -216,7 +218,7 @@ class Trainer:
             g_loss.backward()
             self.opt_g.step()
             if self.G_ema is not None:
-                self._update_ema()
+                self._update_ema(epoch * len(sampler) + k)
             sums["l1"] += float(l1.detach())
             sums["bone"] += float(bone.detach())
             sums["cont"] += float(cont.detach())
@@ -224,9 +226,10 @@ class Trainer:
         return {k: v / n for k, v in sums.items()} | {"adv_weight": w_adv}
 
     @torch.no_grad()
-    def _update_ema(self) -> None:
+    def _update_ema(self, step: int) -> None:
+        decay = min(self.cfg.ema_decay, (1 + step) / (10 + step))  # warm-up: early weights fade quickly
         for e, p in zip(self.G_ema.parameters(), self.G.parameters(), strict=True):
-            e.lerp_(p, 1.0 - self.cfg.ema_decay)
+            e.lerp_(p, 1.0 - decay)
 
     @torch.inference_mode()
     def validate(self) -> dict:
