@@ -24,7 +24,7 @@ from explorer.scene import CAMERA_PRESETS, CHARACTER_KEYS, Scene, floor_height
 from explorer.session import FPS, Session
 
 SPEEDS = [0.25, 0.5, 1.0, 1.5, 2.0]
-CHART_PERIOD_S = 0.25  # the distance chart's cursor follows playback at most 4x a second
+CHART_PERIOD_S = 0.25  # the distance chart follows playback at most 4x a second (plotly redraws are costly)
 
 
 def _one_line(err: BaseException) -> str:

@@ -1,0 +1,166 @@
+"""IMM Studio latency benchmark (headless Chromium through Playwright, remote rendering).
+
+    .venv/bin/python benchmarks/explorer_latency.py [--trials 40] [--play-seconds 5] [--json out.json]
+
+Measures, and prints with the machine's thread count and load:
+  1. start-to-interactive of `imm explore`: process start -> first 3D picture in the page, cold
+     (empty latent cache: embeddings + t-SNE recomputed) and warm (cache filled);
+  2. slider -> redrawn follower: a class slider is moved with the keyboard; time from the key event
+     to the `load` of the next view image in the page (performance.now() in the page), p50/p95;
+  3. playback: pictures the page actually displays per second while playing at 2x (30 fps target),
+     and the server's render capability (update + render + JPEG per frame, same view size) in fps.
+Bars (issue 4): slider p95 <= 150 ms; >= 30 fps render capability; warm start <= 10 s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from explorer import probe
+
+VIEW_SIZE = (1400, 900)
+
+
+def start_to_interactive(browser, cache_dir: Path) -> tuple[float, float, probe.StudioProcess]:
+    t0 = time.monotonic()
+    studio = probe.StudioProcess(cache_dir=cache_dir, timeout=120)
+    page = probe.open_studio(browser, studio.url, *VIEW_SIZE, timeout_ms=120000)
+    interactive = time.monotonic() - t0
+    page.close()
+    return studio.ready_s, interactive, studio
+
+
+def slider_latency(page, trials: int) -> np.ndarray:
+    page.evaluate(
+        """() => { window.__immKeys = [];
+        document.addEventListener('keydown', () => window.__immKeys.push(performance.now()), true); }"""
+    )
+    names = probe.state(page, "class_names")
+    own = [i for i in range(len(names)) if probe.state(page, f"w_{i}") == 1.0][0]
+    css = f".slider-{names[(own + 1) % len(names)].replace(' ', '_')}"
+    out = []
+    for k in range(trials):
+        n_img = probe.images_seen(page)
+        n_key = page.evaluate("() => window.__immKeys.length")
+        probe.press_slider(page, css, "End" if k % 2 == 0 else "Home")
+        probe.wait_for_new_image(page, n_img, timeout_ms=10000)
+        dt = page.evaluate(
+            "([k, n]) => window.__immImages.slice(n).find(t => t > window.__immKeys[k]) - window.__immKeys[k]", [n_key, n_img]
+        )
+        out.append(dt)
+        time.sleep(0.25)  # idle between trials: measure one change, not a queue
+    return np.array(out, float)
+
+
+def displayed_fps(page, seconds: float) -> tuple[float, int]:
+    probe.set_state(page, "speed", 2.0)
+    probe.set_state(page, "loop", True)
+    time.sleep(0.3)
+    n0 = probe.images_seen(page)
+    f0 = probe.state(page, "frame")
+    page.click("#play-button")
+    time.sleep(0.5)  # warm-up
+    n1, t1 = probe.images_seen(page), time.monotonic()
+    time.sleep(seconds)
+    n2, t2 = probe.images_seen(page), time.monotonic()
+    page.click("#play-button")
+    del n0, f0
+    time.sleep(0.5)
+    return (n2 - n1) / (t2 - t1), n2 - n1
+
+
+def render_capability(frames: int = 60, size=(1052, 497)) -> float:
+    """Server side, no browser: per frame = move points + render + JPEG (quality 80), in fps."""
+    import vtk
+
+    from explorer.scene import Scene, floor_height
+    from imm_model.data.dataset import InteractionDataset
+    from imm_model.paths import SAMPLE_DATA
+
+    d = InteractionDataset.load(SAMPLE_DATA)
+    i = int(np.argmax(d.lengths))
+    leader, gt = d.canonical(i)
+    sc = Scene(d.skeleton, floor_height(d.leader, d.follower, d.skeleton), size)
+    sc.set_sequence(leader, gt, gt)
+    sc.set_camera("default")
+    grab = vtk.vtkWindowToImageFilter()
+    grab.SetInput(sc.render_window)
+    jpeg = vtk.vtkJPEGWriter()
+    jpeg.SetInputConnection(grab.GetOutputPort())
+    jpeg.WriteToMemoryOn()
+    jpeg.SetQuality(80)
+    sc.render()
+    t, c = time.perf_counter(), time.process_time()
+    for f in range(frames):
+        sc.set_frame(f % len(leader))
+        sc.render()
+        grab.Modified()
+        jpeg.Write()
+    wall_ms = (time.perf_counter() - t) / frames * 1000
+    cpu_ms = (time.process_time() - c) / frames * 1000  # all of this process's threads (llvmpipe's too)
+    sc.plotter.close()
+    return 1000.0 / wall_ms, 1000.0 / cpu_ms
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--trials", type=int, default=40)
+    ap.add_argument("--play-seconds", type=float, default=5.0)
+    ap.add_argument("--json", type=Path, default=None)
+    args = ap.parse_args()
+    from playwright.sync_api import sync_playwright
+
+    res: dict = {"threads": os.cpu_count(), "load_before": os.getloadavg()}
+    print(f"machine: {os.cpu_count()} hardware threads, load average {os.getloadavg()[0]:.2f} (other work on the cores skews all numbers)")
+    with tempfile.TemporaryDirectory() as tmp, sync_playwright() as p:
+        browser = probe.launch_chromium(p)
+        cache = Path(tmp) / "cache"
+        ready, inter, studio = start_to_interactive(browser, cache)
+        studio.stop()
+        res["cold_ready_s"], res["cold_interactive_s"] = ready, inter
+        print(f"start-to-interactive, cold latent cache: {inter:.1f} s (URL printed after {ready:.1f} s)")
+        ready, inter, studio = start_to_interactive(browser, cache)
+        res["warm_ready_s"], res["warm_interactive_s"] = ready, inter
+        print(f"start-to-interactive, warm cache:        {inter:.1f} s (URL printed after {ready:.1f} s)   [bar <= 10 s]")
+        try:
+            page = probe.open_studio(browser, studio.url, *VIEW_SIZE)
+            probe.watch_view_images(page)
+            lat = slider_latency(page, args.trials)
+            res["slider_ms"] = {
+                "p50": float(np.percentile(lat, 50)),
+                "p95": float(np.percentile(lat, 95)),
+                "max": float(lat.max()),
+                "n": len(lat),
+            }
+            print(
+                f"slider -> redrawn follower ({len(lat)} changes): p50 {np.percentile(lat, 50):.0f} ms, "
+                f"p95 {np.percentile(lat, 95):.0f} ms, max {lat.max():.0f} ms   [bar p95 <= 150 ms]"
+            )
+            fps, n = displayed_fps(page, args.play_seconds)
+            res["displayed_fps"] = fps
+            print(f"playback at 2x (30 fps target): page displayed {fps:.1f} pictures/s ({n} in {args.play_seconds:g} s)")
+        finally:
+            studio.stop()
+            browser.close()
+    wall_fps, cpu_fps = render_capability()
+    res["render_capability_fps"] = {"wall": wall_fps, "per_cpu_second": cpu_fps}
+    res["load_after"] = os.getloadavg()
+    print(
+        f"server render capability (update + render + JPEG q80, 1052x497): {wall_fps:.0f} fps wall clock, "
+        f"{cpu_fps:.0f} frames per CPU-second   [bar >= 30 fps]"
+    )
+    print(f"load average after: {os.getloadavg()[0]:.2f}")
+    if args.json:
+        args.json.write_text(json.dumps(res, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
