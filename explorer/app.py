@@ -119,8 +119,9 @@ class Studio:
         c.pick_latent_point = self.pick_latent_point
         c.set_camera = self.set_camera
         c.step_frame = self.step_frame
-        c.export_npz = self.export_npz
-        c.export_video = self.export_video
+        # Triggers, not controllers: the page awaits their return value (the file) to download it.
+        self.server.trigger("export_npz")(self.export_npz)
+        self.server.trigger("export_video")(self.export_video)
 
     def _guard(fn):  # noqa: N805 - decorator: user-facing errors become the page's one-line alert
         def wrapper(self, *args, **kwargs):
@@ -217,7 +218,7 @@ class Studio:
         """Review numbers, distance chart and latent star for the current synthesized follower."""
         s, ses = self.state, self.session
         self._distances = ses.distances_m()
-        s.afd_text = f"AFD {ses.afd():.3f} (SBU normalized units) · mean {self._distances.mean():.3f} m"
+        s.afd_text = f"AFD {ses.afd():.3f} (SBU units) · mean {self._distances.mean():.2f} m"
         self._update_time()
         self._update_distance_chart(force=force_chart)
         self._update_latent_figure()
@@ -400,6 +401,7 @@ class Studio:
         names = self.session.class_names
         with SinglePageWithDrawerLayout(self.server, full_height=True) as layout:
             layout.title.set_text("IMM Studio")
+            layout.footer.hide()
             self.server.state.trame__title = "IMM Studio"
             with layout.toolbar as tb:
                 tb.density = "compact"
@@ -593,7 +595,7 @@ class Studio:
                     with html.Div(classes="d-flex", style="flex: 0 0 250px; width: 100%; gap: 8px"):
                         with v3.VCard(variant="outlined", style="flex: 1 1 50%", classes="pa-1"):
                             with html.Div(classes="d-flex align-center px-2"):
-                                html.Div("Per-frame distance, ground truth vs synthesized", classes="text-caption font-weight-bold")
+                                html.Div("Ground truth vs synthesized, per frame", classes="text-caption font-weight-bold")
                                 v3.VSpacer()
                                 html.Div("{{ afd_text }}", classes="text-caption", id="afd-text")
                             plotly.Figure(
@@ -605,6 +607,7 @@ class Studio:
                         with v3.VCard(variant="outlined", style="flex: 1 1 50%", classes="pa-1"):
                             with html.Div(classes="d-flex align-center px-2"):
                                 html.Div("Latent map: click a point to load it", classes="text-caption font-weight-bold")
+                                html.Div("● seen in training  ○ held out", classes="text-caption text-medium-emphasis ml-2")
                                 v3.VProgressCircular(v_if="projection_busy", indeterminate=True, size=14, width=2, classes="ml-2")
                                 v3.VSpacer()
                                 with v3.VBtnToggle(

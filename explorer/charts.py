@@ -29,7 +29,7 @@ def distance_figure(distances: np.ndarray, frame: int, fps: float) -> dict:
             "margin": {"l": 48, "r": 10, "t": 8, "b": 34},
             "font": FONT,
             "xaxis": {"title": {"text": f"frame ({fps:g} fps)"}, "range": [0, max(1, len(distances) - 1)], "zeroline": False},
-            "yaxis": {"title": {"text": "GT vs synth (m)"}, "rangemode": "tozero"},
+            "yaxis": {"title": {"text": "45-d pose distance (m)"}, "rangemode": "tozero"},
             "shapes": [
                 {
                     "type": "line",

@@ -189,7 +189,7 @@ class Scene:
         d /= np.linalg.norm(d)
         cam = self.plotter.camera
         cam.focal_point = tuple(center)
-        cam.position = tuple(center + d * radius * 3.0)
+        cam.position = tuple(center + d * radius * 2.5)
         cam.up = (0.0, 0.0, -1.0) if preset == "top" else (0.0, 1.0, 0.0)
         cam.view_angle = 30.0
         self.plotter.renderer.ResetCameraClippingRange()

@@ -188,5 +188,5 @@ class Session:
 
     def export_name(self, ext: str) -> str:
         sid = self.data.sequence_ids[self.index].replace("/", "-")
-        mix = "_".join(f"{n[:5]}{w:+.1f}" for n, w in zip(self.class_names, self.weights, strict=True) if w) or "neutral"
+        mix = "_".join(f"{n}{w:+g}" for n, w in zip(self.class_names, self.weights, strict=True) if w) or "neutral"
         return f"{sid}_{mix}.{ext}"
