@@ -35,6 +35,7 @@ class TrainConfig:
     # Augmentation of training batches.
     mirror_prob: float = 0.0  # swap left/right joints and flip the lateral axis
     rotate_deg: float = 0.0  # uniform yaw of both characters in [-rotate_deg, rotate_deg]
+    scale_jitter: float = 0.0  # scale both characters about A's root by U(1 - s, 1 + s) (body size)
     time_warp: float = 0.0  # resample each sequence to length * U(1 - w, 1 + w) (linear interpolation)
     role_swap_prob: float = 0.0  # B becomes the leader (re-canonicalized), for role_swap_classes only
     role_swap_classes: tuple[str, ...] = ()
@@ -43,6 +44,9 @@ class TrainConfig:
     val_fraction: float = 0.15
     patience: int = 0  # early stopping: stop after this many epochs without a better validation AFD (0 = never)
     min_epochs: int = 0  # ... but not before this epoch
+    # Best-on-validation is only chosen from this epoch on (-1: once the adversarial weight is at full
+    # strength, i.e. adv_warmup_epochs + adv_ramp_epochs), so the selected model is trained with it ON.
+    select_from_epoch: int = -1
     checkpoint_every: int = 25
     seed: int = 0
 

@@ -59,7 +59,7 @@ class Augmenter:
     """Random mirror / yaw / role swap of a batch (both characters transformed alike)."""
 
     def __init__(self, skeleton: Skeleton, mirror_prob: float, rotate_deg: float, role_swap_prob: float,
-                 swap_class_mask: torch.Tensor, time_warp: float = 0.0):
+                 swap_class_mask: torch.Tensor, time_warp: float = 0.0, scale_jitter: float = 0.0):
         self.perm = torch.tensor(mirror_permutation(skeleton))
         self.vertical = skeleton.vertical_axis
         self.lateral = (skeleton.vertical_axis + 2) % 3  # up x forward (X for Y-up, +Z forward)
@@ -67,10 +67,11 @@ class Augmenter:
         self.mirror_prob, self.rotate_deg, self.role_swap_prob = mirror_prob, rotate_deg, role_swap_prob
         self.swap_class_mask = swap_class_mask  # (C,) bool
         self.time_warp = time_warp
+        self.scale_jitter = scale_jitter
 
     @property
     def active(self) -> bool:
-        return self.mirror_prob > 0 or self.rotate_deg > 0 or self.role_swap_prob > 0 or self.time_warp > 0
+        return self.mirror_prob > 0 or self.rotate_deg > 0 or self.role_swap_prob > 0 or self.time_warp > 0 or self.scale_jitter > 0
 
     def __call__(self, data: PaddedData, idx: torch.Tensor, gen: torch.Generator):
         leader, follower, lengths, actions = data.batch(idx)
@@ -93,6 +94,9 @@ class Augmenter:
             poses = poses.clone()
             poses[..., self.forward] = c * f - s * lat
             poses[..., self.lateral] = s * f + c * lat
+        if self.scale_jitter > 0:
+            scale = 1 + (torch.rand(B, generator=gen) * 2 - 1) * self.scale_jitter
+            poses = poses * scale[None, :, None, None, None]
         poses = poses.flatten(-2)
         if self.time_warp > 0:
             poses, lengths = self._warp(poses, lengths, gen)

@@ -91,7 +91,8 @@ class Trainer:
         self.opt_g = make_optimizer(cfg, self.G.parameters(), cfg.lr_g)
         self.opt_d = make_optimizer(cfg, self.D.parameters(), cfg.lr_d)
         swap = torch.tensor([c in cfg.role_swap_classes for c in data.class_names])
-        self.augment = Augmenter(data.skeleton, cfg.mirror_prob, cfg.rotate_deg, cfg.role_swap_prob, swap, cfg.time_warp)
+        self.augment = Augmenter(data.skeleton, cfg.mirror_prob, cfg.rotate_deg, cfg.role_swap_prob, swap, cfg.time_warp,
+                                 cfg.scale_jitter)
         self.bones = torch.tensor(data.skeleton.bones, dtype=torch.int64)
         self.state = FoldState()
 
@@ -251,6 +252,7 @@ class Trainer:
         self.out.mkdir(parents=True, exist_ok=True)
         self._write_log_header()
         desc = f"train {self.subject or 'all'}"
+        select_from = min(self.select_from, total - 1)  # a run shorter than the warm-up still keeps a best
         bar = tqdm(range(self.state.epoch, total), desc=desc, disable=not progress, leave=False, dynamic_ncols=True)
         for epoch in bar:
             t0 = time.perf_counter()
@@ -259,17 +261,23 @@ class Trainer:
             self.state.history.append(row)
             self.state.epoch = epoch + 1
             self._append_log(row)
-            if row["val_afd_m"] < self.state.best_val:
+            if epoch >= select_from and row["val_afd_m"] < self.state.best_val:
                 self.state.best_val, self.state.best_epoch = row["val_afd_m"], epoch
                 self.save_best()
             bar.set_postfix(l1=f"{row['l1']:.4f}", val=f"{row['val_afd_m']:.4f}", best=f"{self.state.best_val:.4f}@{self.state.best_epoch}")
-            stop = cfg.patience > 0 and epoch + 1 >= cfg.min_epochs and epoch - self.state.best_epoch >= cfg.patience
+            stop = (cfg.patience > 0 and epoch + 1 >= max(cfg.min_epochs, select_from + cfg.patience)
+                    and epoch - max(self.state.best_epoch, select_from) >= cfg.patience)
             if (epoch + 1) % cfg.checkpoint_every == 0 or stop or epoch + 1 == total:
                 self.save_last()
                 self.plot()
             if stop:
                 break
         return self.state
+
+    @property
+    def select_from(self) -> int:
+        cfg = self.cfg
+        return cfg.select_from_epoch if cfg.select_from_epoch >= 0 else cfg.adv_warmup_epochs + cfg.adv_ramp_epochs
 
     def _write_log_header(self) -> None:
         path = self.out / "log.csv"
