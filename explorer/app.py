@@ -303,6 +303,8 @@ class Studio:
     def push_view(self, **_):
         """Send a new picture. The web app only re-encodes a view whose render window is newer than
         the last image, and moving points or toggling actors does not touch the window: mark it."""
+        if tuple(self.scene.render_window.GetSize()) != self.scene.fitted_size:
+            self.scene.set_camera(self.scene.camera_preset)  # the browser resized the view: refit
         self.scene.render_window.Modified()
         self._view.update()
 

@@ -70,7 +70,7 @@ class StickFigure:
 
 
 class Scene:
-    def __init__(self, skeleton: Skeleton, floor_y: float, window_size: tuple[int, int] = (900, 620)):
+    def __init__(self, skeleton: Skeleton, floor_y: float, window_size: tuple[int, int] = (1050, 500)):
         pv.global_theme.multi_samples = 0  # MSAA costs ~3x per frame on llvmpipe (docs/explorer.md)
         self.plotter = pv.Plotter(off_screen=True, window_size=list(window_size))
         self.plotter.set_background(BACKGROUND)
@@ -87,6 +87,7 @@ class Scene:
         self.sequences: dict[str, np.ndarray] = {}
         self.frame = 0
         self.camera_preset = "default"
+        self.fitted_size: tuple[int, int] = (0, 0)
 
     @property
     def render_window(self):
@@ -165,20 +166,25 @@ class Scene:
             cap.SetVisibility(self.visible[k])
 
     # ---- camera -------------------------------------------------------------------------
-    def _extent(self) -> tuple[np.ndarray, float]:
+    def _points_of_interest(self) -> np.ndarray:
+        """Corners of the box the camera must show: all frames of the three figures as placed."""
         if self.layout == "side_by_side" or not self.sequences:
-            center = np.array([0.0, self.floor_y + 0.9, 0.0])
-            return center, 2.6
-        pts = np.concatenate([s.reshape(-1, 3) for s in self.sequences.values()])
-        lo, hi = pts.min(0), pts.max(0)
-        lo[1] = min(lo[1], self.floor_y)
-        return (lo + hi) / 2, float(np.linalg.norm(hi - lo) / 2)
+            lo = np.array([-SIDE_SPACING - 0.6, self.floor_y, -0.6])
+            hi = np.array([SIDE_SPACING + 0.6, self.floor_y + 2.0, 0.6])
+        else:
+            pts = np.concatenate([s.reshape(-1, 3) for s in self.sequences.values()])
+            lo, hi = pts.min(0), pts.max(0)
+            lo[1] = min(lo[1], self.floor_y)
+        return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
 
     def set_camera(self, preset: str = "default") -> None:
+        """Look at the figures from a preset direction, at the distance that fits all their frames."""
         if preset not in CAMERA_PRESETS:
             raise ValueError(f"camera preset must be one of {CAMERA_PRESETS}")
         self.camera_preset = preset
-        center, radius = self._extent()
+        self.fitted_size = tuple(self.render_window.GetSize())
+        box = self._points_of_interest()
+        center = (box.min(0) + box.max(0)) / 2
         direction = {
             "default": (0.75, 0.38, 0.55) if self.layout == "overlay" else (0.25, 0.3, 1.0),
             "front": (0.0, 0.12, 1.0),  # along the leader's facing direction (+Z)
@@ -187,11 +193,23 @@ class Scene:
         }[preset]
         d = np.asarray(direction, float)
         d /= np.linalg.norm(d)
+        up = np.array([0.0, 0.0, -1.0]) if preset == "top" else np.array([0.0, 1.0, 0.0])
+        right = np.cross(up, d)
+        right /= np.linalg.norm(right)
+        up = np.cross(d, right)
+        rel = box - center
+        half_w, half_h = np.abs(rel @ right).max(), np.abs(rel @ up).max()
+        depth = np.abs(rel @ d).max()
+        w, h = self.render_window.GetSize()
+        aspect = max(w, 1) / max(h, 1)
+        view_angle = 30.0
+        t = np.tan(np.radians(view_angle / 2))
+        dist = 1.08 * max(half_h / t, half_w / (t * aspect)) + depth
         cam = self.plotter.camera
         cam.focal_point = tuple(center)
-        cam.position = tuple(center + d * radius * 2.5)
-        cam.up = (0.0, 0.0, -1.0) if preset == "top" else (0.0, 1.0, 0.0)
-        cam.view_angle = 30.0
+        cam.position = tuple(center + d * dist)
+        cam.up = tuple(up)
+        cam.view_angle = view_angle
         self.plotter.renderer.ResetCameraClippingRange()
 
     # ---- output -------------------------------------------------------------------------
