@@ -33,8 +33,11 @@ def _one_line(err: BaseException) -> str:
 
 
 class Studio:
-    def __init__(self, server, session: Session, latent: LatentMap, *, export_dir: Path, start_index: int | None = None):
+    def __init__(
+        self, server, session: Session, latent: LatentMap, *, export_dir: Path, start_index: int | None = None, render: str = "remote"
+    ):
         self.server = server
+        self.render_mode = render
         self.session = session
         self.latent = latent
         self.export_dir = Path(export_dir)
@@ -303,7 +306,7 @@ class Studio:
     def push_view(self, **_):
         """Send a new picture. The web app only re-encodes a view whose render window is newer than
         the last image, and moving points or toggling actors does not touch the window: mark it."""
-        if tuple(self.scene.render_window.GetSize()) != self.scene.fitted_size:
+        if self.render_mode == "remote" and tuple(self.scene.render_window.GetSize()) != self.scene.fitted_size:
             self.scene.set_camera(self.scene.camera_preset)  # the browser resized the view: refit
         self.scene.render_window.Modified()
         self._view.update()
@@ -550,13 +553,12 @@ class Studio:
                         id="error-alert",
                     )
                     with html.Div(style="flex: 1 1 60%; min-height: 320px; position: relative; width: 100%", classes="rounded border"):
-                        view = vtk_widgets.VtkRemoteView(
-                            self.scene.render_window,
-                            ref="view",
-                            interactive_ratio=1,
-                            interactive_quality=70,
-                            still_quality=88,
-                        )
+                        if self.render_mode == "local":  # vtk.js in the browser (see docs/explorer.md)
+                            view = vtk_widgets.VtkLocalView(self.scene.render_window, ref="view")
+                        else:
+                            view = vtk_widgets.VtkRemoteView(
+                                self.scene.render_window, ref="view", interactive_ratio=1, interactive_quality=60, still_quality=80
+                            )
                         self._view = view
                         self.ctrl.view_update = self.push_view
                         with html.Div(style="position: absolute; left: 8px; top: 6px; pointer-events: none", classes="text-caption"):

@@ -27,6 +27,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--cache-dir", type=Path, default=None, help="latent-map cache (default: ~/.cache/imm-studio)")
     p.add_argument("--export-dir", type=Path, default=Path("imm-exports"), help="where exports are also saved (default ./imm-exports)")
     p.add_argument("--max-clients", type=int, default=8, help="most browser tabs served at once (one process each). Default 8")
+    p.add_argument(
+        "--render", choices=("remote", "local"), default="remote",
+        help="remote (default): the server renders pictures; local: the browser renders with vtk.js (needs WebGL)",
+    )  # fmt: skip
     p.add_argument("--sequence", default=None, help="sequence id (e.g. s04s02/01/001) or index to open first")
     p.set_defaults(func=run_explore)
 
@@ -47,7 +51,7 @@ def run_explore(args: argparse.Namespace) -> int:
     config = LaunchConfig(
         data=Path(data).resolve(), checkpoint=Path(checkpoint).resolve(), host=args.host, port=args.port,
         cache_dir=args.cache_dir.resolve() if args.cache_dir else None, export_dir=args.export_dir.resolve(),
-        max_clients=max(1, args.max_clients), open_browser=not args.no_browser, sequence=args.sequence,
+        max_clients=max(1, args.max_clients), open_browser=not args.no_browser, sequence=args.sequence, render=args.render,
     )  # fmt: skip
     try:
         return launch(config)

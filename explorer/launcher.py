@@ -45,6 +45,7 @@ class LaunchConfig:
     idle_exit: float = 60.0
     open_browser: bool = True
     sequence: str | None = None
+    render: str = "remote"
 
 
 def bind_socket(host: str, port: int) -> socket.socket:
@@ -78,6 +79,7 @@ class Launcher:
                "--watch-stdin"]  # fmt: skip
         if c.cache_dir:
             cmd += ["--cache-dir", str(c.cache_dir)]
+        cmd += ["--render", c.render]
         if c.sequence:
             cmd += ["--sequence", c.sequence]
         env = {**os.environ, "OMP_NUM_THREADS": "1", "VTK_DEFAULT_OPENGL_WINDOW": "vtkEGLRenderWindow"}

@@ -30,6 +30,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--export-dir", type=Path, default=Path("imm-exports"))
     p.add_argument("--host", default="127.0.0.1")
     p.add_argument("--port", type=int, default=0)
+    p.add_argument("--render", choices=("remote", "local"), default="remote")
     p.add_argument("--sequence", default=None, help="sequence id or index to open first")
     p.add_argument("--idle-exit", type=float, default=60.0, help="seconds without a client before exiting (after the first one)")
     p.add_argument("--watch-stdin", action="store_true", help="exit when stdin closes (the launcher died)")
@@ -67,7 +68,7 @@ def serve(data, model, latent, args: argparse.Namespace) -> int:
     patch_image_delivery()
     server = get_server("imm-studio", client_type="vue3")
     session = Session(data, model, start_index(data, args.sequence))
-    Studio(server, session, latent, export_dir=args.export_dir)
+    Studio(server, session, latent, export_dir=args.export_dir, render=args.render)
 
     clients: set[str] = set()
     last_seen = [time.monotonic()]
