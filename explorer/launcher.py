@@ -12,6 +12,7 @@ import asyncio
 import errno
 import html
 import os
+import signal
 import socket
 import sys
 import time
@@ -169,8 +170,12 @@ class Launcher:
             import webbrowser
 
             webbrowser.open(self.url)
+        stop = asyncio.Event()
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            loop.add_signal_handler(sig, stop.set)  # stop the studio processes too, not only this one
         try:
-            await asyncio.Event().wait()
+            await stop.wait()
         finally:
             await runner.cleanup()
             await self.shutdown()
