@@ -50,7 +50,12 @@ def slider_latency(page, trials: int) -> np.ndarray:
         n_img = probe.images_seen(page)
         n_key = page.evaluate("() => window.__immKeys.length")
         probe.press_slider(page, css, "End" if k % 2 == 0 else "Home")
-        probe.wait_for_new_image(page, n_img, timeout_ms=10000)
+        # the first picture decoded after the key event (an earlier one still in flight does not count)
+        page.wait_for_function(
+            "([k, n]) => window.__immKeys.length > k && window.__immImages.slice(n).some(t => t > window.__immKeys[k])",
+            arg=[n_key, n_img],
+            timeout=10000,
+        )
         dt = page.evaluate(
             "([k, n]) => window.__immImages.slice(n).find(t => t > window.__immKeys[k]) - window.__immKeys[k]", [n_key, n_img]
         )

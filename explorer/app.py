@@ -7,6 +7,7 @@ State keys and controllers are named for what the user does (play, scrub, mix, p
 from __future__ import annotations
 
 import asyncio
+import math
 import time
 from pathlib import Path
 
@@ -23,6 +24,8 @@ from explorer.palette import CHARACTER_TITLES, CHARACTERS, class_color, display_
 from explorer.scene import CAMERA_PRESETS, CHARACTER_KEYS, Scene, floor_height
 from explorer.session import FPS, Session
 
+REVIEW_DELAY_S = 0.04  # after a new mix: distance chart, AFD and latent star follow the picture
+MIN_YIELD_S = 0.005  # even when late, give the image delivery and incoming messages a turn
 SPEEDS = [0.25, 0.5, 1.0, 1.5, 2.0]
 CHART_PERIOD_S = 0.25  # the distance chart follows playback at most 4x a second (plotly redraws are costly)
 
@@ -197,25 +200,38 @@ class Studio:
             self._mix_task = asynchronous.create_task(self._mix_loop())
 
     async def _mix_loop(self):
-        while self._mix_pending:
-            await asyncio.sleep(0)  # let already-queued slider messages land first
-            self._mix_pending = False
-            self.apply_mix()
+        review_due = False
+        while self._mix_pending or review_due:
+            if self._mix_pending:
+                await asyncio.sleep(0)  # let already-queued slider messages land first
+                self._mix_pending = False
+                review_due = bool(self.apply_mix()) or review_due
+                # The picture's delivery (JPEG retries every 20 ms) goes before the review work.
+                await asyncio.sleep(REVIEW_DELAY_S)
+                continue
+            review_due = False
+            self.update_review()
 
     @_guard
-    def apply_mix(self) -> None:
+    def apply_mix(self) -> bool:
+        """Synthesize with the sliders' mix and push the new picture; True when the mix changed."""
         s, ses = self.state, self.session
         weights = [float(s[f"w_{i}"] or 0.0) for i in range(len(ses.class_names))]
         scale = float(s.scale if s.scale is not None else 1.0)
         if np.allclose(weights, ses.weights) and abs(scale - ses.scale) < 1e-9 and ses.synth is not None and s.mix_count:
-            return
+            return False
         ses.set_label(weights, scale)
         self.scene.set_synthesized(ses.synth)
         self.ctrl.view_update()  # the picture first: it is what the user is watching
         with s:
             s.label_text = ses.label_text()
+        return True
+
+    @_guard
+    def update_review(self) -> None:
+        with self.state:
             self._after_mix(force_chart=True)
-            s.error = ""
+            self.state.error = ""
 
     def _after_mix(self, force_chart: bool = False) -> None:
         """Review numbers, distance chart and latent star for the current synthesized follower."""
@@ -264,28 +280,33 @@ class Studio:
             self._play_task = asynchronous.create_task(self._play_loop())
 
     async def _play_loop(self):
-        """Advance on a wall-clock schedule: sleep until each frame's deadline (a loop that never
-        yields starves the image delivery), drop frames rather than fall behind."""
+        """Play in real time: the position advances with the wall clock (frames are skipped, not
+        slowed down, when a picture takes longer than a frame), and the loop sleeps until the next
+        frame is due (a loop that never yields starves the image delivery)."""
         loop = asyncio.get_running_loop()
-        deadline = loop.time()
+        pos, last = float(self.state.frame or 0), loop.time()
+        shown = int(pos)
         while self.state.playing:
-            period = 1.0 / (FPS * float(self.state.speed or 1.0))
-            deadline += period
-            await asyncio.sleep(max(0.0, deadline - loop.time()))
+            rate = FPS * float(self.state.speed or 1.0)
+            if int(self.state.frame or 0) != shown:  # the user scrubbed while playing
+                pos = shown = int(self.state.frame or 0)
             now = loop.time()
-            if now - deadline > period:
-                deadline = now
+            pos, last = pos + (now - last) * rate, now
+            await asyncio.sleep(max(MIN_YIELD_S, (math.floor(pos) + 1 - pos) / rate))
+            now = loop.time()
+            pos, last = pos + (now - last) * rate, now
             if not self.state.playing:
                 break
+            n = self.session.num_frames
             with self.state:
-                nxt = int(self.state.frame or 0) + 1
-                if nxt >= self.session.num_frames:
+                if pos >= n:
                     if self.state.loop:
-                        nxt = 0
+                        pos %= n
                     else:
+                        pos = n - 1
                         self.state.playing = False
-                        nxt = self.session.num_frames - 1
-                self.state.frame = nxt
+                shown = int(pos)
+                self.state.frame = shown
         with self.state:
             self._update_distance_chart(force=True)
 
