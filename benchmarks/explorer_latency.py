@@ -97,6 +97,8 @@ def render_capability(frames: int = 60, size=(1052, 497)) -> float:
     sc.set_camera("default")
     grab = vtk.vtkWindowToImageFilter()
     grab.SetInput(sc.render_window)
+    grab.ReadFrontBufferOff()
+    grab.ShouldRerenderOff()  # read the frame just rendered (the filter would render it again otherwise)
     jpeg = vtk.vtkJPEGWriter()
     jpeg.SetInputConnection(grab.GetOutputPort())
     jpeg.WriteToMemoryOn()
@@ -156,11 +158,18 @@ def main() -> int:
             browser.close()
     wall_fps, cpu_fps = render_capability()
     res["render_capability_fps"] = {"wall": wall_fps, "per_cpu_second": cpu_fps}
-    res["load_after"] = os.getloadavg()
     print(
         f"server render capability (update + render + JPEG q80, 1052x497): {wall_fps:.0f} fps wall clock, "
         f"{cpu_fps:.0f} frames per CPU-second   [bar >= 30 fps]"
     )
+    try:  # the same with this process ahead of background work (root only), to separate code from contention
+        os.nice(-10)
+        wall_fps, cpu_fps = render_capability()
+        res["render_capability_fps_prioritized"] = {"wall": wall_fps, "per_cpu_second": cpu_fps}
+        print(f"  ... at nice -10 (ahead of other work on the machine): {wall_fps:.0f} fps wall clock")
+    except PermissionError:
+        pass
+    res["load_after"] = os.getloadavg()
     print(f"load average after: {os.getloadavg()[0]:.2f}")
     if args.json:
         args.json.write_text(json.dumps(res, indent=2))

@@ -77,3 +77,30 @@ def test_port_in_use():
             capture_output=True, text=True, timeout=60,
         )  # fmt: skip
     assert_one_line_error(proc, f"port {port}", "already in use")
+
+
+@pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
+def test_launcher_redirects_and_reports_full_in_the_page(tmp_path):
+    """Each visit gets its own studio process; past --max-clients the page says so in one line."""
+    import http.client
+    from urllib.parse import urlsplit
+
+    from explorer.probe import StudioProcess
+
+    with StudioProcess("--max-clients", "1", cache_dir=tmp_path) as studio:
+        u = urlsplit(studio.url)
+        conn = http.client.HTTPConnection(u.hostname, u.port, timeout=60)
+        conn.request("GET", "/")
+        first = conn.getresponse()
+        first.read()
+        assert first.status == 302
+        worker = urlsplit(first.getheader("Location"))
+        assert worker.port != u.port
+        page = http.client.HTTPConnection(worker.hostname, worker.port, timeout=30)
+        page.request("GET", "/index.html")
+        assert page.getresponse().status == 200
+        conn.request("GET", "/")
+        second = conn.getresponse()
+        body = second.read().decode()
+        assert second.status == 503
+        assert "maximum of 1 clients" in body
