@@ -206,7 +206,7 @@ class Studio:
                 await asyncio.sleep(0)  # let already-queued slider messages land first
                 self._mix_pending = False
                 review_due = bool(self.apply_mix()) or review_due
-                # The picture's delivery (JPEG retries every 20 ms) goes before the review work.
+                # The picture's delivery (JPEG retries every 5 ms) goes before the review work.
                 await asyncio.sleep(REVIEW_DELAY_S)
                 continue
             review_due = False

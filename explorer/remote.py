@@ -16,8 +16,8 @@ STALE_RETRIES times).
 
 from __future__ import annotations
 
-STALE_WAIT_S = 0.02
-STALE_RETRIES = 100  # 2 s of retries at 20 ms
+STALE_WAIT_S = 0.005
+STALE_RETRIES = 400  # 2 s of retries at 5 ms
 _patched = False
 
 
