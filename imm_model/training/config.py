@@ -34,6 +34,7 @@ class TrainConfig:
     d_steps: int = 1  # discriminator updates per generator update
     # Augmentation of training batches.
     mirror_prob: float = 0.0  # swap left/right joints and flip the lateral axis
+    mirror_exclude_classes: tuple[str, ...] = ()  # handed interactions (a left-handed handshake never occurs)
     rotate_deg: float = 0.0  # uniform yaw of both characters in [-rotate_deg, rotate_deg]
     scale_jitter: float = 0.0  # scale both characters about A's root by U(1 - s, 1 + s) (body size)
     time_warp: float = 0.0  # resample each sequence to length * U(1 - w, 1 + w) (linear interpolation)
@@ -53,6 +54,7 @@ class TrainConfig:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["role_swap_classes"] = list(self.role_swap_classes)
+        d["mirror_exclude_classes"] = list(self.mirror_exclude_classes)
         return d
 
     @classmethod
@@ -62,8 +64,9 @@ class TrainConfig:
         if unknown:
             raise ValueError(f"unknown training config keys {sorted(unknown)}; known: {sorted(known)}")
         d = dict(d)
-        if "role_swap_classes" in d:
-            d["role_swap_classes"] = tuple(d["role_swap_classes"])
+        for key in ("role_swap_classes", "mirror_exclude_classes"):
+            if key in d:
+                d[key] = tuple(d[key])
         return cls(**d)
 
 

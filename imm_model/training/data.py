@@ -59,7 +59,8 @@ class Augmenter:
     """Random mirror / yaw / role swap of a batch (both characters transformed alike)."""
 
     def __init__(self, skeleton: Skeleton, mirror_prob: float, rotate_deg: float, role_swap_prob: float,
-                 swap_class_mask: torch.Tensor, time_warp: float = 0.0, scale_jitter: float = 0.0):
+                 swap_class_mask: torch.Tensor, time_warp: float = 0.0, scale_jitter: float = 0.0,
+                 mirror_class_mask: torch.Tensor | None = None):
         self.perm = torch.tensor(mirror_permutation(skeleton))
         self.vertical = skeleton.vertical_axis
         self.lateral = (skeleton.vertical_axis + 2) % 3  # up x forward (X for Y-up, +Z forward)
@@ -68,6 +69,7 @@ class Augmenter:
         self.swap_class_mask = swap_class_mask  # (C,) bool
         self.time_warp = time_warp
         self.scale_jitter = scale_jitter
+        self.mirror_class_mask = mirror_class_mask  # (C,) bool: classes that may be mirrored (None = all)
 
     @property
     def active(self) -> bool:
@@ -83,7 +85,10 @@ class Augmenter:
             follower = torch.where(s, data.swapped_follower[idx, :T], follower)
         poses = torch.stack([leader, follower]).unflatten(-1, (-1, 3))  # (2, B, T, J, 3)
         if self.mirror_prob > 0:
-            flip = (torch.rand(B, generator=gen) < self.mirror_prob)[None, :, None, None, None]
+            flip = torch.rand(B, generator=gen) < self.mirror_prob
+            if self.mirror_class_mask is not None:
+                flip &= self.mirror_class_mask[actions]
+            flip = flip[None, :, None, None, None]
             mirrored = poses[:, :, :, self.perm].clone()
             mirrored[..., self.lateral] *= -1
             poses = torch.where(flip, mirrored, poses)

@@ -91,8 +91,9 @@ class Trainer:
         self.opt_g = make_optimizer(cfg, self.G.parameters(), cfg.lr_g)
         self.opt_d = make_optimizer(cfg, self.D.parameters(), cfg.lr_d)
         swap = torch.tensor([c in cfg.role_swap_classes for c in data.class_names])
+        mirror = torch.tensor([c not in cfg.mirror_exclude_classes for c in data.class_names])
         self.augment = Augmenter(data.skeleton, cfg.mirror_prob, cfg.rotate_deg, cfg.role_swap_prob, swap, cfg.time_warp,
-                                 cfg.scale_jitter)
+                                 cfg.scale_jitter, mirror)
         self.bones = torch.tensor(data.skeleton.bones, dtype=torch.int64)
         self.state = FoldState()
 
