@@ -167,9 +167,7 @@ class Launcher:
             flush=True,
         )
         if self.config.open_browser:
-            import webbrowser
-
-            webbrowser.open(self.url)
+            _open_browser(self.url)
         stop = asyncio.Event()
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGTERM, signal.SIGINT):
@@ -191,6 +189,21 @@ class Launcher:
                     await asyncio.wait_for(w.process.wait(), 5)
                 except (TimeoutError, ProcessLookupError):
                     w.process.kill()
+
+
+def _open_browser(url: str) -> None:
+    """Open a graphical browser when there is a desktop; on a headless machine `webbrowser` would
+    start a text-mode browser inside this terminal, so only say where the studio is."""
+    has_desktop = sys.platform in ("darwin", "win32") or os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    if not has_desktop:
+        print("no desktop found: open the address above in a browser (or pass --no-browser)", flush=True)
+        return
+    import webbrowser
+
+    try:
+        webbrowser.open(url)
+    except Exception:  # a missing browser must not stop the studio
+        pass
 
 
 def _error_page(message: str) -> str:
