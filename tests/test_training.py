@@ -154,3 +154,28 @@ def test_cli_train_one_epoch_and_resume(tmp_path, capsys):
     assert "2 epochs" in capsys.readouterr().out
     assert main(["train", "--config", "paper", "--fold", "s99", "--out", str(out)]) == 2
     assert "s99" in capsys.readouterr().err
+
+
+def test_augmentation_keeps_skeletons_valid(sample_data):
+    from imm_model.training.data import Augmenter, PaddedData, mirror_permutation
+
+    perm = mirror_permutation(sample_data.skeleton)
+    assert [perm[perm[j]] for j in range(15)] == list(range(15)) and perm != list(range(15))
+    padded = PaddedData.from_dataset(sample_data.subset(range(12)))
+    idx = torch.arange(12)
+    lengths = padded.lengths
+    none = torch.zeros(6, dtype=torch.bool)
+    aug = Augmenter(sample_data.skeleton, 1.0, 45.0, 0.0, none, time_warp=0.2, scale_jitter=0.0,
+                    mirror_class_mask=torch.tensor([True, True, False, True, True, True]))
+    leader, follower, new_lengths, actions = aug(padded, idx, torch.Generator().manual_seed(0))
+    bones = torch.tensor(sample_data.skeleton.bones)
+    from imm_model.training.losses import bone_lengths
+
+    for b in range(12):
+        # rigid (mirror + yaw) transforms keep bone lengths (mirror swaps left/right bones, hence the sort);
+        # time warp keeps the first and last frames
+        before = bone_lengths(padded.leader[b : b + 1, [0, lengths[b] - 1]], bones).sort(-1).values
+        after = bone_lengths(leader[b : b + 1, [0, new_lengths[b] - 1]], bones).sort(-1).values
+        torch.testing.assert_close(before, after, atol=1e-4, rtol=1e-4)
+        assert (leader[b, new_lengths[b]:] == 0).all()
+    assert (new_lengths != lengths).any()
