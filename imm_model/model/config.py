@@ -54,5 +54,9 @@ def model_config_for(skeleton, num_classes: int, **overrides) -> ModelConfig:
     missing = [p for p in BODY_PARTS if p not in skeleton.body_parts]
     if missing:
         raise ValueError(f"skeleton {skeleton.name} lacks body parts {missing}")
+    fixed = {"num_joints", "num_classes", "body_parts"}
+    bad = sorted(set(overrides) - ({f.name for f in fields(ModelConfig)} - fixed))
+    if bad:
+        raise ValueError(f"unknown or fixed model config keys {bad} (joints, classes and body parts come from the data)")
     parts = tuple(tuple(skeleton.body_parts[p]) for p in BODY_PARTS)
     return ModelConfig(num_joints=skeleton.num_joints, num_classes=num_classes, body_parts=parts, **overrides)

@@ -127,6 +127,7 @@ def load_config(name_or_path: str, **overrides: Any) -> TrainConfig:
         if base is None:
             raise ValueError(f"{path}: unknown base config")
         merged = base.to_dict() | d
+        merged["model"] = base.model | d.get("model", {})  # model sizes merge key by key
         merged.setdefault("name", path.stem)
         cfg = TrainConfig.from_dict(merged)
     return replace(cfg, **{k: v for k, v in overrides.items() if v is not None})
