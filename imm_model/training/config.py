@@ -99,6 +99,7 @@ IMM = TrainConfig(
     d_spectral_norm=True,
     ema_decay=0.99,
     mirror_prob=0.5,
+    mirror_exclude_classes=("shaking_hands",),  # always right-handed in SBU
     rotate_deg=45.0,
     scale_jitter=0.1,
     time_warp=0.2,
