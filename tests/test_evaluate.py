@@ -25,3 +25,10 @@ def test_evaluate_argument_errors(capsys):
     assert "--fold all needs per-fold checkpoints" in capsys.readouterr().err
     assert main(["evaluate", "--run", "/nonexistent", "--fold", "s01"]) == 2
     assert "not found" in capsys.readouterr().err
+
+
+def test_fold_names():
+    from imm_model.evaluation.commands import normalize_fold
+
+    assert normalize_fold("4") == normalize_fold("loso-s04") == normalize_fold("s04") == "s04"
+    assert normalize_fold("all") == "all" and normalize_fold(None) is None

@@ -25,6 +25,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_evaluate)
 
 
+def normalize_fold(fold: str | None) -> str | None:
+    """'s04', 'loso-s04', '4' -> 's04'; 'all' and None unchanged."""
+    if fold is None or fold == "all":
+        return fold
+    fold = fold.removeprefix("loso-")
+    if fold.isdigit():
+        fold = f"s{int(fold):02d}"
+    return fold
+
+
 def _checkpoint_for(args: argparse.Namespace, subject: str) -> Path:
     if args.run is not None:
         return args.run / f"fold-{subject}" / "best.safetensors"
@@ -46,7 +56,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     if args.run is None and args.checkpoint is None:
         args.checkpoint = SAMPLE_CHECKPOINT
     templated = args.run is not None or "{subject}" in str(args.checkpoint)
-    fold = args.fold or ("all" if args.run is not None else None)
+    fold = normalize_fold(args.fold) or ("all" if args.run is not None else None)
     if fold == "all":
         if not templated:
             raise ValueError("--fold all needs per-fold checkpoints: --run DIR or --checkpoint with {subject} in the path")

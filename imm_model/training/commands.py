@@ -32,6 +32,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
     from imm_model.data.dataset import InteractionDataset
     from imm_model.data.splits import all_subjects
+    from imm_model.evaluation.commands import normalize_fold
     from imm_model.paths import SAMPLE_DATA
     from imm_model.training.config import load_config
     from imm_model.training.trainer import Trainer, export_generator
@@ -40,6 +41,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     cfg = load_config(args.config, epochs=args.epochs, seed=args.seed)
     data = InteractionDataset.load(args.data or SAMPLE_DATA)
     subjects = all_subjects(data.subject_pairs)
+    args.fold = normalize_fold(args.fold)
     if args.fold == "all":
         folds: list[str | None] = list(subjects)
     elif args.fold == "none":
