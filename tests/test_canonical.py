@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from imm_model.data.canonical import CanonicalFrame, facing_direction
+from imm_model.data.canonical import FACING_WINDOW, CanonicalFrame, facing_direction
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.sbu import read_sbu_sequence
 from imm_model.skeleton import KINECT15
@@ -17,7 +17,9 @@ def test_leader_root_at_origin_and_facing_fixed_at_reference_frame(sample_data):
     for i in range(len(sample_data)):
         leader, _ = sample_data.canonical(i)
         np.testing.assert_allclose(leader[0, KINECT15.root], 0.0, atol=1e-5)
-        np.testing.assert_allclose(facing_direction(leader[:1].astype(np.float64), KINECT15)[0], [0, 0, 1], atol=1e-5)
+        # A's mean facing over the reference window is the fixed forward axis (+Z) in every sequence.
+        mean_facing = facing_direction(leader[:FACING_WINDOW].astype(np.float64), KINECT15).mean(axis=0)
+        np.testing.assert_allclose(mean_facing / np.linalg.norm(mean_facing), [0, 0, 1], atol=1e-5)
 
 
 def test_follower_stands_in_front_of_the_leader(sample_data):

@@ -10,9 +10,13 @@ across x up. On SBU this forward points at the partner in the great majority of 
 (checked in tests), i.e. the Kinect left/right labels are not mirrored.
 
 Two modes:
-- ``first_frame`` (default): one rigid transform per sequence, taken from A's first frame. A's
-  motion during the sequence (stepping in to push, leaning back) is kept, which the follower's
-  reaction depends on.
+- ``first_frame`` (default): one rigid transform per sequence: origin = A's root at the first
+  frame, facing = A's mean facing over the first `FACING_WINDOW` frames. A's motion during the
+  sequence (stepping in to push, leaning back) is kept, which the follower's reaction depends on.
+  Why a window: Kinect's hip/shoulder estimates are noisy frame to frame. On the 197 SBU sequences
+  the spread (std) of B's mean sideways position in A's frame is 0.55 m with frame 0's facing alone
+  and 0.45 m with the mean over the first 10 frames (SBU's shortest sequence), i.e. A's facing is
+  estimated better and less of B's placement looks random to the model.
 - ``per_frame``: translation and yaw of A removed at every frame.
 
 Either way the transform is a rotation about the vertical axis plus a translation per frame, so
@@ -29,6 +33,7 @@ import numpy as np
 from imm_model.skeleton import Skeleton
 
 CanonicalMode = Literal["first_frame", "per_frame"]
+FACING_WINDOW = 10  # frames (0.67 s at 15 fps) averaged for A's facing in first_frame mode
 
 
 def facing_direction(positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
@@ -80,7 +85,8 @@ class CanonicalFrame:
         yaw = np.arctan2(facing @ side, facing @ fwd)  # 0 where facing is undefined
         origin = leader[:, skeleton.root].astype(np.float64)
         if mode == "first_frame":
-            yaw = np.full(len(leader), yaw[0])
+            mean_facing = facing[:FACING_WINDOW].mean(axis=0)
+            yaw = np.full(len(leader), np.arctan2(mean_facing @ side, mean_facing @ fwd))
             origin = np.repeat(origin[:1], len(leader), axis=0)
         return cls(yaw=yaw.astype(np.float64), origin=origin, mode=mode)
 
