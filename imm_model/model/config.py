@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, fields
 
+from imm_model.typed_config import checked_kwargs
+
 BODY_PARTS = ("left_arm", "right_arm", "left_leg", "right_leg", "trunk")
 
 
@@ -39,11 +41,7 @@ class ModelConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> ModelConfig:
-        known = {f.name for f in fields(cls)}
-        unknown = set(d) - known
-        if unknown:
-            raise ValueError(f"unknown model config keys {sorted(unknown)}")
-        d = dict(d)
+        d = checked_kwargs(cls, d, "model config")
         if "body_parts" in d:
             d["body_parts"] = tuple(tuple(int(j) for j in p) for p in d["body_parts"])
         return cls(**d)

@@ -5,9 +5,11 @@
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
+
+from imm_model.typed_config import checked_kwargs
 
 
 @dataclass(frozen=True)
@@ -59,11 +61,7 @@ class TrainConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> TrainConfig:
-        known = {f.name for f in fields(cls)}
-        unknown = set(d) - known
-        if unknown:
-            raise ValueError(f"unknown training config keys {sorted(unknown)}; known: {sorted(known)}")
-        d = dict(d)
+        d = checked_kwargs(cls, d, "training config")
         for key in ("role_swap_classes", "mirror_exclude_classes"):
             if key in d:
                 d[key] = tuple(d[key])
