@@ -6,17 +6,17 @@ import pytest
 import torch
 
 from imm_model.model import Discriminator, Generator, model_config_for
-from imm_model.model.layers import reverse_index
+from imm_model.model.layers import Dropout, gather_time, reverse_index
 from imm_model.skeleton import KINECT15
 from imm_model.training import losses
 
 SMALL = dict(stream_embed=16, encoder_hidden=8, decoder_hidden=16, attention_dim=8, disc_hidden=8)
 
 
-@pytest.fixture(scope="module")
-def models():
+@pytest.fixture(scope="module", params=["concat", "sum", "context"])
+def models(request):
     torch.manual_seed(0)
-    cfg = model_config_for(KINECT15, 6, **SMALL)
+    cfg = model_config_for(KINECT15, 6, **SMALL, decoder_input=request.param)
     return Generator(cfg).eval(), Discriminator(cfg, spectral_norm=True).eval()
 
 
@@ -26,6 +26,41 @@ def test_config_round_trip():
     assert cfg.num_streams == 6 and cfg.latent_dim == 6 * 2 * 8
     with pytest.raises(ValueError, match="unknown model config"):
         type(cfg).from_dict(cfg.to_dict() | {"bogus": 1})
+    with pytest.raises(ValueError, match="decoder_input"):
+        type(cfg).from_dict(cfg.to_dict() | {"decoder_input": "both"})
+
+
+def test_gather_time_matches_gather():
+    torch.manual_seed(0)
+    x = torch.randn(3, 7, 5, requires_grad=True)
+    index = reverse_index(torch.tensor([7, 4, 1]), 7)
+    expected = x.gather(1, index[:, :, None].expand(-1, -1, 5))
+    torch.testing.assert_close(gather_time(x, index), expected, atol=0, rtol=0)
+    grad = torch.randn(3, 7, 5)
+    (g,) = torch.autograd.grad(gather_time(x, index), x, grad)
+    (g_ref,) = torch.autograd.grad(expected, x, grad)
+    torch.testing.assert_close(g, g_ref, atol=0, rtol=0)
+
+
+def test_dropout_rate_and_scaling():
+    torch.manual_seed(0)
+    drop = Dropout(0.2).train()
+    y = drop(torch.ones(8, 50, 100))
+    assert set(y.unique().tolist()) == {0.0, 1.25}
+    assert abs(float((y == 0).float().mean()) - 0.2) < 0.01  # 40000 draws: the rate is p to within ~5 sigma
+    assert torch.equal(drop.eval()(y), y)
+    with pytest.raises(ValueError, match="dropout probability"):
+        Dropout(1.0)
+
+
+def test_per_sequence_dropout_shares_the_mask_over_frames():
+    torch.manual_seed(0)
+    drop = Dropout(0.5, per_sequence=True).train()
+    y = drop(torch.ones(4, 9, 32))
+    assert set(y.unique().tolist()) == {0.0, 2.0}  # kept features rescaled by 1 / (1 - p)
+    assert torch.equal(y, y[:, :1].expand_as(y))  # the same features are dropped at every frame
+    assert not torch.equal(y[0], y[1])  # ... but each sequence has its own mask
+    assert torch.equal(drop.eval()(y), y)
 
 
 def test_reverse_index_reverses_within_length():

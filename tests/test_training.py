@@ -53,6 +53,17 @@ def test_adversarial_ramp():
     assert [adversarial_weight(cfg, e) for e in range(7)] == [0, 0, 0.125, 0.25, 0.375, 0.5, 0.5]
 
 
+def test_discriminator_updated_every_kth_batch(sample_data, tmp_path):
+    trainer = Trainer(replace(TINY, d_every=3, adv_warmup_epochs=0, adv_ramp_epochs=0), sample_data, "s04", tmp_path)
+    steps = []
+    step = trainer.opt_d.step
+    trainer.opt_d.step = lambda *a, **k: steps.append(1) or step(*a, **k)
+    row = trainer.train_epoch(0)
+    n_batches = -(-len(trainer.train_idx) // TINY.batch_size)
+    assert len(steps) == -(-n_batches // 3)
+    assert row["d_loss"] > 0 and 0 <= row["d_real_acc"] <= 1  # averaged over the batches that updated D
+
+
 @pytest.mark.slow
 def test_same_seed_same_weights_and_exact_resume(sample_data, tmp_path):
     straight = Trainer(TINY, sample_data, "s04", tmp_path / "a")

@@ -7,6 +7,7 @@ from dataclasses import asdict, dataclass, field, fields
 from imm_model.typed_config import checked_kwargs
 
 BODY_PARTS = ("left_arm", "right_arm", "left_leg", "right_leg", "trunk")
+DECODER_INPUTS = ("concat", "sum", "context")
 
 
 @dataclass(frozen=True)
@@ -21,6 +22,18 @@ class ModelConfig:
     attention_dim: int = 128  # additive attention v^T tanh(W h_t + U h_s)
     disc_hidden: int = 64  # per direction, two Bi-LSTM layers
     dropout: float = 0.0  # on the concatenated encodings and the decoder output
+    # True: one dropout mask per sequence, shared by all its frames ("variational" dropout for RNNs,
+    # Gal & Ghahramani 2016); B x D random draws instead of B x T x D, which dominate dropout's CPU cost.
+    dropout_per_sequence: bool = False
+    # What the attentive decoder reads at each frame t, from the frame's encoding h_t and its attention
+    # context c_t: "concat" [h_t, c_t] (2 x latent wide), "sum" h_t + c_t (a residual connection around the
+    # attention, as in a Transformer block; latent wide, so the decoder's input projection costs half),
+    # or "context" c_t alone (an attention layer placed between encoder and decoder).
+    decoder_input: str = "concat"
+
+    def __post_init__(self) -> None:
+        if self.decoder_input not in DECODER_INPUTS:
+            raise ValueError(f"decoder_input must be one of {DECODER_INPUTS}, not {self.decoder_input!r}")
 
     @property
     def pose_dim(self) -> int:
@@ -33,6 +46,10 @@ class ModelConfig:
     @property
     def latent_dim(self) -> int:
         return self.num_streams * 2 * self.encoder_hidden
+
+    @property
+    def decoder_input_dim(self) -> int:
+        return 2 * self.latent_dim if self.decoder_input == "concat" else self.latent_dim
 
     def to_dict(self) -> dict:
         d = asdict(self)

@@ -69,5 +69,5 @@ class FastGenerator(nn.Module):
         g = self.g
         h = self.encode(leader, labels)
         mask = torch.ones(h.shape[:2], dtype=torch.bool)
-        dec, _ = self.decoder(torch.cat([h, g.attention(h, mask)], dim=-1))
+        dec, _ = self.decoder(g.decoder_input(h, g.attention(h, mask)))
         return g.out(dec) * g.follower_std + g.follower_mean

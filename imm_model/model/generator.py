@@ -12,7 +12,7 @@ import torch
 import torch.nn as nn
 
 from imm_model.model.config import ModelConfig
-from imm_model.model.layers import AdditiveAttention, BiLSTM, reverse_index
+from imm_model.model.layers import AdditiveAttention, BiLSTM, Dropout, reverse_index
 
 
 class Generator(nn.Module):
@@ -31,8 +31,8 @@ class Generator(nn.Module):
         self.embed = nn.ModuleList(nn.Linear(n, cfg.stream_embed) for n in in_sizes)
         self.encoders = nn.ModuleList(BiLSTM(cfg.stream_embed, cfg.encoder_hidden) for _ in in_sizes)
         self.attention = AdditiveAttention(cfg.latent_dim, cfg.attention_dim)
-        self.decoder = BiLSTM(2 * cfg.latent_dim, cfg.decoder_hidden)
-        self.drop = nn.Dropout(cfg.dropout)
+        self.decoder = BiLSTM(cfg.decoder_input_dim, cfg.decoder_hidden)
+        self.drop = Dropout(cfg.dropout, per_sequence=cfg.dropout_per_sequence)
         self.out = nn.Linear(2 * cfg.decoder_hidden, d)
 
     def set_normalization(self, leader_mean, leader_std, follower_mean, follower_std) -> None:
@@ -49,11 +49,16 @@ class Generator(nn.Module):
         streams.append(torch.cat([x, labels[:, None, :].expand(B, T, -1)], dim=-1))
         return torch.cat([enc(emb(s), rev) for s, emb, enc in zip(streams, self.embed, self.encoders, strict=True)], dim=-1)
 
+    def decoder_input(self, h: torch.Tensor, context: torch.Tensor) -> torch.Tensor:
+        """Encodings h and attention contexts (B, T, latent) -> the decoder's input (see ModelConfig)."""
+        mode = self.cfg.decoder_input
+        return torch.cat([h, context], dim=-1) if mode == "concat" else h + context if mode == "sum" else context
+
     def forward(self, leader: torch.Tensor, labels: torch.Tensor, lengths: torch.Tensor) -> torch.Tensor:
         """-> follower (B, T, 3J) canonical metres (padded frames hold garbage: mask them)."""
         T = leader.shape[1]
         mask = torch.arange(T, device=leader.device)[None] < lengths[:, None]
         h = self.drop(self.encode(leader, labels, lengths))
         context = self.attention(h, mask)
-        dec = self.drop(self.decoder(torch.cat([h, context], dim=-1), reverse_index(lengths, T)))
+        dec = self.drop(self.decoder(self.decoder_input(h, context), reverse_index(lengths, T)))
         return self.out(dec) * self.follower_std + self.follower_mean

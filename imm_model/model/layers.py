@@ -20,8 +20,14 @@ def reverse_index(lengths: torch.Tensor, max_len: int) -> torch.Tensor:
 
 
 def gather_time(x: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
-    """x (B, T, D), index (B, T) -> x[b, index[b, t]]."""
-    return x.gather(1, index[:, :, None].expand(-1, -1, x.shape[-1]))
+    """x (B, T, D), index (B, T) -> x[b, index[b, t]].
+
+    As a row selection of the flattened (B*T, D) tensor: 3-4x faster forward and backward on CPU
+    than `gather` with an index expanded over D.
+    """
+    B, T, D = x.shape
+    rows = (index + torch.arange(0, B * T, T, device=index.device)[:, None]).reshape(-1)
+    return x.reshape(B * T, D).index_select(0, rows).view(B, T, D)
 
 
 class BiLSTM(nn.Module):
@@ -55,3 +61,27 @@ class AdditiveAttention(nn.Module):
         scores = self.v(torch.tanh(self.query(h)[:, :, None] + self.key(h)[:, None])).squeeze(-1)  # (B, T, T)
         scores = scores.masked_fill(~mask[:, None, :], float("-inf"))
         return torch.softmax(scores, dim=-1) @ h
+
+
+class Dropout(nn.Module):
+    """Inverted dropout on (B, T, D) features; `per_sequence`: one mask per sequence, shared by all frames.
+
+    The keep mask is drawn as `uniform >= p` rather than with `bernoulli_`: the same distribution, but
+    torch's CPU `bernoulli_` is ~2.5x slower than `rand` for these sizes (dropout was ~3 % of an epoch).
+    """
+
+    def __init__(self, p: float, per_sequence: bool = False):
+        super().__init__()
+        if not 0 <= p < 1:
+            raise ValueError(f"dropout probability must be in [0, 1), not {p}")
+        self.p, self.per_sequence = p, per_sequence
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if not self.training or self.p == 0:
+            return x
+        shape = (x.shape[0], 1, x.shape[2]) if self.per_sequence else x.shape
+        keep = (torch.rand(shape, dtype=x.dtype, device=x.device) >= self.p).to(x.dtype) / (1 - self.p)
+        return x * keep
+
+    def extra_repr(self) -> str:
+        return f"p={self.p}, per_sequence={self.per_sequence}"

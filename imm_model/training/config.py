@@ -34,6 +34,7 @@ class TrainConfig:
     label_smoothing: float = 0.0  # on D's real-class targets
     d_spectral_norm: bool = False
     d_steps: int = 1  # discriminator updates per generator update
+    d_every: int = 1  # update the discriminator on every k-th batch only (the generator is updated on all)
     # Augmentation of training batches.
     mirror_prob: float = 0.0  # swap left/right joints and flip the lateral axis
     mirror_exclude_classes: tuple[str, ...] = ()  # handed interactions (a left-handed handshake never occurs)

