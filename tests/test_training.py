@@ -13,11 +13,11 @@ from imm_model.cli import main
 from imm_model.errors import CheckpointError
 from imm_model.inference import ReactionModel
 from imm_model.training.config import IMM, PAPER, TrainConfig, load_config
-from imm_model.training.trainer import Trainer, adversarial_weight, export_generator
+from imm_model.training.trainer import Trainer, adversarial_weight, export_generator, lr_scale
 
 TINY = replace(
     IMM,
-    model=dict(stream_embed=16, encoder_hidden=8, decoder_hidden=16, attention_dim=8, disc_hidden=8, dropout=0.1),
+    model=IMM.model | dict(stream_embed=16, encoder_hidden=8, decoder_hidden=16, attention_dim=8, disc_hidden=8, dropout=0.1),
     epochs=4, checkpoint_every=2, adv_warmup_epochs=1, adv_ramp_epochs=2, ema_decay=0.9, role_swap_prob=0.5,
     role_swap_classes=("hugging",),
 )
@@ -51,6 +51,16 @@ def test_named_and_file_configs(tmp_path):
 def test_adversarial_ramp():
     cfg = replace(IMM, lambda_adv=0.5, adv_warmup_epochs=2, adv_ramp_epochs=4)
     assert [adversarial_weight(cfg, e) for e in range(7)] == [0, 0, 0.125, 0.25, 0.375, 0.5, 0.5]
+
+
+def test_learning_rate_decays_on_validation_plateaus():
+    cfg = replace(IMM, lr_decay_patience=2, lr_decay_factor=0.5)
+    vals = [9, 9, 5, 6, 7, 4, 5, 5, 5, 5]  # epochs 0-1 come before selection starts and are ignored
+    history = [{"epoch": e, "val_afd_m": v} for e, v in enumerate(vals)]
+    scales = [lr_scale(cfg, history[:n], select_from=2) for n in range(len(vals) + 1)]
+    # plateaus of 2 epochs without a new best: after epoch 4 (6, 7 > 5) and after epochs 7 and 9 (5s > 4)
+    assert scales == [1, 1, 1, 1, 1, 0.5, 0.5, 0.5, 0.25, 0.25, 0.125]
+    assert lr_scale(IMM, history, select_from=2) == 1.0  # off by default
 
 
 def test_discriminator_updated_every_kth_batch(sample_data, tmp_path):
@@ -90,7 +100,7 @@ def test_same_seed_same_weights_and_exact_resume(sample_data, tmp_path):
 
 @pytest.mark.slow
 def test_short_training_lowers_validation_afd(sample_data, tmp_path):
-    cfg = replace(IMM, model=TINY.model | {"decoder_hidden": 32}, epochs=8, lambda_adv=0.05, adv_warmup_epochs=4)
+    cfg = replace(IMM, model=TINY.model | {"decoder_hidden": 32}, epochs=12, lambda_adv=0.05, adv_warmup_epochs=4)
     trainer = Trainer(cfg, sample_data, "s04", tmp_path)
     before = trainer.validate()["val_afd_m"]
     state = trainer.fit(progress=False)

@@ -44,9 +44,16 @@ class TrainConfig:
     role_swap_prob: float = 0.0  # B becomes the leader (re-canonicalized), for role_swap_classes only
     role_swap_classes: tuple[str, ...] = ()
     ema_decay: float = 0.0  # >0: validate, select and ship an exponential moving average of G's weights
+    # The EMA's warm-up: at step s its decay is min(ema_decay, (1 + s) / (10 + s)) (0, an average over about
+    # the last s / 9 steps), or with a fraction f > 0, min(ema_decay, f s / (f s + 1)) (about the last f s steps).
+    ema_window_fraction: float = 0.0
     # Model selection.
     val_fraction: float = 0.15
     patience: int = 0  # early stopping: stop after this many epochs without a better validation AFD (0 = never)
+    # Learning-rate decay on plateau: multiply both learning rates by lr_decay_factor each time validation
+    # AFD has not improved for lr_decay_patience epochs (counted once the best epoch may be selected; 0 = off).
+    lr_decay_patience: int = 0
+    lr_decay_factor: float = 0.5
     min_epochs: int = 0  # ... but not before this epoch
     # Best-on-validation is only chosen from this epoch on (-1: once the adversarial weight is at full
     # strength, i.e. adv_warmup_epochs + adv_ramp_epochs), so the selected model is trained with it ON.
@@ -85,7 +92,9 @@ PAPER = TrainConfig(
 # The recipe that converges (see docs/training.md for what was tried).
 IMM = TrainConfig(
     name="imm",
-    model=dict(stream_embed=64, encoder_hidden=40, decoder_hidden=128, attention_dim=64, disc_hidden=64, dropout=0.2),
+    # the decoder reads the attention context alone: half the input width of [encoding, context], 0.83x per epoch
+    model=dict(stream_embed=64, encoder_hidden=40, decoder_hidden=128, attention_dim=64, disc_hidden=64, dropout=0.2,
+               decoder_input="context"),
     optimizer="adam",
     lr_g=1e-3,
     lr_d=2e-4,
@@ -96,6 +105,8 @@ IMM = TrainConfig(
     adv_ramp_epochs=10,
     label_smoothing=0.1,
     d_spectral_norm=True,
+    d_every=2,  # 0.94x per epoch, no measurable cost (docs/training.md, rows CTX vs CD)
+    lr_decay_patience=6,
     ema_decay=0.99,
     mirror_prob=0.5,
     mirror_exclude_classes=("shaking_hands",),  # always right-handed in SBU

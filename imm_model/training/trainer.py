@@ -36,7 +36,7 @@ from imm_model.training import losses
 from imm_model.training.config import TrainConfig
 from imm_model.training.data import Augmenter, PaddedData
 
-LOG_FIELDS = ("epoch", "adv_weight", "l1", "bone", "cont", "adv", "d_loss", "d_real_acc", "d_fake_acc", "val_afd_m", "val_l1",
+LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", "l1", "bone", "cont", "adv", "d_loss", "d_real_acc", "d_fake_acc", "val_afd_m", "val_l1",
               "seconds")
 
 
@@ -51,6 +51,24 @@ def adversarial_weight(cfg: TrainConfig, epoch: int) -> float:
     if cfg.adv_ramp_epochs <= 0:
         return cfg.lambda_adv
     return cfg.lambda_adv * min(1.0, (epoch - cfg.adv_warmup_epochs + 1) / cfg.adv_ramp_epochs)
+
+
+def lr_scale(cfg: TrainConfig, history: list[dict], select_from: int) -> float:
+    """Learning-rate multiplier for the next epoch, from the validation history alone (so a resumed run
+    decays exactly as an uninterrupted one): lr_decay_factor ** (plateaus of lr_decay_patience epochs)."""
+    if cfg.lr_decay_patience <= 0:
+        return 1.0
+    best, since, decays = math.inf, 0, 0
+    for row in history:
+        if row["epoch"] < select_from:
+            continue
+        if row["val_afd_m"] < best:
+            best, since = row["val_afd_m"], 0
+        else:
+            since += 1
+            if since >= cfg.lr_decay_patience:
+                decays, since = decays + 1, 0
+    return cfg.lr_decay_factor ** decays
 
 
 def build_models(cfg: TrainConfig, data: InteractionDataset, seed: int) -> tuple[Generator, Discriminator]:
@@ -184,6 +202,10 @@ class Trainer:
         sampler.set_epoch(epoch)
         w_adv = adversarial_weight(cfg, epoch)
         use_d = cfg.lambda_adv > 0
+        scale = lr_scale(cfg, self.state.history, self.select_from)
+        for opt, lr in ((self.opt_g, cfg.lr_g), (self.opt_d, cfg.lr_d)):
+            for group in opt.param_groups:
+                group["lr"] = lr * scale
         sums = dict.fromkeys(("l1", "bone", "cont", "adv", "d_loss", "d_real_acc", "d_fake_acc"), 0.0)
         n = n_d = 0
         self.G.train()
@@ -229,11 +251,12 @@ class Trainer:
             sums["cont"] += float(cont.detach())
             n += 1
         d_keys = ("d_loss", "d_real_acc", "d_fake_acc")
-        return {k: v / (max(n_d, 1) if k in d_keys else n) for k, v in sums.items()} | {"adv_weight": w_adv}
+        return {k: v / (max(n_d, 1) if k in d_keys else n) for k, v in sums.items()} | {"adv_weight": w_adv, "lr_scale": scale}
 
     @torch.no_grad()
     def _update_ema(self, step: int) -> None:
-        decay = min(self.cfg.ema_decay, (1 + step) / (10 + step))  # warm-up: early weights fade quickly
+        f = self.cfg.ema_window_fraction  # warm-up: early weights fade quickly
+        decay = min(self.cfg.ema_decay, (f * step) / (f * step + 1) if f > 0 else (1 + step) / (10 + step))
         torch._foreach_lerp_(list(self.G_ema.parameters()), list(self.G.parameters()), 1.0 - decay)
 
     @torch.inference_mode()
