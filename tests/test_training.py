@@ -63,6 +63,18 @@ def test_learning_rate_decays_on_validation_plateaus():
     assert lr_scale(IMM, history, select_from=2) == 1.0  # off by default
 
 
+@pytest.mark.parametrize("fraction, step, decay", [(0.0, 8, 0.5), (0.5, 2, 0.5), (0.5, 1000, 0.9)])  # TINY caps at 0.9
+def test_ema_warm_up_window(sample_data, tmp_path, fraction, step, decay):
+    trainer = Trainer(replace(TINY, ema_window_fraction=fraction), sample_data, "s04", tmp_path)
+    with torch.no_grad():
+        for p in trainer.G.parameters():
+            p.fill_(1.0)
+        for p in trainer.G_ema.parameters():
+            p.zero_()
+    trainer._update_ema(step)
+    assert float(trainer.G_ema.out.weight[0, 0]) == pytest.approx(1 - decay)
+
+
 def test_discriminator_updated_every_kth_batch(sample_data, tmp_path):
     trainer = Trainer(replace(TINY, d_every=3, adv_warmup_epochs=0, adv_ramp_epochs=0), sample_data, "s04", tmp_path)
     steps = []
