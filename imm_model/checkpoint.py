@@ -116,3 +116,10 @@ def optimizer_from_tensors(opt: torch.optim.Optimizer, tensors: dict[str, torch.
         pid, name = k.split(".", 1)
         state.setdefault(int(pid), {})[name] = v
     opt.load_state_dict({"state": state, "param_groups": meta["param_groups"]})
+
+
+def final_checkpoint(fold_dir: Path | str) -> Path:
+    """The model a training run's fold ships: final.safetensors (a refit) if present, else best.safetensors."""
+    fold_dir = Path(fold_dir)
+    final = fold_dir / "final.safetensors"
+    return final if final.exists() else fold_dir / "best.safetensors"

@@ -8,12 +8,12 @@ from dataclasses import replace
 import pytest
 import torch
 
-from imm_model.checkpoint import load_checkpoint, save_checkpoint
+from imm_model.checkpoint import final_checkpoint, load_checkpoint, save_checkpoint
 from imm_model.cli import main
 from imm_model.errors import CheckpointError
 from imm_model.inference import ReactionModel
 from imm_model.training.config import IMM, PAPER, TrainConfig, load_config
-from imm_model.training.trainer import Trainer, adversarial_weight, export_generator, lr_scale
+from imm_model.training.trainer import Trainer, adversarial_weight, export_generator, lr_scale, refit
 
 TINY = replace(
     IMM,
@@ -73,6 +73,24 @@ def test_ema_warm_up_window(sample_data, tmp_path, fraction, step, decay):
             p.zero_()
     trainer._update_ema(step)
     assert float(trainer.G_ema.out.weight[0, 0]) == pytest.approx(1 - decay)
+
+
+@pytest.mark.slow
+def test_refit_trains_on_training_and_validation_sequences(sample_data, tmp_path):
+    cfg = replace(TINY, epochs=3, adv_warmup_epochs=0, adv_ramp_epochs=1, lr_decay_patience=1)
+    selection = Trainer(cfg, sample_data, "s04", tmp_path / "sel")
+    selection.fit(progress=False)
+    assert final_checkpoint(selection.out) == selection.out / "best.safetensors"  # no refit yet
+    path = refit(selection, progress=False)
+    assert final_checkpoint(selection.out) == path == selection.out / "final.safetensors"
+    tensors, meta = load_checkpoint(path)
+    n_train, n_val = len(selection.train_idx), len(selection.val_idx)
+    assert meta["refit"] == {"epochs": selection.state.best_epoch + 1, "sequences": n_train + n_val}
+    assert meta["held_out_subject"] == "s04"  # the test subject is still never seen
+    best, _ = load_checkpoint(selection.out / "best.safetensors")
+    assert not torch.equal(tensors["generator.out.weight"], best["generator.out.weight"])
+    again = refit(selection, progress=False)  # deterministic: an interrupted refit can simply be run again
+    assert torch.equal(load_checkpoint(again)[0]["generator.out.weight"], tensors["generator.out.weight"])
 
 
 def test_discriminator_updated_every_kth_batch(sample_data, tmp_path):
@@ -183,6 +201,8 @@ def test_cli_train_one_epoch_and_resume(tmp_path, capsys):
     assert main(["train", "--config", str(cfg), "--fold", "s04", "--out", str(out), "--quiet",
                  "--export", str(tmp_path / "exp.safetensors")]) == 0
     assert (out / "fold-s04" / "best.safetensors").exists() and (tmp_path / "exp.json").exists()
+    assert (out / "fold-s04" / "final.safetensors").exists()  # TINY inherits the shipped recipe's refit
+    assert load_checkpoint(tmp_path / "exp.safetensors")[1]["refit"]["epochs"] == 1  # --export ships the refit
     assert main(["train", "--config", str(cfg), "--fold", "s04", "--out", str(out), "--quiet", "--resume", "--epochs", "2"]) == 0
     assert "2 epochs" in capsys.readouterr().out
     assert main(["train", "--config", "paper", "--fold", "s99", "--out", str(out)]) == 2

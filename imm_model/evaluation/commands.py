@@ -12,8 +12,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "evaluate", help="per-class AFD of the model and the nearest-neighbour baseline on LOSO folds",
         description="With --checkpoint and no --fold: the subject the checkpoint held out. With --run DIR: "
-                    "every DIR/fold-sXX/best.safetensors on its own held-out subject (--fold all, the default "
-                    "for --run) or one fold.")
+                    "every DIR/fold-sXX/final.safetensors (a refit) or else best.safetensors on its own held-out subject "
+                    "(--fold all, the default for --run) or one fold.")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--checkpoint", type=Path, default=None,
                      help="a checkpoint (default: the bundled one); may contain {subject}, e.g. runs/loso/fold-{subject}/best.safetensors")
@@ -36,8 +36,10 @@ def normalize_fold(fold: str | None) -> str | None:
 
 
 def _checkpoint_for(args: argparse.Namespace, subject: str) -> Path:
+    from imm_model.checkpoint import final_checkpoint
+
     if args.run is not None:
-        return args.run / f"fold-{subject}" / "best.safetensors"
+        return final_checkpoint(args.run / f"fold-{subject}")
     return Path(str(args.checkpoint).format(subject=subject))
 
 

@@ -30,12 +30,13 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
     import torch
 
+    from imm_model.checkpoint import final_checkpoint
     from imm_model.data.dataset import InteractionDataset
     from imm_model.data.splits import all_subjects
     from imm_model.evaluation.commands import normalize_fold
     from imm_model.paths import SAMPLE_DATA
     from imm_model.training.config import load_config
-    from imm_model.training.trainer import Trainer, export_generator
+    from imm_model.training.trainer import Trainer, export_generator, refit
 
     torch.set_num_threads(args.threads)
     cfg = load_config(args.config, epochs=args.epochs, seed=args.seed)
@@ -61,7 +62,10 @@ def _cmd_train(args: argparse.Namespace) -> int:
         state = trainer.fit(progress=not args.quiet)
         print(f"fold {subject or 'none'}: best validation AFD {state.best_val:.4f} m at epoch {state.best_epoch} "
               f"({state.epoch} epochs) -> {trainer.out / 'best.safetensors'}")
+        if cfg.refit:
+            path = refit(trainer, progress=not args.quiet)
+            print(f"fold {subject or 'none'}: refit on training + validation for {state.best_epoch + 1} epochs -> {path}")
         if args.export:
-            export_generator(trainer.out / "best.safetensors", args.export)
+            export_generator(final_checkpoint(trainer.out), args.export)
             print(f"exported generator to {args.export}")
     return 0
