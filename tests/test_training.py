@@ -46,6 +46,10 @@ def test_named_and_file_configs(tmp_path):
         load_config(str(f))
     with pytest.raises(ValueError, match="unknown config"):
         load_config("nope")
+    for bad in ({"d_every": 0}, {"lr_decay_factor": 0}, {"lr_decay_patience": -1}, {"ema_window_fraction": -0.1}):
+        f.write_text(json.dumps(bad))
+        with pytest.raises(ValueError, match=f"training config: {next(iter(bad))} must be"):
+            load_config(str(f))
 
 
 def test_adversarial_ramp():

@@ -65,6 +65,18 @@ class TrainConfig:
     checkpoint_every: int = 25
     seed: int = 0
 
+    def __post_init__(self) -> None:
+        # checked here so a bad JSON recipe fails at load time with the field's name, not mid-epoch
+        checks = (
+            ("d_every", self.d_every >= 1, "an integer >= 1"),
+            ("lr_decay_patience", self.lr_decay_patience >= 0, ">= 0 (0 = off)"),
+            ("lr_decay_factor", 0 < self.lr_decay_factor <= 1, "in (0, 1]"),
+            ("ema_window_fraction", self.ema_window_fraction >= 0, ">= 0 (0 = the default warm-up)"),
+        )
+        for name, ok, expected in checks:
+            if not ok:
+                raise ValueError(f"training config: {name} must be {expected}, not {getattr(self, name)!r}")
+
     def to_dict(self) -> dict:
         d = asdict(self)
         d["role_swap_classes"] = list(self.role_swap_classes)
