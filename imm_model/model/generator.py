@@ -52,7 +52,11 @@ class Generator(nn.Module):
     def decoder_input(self, h: torch.Tensor, context: torch.Tensor) -> torch.Tensor:
         """Encodings h and attention contexts (B, T, latent) -> the decoder's input (see ModelConfig)."""
         mode = self.cfg.decoder_input
-        return torch.cat([h, context], dim=-1) if mode == "concat" else h + context if mode == "sum" else context
+        if mode == "concat":
+            return torch.cat([h, context], dim=-1)
+        if mode == "sum":
+            return h + context
+        return context
 
     def forward(self, leader: torch.Tensor, labels: torch.Tensor, lengths: torch.Tensor) -> torch.Tensor:
         """-> follower (B, T, 3J) canonical metres (padded frames hold garbage: mask them)."""

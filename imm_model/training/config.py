@@ -50,11 +50,11 @@ class TrainConfig:
     # Model selection.
     val_fraction: float = 0.15
     patience: int = 0  # early stopping: stop after this many epochs without a better validation AFD (0 = never)
+    min_epochs: int = 0  # ... but not before this epoch
     # Learning-rate decay on plateau: multiply both learning rates by lr_decay_factor each time validation
     # AFD has not improved for lr_decay_patience epochs (counted once the best epoch may be selected; 0 = off).
     lr_decay_patience: int = 0
     lr_decay_factor: float = 0.5
-    min_epochs: int = 0  # ... but not before this epoch
     # Best-on-validation is only chosen from this epoch on (-1: once the adversarial weight is at full
     # strength, i.e. adv_warmup_epochs + adv_ramp_epochs), so the selected model is trained with it ON.
     select_from_epoch: int = -1

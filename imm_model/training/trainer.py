@@ -194,7 +194,9 @@ class Trainer:
                                best_epoch=tr["best_epoch"], history=list(meta["history"]))
 
     # ---- one epoch ------------------------------------------------------------------------
-    def train_epoch(self, epoch: int) -> dict:
+    def train_epoch(self, epoch: int, lr_multiplier: float | None = None) -> dict:
+        """One pass over the training sequences. The learning rates are scaled by `lr_multiplier`, by
+        default `lr_scale` of this run's own validation history (a refit passes the selection run's)."""
         cfg = self.cfg
         torch.manual_seed(derive_seed(cfg.seed, epoch, 0))  # dropout
         gen = torch.Generator().manual_seed(derive_seed(cfg.seed, epoch, 1))  # augmentation
@@ -202,7 +204,7 @@ class Trainer:
         sampler.set_epoch(epoch)
         w_adv = adversarial_weight(cfg, epoch)
         use_d = cfg.lambda_adv > 0
-        scale = lr_scale(cfg, self.state.history, self.select_from)
+        scale = lr_scale(cfg, self.state.history, self.select_from) if lr_multiplier is None else lr_multiplier
         for opt, lr in ((self.opt_g, cfg.lr_g), (self.opt_d, cfg.lr_d)):
             for group in opt.param_groups:
                 group["lr"] = lr * scale
@@ -363,8 +365,7 @@ def refit(selection: Trainer, progress: bool = True) -> Path:
     t = Trainer(selection.cfg, selection.data, selection.subject, selection.out)
     t.train_idx = np.concatenate([t.train_idx, t.val_idx])
     for epoch in tqdm(range(epochs), desc=f"refit {t.subject or 'all'}", disable=not progress, leave=False, dynamic_ncols=True):
-        t.state.history = history[:epoch]  # lr_scale() replays the selection run's decays
-        t.train_epoch(epoch)
+        t.train_epoch(epoch, lr_multiplier=lr_scale(t.cfg, history[:epoch], selection.select_from))
     t.state = FoldState(epoch=epochs, best_val=selection.state.best_val, best_epoch=selection.state.best_epoch)
     path = t.out / "final.safetensors"
     save_checkpoint(path, t.weights(), t.meta("final") | {"refit": {"epochs": epochs, "sequences": len(t.train_idx)}})
