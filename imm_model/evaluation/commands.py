@@ -1,27 +1,40 @@
-"""`imm evaluate`: per-class AFD of a checkpoint (or a run's per-fold checkpoints) vs nearest neighbour."""
+"""`imm evaluate`: a checkpoint (one fold) or runs (all their folds, several seeds) against every baseline.
+
+Prints the headline and the AFD table; writes the whole summary as JSON, Markdown and PNG figures.
+docs/evaluation.md defines every number.
+"""
 
 from __future__ import annotations
 
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
-        "evaluate", help="per-class AFD of the model and the nearest-neighbour baseline on LOSO folds",
-        description="With --checkpoint and no --fold: the subject the checkpoint held out. With --run DIR: "
-                    "every DIR/fold-sXX/final.safetensors (a refit) or else best.safetensors on its own held-out subject "
-                    "(--fold all, the default for --run) or one fold.")
+        "evaluate", help="AFD, FID, recognition, label control and plausibility of a model vs strong baselines on LOSO folds",
+        description="With --checkpoint and no --fold: the subject the checkpoint held out. With --run DIR [DIR ...] (one per "
+                    "seed): every DIR/fold-sXX/final.safetensors (a refit) or else best.safetensors on its own held-out subject "
+                    "(--fold all, the default for --run) or one fold. Classifiers and the label-free baseline are trained on "
+                    "each fold's training subjects once and cached ($IMM_CACHE_DIR, default ~/.cache/imm-studio).")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--checkpoint", type=Path, default=None,
                      help="a checkpoint (default: the bundled one); may contain {subject}, e.g. runs/loso/fold-{subject}/best.safetensors")
-    src.add_argument("--run", type=Path, default=None, help="a run directory made by `imm train --fold all`")
+    src.add_argument("--run", type=Path, nargs="+", default=None, help="run directories made by `imm train --fold all` (one per seed)")
     p.add_argument("--fold", default=None, help="sXX or 'all' (default: the checkpoint's held-out subject; all for --run)")
     p.add_argument("--data", type=Path, default=None, help="dataset bundle (default: the bundled SBU sample)")
-    p.add_argument("--json", type=Path, default=None, help="write the results as JSON")
-    p.add_argument("--markdown", type=Path, default=None, help="write the table as Markdown")
+    p.add_argument("--baselines", default="nn1,knn_dtw,template,men", help="comma-separated subset of nn1,knn_dtw,template,men")
+    p.add_argument("--men-run", type=Path, default=None,
+                   help="a run of `imm train --config men --fold all` to use as the label-free baseline (default: train and cache it)")
+    p.add_argument("--classifier-config", type=Path, default=None,
+                   help="JSON of ClassifierConfig overrides applied to all three classifiers (e.g. {\"epochs\": 30})")
+    p.add_argument("--json", type=Path, default=None, help="write the whole summary as JSON")
+    p.add_argument("--markdown", type=Path, default=None, help="write every table as Markdown")
+    p.add_argument("--figures", type=Path, default=None, help="write PNG figures into this folder")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=_cmd_evaluate)
 
 
@@ -35,12 +48,49 @@ def normalize_fold(fold: str | None) -> str | None:
     return fold
 
 
-def _checkpoint_for(args: argparse.Namespace, subject: str) -> Path:
+def _options(args: argparse.Namespace):
     from imm_model.checkpoint import final_checkpoint
+    from imm_model.evaluation import classifiers
+    from imm_model.evaluation.loso import EvalOptions
 
+    overrides = {}
+    if args.classifier_config is not None:
+        try:
+            overrides = json.loads(args.classifier_config.read_text())
+        except (OSError, json.JSONDecodeError) as err:
+            raise ValueError(f"{args.classifier_config}: unreadable classifier config ({type(err).__name__})") from None
+        if not isinstance(overrides, dict):
+            raise ValueError(f"{args.classifier_config}: a classifier config is a JSON object")
+    configs = {}
+    for name, base in (("interaction", classifiers.INTERACTION), ("follower", classifiers.FOLLOWER), ("judge", classifiers.FOLLOWER_JUDGE)):
+        configs[name] = classifiers.ClassifierConfig.from_dict(base.to_dict() | overrides)
+    men = (lambda s: final_checkpoint(args.men_run / f"fold-{s}")) if args.men_run else None
+    baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
+    return EvalOptions(baselines=baselines, men_checkpoint=men, progress=not args.quiet, **configs)
+
+
+def _jobs(args: argparse.Namespace, subjects: list[str]) -> list[tuple[Path, str]]:
+    """(checkpoint, subject) pairs to evaluate."""
+    from imm_model.checkpoint import final_checkpoint
+    from imm_model.inference import ReactionModel
+
+    fold = normalize_fold(args.fold) or ("all" if args.run is not None else None)
+    if fold not in (None, "all") and fold not in subjects:
+        raise ValueError(f"--fold {fold!r}: expected one of {subjects} or 'all'")
+    folds = subjects if fold == "all" else [fold]
     if args.run is not None:
-        return final_checkpoint(args.run / f"fold-{subject}")
-    return Path(str(args.checkpoint).format(subject=subject))
+        return [(final_checkpoint(run / f"fold-{s}"), s) for run in args.run for s in folds]
+    templated = "{subject}" in str(args.checkpoint)
+    if fold == "all" and not templated:
+        raise ValueError("--fold all needs per-fold checkpoints: --run DIR or --checkpoint with {subject} in the path")
+    if fold is None:
+        if templated:
+            raise ValueError("give --fold sXX or --fold all with a per-fold checkpoint pattern")
+        held = ReactionModel.load(args.checkpoint).held_out_subject
+        if held is None:
+            raise ValueError(f"{args.checkpoint}: held out no subject; give --fold sXX")
+        folds = [held]
+    return [(Path(str(args.checkpoint).replace("{subject}", s)), s) for s in folds]
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
@@ -48,48 +98,49 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
     from imm_model.data.dataset import InteractionDataset
     from imm_model.data.splits import all_subjects
-    from imm_model.evaluation.loso import evaluate_fold, markdown_table, summarize
+    from imm_model.evaluation.loso import evaluate_fold
+    from imm_model.evaluation.report import summarize
+    from imm_model.evaluation.tables import headline, metric_table
     from imm_model.inference import ReactionModel
     from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA
 
     torch.set_num_threads(2)
     data = InteractionDataset.load(args.data or SAMPLE_DATA)
-    subjects = all_subjects(data.subject_pairs)
     if args.run is None and args.checkpoint is None:
         args.checkpoint = SAMPLE_CHECKPOINT
-    templated = args.run is not None or "{subject}" in str(args.checkpoint)
-    fold = normalize_fold(args.fold) or ("all" if args.run is not None else None)
-    if fold == "all":
-        if not templated:
-            raise ValueError("--fold all needs per-fold checkpoints: --run DIR or --checkpoint with {subject} in the path")
-        folds = subjects
-    elif fold is None:
-        if templated:
-            raise ValueError("give --fold sXX or --fold all with a per-fold checkpoint pattern")
-        held = ReactionModel.load(args.checkpoint).held_out_subject
-        if held is None:
-            raise ValueError(f"{args.checkpoint}: held out no subject; give --fold sXX")
-        folds = [held]
-    elif fold in subjects:
-        folds = [fold]
-    else:
-        raise ValueError(f"--fold {fold!r}: expected one of {subjects} or 'all'")
-    results = []
-    for s in folds:
-        model = ReactionModel.load(_checkpoint_for(args, s) if templated else args.checkpoint)
-        if model.held_out_subject != s:
-            print(f"warning: {model.path} held out {model.held_out_subject}, not {s}: its training set contains the test "
+    opts = _options(args)
+    jobs = _jobs(args, all_subjects(data.subject_pairs))
+    results, latent = [], None
+    for k, (path, subject) in enumerate(jobs, start=1):
+        t0 = time.perf_counter()
+        model = ReactionModel.load(path)
+        if model.held_out_subject != subject:
+            print(f"warning: {path} held out {model.held_out_subject}, not {subject}: its training set contains the test "
                   f"subject, so these numbers are optimistic", file=sys.stderr)
-        results.append(evaluate_fold(model, data, s))
+        result = evaluate_fold(model, data, subject, opts) | {"seed": model.info.get("training", {}).get("seed")}
+        latent = latent or {"subject": subject, "latents": result["_latent"]}
+        results.append(result)
+        print(f"[{k}/{len(jobs)}] fold {subject} ({result['group']}), {path}: model AFD "
+              f"{sum(v['afd'] for v in result['model']['classes'].values()) / len(result['model']['classes']):.3f} "
+              f"({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
     summary = summarize(results, data.class_names)
-    table = markdown_table(summary)
-    print(f"LOSO folds: {', '.join(summary['folds'])} (AFD in SBU normalized units)")
-    print(table)
-    print(f"mean ratio {summary['mean_ratio']:.3f}, worst class ratio {summary['max_ratio']:.3f}")
+    print(headline(summary))
+    print(metric_table(summary, "afd"))
+    _write_outputs(args, summary, latent, data)
+    return 0
+
+
+def _write_outputs(args: argparse.Namespace, summary: dict, latent: dict | None, data) -> None:
+    from imm_model.evaluation.figures import write_figures
+    from imm_model.evaluation.tables import markdown_report
+
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(summary, indent=1) + "\n")
+        args.json.write_text(json.dumps(summary, indent=1, allow_nan=True) + "\n")
     if args.markdown:
         args.markdown.parent.mkdir(parents=True, exist_ok=True)
-        args.markdown.write_text(table + "\n")
-    return 0
+        args.markdown.write_text(markdown_report(summary) + "\n")
+    if args.figures:
+        paths = write_figures(summary, latent, data.actions, args.figures, progress=lambda m: print(m, file=sys.stderr))
+        print(f"figures: {', '.join(str(p) for p in paths)}", file=sys.stderr)
+

@@ -1,72 +1,164 @@
-"""Model vs nearest-neighbour on LOSO folds: per-class AFD (normalized units) and their ratio.
+"""One LOSO fold evaluated in full: the model and every baseline, on every metric of docs/evaluation.md.
 
-Per fold, each test sequence is synthesized with the one-hot label of its true class; the
-per-class AFD is the mean over that class's test sequences. Across folds, per-class numbers are
-averaged over the folds (each fold weighted equally, as in the paper's LOSO protocol); the headline
-is the mean over classes of the per-class ratio model / NN.
+Per fold, each test sequence is synthesized with the one-hot label of its true class (AFD, FID,
+recognition, plausibility); label control asks every test leader for every class, every pair and
+"avoid". Classifiers and the label-free baseline come from the cache (trained on the fold's training
+subjects only). Aggregation over folds and seeds is evaluation/report.py.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold
-from imm_model.evaluation.baseline import evaluate_predictions, nn_predictions
+from imm_model.errors import CheckpointError
+from imm_model.evaluation import cache, classifiers, control, distribution
+from imm_model.evaluation.baselines import HEURISTIC_BASELINES, baseline_predictions, evaluate_predictions
+from imm_model.evaluation.metrics import per_class_mean
+from imm_model.evaluation.plausibility import frame_rate, plausibility
+
+BASELINES = (*HEURISTIC_BASELINES, "men")
+DEV_FOLDS = ("s01", "s03", "s04")  # already used to choose recipes (docs/evaluation.md)
 
 
-@dataclass
-class FoldResult:
-    subject: str
-    afd_model: dict[str, float]
-    afd_nn: dict[str, float]
+def fold_group(subject: str) -> str:
+    return "dev" if subject in DEV_FOLDS else "test"
 
 
-def model_predictions(model, data: InteractionDataset, test_idx: np.ndarray) -> dict[int, np.ndarray]:
-    """{test index: canonical follower} from a ReactionModel, conditioned on the true class."""
+@dataclass(frozen=True)
+class EvalOptions:
+    baselines: tuple[str, ...] = BASELINES
+    # {subject} -> a trained label-free checkpoint; None: train `men` on the fold (cached)
+    men_checkpoint: Callable[[str], Path] | None = None
+    interaction: classifiers.ClassifierConfig = classifiers.INTERACTION
+    follower: classifiers.ClassifierConfig = classifiers.FOLLOWER
+    judge: classifiers.ClassifierConfig = classifiers.FOLLOWER_JUDGE
+    progress: bool = True
+
+    def __post_init__(self) -> None:
+        unknown = [b for b in self.baselines if b not in BASELINES]
+        if unknown:
+            raise ValueError(f"unknown baseline {unknown[0]!r}; known: {', '.join(BASELINES)}")
+
+
+def check_compatible(model, data: InteractionDataset) -> None:
+    if tuple(model.class_names) != tuple(data.class_names):
+        raise CheckpointError(f"{model.path}: classes {list(model.class_names)} differ from the data's {list(data.class_names)}")
+    if model.skeleton.joint_names != data.skeleton.joint_names:
+        raise CheckpointError(f"{model.path}: skeleton {model.skeleton.name} ({model.skeleton.num_joints} joints) differs from "
+                              f"the data's {data.skeleton.name} ({data.skeleton.num_joints} joints)")
+
+
+def model_predictions(model, data: InteractionDataset, test_idx: np.ndarray, labels: np.ndarray | None = None) -> dict[int, np.ndarray]:
+    """{test index: canonical follower} from a ReactionModel, by default conditioned on the true class."""
     leaders = [data.canonical(int(i))[0] for i in test_idx]
-    labels = np.eye(len(data.class_names), dtype=np.float32)[data.actions[test_idx]]
+    if labels is None:
+        labels = np.eye(len(data.class_names), dtype=np.float32)[data.actions[test_idx]]
     preds = model.synthesize_batch_canonical(leaders, labels)
     return {int(i): p for i, p in zip(test_idx, preds, strict=True)}
 
 
-def evaluate_fold(model, data: InteractionDataset, subject: str) -> FoldResult:
-    if tuple(model.class_names) != tuple(data.class_names):
-        raise ValueError(f"checkpoint classes {model.class_names} differ from the data's {data.class_names}")
-    fold = loso_fold(data.subject_pairs, subject)
-    return FoldResult(subject, evaluate_predictions(data, fold.test, model_predictions(model, data, fold.test)),
-                      evaluate_predictions(data, fold.test, nn_predictions(data, fold)))
+class FoldJudges:
+    """The fold's three real-data classifiers, and their accuracy on the fold's real test sequences."""
+
+    def __init__(self, data: InteractionDataset, subject: str, opts: EvalOptions):
+        self.data, self.test = data, loso_fold(data.subject_pairs, subject).test
+        self.interaction = cache.fold_classifier(opts.interaction, data, subject, opts.progress)
+        self.follower = cache.fold_classifier(opts.follower, data, subject, opts.progress)
+        self.judge = cache.fold_classifier(opts.judge, data, subject, opts.progress)
+        self.leaders = [data.canonical(int(i))[0] for i in self.test]
+        reals = [data.canonical(int(i))[1] for i in self.test]
+        self.real_probs, self.real_features = self.interaction_view(reals)
+        y = data.actions[self.test]
+        self.real_accuracy = {
+            "interaction": distribution.accuracy(self.real_probs, y),
+            "follower": distribution.accuracy(self.follower_view(self.follower, reals), y),
+            "follower_judge": distribution.accuracy(self.follower_view(self.judge, reals), y),
+        }
+
+    def interaction_view(self, followers: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        return classifiers.classify(self.interaction, classifiers.motion_inputs(self.leaders, followers, "interaction"))
+
+    def follower_view(self, clf, followers: list[np.ndarray]) -> np.ndarray:
+        return classifiers.classify(clf, classifiers.motion_inputs(self.leaders, followers, "follower"))[0]
 
 
-def summarize(results: list[FoldResult], class_names: tuple[str, ...]) -> dict:
-    """Fold-averaged per-class AFD of model and NN, their ratio, and the mean ratio over classes."""
-    def avg(key: str) -> dict[str, float]:
-        out = {}
-        for c in class_names:
-            vals = [getattr(r, key)[c] for r in results if c in getattr(r, key)]
-            if vals:
-                out[c] = float(np.mean(vals))
-        return out
-
-    model, nn = avg("afd_model"), avg("afd_nn")
-    ratio = {c: model[c] / nn[c] for c in model}
-    return {
-        "folds": [r.subject for r in results],
-        "afd_model": model,
-        "afd_nn": nn,
-        "ratio": ratio,
-        "mean_ratio": float(np.mean(list(ratio.values()))),
-        "max_ratio": float(max(ratio.values())),
-        "per_fold": {r.subject: {"afd_model": r.afd_model, "afd_nn": r.afd_nn} for r in results},
-    }
+def _per_class(values: np.ndarray, test: np.ndarray, data: InteractionDataset) -> dict[str, float]:
+    return per_class_mean({int(i): float(v) for i, v in zip(test, values, strict=True)}, data.actions, data.class_names)
 
 
-def markdown_table(summary: dict) -> str:
-    lines = ["| class | AFD model | AFD NN | ratio |", "|---|---:|---:|---:|"]
-    for c, r in summary["ratio"].items():
-        lines.append(f"| {c} | {summary['afd_model'][c]:.3f} | {summary['afd_nn'][c]:.3f} | {r:.3f} |")
-    m = lambda d: float(np.mean(list(d.values())))  # noqa: E731
-    lines.append(f"| **mean** | {m(summary['afd_model']):.3f} | {m(summary['afd_nn']):.3f} | **{summary['mean_ratio']:.3f}** |")
-    return "\n".join(lines)
+def method_scores(data: InteractionDataset, judges: FoldJudges, predictions: dict[int, np.ndarray]) -> dict:
+    """AFD, AFD squared, FID, recognition accuracy, diversity and plausibility of one method's predictions."""
+    test, y = judges.test, data.actions[judges.test]
+    followers = [predictions[int(i)] for i in test]
+    probs, feats = judges.interaction_view(followers)
+    per_class: dict[str, dict] = {c: {} for c in data.class_names if (y == data.class_names.index(c)).any()}
+    for key, values in (("afd", evaluate_predictions(data, test, predictions)),
+                        ("afd_squared", evaluate_predictions(data, test, predictions, squared=True)),
+                        ("accuracy", _per_class(probs.argmax(-1) == y, test, data))):
+        for c, v in values.items():
+            per_class[c][key] = v
+    for c in per_class:
+        members = y == data.class_names.index(c)
+        per_class[c]["fid"] = distribution.fid(judges.real_features[members], feats[members])
+    reals = [data.canonical(int(i))[1] for i in test]
+    return {"classes": per_class, "fid": distribution.fid(judges.real_features, feats),
+            "accuracy": distribution.accuracy(probs, y), "diversity": distribution.diversity(feats),
+            "plausibility": plausibility(judges.leaders, followers, reals, data.skeleton, frame_rate(data.dataset))}
+
+
+def label_control(model, data: InteractionDataset, judges: FoldJudges) -> dict:
+    """Adherence (both follower-only classifiers), mix and avoid for the model on the fold's test leaders."""
+    y, c = data.actions[judges.test], len(data.class_names)
+    out: dict = {}
+    for name, clf in (("", judges.follower), ("_judge", judges.judge)):
+        def judge(labels: np.ndarray, clf=clf) -> np.ndarray:
+            return judges.follower_view(clf, model.synthesize_batch_canonical(judges.leaders, labels))
+
+        matrix, per_target = control.adherence_matrix(judge, y, c)
+        out[f"adherence_matrix{name}"] = matrix.tolist()
+        out[f"adherence{name}"] = dict(zip(data.class_names, per_target.tolist(), strict=True))
+        out[f"adherence_off_diagonal{name}"] = control.off_diagonal_mean(matrix)
+        if not name:
+            out["mix"] = control.mix_table(judge, len(y), data.class_names)
+            out["avoid"] = control.avoid_effect(judge, y, c)
+    return out
+
+
+def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptions | None = None) -> dict:
+    """Everything about `model` on LOSO fold `subject`: see docs/evaluation.md for each number."""
+    from imm_model.inference import ReactionModel
+
+    opts = opts or EvalOptions()
+    check_compatible(model, data)
+    judges = FoldJudges(data, subject, opts)
+    result = {"subject": subject, "group": fold_group(subject), "checkpoint": str(model.path),
+              "classifier": {"real_accuracy": judges.real_accuracy},
+              "real_diversity": distribution.diversity(judges.real_features),
+              "model": method_scores(data, judges, model_predictions(model, data, judges.test)),
+              "baselines": {}}
+    result |= label_control(model, data, judges)
+    all_idx = np.arange(len(data))
+    result["_latent"] = {"model": _latents(model, data, all_idx)}  # "_": for the figures, not the JSON
+    for name in opts.baselines:
+        if name == "men":
+            path = opts.men_checkpoint(subject) if opts.men_checkpoint else cache.fold_baseline_model("men", data, subject, opts.progress)
+            men = ReactionModel.load(path)
+            check_compatible(men, data)
+            preds = model_predictions(men, data, judges.test)
+            result["_latent"]["men"] = _latents(men, data, all_idx)
+        else:
+            preds = baseline_predictions(name, data, loso_fold(data.subject_pairs, subject))
+        result["baselines"][name] = method_scores(data, judges, preds)
+    return result
+
+
+def _latents(model, data: InteractionDataset, idx: np.ndarray) -> np.ndarray:
+    """Per-sequence encoder embeddings with the true label (the paper's latent-space figures)."""
+    leaders = [data.canonical(int(i))[0] for i in idx]
+    return model.latent_canonical_batch(leaders, np.eye(len(data.class_names), dtype=np.float32)[data.actions[idx]])

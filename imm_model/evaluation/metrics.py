@@ -5,6 +5,9 @@ of the difference between the synthesized and the ground-truth follower pose vec
 = 45 numbers). The paper reports it in SBU's normalized units, so both poses are first put back in
 the world (inverse canonical transform) and into those units; the transform is affine per axis, so
 this is exact. Per class = mean over that class's test sequences.
+
+AFD squared: the same mean over frames of the *squared* norm, which is what the authors' public code
+computes (named apart so that nobody compares it with the paper's table by mistake).
 """
 
 from __future__ import annotations
@@ -32,16 +35,18 @@ def afd(
     frame: CanonicalFrame,
     skeleton: Skeleton,
     units: str = "normalized",
+    squared: bool = False,
 ) -> float:
     """AFD of one sequence. units: "normalized" (SBU dataset units, as in the paper) or "metres"."""
+    power = 2 if squared else 1
     if units == "metres":
         # The canonical transform is rigid, so distances are the same in the canonical frame.
-        return float(frame_distances(pred_canonical, gt_canonical).mean())
+        return float((frame_distances(pred_canonical, gt_canonical) ** power).mean())
     if units != "normalized":
         raise ValueError(f"units must be 'normalized' or 'metres', not {units!r}")
     pred = metres_to_normalized(frame.to_world(np.asarray(pred_canonical, np.float64), skeleton))
     gt = metres_to_normalized(frame.to_world(np.asarray(gt_canonical, np.float64), skeleton))
-    return float(frame_distances(pred, gt).mean())
+    return float((frame_distances(pred, gt) ** power).mean())
 
 
 def mpjpe_mm(pred_canonical: np.ndarray, gt_canonical: np.ndarray) -> float:

@@ -30,6 +30,9 @@ class ModelConfig:
     # attention, as in a Transformer block; latent wide, so the decoder's input projection costs half),
     # or "context" c_t alone (an attention layer placed between encoder and decoder).
     decoder_input: str = "concat"
+    # False: the whole-body stream reads the pose alone, the label is ignored (the label-free, Men et al.
+    # 2022-style baseline `--config men`; the paper's ablation "without the multi-hot embedding").
+    label_input: bool = True
 
     def __post_init__(self) -> None:
         if self.decoder_input not in DECODER_INPUTS:

@@ -26,7 +26,8 @@ class FastGenerator(nn.Module):
             embed_w = torch.zeros(S * E, d + C)  # the six stream embeddings as one block-sparse layer
             embed_b = torch.cat([g.embed[k].bias for k in range(S)])
             for k in range(S):
-                cols = getattr(g, f"part_cols_{k}") if k < S - 1 else torch.arange(d + C)
+                # a label-free generator's whole-body stream reads the pose only: zero weights on the label
+                cols = getattr(g, f"part_cols_{k}") if k < S - 1 else torch.arange(d + C if cfg.label_input else d)
                 embed_w[k * E:(k + 1) * E, cols] = g.embed[k].weight
             # standardization x' = (x - mean) / std folded in: W x' + b = (W / std) x + (b - W mean / std)
             embed_b = embed_b - embed_w @ torch.cat([g.leader_mean / g.leader_std, torch.zeros(C)])

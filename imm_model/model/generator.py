@@ -27,7 +27,7 @@ class Generator(nn.Module):
         self.register_buffer("leader_std", torch.ones(d))
         self.register_buffer("follower_mean", torch.zeros(d))
         self.register_buffer("follower_std", torch.ones(d))
-        in_sizes = [3 * len(p) for p in cfg.body_parts] + [d + cfg.num_classes]
+        in_sizes = [3 * len(p) for p in cfg.body_parts] + [d + cfg.num_classes if cfg.label_input else d]
         self.embed = nn.ModuleList(nn.Linear(n, cfg.stream_embed) for n in in_sizes)
         self.encoders = nn.ModuleList(BiLSTM(cfg.stream_embed, cfg.encoder_hidden) for _ in in_sizes)
         self.attention = AdditiveAttention(cfg.latent_dim, cfg.attention_dim)
@@ -46,7 +46,7 @@ class Generator(nn.Module):
         x = (leader - self.leader_mean) / self.leader_std
         rev = reverse_index(lengths, T)
         streams = [x.index_select(2, getattr(self, f"part_cols_{k}")) for k in range(len(self.cfg.body_parts))]
-        streams.append(torch.cat([x, labels[:, None, :].expand(B, T, -1)], dim=-1))
+        streams.append(torch.cat([x, labels[:, None, :].expand(B, T, -1)], dim=-1) if self.cfg.label_input else x)
         return torch.cat([enc(emb(s), rev) for s, emb, enc in zip(streams, self.embed, self.encoders, strict=True)], dim=-1)
 
     def decoder_input(self, h: torch.Tensor, context: torch.Tensor) -> torch.Tensor:

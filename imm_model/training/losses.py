@@ -35,15 +35,30 @@ def continuity_loss(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor
     return (diff * m).sum() / (m.sum().clamp(min=1) * pred.shape[-1])
 
 
+DISCRIMINATORS = ("multiclass", "binary+class")
+
+
 def discriminator_loss(real_logits: torch.Tensor, fake_logits: torch.Tensor, actions: torch.Tensor,
-                       label_smoothing: float = 0.0) -> torch.Tensor:
-    """Eq. 4, D side: real follower -> its class, generated follower -> class N ("fake")."""
+                       label_smoothing: float = 0.0, kind: str = "multiclass") -> torch.Tensor:
+    """D side. "multiclass" (paper eq. 4): real follower -> its class, generated follower -> class N ("fake").
+    "binary+class" (Men et al. 2022): logit N is a separate real/fake score and logits 0..N-1 a class head
+    trained on real followers only (two discriminators sharing one Bi-LSTM trunk)."""
+    if kind == "binary+class":
+        real_score, fake_score = real_logits[:, -1], fake_logits[:, -1]  # > 0 means "fake"
+        binary = (F.binary_cross_entropy_with_logits(real_score, torch.zeros_like(real_score))
+                  + F.binary_cross_entropy_with_logits(fake_score, torch.ones_like(fake_score)))
+        return binary + F.cross_entropy(real_logits[:, :-1], actions, label_smoothing=label_smoothing)
     fake_class = torch.full_like(actions, real_logits.shape[-1] - 1)
     return F.cross_entropy(real_logits, actions, label_smoothing=label_smoothing) + F.cross_entropy(fake_logits, fake_class)
 
 
-def generator_adv_loss(fake_logits: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
-    """Eq. 4, G side: the generated follower should be classified as the conditioned class."""
+def generator_adv_loss(fake_logits: torch.Tensor, actions: torch.Tensor, kind: str = "multiclass") -> torch.Tensor:
+    """G side: the generated follower should be classified as the conditioned class (and, for
+    "binary+class", scored real by the binary head)."""
+    if kind == "binary+class":
+        fake_score = fake_logits[:, -1]
+        return (F.binary_cross_entropy_with_logits(fake_score, torch.zeros_like(fake_score))
+                + F.cross_entropy(fake_logits[:, :-1], actions))
     return F.cross_entropy(fake_logits, actions)
 
 

@@ -223,7 +223,7 @@ class Trainer:
                 for _ in range(cfg.d_steps):
                     logits = self.D(torch.cat([follower, fake.detach()]), torch.cat([lengths, lengths]))
                     real_logits, fake_logits = logits.chunk(2)
-                    d_loss = losses.discriminator_loss(real_logits, fake_logits, actions, cfg.label_smoothing)
+                    d_loss = losses.discriminator_loss(real_logits, fake_logits, actions, cfg.label_smoothing, cfg.discriminator)
                     self.opt_d.zero_grad(set_to_none=True)
                     d_loss.backward()
                     self.opt_d.step()
@@ -240,7 +240,7 @@ class Trainer:
                 g_loss = g_loss + cfg.lambda_afd * losses.afd_metres(fake, follower, mask).mean()
             if use_d and w_adv > 0:
                 self.D.requires_grad_(False)
-                adv = losses.generator_adv_loss(self.D(fake, lengths), actions)
+                adv = losses.generator_adv_loss(self.D(fake, lengths), actions, cfg.discriminator)
                 g_loss = g_loss + w_adv * adv
                 sums["adv"] += float(adv.detach())
             self.opt_g.zero_grad(set_to_none=True)

@@ -1,0 +1,101 @@
+"""The evaluation cache: per-fold reaction classifiers and label-free baseline models, trained once.
+
+Entries are keyed by what determines them (dataset hash, held-out subject, config, code version), so a
+changed dataset or recipe never reuses a stale entry. Files are safetensors + JSON (imm_model.checkpoint):
+loading never runs code. An unreadable or mismatched entry is reported on stderr and rebuilt, never used.
+Location: $IMM_CACHE_DIR, else ~/.cache/imm-studio.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import imm_model
+from imm_model.checkpoint import final_checkpoint, load_checkpoint, load_module_state, save_checkpoint
+from imm_model.data.dataset import InteractionDataset
+from imm_model.data.splits import loso_fold
+from imm_model.errors import CheckpointError
+from imm_model.evaluation.classifiers import ClassifierConfig, MotionClassifier, motion_inputs, train_classifier
+
+
+def cache_dir() -> Path:
+    env = os.environ.get("IMM_CACHE_DIR")
+    return Path(env) if env else Path.home() / ".cache" / "imm-studio"
+
+
+def dataset_hash(data: InteractionDataset) -> str:
+    """sha256 over the poses, labels, lengths and sequence identities (16 hex digits)."""
+    h = hashlib.sha256()
+    for arr in (data.leader, data.follower, data.actions, data.lengths):
+        h.update(np.ascontiguousarray(arr).tobytes())
+    h.update(json.dumps([data.sequence_ids, data.subject_pairs, list(data.class_names)]).encode())
+    return h.hexdigest()[:16]
+
+
+def entry_key(kind: str, data: InteractionDataset, subject: str, config: dict) -> str:
+    text = json.dumps({"kind": kind, "data": dataset_hash(data), "subject": subject, "config": config,
+                       "code": imm_model.__version__}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _say(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
+def fold_classifier(cfg: ClassifierConfig, data: InteractionDataset, subject: str, progress: bool = True) -> MotionClassifier:
+    """The classifier `cfg` trained on the real motion of fold `subject`'s training subjects (cached)."""
+    key = entry_key("classifier", data, subject, cfg.to_dict())
+    path = cache_dir() / "classifiers" / f"{subject}-{cfg.inputs}-{cfg.arch}-{key}.safetensors"
+    model = MotionClassifier(cfg, 3 * data.skeleton.num_joints * (2 if cfg.inputs == "interaction" else 1), len(data.class_names))
+    if path.exists():
+        try:
+            tensors, meta = load_checkpoint(path)
+            if meta.get("key") != key:
+                raise CheckpointError(f"{path}: cache key mismatch")
+            load_module_state(model, tensors, "classifier", path)
+            return model.eval()
+        except CheckpointError as err:
+            _say(f"cache: {err}; rebuilding")
+    train = loso_fold(data.subject_pairs, subject).train
+    leaders, followers = zip(*(data.canonical(int(i)) for i in train), strict=True)
+    t0 = time.perf_counter()
+    model = train_classifier(cfg, motion_inputs(list(leaders), list(followers), cfg.inputs), data.actions[train],
+                             len(data.class_names), progress, desc=f"{cfg.inputs} {cfg.arch} classifier, fold {subject}")
+    _say(f"cache: trained the {cfg.inputs}-only {cfg.arch} classifier for fold {subject} in {time.perf_counter() - t0:.0f} s"
+         .replace("interaction-only", "interaction"))
+    save_checkpoint(path, model.state_dict(), {"kind": "classifier", "key": key, "subject": subject, "config": cfg.to_dict(),
+                                               "class_names": list(data.class_names)})
+    return model
+
+
+def fold_baseline_model(config: str, data: InteractionDataset, subject: str, progress: bool = True) -> Path:
+    """A training recipe (e.g. the label-free `men`) trained on fold `subject` (cached) -> its final checkpoint."""
+    from imm_model.training.config import load_config
+    from imm_model.training.trainer import Trainer, refit
+
+    cfg = load_config(config)
+    key = entry_key("model", data, subject, cfg.to_dict())
+    out = cache_dir() / "models" / f"{cfg.name}-{subject}-{key}"
+    done = out / "done.json"
+    if done.exists():
+        try:
+            path = final_checkpoint(out)
+            load_checkpoint(path)
+            return path
+        except CheckpointError as err:
+            _say(f"cache: {err}; rebuilding")
+    t0 = time.perf_counter()
+    trainer = Trainer(cfg, data, subject, out)
+    state = trainer.fit(progress=progress)
+    if cfg.refit:
+        refit(trainer, progress=progress)
+    done.write_text(json.dumps({"key": key, "best_epoch": state.best_epoch}) + "\n")
+    _say(f"cache: trained the {cfg.name} baseline for fold {subject} in {time.perf_counter() - t0:.0f} s")
+    return final_checkpoint(out)

@@ -1,0 +1,61 @@
+"""Label control: does the reaction read as the label asked for? Judged by a follower-only classifier.
+
+- adherence: every test leader x every one-hot target label; matrix[leader class, target class] = share of
+  generated followers the judge assigns to the target. The diagonal is the true label; the off-diagonal
+  mean is what "mix and match" needs: a reaction the data never paired with that leader.
+- mix: every pair of classes at +1 each; mean probability on the pair and on each member.
+- avoid: -1 on the leader's class vs an all-zero label: the change in that class's probability.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from itertools import combinations
+
+import numpy as np
+
+# (N, C) label vectors for N leaders -> (N, C) judge probabilities of the generated followers
+Judge = Callable[[np.ndarray], np.ndarray]
+
+
+def adherence_matrix(judge: Judge, leader_classes: np.ndarray, num_classes: int) -> tuple[np.ndarray, np.ndarray]:
+    """-> (matrix (C, C) [leader class, target], per-target share over all leaders (C,))."""
+    hits = np.zeros((len(leader_classes), num_classes))
+    for target in range(num_classes):
+        labels = np.zeros((len(leader_classes), num_classes), np.float32)
+        labels[:, target] = 1.0
+        hits[:, target] = judge(labels).argmax(-1) == target
+    matrix = np.full((num_classes, num_classes), np.nan)
+    for c in range(num_classes):
+        if (leader_classes == c).any():
+            matrix[c] = hits[leader_classes == c].mean(0)
+    return matrix, hits.mean(0)
+
+
+def off_diagonal_mean(matrix: np.ndarray) -> float:
+    off = ~np.eye(len(matrix), dtype=bool)
+    return float(np.nanmean(matrix[off]))
+
+
+def mix_table(judge: Judge, num_leaders: int, class_names: tuple[str, ...]) -> list[dict]:
+    """One row per pair of classes at +1 each: probability mass on the pair and on each member."""
+    rows = []
+    for i, j in combinations(range(len(class_names)), 2):
+        labels = np.zeros((num_leaders, len(class_names)), np.float32)
+        labels[:, [i, j]] = 1.0
+        p = judge(labels)
+        rows.append({"pair": [class_names[i], class_names[j]], "mass": float((p[:, i] + p[:, j]).mean()),
+                     "first": float(p[:, i].mean()), "second": float(p[:, j].mean()),
+                     "both_top2": float(np.mean([{i, j} == set(np.argsort(row)[-2:]) for row in p]))})
+    return rows
+
+
+def avoid_effect(judge: Judge, leader_classes: np.ndarray, num_classes: int) -> dict[str, float]:
+    """Mean over leaders of P(own class | -1 on it) - P(own class | all zero), and the two probabilities."""
+    n = len(leader_classes)
+    own = np.arange(n), leader_classes
+    zero = judge(np.zeros((n, num_classes), np.float32))[own]
+    avoid_labels = np.zeros((n, num_classes), np.float32)
+    avoid_labels[own] = -1.0
+    avoid = judge(avoid_labels)[own]
+    return {"p_zero": float(zero.mean()), "p_avoid": float(avoid.mean()), "change": float((avoid - zero).mean())}

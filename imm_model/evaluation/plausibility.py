@@ -1,0 +1,107 @@
+"""Physical plausibility of generated followers, each beside the same number for the real followers.
+
+- bone_error_cm: mean over frames and bones of |bone length - the real follower's median length of that
+  bone in the sequence| (a rigid skeleton keeps its bones; Kinect's real followers score a few cm too).
+- interpenetration: share of frames in which some limb or trunk segment of A and of B have axes closer
+  than PENETRATION_M. Limbs are at least ~8-10 cm thick, so two axes within 5 cm means the volumes overlap
+  by half a limb or more; skin contact (hugging, a handshake) keeps axes ~8-20 cm apart and is not counted.
+- foot_skate_mps: mean horizontal speed of feet in ground contact (within CONTACT_M of the sequence's
+  lowest foot height).
+- speed_ratio: mean joint speed of the generated followers over that of the real ones, and limb_speed_ratio
+  the same for joints relative to the follower's own root. Real motion is first smoothed with a
+  Savitzky-Golay filter (window 7, order 2) so that Kinect jitter does not count as motion.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from imm_model.skeleton import Skeleton
+
+PENETRATION_M = 0.05
+CONTACT_M = 0.05
+FRAME_RATE = {"sbu": 15.0}  # K3HI's rate is not documented (its PROVENANCE.md); SBU's is used for it
+SMOOTH_WINDOW = 7
+
+
+def frame_rate(dataset: str) -> float:
+    return FRAME_RATE.get(dataset, 15.0)
+
+
+def smooth(motion: np.ndarray) -> np.ndarray:
+    """Savitzky-Golay smoothing in time of (T, J, 3); sequences shorter than the window are left as they are."""
+    if len(motion) < SMOOTH_WINDOW:
+        return motion
+    return savgol_filter(motion, SMOOTH_WINDOW, 2, axis=0)
+
+
+def bone_error_cm(follower: np.ndarray, real: np.ndarray, skeleton: Skeleton) -> float:
+    reference = np.median(skeleton.bone_lengths(real), axis=0)
+    return float(np.abs(skeleton.bone_lengths(follower) - reference).mean() * 100.0)
+
+
+def _segment_distances(p0, p1, q0, q1) -> np.ndarray:
+    """Closest distance between segments p0-p1 and q0-q1 (broadcast arrays (..., 3))."""
+    d1, d2, r = p1 - p0, q1 - q0, p0 - q0
+    a, e = (d1 * d1).sum(-1), (d2 * d2).sum(-1)
+    b, c, f = (d1 * d2).sum(-1), (d1 * r).sum(-1), (d2 * r).sum(-1)
+    denom = np.maximum(a * e - b * b, 1e-12)
+    s = np.clip((b * f - c * e) / denom, 0.0, 1.0)
+    t = np.clip((b * s + f) / np.maximum(e, 1e-12), 0.0, 1.0)
+    s = np.clip((b * t - c) / np.maximum(a, 1e-12), 0.0, 1.0)  # re-project s onto the clamped t
+    return np.linalg.norm(p0 + d1 * s[..., None] - q0 - d2 * t[..., None], axis=-1)
+
+
+def closest_distances(leader: np.ndarray, follower: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    """(T,) closest distance between any bone segment of A and any of B per frame (metres)."""
+    bones = np.array(skeleton.bones)
+    a0, a1 = leader[:, bones[:, 0]][:, :, None], leader[:, bones[:, 1]][:, :, None]  # (T, K, 1, 3)
+    b0, b1 = follower[:, bones[:, 0]][:, None], follower[:, bones[:, 1]][:, None]  # (T, 1, K, 3)
+    return _segment_distances(a0, a1, b0, b1).min(axis=(1, 2))
+
+
+def interpenetration(leader: np.ndarray, follower: np.ndarray, skeleton: Skeleton) -> float:
+    return float((closest_distances(leader, follower, skeleton) < PENETRATION_M).mean())
+
+
+def foot_skate_mps(follower: np.ndarray, skeleton: Skeleton, fps: float) -> float:
+    feet = [skeleton.joint_names.index(n) for n in ("left_foot", "right_foot") if n in skeleton.joint_names]
+    if not feet or len(follower) < 2:
+        return float("nan")
+    up = skeleton.vertical_axis
+    pos = follower[:, feet]  # (T, 2, 3)
+    contact = pos[:-1, :, up] < pos[..., up].min() + CONTACT_M
+    horizontal = np.delete(np.diff(pos, axis=0), up, axis=-1)
+    speed = np.linalg.norm(horizontal, axis=-1) * fps
+    return float(speed[contact].mean()) if contact.any() else 0.0
+
+
+def mean_speed(motion: np.ndarray, fps: float, root: int | None = None) -> float:
+    """Mean joint speed (m/s) of (T, J, 3); relative to joint `root` when given."""
+    if root is not None:
+        motion = motion - motion[:, root:root + 1]
+    return float(np.linalg.norm(np.diff(motion, axis=0), axis=-1).mean() * fps) if len(motion) > 1 else 0.0
+
+
+def plausibility(leaders: list[np.ndarray], followers: list[np.ndarray], reals: list[np.ndarray],
+                 skeleton: Skeleton, fps: float) -> dict[str, float]:
+    """Means over sequences for generated followers, with the real followers' values as `real_*`."""
+    root = skeleton.root
+
+    def stats(bs: list[np.ndarray]) -> dict[str, float]:
+        return {
+            "bone_error_cm": float(np.mean([bone_error_cm(b, r, skeleton) for b, r in zip(bs, reals, strict=True)])),
+            "interpenetration": float(np.mean([interpenetration(a, b, skeleton) for a, b in zip(leaders, bs, strict=True)])),
+            "foot_skate_mps": float(np.nanmean([foot_skate_mps(b, skeleton, fps) for b in bs])),
+        }
+
+    real_smooth = [smooth(np.asarray(r, np.float64)) for r in reals]
+    speed = lambda ms, rt=None: float(np.mean([mean_speed(m, fps, rt) for m in ms]))  # noqa: E731
+    gen, real = stats(followers), stats(reals)
+    out = gen | {f"real_{k}": v for k, v in real.items()}
+    out["speed_mps"], out["real_speed_mps"] = speed(followers), speed(real_smooth)
+    out["limb_speed_mps"], out["real_limb_speed_mps"] = speed(followers, root), speed(real_smooth, root)
+    out["speed_ratio"] = out["speed_mps"] / out["real_speed_mps"]
+    out["limb_speed_ratio"] = out["limb_speed_mps"] / out["real_limb_speed_mps"]
+    return out

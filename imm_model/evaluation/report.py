@@ -1,0 +1,108 @@
+"""Fold results (evaluation/loso.py) -> the summary `imm evaluate` prints and writes as JSON and Markdown.
+
+Every number is a mean over the (fold, seed) results it covers, with its standard deviation beside it
+(`*_std`, population std over those results). Groups: all folds, the dev folds (s01, s03, s04: already
+used to choose recipes) and the test folds (s02, s05, s06, s07). Per class, the strongest baseline is the
+one with the lowest mean AFD (for FID: the lowest mean FID), and the model's ratio to it is reported.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+PER_CLASS_METRICS = ("afd", "afd_squared", "fid", "accuracy")
+PLAUSIBILITY_KEYS = ("bone_error_cm", "interpenetration", "foot_skate_mps", "speed_ratio", "limb_speed_ratio")
+
+
+def _stat(values: list[float]) -> tuple[float, float]:
+    v = np.asarray([x for x in values if x is not None and np.isfinite(x)], dtype=np.float64)
+    return (float(v.mean()), float(v.std())) if len(v) else (float("nan"), float("nan"))
+
+
+def _with_std(out: dict, key: str, values: list[float]) -> None:
+    out[key], out[f"{key}_std"] = _stat(values)
+
+
+def _method_classes(results: list[dict], get, class_names) -> dict[str, dict]:
+    """Per class mean/std over results of each per-class metric of one method (`get(result)` -> scores)."""
+    classes = {}
+    for c in class_names:
+        entry: dict = {}
+        for metric in PER_CLASS_METRICS:
+            _with_std(entry, metric, [get(r)["classes"][c][metric] for r in results if c in get(r)["classes"]])
+        classes[c] = entry
+    return classes
+
+
+def _overall(results: list[dict], get) -> dict:
+    out: dict = {}
+    for key in ("fid", "accuracy", "diversity"):
+        _with_std(out, key, [get(r)[key] for r in results])
+    out["plausibility"] = {k: _stat([get(r)["plausibility"][k] for r in results])[0] for k in get(results[0])["plausibility"]}
+    return out
+
+
+def _strongest(classes: dict, baselines: dict, metric: str) -> tuple[str | None, float]:
+    """(baseline with the lowest mean `metric` in this class, model / that baseline)."""
+    scores = {b: v[metric] for b, v in baselines.items() if np.isfinite(v[metric])}
+    if not scores:
+        return None, float("nan")
+    best = min(scores, key=scores.get)
+    return best, classes[metric] / scores[best] if scores[best] > 0 else float("nan")
+
+
+def group_summary(results: list[dict], class_names: tuple[str, ...]) -> dict:
+    names = [b for b in results[0]["baselines"] if all(b in r["baselines"] for r in results)]
+    model = _method_classes(results, lambda r: r["model"], class_names)
+    base = {b: _method_classes(results, lambda r, b=b: r["baselines"][b], class_names) for b in names}
+    classes = {}
+    for c in class_names:
+        entry = dict(model[c])
+        _with_std(entry, "adherence", [r["adherence"][c] for r in results])
+        _with_std(entry, "adherence_judge", [r["adherence_judge"][c] for r in results])
+        entry["baselines"] = {b: base[b][c] for b in names}
+        for metric in ("afd", "afd_squared", "fid"):
+            entry[f"strongest_baseline_{metric}"], entry[f"ratio_strongest_{metric}"] = _strongest(entry, entry["baselines"], metric)
+        entry["strongest_baseline"], entry["ratio_strongest"] = entry["strongest_baseline_afd"], entry["ratio_strongest_afd"]
+        if "nn1" in names:
+            entry["ratio_nn1"] = entry["afd"] / entry["baselines"]["nn1"]["afd"]
+        classes[c] = entry
+    mean_over = lambda key: float(np.nanmean([classes[c].get(key, np.nan) for c in class_names]))  # noqa: E731
+    out = {
+        "n_results": len(results),
+        "classes": classes,
+        "mean": {k: mean_over(k) for k in ("afd", "afd_squared", "fid", "accuracy", "adherence", "ratio_strongest", "ratio_nn1")}
+        | {f"{b}_afd": float(np.nanmean([base[b][c]["afd"] for c in class_names])) for b in names},
+        "classifier": {"real_accuracy": {k: _stat([r["classifier"]["real_accuracy"][k] for r in results])[0]
+                                         for k in results[0]["classifier"]["real_accuracy"]}},
+        "model_overall": _overall(results, lambda r: r["model"]),
+        "baselines_overall": {b: _overall(results, lambda r, b=b: r["baselines"][b]) for b in names},
+        "real_diversity": _stat([r["real_diversity"] for r in results])[0],
+        "adherence_matrix": np.nanmean([r["adherence_matrix"] for r in results], axis=0).tolist(),
+        "adherence_matrix_judge": np.nanmean([r["adherence_matrix_judge"] for r in results], axis=0).tolist(),
+        "mix": _mean_mix(results),
+        "avoid": {k: _stat([r["avoid"][k] for r in results])[0] for k in results[0]["avoid"]},
+    }
+    _with_std(out, "adherence_off_diagonal", [r["adherence_off_diagonal"] for r in results])
+    _with_std(out, "adherence_off_diagonal_judge", [r["adherence_off_diagonal_judge"] for r in results])
+    out["plausibility"] = out["model_overall"]["plausibility"]
+    return out
+
+
+def _mean_mix(results: list[dict]) -> list[dict]:
+    rows = []
+    for k, row in enumerate(results[0]["mix"]):
+        rows.append({"pair": row["pair"]} | {key: _stat([r["mix"][k][key] for r in results])[0]
+                                             for key in row if key != "pair"})
+    return rows
+
+
+def summarize(results: list[dict], class_names: tuple[str, ...]) -> dict:
+    """The whole summary: the "all" group's keys at top level, plus groups, folds, seeds and per-fold results."""
+    groups = {"all": results, "dev": [r for r in results if r["group"] == "dev"], "test": [r for r in results if r["group"] == "test"]}
+    seeds = sorted({r.get("seed") for r in results if r.get("seed") is not None})
+    summary = {"folds": sorted({r["subject"] for r in results}), "seeds": seeds, "class_names": list(class_names)}
+    summary["groups"] = {g: group_summary(rs, class_names) for g, rs in groups.items() if rs}
+    summary |= summary["groups"]["all"]
+    summary["per_fold"] = [{k: v for k, v in r.items() if not k.startswith("_")} for r in results]
+    return summary

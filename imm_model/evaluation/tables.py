@@ -1,0 +1,111 @@
+"""The evaluation summary (evaluation/report.py) as Markdown tables: what `imm evaluate` prints and writes."""
+
+from __future__ import annotations
+
+import numpy as np
+
+BASELINE_TITLES = {"nn1": "1-NN", "knn_dtw": "DTW 3-NN avg", "template": "class template", "men": "label-free (Men-style)"}
+
+
+def _pm(mean: float, std: float | None = None, digits: int = 3) -> str:
+    if mean is None or not np.isfinite(mean):
+        return "-"
+    return f"{mean:.{digits}f}" if std is None or not np.isfinite(std) or std == 0 else f"{mean:.{digits}f} ± {std:.{digits}f}"
+
+
+def metric_table(group: dict, metric: str, digits: int = 3) -> str:
+    """Per class: model, every baseline (mean ± std over folds/seeds), the strongest baseline and the ratio."""
+    classes = group["classes"]
+    names = list(next(iter(classes.values()))["baselines"])
+    strongest, ratio = f"strongest_baseline_{metric}", f"ratio_strongest_{metric}"
+    head = ["class", "model", *(BASELINE_TITLES.get(b, b) for b in names), "strongest baseline", "model / strongest"]
+    if metric == "afd" and "nn1" in names:
+        head.append("model / 1-NN")
+    lines = ["| " + " | ".join(head) + " |", "|---|" + "---:|" * (len(head) - 1)]
+    for c, e in classes.items():
+        row = [c, _pm(e[metric], e[f"{metric}_std"], digits)]
+        row += [_pm(e["baselines"][b][metric], e["baselines"][b][f"{metric}_std"], digits) for b in names]
+        row += [BASELINE_TITLES.get(e[strongest], str(e[strongest])), _pm(e[ratio])]
+        if metric == "afd" and "nn1" in names:
+            row.append(_pm(e["ratio_nn1"]))
+        lines.append("| " + " | ".join(row) + " |")
+    mean = lambda key, src=None: float(np.nanmean([(src(e) if src else e)[key] for e in classes.values()]))  # noqa: E731
+    row = ["**mean**", f"**{_pm(mean(metric), digits=digits)}**"]
+    row += [_pm(mean(metric, lambda e, b=b: e["baselines"][b]), digits=digits) for b in names]
+    row += ["", f"**{_pm(mean(ratio))}**"]
+    if metric == "afd" and "nn1" in names:
+        row.append(_pm(mean("ratio_nn1")))
+    lines.append("| " + " | ".join(row) + " |")
+    return "\n".join(lines)
+
+
+def control_table(group: dict) -> str:
+    classes = group["classes"]
+    lines = ["| requested class | adherence (follower GRU) | adherence (independent conv judge) "
+             "| recognition of the model's interactions |", "|---|---:|---:|---:|"]
+    for c, e in classes.items():
+        lines.append(f"| {c} | {_pm(e['adherence'], e['adherence_std'])} | {_pm(e['adherence_judge'], e['adherence_judge_std'])} | "
+                     f"{_pm(e['accuracy'], e['accuracy_std'])} |")
+    off = [_pm(group[k], group[f"{k}_std"]) for k in ("adherence_off_diagonal", "adherence_off_diagonal_judge")]
+    lines.append(f"| **off-diagonal mean** (label differs from the leader's class) | {off[0]} | {off[1]} | |")
+    return "\n".join(lines)
+
+
+def mix_table(group: dict) -> str:
+    lines = ["| mix (+1 each) | mass on the pair | first | second | both in the top 2 |", "|---|---:|---:|---:|---:|"]
+    for r in group["mix"]:
+        lines.append(f"| {r['pair'][0]} + {r['pair'][1]} | {r['mass']:.2f} | {r['first']:.2f} | {r['second']:.2f} | {r['both_top2']:.2f} |")
+    return "\n".join(lines)
+
+
+def plausibility_table(group: dict) -> str:
+    cols = ("bone_error_cm", "interpenetration", "foot_skate_mps", "speed_ratio", "limb_speed_ratio")
+    lines = ["| method | bone error (cm) | interpenetrating frames | foot skate (m/s) | speed / real | limb speed / real |",
+             "|---|---:|---:|---:|---:|---:|"]
+    rows = [("model", group["model_overall"]["plausibility"])]
+    rows += [(BASELINE_TITLES.get(b, b), v["plausibility"]) for b, v in group["baselines_overall"].items()]
+    real = group["model_overall"]["plausibility"]
+    rows.append(("real followers", {"bone_error_cm": real["real_bone_error_cm"], "interpenetration": real["real_interpenetration"],
+                                    "foot_skate_mps": real["real_foot_skate_mps"], "speed_ratio": 1.0, "limb_speed_ratio": 1.0}))
+    for name, p in rows:
+        lines.append(f"| {name} | " + " | ".join(f"{p[k]:.3f}" for k in cols) + " |")
+    return "\n".join(lines)
+
+
+def overall_table(group: dict) -> str:
+    lines = ["| method | FID (all classes) | recognition accuracy | diversity (real: {:.2f}) |".format(group["real_diversity"]),
+             "|---|---:|---:|---:|"]
+    rows = [("model", group["model_overall"])] + [(BASELINE_TITLES.get(b, b), v) for b, v in group["baselines_overall"].items()]
+    for name, o in rows:
+        cells = [_pm(o[k], o[f"{k}_std"], 2) for k in ("fid", "accuracy", "diversity")]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def headline(summary: dict) -> str:
+    """One line per group: the model's mean AFD ratio to the strongest baseline and to 1-NN."""
+    lines = []
+    for g, s in summary["groups"].items():
+        folds = sorted({r["subject"] for r in summary["per_fold"] if g == "all" or r["group"] == g})
+        acc = s["classifier"]["real_accuracy"]
+        m = s["mean"]
+        lines.append(f"{g} ({', '.join(folds)}; {s['n_results']} results): AFD {m['afd']:.3f}, ratio to the strongest baseline "
+                     f"{m['ratio_strongest']:.3f}, to 1-NN {m['ratio_nn1']:.3f}; off-label adherence {s['adherence_off_diagonal']:.2f} "
+                     f"(judge {s['adherence_off_diagonal_judge']:.2f}); classifiers on real data: interaction "
+                     f"{acc['interaction']:.2f}, follower {acc['follower']:.2f}, judge {acc['follower_judge']:.2f}")
+    return "\n".join(lines)
+
+
+def markdown_report(summary: dict) -> str:
+    parts = ["# Evaluation", "", headline(summary).replace("\n", "\n\n"), ""]
+    groups = summary["groups"] if len(summary["groups"]) > 2 else {"all": summary["groups"]["all"]}  # all == its one group
+    for g, s in groups.items():
+        parts += [f"## {g} folds", "", "### AFD (normalized SBU units, lower is better)", "", metric_table(s, "afd"), "",
+                  "### AFD squared (the authors' code's variant)", "", metric_table(s, "afd_squared"), "",
+                  "### FID per class (interaction-classifier features)", "", metric_table(s, "fid", 2), "",
+                  "### All classes", "", overall_table(s), "",
+                  "### Label control (follower-only classifiers)", "", control_table(s), "",
+                  f"Avoid (-1 on the leader's class vs all zero): P(leader's class) {s['avoid']['p_zero']:.2f} -> "
+                  f"{s['avoid']['p_avoid']:.2f} (change {s['avoid']['change']:+.2f}).", "",
+                  "### Mix", "", mix_table(s), "", "### Plausibility", "", plausibility_table(s), ""]
+    return "\n".join(parts)
