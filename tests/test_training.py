@@ -236,3 +236,26 @@ def test_augmentation_keeps_skeletons_valid(sample_data):
         torch.testing.assert_close(before, after, atol=1e-4, rtol=1e-4)
         assert (leader[b, new_lengths[b]:] == 0).all()
     assert (new_lengths != lengths).any()
+
+
+def test_label_free_baseline_ignores_the_label_and_trains(sample_data, tmp_path):
+    """`--config men`: the generator never reads the label; D is a real/fake head beside a class head."""
+    from imm_model.model.fast import FastGenerator
+
+    assert load_config("men").discriminator == "binary+class" and load_config("men").model["label_input"] is False
+    cfg = replace(TINY, model=TINY.model | {"label_input": False}, discriminator="binary+class", adv_warmup_epochs=0,
+                  adv_ramp_epochs=0)
+    trainer = Trainer(cfg, sample_data, "s04", tmp_path)
+    row = trainer.train_epoch(0)
+    assert row["adv"] > 0 and row["d_loss"] > 0 and all(map(torch.isfinite, map(torch.tensor, (row["adv"], row["d_loss"]))))
+    G = trainer.G.eval()
+    leader = torch.as_tensor(sample_data.canonical(0)[0].reshape(1, -1, 45))
+    lengths = torch.tensor([leader.shape[1]])
+    with torch.no_grad():
+        a = G(leader, torch.eye(6)[:1], lengths)
+        b = G(leader, -3 * torch.eye(6)[3:4], lengths)
+        fast = FastGenerator(G)(leader, torch.eye(6)[:1])
+    assert torch.equal(a, b)
+    torch.testing.assert_close(fast, a, atol=1e-5, rtol=1e-4)
+    with pytest.raises(ValueError, match="discriminator must be one of"):
+        replace(TINY, discriminator="wasserstein")

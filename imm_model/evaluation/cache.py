@@ -22,6 +22,7 @@ from imm_model.checkpoint import final_checkpoint, load_checkpoint, load_module_
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold
 from imm_model.errors import CheckpointError
+from imm_model.evaluation.classifiers import VERSION as CLASSIFIER_VERSION
 from imm_model.evaluation.classifiers import ClassifierConfig, MotionClassifier, motion_inputs, train_classifier
 
 
@@ -51,7 +52,7 @@ def _say(message: str) -> None:
 
 def fold_classifier(cfg: ClassifierConfig, data: InteractionDataset, subject: str, progress: bool = True) -> MotionClassifier:
     """The classifier `cfg` trained on the real motion of fold `subject`'s training subjects (cached)."""
-    key = entry_key("classifier", data, subject, cfg.to_dict())
+    key = entry_key("classifier", data, subject, cfg.to_dict() | {"version": CLASSIFIER_VERSION})
     path = cache_dir() / "classifiers" / f"{subject}-{cfg.inputs}-{cfg.arch}-{key}.safetensors"
     model = MotionClassifier(cfg, 3 * data.skeleton.num_joints * (2 if cfg.inputs == "interaction" else 1), len(data.class_names))
     if path.exists():

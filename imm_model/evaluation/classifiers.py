@@ -25,6 +25,7 @@ import torch.nn as nn
 
 from imm_model.typed_config import checked_kwargs
 
+VERSION = 2  # part of every cache key: bump when the architecture or training code changes its numbers
 INPUTS = ("interaction", "follower")
 ARCHITECTURES = ("gru", "conv")
 
@@ -87,8 +88,7 @@ class MotionClassifier(nn.Module):
             self.body = nn.GRU(d, cfg.hidden, num_layers=2, batch_first=True, bidirectional=True, dropout=0.2)
             width = 2 * cfg.hidden
         else:
-            self.body = nn.Sequential(nn.Conv1d(d, cfg.hidden, 5, padding=2), nn.ReLU(),
-                                      nn.Conv1d(cfg.hidden, cfg.hidden, 5, padding=2), nn.ReLU())
+            self.body = nn.ModuleList([nn.Conv1d(d, cfg.hidden, 5, padding=2), nn.Conv1d(cfg.hidden, cfg.hidden, 5, padding=2)])
             width = cfg.hidden
         self.embed = nn.Sequential(nn.Dropout(cfg.dropout), nn.Linear(width, cfg.features), nn.ReLU())
         self.head = nn.Linear(cfg.features, num_classes)
@@ -105,8 +105,10 @@ class MotionClassifier(nn.Module):
         if self.cfg.arch == "gru":  # packed, so neither direction reads padding: a batch never changes a result
             packed = nn.utils.rnn.pack_padded_sequence(z, lengths.cpu(), batch_first=True, enforce_sorted=False)
             h, _ = nn.utils.rnn.pad_packed_sequence(self.body(packed)[0], batch_first=True, total_length=x.shape[1])
-        else:
-            h = self.body((z * mask).transpose(1, 2)).transpose(1, 2)
+        else:  # padding re-zeroed after every layer, so the last frames read the same zeros as a lone sequence
+            h = z * mask
+            for conv in self.body:
+                h = torch.relu(conv(h.transpose(1, 2))).transpose(1, 2) * mask
         return self.embed((h * mask).sum(1) / mask.sum(1))
 
     def forward(self, x: torch.Tensor, lengths: torch.Tensor) -> torch.Tensor:

@@ -59,9 +59,9 @@ def _heatmap(ax, matrix: np.ndarray, rows: list[str], cols: list[str], title: st
 
 def adherence_heatmaps(group: dict, class_names: list[str], path: Path) -> Path:
     plt = _plt()
-    fig, axes = plt.subplots(1, 2, figsize=(12, 5))
+    fig, axes = plt.subplots(1, 2, figsize=(15, 6), layout="constrained")
     for ax, key, who in zip(axes, ("adherence_matrix", "adherence_matrix_judge"), ("follower GRU", "independent conv judge"), strict=True):
-        im = _heatmap(ax, np.asarray(group[key], float), class_names, class_names, f"share judged as the requested class ({who})")
+        im = _heatmap(ax, np.asarray(group[key], float), class_names, class_names, f"judged as the requested class\n({who})")
         ax.set_xlabel("requested (one-hot) label")
         ax.set_ylabel("leader's class")
     fig.colorbar(im, ax=axes, shrink=0.8)
