@@ -7,9 +7,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from imm_model import cache
 from imm_model.data.splits import loso_fold
-from imm_model.evaluation import cache, classifiers, control, distribution, plausibility
+from imm_model.evaluation import control, distribution, plausibility
 from imm_model.evaluation.baselines import knn_dtw_follower, template_follower
+from imm_model.model import classifier as classifiers
 
 QUICK = dict(epochs=2, hidden=16, features=8)
 

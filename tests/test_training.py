@@ -259,3 +259,27 @@ def test_label_free_baseline_ignores_the_label_and_trains(sample_data, tmp_path)
     torch.testing.assert_close(fast, a, atol=1e-5, rtol=1e-4)
     with pytest.raises(ValueError, match="discriminator must be one of"):
         replace(TINY, discriminator="wasserstein")
+
+
+def test_label_critic_scores_the_true_and_a_drawn_label(sample_data, tmp_path, monkeypatch):
+    """lambda_critic > 0: a frozen follower classifier scores G's output for the true and a drawn other label."""
+    from imm_model import cache
+    from imm_model.model.classifier import ClassifierConfig, train_classifier
+    from imm_model.training.critic import drawn_labels
+
+    gen = torch.Generator().manual_seed(0)
+    actions = torch.arange(6).repeat(50)
+    labels, target = drawn_labels(actions, 6, 0.5, gen)
+    assert (labels[torch.arange(300), actions] == 0).all()  # never the leader's own class
+    assert set(labels.sum(1).tolist()) == {1.0, 2.0} and torch.allclose(target.sum(1), torch.ones(300))
+
+    followers = [sample_data.canonical(i)[1].reshape(-1, 45) for i in range(40)]
+    quick = train_classifier(ClassifierConfig(inputs="follower", epochs=1, hidden=8, features=8), followers, sample_data.actions[:40], 6)
+    monkeypatch.setattr(cache, "fold_classifier", lambda *a, **k: quick)
+    trainer = Trainer(replace(TINY, lambda_critic=0.1, critic_mix_prob=0.5, adv_warmup_epochs=0, adv_ramp_epochs=0),
+                      sample_data, "s04", tmp_path)
+    before = quick.head.weight.clone()
+    row = trainer.train_epoch(0)
+    assert row["critic"] > 0 and torch.equal(quick.head.weight, before)  # the critic is scored, never trained
+    with pytest.raises(ValueError, match="critic_mix_prob must be in"):
+        replace(TINY, critic_mix_prob=2.0)

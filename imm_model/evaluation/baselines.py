@@ -11,7 +11,7 @@ is to the model):
 - `template`: the class's mean follower (every training follower resampled to the test length and
   averaged). It never looks at the leader: anything the model does better comes from reading A.
 The label-free Men et al. 2022-style model (`--config men`) is the fourth baseline; it is trained like the
-model (evaluation/cache.py).
+model and cached (imm_model/cache.py).
 """
 
 from __future__ import annotations

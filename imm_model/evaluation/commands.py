@@ -50,8 +50,8 @@ def normalize_fold(fold: str | None) -> str | None:
 
 def _options(args: argparse.Namespace):
     from imm_model.checkpoint import final_checkpoint
-    from imm_model.evaluation import classifiers
     from imm_model.evaluation.loso import EvalOptions
+    from imm_model.model import classifier as classifiers
 
     overrides = {}
     if args.classifier_config is not None:

@@ -1,6 +1,6 @@
 """Distribution metrics on classifier features: FID, diversity, recognition accuracy.
 
-Features are the penultimate layer of the fold's interaction classifier (evaluation/classifiers.py),
+Features are the penultimate layer of the fold's interaction classifier (model/classifier.py),
 computed for real test interactions (A, B) and generated ones (A, B'), as Action2Motion/ACTOR do.
 """
 

@@ -14,13 +14,15 @@ from pathlib import Path
 
 import numpy as np
 
+from imm_model import cache
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold
 from imm_model.errors import CheckpointError
-from imm_model.evaluation import cache, classifiers, control, distribution
+from imm_model.evaluation import control, distribution
 from imm_model.evaluation.baselines import HEURISTIC_BASELINES, baseline_predictions, evaluate_predictions
 from imm_model.evaluation.metrics import per_class_mean
 from imm_model.evaluation.plausibility import frame_rate, plausibility
+from imm_model.model import classifier as classifiers
 
 BASELINES = (*HEURISTIC_BASELINES, "men")
 DEV_FOLDS = ("s01", "s03", "s04")  # already used to choose recipes (docs/evaluation.md)

@@ -30,6 +30,11 @@ class TrainConfig:
     lambda_bone: float = 0.01
     lambda_cont: float = 1.0
     lambda_afd: float = 0.0  # direct per-frame pose-vector distance (the AFD itself, metres); 0 in the paper
+    # Label critic (training/critic.py): a frozen follower-only classifier trained on the fold's real training
+    # followers scores the generated follower for the true label and for a drawn other label (with probability
+    # critic_mix_prob a two-class mix); its weight follows the adversarial warm-up and ramp. 0 = off.
+    lambda_critic: float = 0.0
+    critic_mix_prob: float = 0.0
     adv_warmup_epochs: int = 0  # adversarial weight 0 for these epochs (reconstruction warm-up) ...
     adv_ramp_epochs: int = 0  # ... then ramped linearly to lambda_adv over these epochs
     label_smoothing: float = 0.0  # on D's real-class targets
@@ -77,6 +82,8 @@ class TrainConfig:
             ("lr_decay_factor", 0 < self.lr_decay_factor <= 1, "in (0, 1]"),
             ("ema_window_fraction", self.ema_window_fraction >= 0, ">= 0 (0 = the default warm-up)"),
             ("discriminator", self.discriminator in DISCRIMINATORS, f"one of {DISCRIMINATORS}"),
+            ("lambda_critic", self.lambda_critic >= 0, ">= 0 (0 = off)"),
+            ("critic_mix_prob", 0 <= self.critic_mix_prob <= 1, "in [0, 1]"),
         )
         for name, ok, expected in checks:
             if not ok:

@@ -34,23 +34,25 @@ from imm_model.errors import CheckpointError
 from imm_model.model import Discriminator, Generator, model_config_for
 from imm_model.training import losses
 from imm_model.training.config import TrainConfig
+from imm_model.training.curves import plot_curves
 from imm_model.training.data import Augmenter, PaddedData
 
-LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", "l1", "bone", "cont", "adv", "d_loss", "d_real_acc", "d_fake_acc", "val_afd_m", "val_l1",
-              "seconds")
+LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", "l1", "bone", "cont", "adv", "critic", "d_loss", "d_real_acc", "d_fake_acc",
+              "val_afd_m", "val_l1", "seconds")
 
 
 def derive_seed(*parts: int) -> int:
     return int(np.random.SeedSequence([int(p) for p in parts]).generate_state(1)[0])
 
 
-def adversarial_weight(cfg: TrainConfig, epoch: int) -> float:
-    """0 during warm-up, then a linear ramp to lambda_adv (epochs count from 0)."""
+def adversarial_weight(cfg: TrainConfig, epoch: int, weight: float | None = None) -> float:
+    """0 during warm-up, then a linear ramp to `weight` (default lambda_adv; epochs count from 0)."""
+    weight = cfg.lambda_adv if weight is None else weight
     if epoch < cfg.adv_warmup_epochs:
         return 0.0
     if cfg.adv_ramp_epochs <= 0:
-        return cfg.lambda_adv
-    return cfg.lambda_adv * min(1.0, (epoch - cfg.adv_warmup_epochs + 1) / cfg.adv_ramp_epochs)
+        return weight
+    return weight * min(1.0, (epoch - cfg.adv_warmup_epochs + 1) / cfg.adv_ramp_epochs)
 
 
 def lr_scale(cfg: TrainConfig, history: list[dict], select_from: int) -> float:
@@ -115,6 +117,7 @@ class Trainer:
         self.augment = Augmenter(data.skeleton, cfg.mirror_prob, cfg.rotate_deg, cfg.role_swap_prob, swap, cfg.time_warp,
                                  cfg.scale_jitter, mirror)
         self.bones = torch.tensor(data.skeleton.bones, dtype=torch.int64)
+        self.critic = self._label_critic() if cfg.lambda_critic > 0 else None
         self.state = FoldState()
 
     # ---- setup ----------------------------------------------------------------------------
@@ -125,6 +128,13 @@ class Trainer:
         self.G.set_normalization(a.mean(0), np.maximum(a.std(0), 1e-2), b.mean(0), np.maximum(b.std(0), 1e-2))
         self.D.follower_mean.copy_(self.G.follower_mean)
         self.D.follower_std.copy_(self.G.follower_std)
+
+    def _label_critic(self):
+        from imm_model.cache import fold_classifier
+        from imm_model.model.classifier import FOLLOWER
+        from imm_model.training.critic import LabelCritic
+
+        return LabelCritic(fold_classifier(FOLLOWER, self.data, self.subject))
 
     def meta(self, kind: str) -> dict:
         d = self.data
@@ -203,12 +213,13 @@ class Trainer:
         sampler = LengthBucketSampler(self.data.lengths, self.train_idx, cfg.batch_size, seed=cfg.seed)
         sampler.set_epoch(epoch)
         w_adv = adversarial_weight(cfg, epoch)
+        w_critic = adversarial_weight(cfg, epoch, cfg.lambda_critic)
         use_d = cfg.lambda_adv > 0
         scale = lr_scale(cfg, self.state.history, self.select_from) if lr_multiplier is None else lr_multiplier
         for opt, lr in ((self.opt_g, cfg.lr_g), (self.opt_d, cfg.lr_d)):
             for group in opt.param_groups:
                 group["lr"] = lr * scale
-        sums = dict.fromkeys(("l1", "bone", "cont", "adv", "d_loss", "d_real_acc", "d_fake_acc"), 0.0)
+        sums = dict.fromkeys(("l1", "bone", "cont", "adv", "critic", "d_loss", "d_real_acc", "d_fake_acc"), 0.0)
         n = n_d = 0
         self.G.train()
         self.D.train()
@@ -238,6 +249,10 @@ class Trainer:
             g_loss = cfg.lambda_l1 * l1 + cfg.lambda_bone * bone + cfg.lambda_cont * cont
             if cfg.lambda_afd > 0:
                 g_loss = g_loss + cfg.lambda_afd * losses.afd_metres(fake, follower, mask).mean()
+            if self.critic is not None and w_critic > 0:
+                critic = self._critic_loss(leader, fake, lengths, actions, gen)
+                g_loss = g_loss + w_critic * critic
+                sums["critic"] += float(critic.detach())
             if use_d and w_adv > 0:
                 self.D.requires_grad_(False)
                 adv = losses.generator_adv_loss(self.D(fake, lengths), actions, cfg.discriminator)
@@ -254,6 +269,16 @@ class Trainer:
             n += 1
         d_keys = ("d_loss", "d_real_acc", "d_fake_acc")
         return {k: v / (max(n_d, 1) if k in d_keys else n) for k, v in sums.items()} | {"adv_weight": w_adv, "lr_scale": scale}
+
+    def _critic_loss(self, leader, fake, lengths, actions, gen) -> torch.Tensor:
+        """The critic's loss on the true label's follower plus on a follower for a drawn other label."""
+        from imm_model.training.critic import drawn_labels
+
+        c = len(self.data.class_names)
+        labels, target = drawn_labels(actions, c, self.cfg.critic_mix_prob, gen)
+        other = self.G(leader, labels, lengths)
+        own = torch.nn.functional.one_hot(actions, c).float()
+        return self.critic.loss(fake, lengths, own) + self.critic.loss(other, lengths, target)
 
     @torch.no_grad()
     def _update_ema(self, step: int) -> None:
@@ -320,32 +345,7 @@ class Trainer:
             csv.DictWriter(f, fieldnames=LOG_FIELDS, extrasaction="ignore").writerow(row)
 
     def plot(self) -> None:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        h = self.state.history
-        if not h:
-            return
-        ep = [r["epoch"] for r in h]
-        fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-        for key in ("l1", "cont", "adv", "d_loss"):
-            axes[0].plot(ep, [r[key] for r in h], label=key)
-        axes[0].set_yscale("log")
-        axes[0].set_title("training losses")
-        axes[0].legend()
-        axes[1].plot(ep, [r["val_afd_m"] for r in h], label="validation AFD (m)")
-        axes[1].axvline(self.state.best_epoch, color="k", ls=":", label=f"best epoch {self.state.best_epoch}")
-        axes[1].set_title(f"validation ({self.subject or 'all'} held out)")
-        axes[1].legend()
-        for ax in axes:
-            ax.set_xlabel("epoch")
-        fig.tight_layout()
-        tmp = self.out / "curves.tmp.png"
-        fig.savefig(tmp, dpi=80)
-        plt.close(fig)
-        tmp.replace(self.out / "curves.png")
+        plot_curves(self.state.history, self.state.best_epoch, self.subject, self.out / "curves.png")
 
 
 def refit(selection: Trainer, progress: bool = True) -> Path:

@@ -1,4 +1,4 @@
-"""The evaluation cache: per-fold reaction classifiers and label-free baseline models, trained once.
+"""The cache: per-fold reaction classifiers (evaluation judges, training critics) and baseline models, trained once.
 
 Entries are keyed by what determines them (dataset hash, held-out subject, config, code version), so a
 changed dataset or recipe never reuses a stale entry. Files are safetensors + JSON (imm_model.checkpoint):
@@ -22,8 +22,8 @@ from imm_model.checkpoint import final_checkpoint, load_checkpoint, load_module_
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold
 from imm_model.errors import CheckpointError
-from imm_model.evaluation.classifiers import VERSION as CLASSIFIER_VERSION
-from imm_model.evaluation.classifiers import ClassifierConfig, MotionClassifier, motion_inputs, train_classifier
+from imm_model.model.classifier import VERSION as CLASSIFIER_VERSION
+from imm_model.model.classifier import ClassifierConfig, MotionClassifier, motion_inputs, train_classifier
 
 
 def cache_dir() -> Path:
@@ -50,10 +50,10 @@ def _say(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
-def fold_classifier(cfg: ClassifierConfig, data: InteractionDataset, subject: str, progress: bool = True) -> MotionClassifier:
-    """The classifier `cfg` trained on the real motion of fold `subject`'s training subjects (cached)."""
+def fold_classifier(cfg: ClassifierConfig, data: InteractionDataset, subject: str | None, progress: bool = True) -> MotionClassifier:
+    """The classifier `cfg` trained on the real motion of fold `subject`'s training subjects (None: every sequence), cached."""
     key = entry_key("classifier", data, subject, cfg.to_dict() | {"version": CLASSIFIER_VERSION})
-    path = cache_dir() / "classifiers" / f"{subject}-{cfg.inputs}-{cfg.arch}-{key}.safetensors"
+    path = cache_dir() / "classifiers" / f"{subject or 'all'}-{cfg.inputs}-{cfg.arch}-{key}.safetensors"
     model = MotionClassifier(cfg, 3 * data.skeleton.num_joints * (2 if cfg.inputs == "interaction" else 1), len(data.class_names))
     if path.exists():
         try:
@@ -64,12 +64,12 @@ def fold_classifier(cfg: ClassifierConfig, data: InteractionDataset, subject: st
             return model.eval()
         except CheckpointError as err:
             _say(f"cache: {err}; rebuilding")
-    train = loso_fold(data.subject_pairs, subject).train
+    train = loso_fold(data.subject_pairs, subject).train if subject else np.arange(len(data))
     leaders, followers = zip(*(data.canonical(int(i)) for i in train), strict=True)
     t0 = time.perf_counter()
     model = train_classifier(cfg, motion_inputs(list(leaders), list(followers), cfg.inputs), data.actions[train],
-                             len(data.class_names), progress, desc=f"{cfg.inputs} {cfg.arch} classifier, fold {subject}")
-    _say(f"cache: trained the {cfg.inputs}-only {cfg.arch} classifier for fold {subject} in {time.perf_counter() - t0:.0f} s"
+                             len(data.class_names), progress, desc=f"{cfg.inputs} {cfg.arch} classifier, fold {subject or 'none'}")
+    _say(f"cache: trained the {cfg.inputs}-only {cfg.arch} classifier for fold {subject or 'none'} in {time.perf_counter() - t0:.0f} s"
          .replace("interaction-only", "interaction"))
     save_checkpoint(path, model.state_dict(), {"kind": "classifier", "key": key, "subject": subject, "config": cfg.to_dict(),
                                                "class_names": list(data.class_names)})
