@@ -16,6 +16,7 @@ from explorer.palette import display_name
 from imm_model.data.dataset import InteractionDataset
 from imm_model.errors import CheckpointError
 from imm_model.evaluation.metrics import afd, frame_distances
+from imm_model.inference import check_compatible
 
 FPS = 15.0  # SBU's frame rate
 
@@ -41,17 +42,6 @@ def load_model(checkpoint: Path, data: InteractionDataset) -> ReactionModelLike:
     model = ReactionModel.load(checkpoint)
     check_compatible(model, data, str(checkpoint))
     return model
-
-
-def check_compatible(model: ReactionModelLike, data: InteractionDataset, where: str = "checkpoint") -> None:
-    if tuple(model.class_names) != tuple(data.class_names):
-        raise CheckpointError(f"{where}: classes {', '.join(model.class_names)} do not match the data's {', '.join(data.class_names)}")
-    ms, ds = model.skeleton, data.skeleton
-    if tuple(ms.joint_names) != tuple(ds.joint_names) or tuple(ms.parents) != tuple(ds.parents):
-        raise CheckpointError(
-            f"{where}: skeleton {getattr(ms, 'name', '?')} ({len(ms.joint_names)} joints) does not match "
-            f"the data's {ds.name} ({len(ds.joint_names)} joints)"
-        )
 
 
 def label_words(weights: Sequence[float], class_names: Sequence[str], scale: float = 1.0) -> str:

@@ -176,6 +176,18 @@ class ReactionModel:
             return self.generator(x, lab, lens).numpy(), lengths
 
 
+def check_compatible(model, data, where: str = "checkpoint") -> None:
+    """Refuse a model (ReactionModel or alike) whose classes or skeleton differ from a dataset's (one-line CheckpointError)."""
+    if tuple(model.class_names) != tuple(data.class_names):
+        raise CheckpointError(f"{where}: classes {', '.join(model.class_names)} do not match the data's {', '.join(data.class_names)}")
+    ms, ds = model.skeleton, data.skeleton
+    if tuple(ms.joint_names) != tuple(ds.joint_names) or tuple(ms.parents) != tuple(ds.parents):
+        raise CheckpointError(
+            f"{where}: skeleton {getattr(ms, 'name', '?')} ({len(ms.joint_names)} joints) does not match "
+            f"the data's {ds.name} ({len(ds.joint_names)} joints)"
+        )
+
+
 def _as_float(v, name: str) -> float:
     try:
         return float(v)

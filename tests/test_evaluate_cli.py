@@ -74,7 +74,7 @@ def test_checkpoint_that_does_not_match_the_data(tmp_path, quick_classifiers, ca
     tensors, meta = load_checkpoint(SAMPLE_CHECKPOINT)
     meta = {k: v for k, v in meta.items() if k != "format"}
     save_checkpoint(tmp_path / "classes.safetensors", tensors, meta | {"class_names": ["a", "b", "c", "d", "e", "f"]})
-    assert "differ from the data's" in _one_line_error(["evaluate", "--checkpoint", str(tmp_path / "classes.safetensors")], capsys)
+    assert "do not match the data's" in _one_line_error(["evaluate", "--checkpoint", str(tmp_path / "classes.safetensors")], capsys)
     skeleton = meta["skeleton"] | {"joint_names": [f"j{i}" for i in range(15)], "name": "other15"}
     save_checkpoint(tmp_path / "skeleton.safetensors", tensors, meta | {"skeleton": skeleton})
     assert "skeleton other15" in _one_line_error(["evaluate", "--checkpoint", str(tmp_path / "skeleton.safetensors")], capsys)

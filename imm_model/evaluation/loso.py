@@ -17,7 +17,6 @@ import numpy as np
 from imm_model import cache
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold
-from imm_model.errors import CheckpointError
 from imm_model.evaluation import control, distribution
 from imm_model.evaluation.baselines import HEURISTIC_BASELINES, baseline_predictions, evaluate_predictions
 from imm_model.evaluation.metrics import per_class_mean
@@ -46,14 +45,6 @@ class EvalOptions:
         unknown = [b for b in self.baselines if b not in BASELINES]
         if unknown:
             raise ValueError(f"unknown baseline {unknown[0]!r}; known: {', '.join(BASELINES)}")
-
-
-def check_compatible(model, data: InteractionDataset) -> None:
-    if tuple(model.class_names) != tuple(data.class_names):
-        raise CheckpointError(f"{model.path}: classes {list(model.class_names)} differ from the data's {list(data.class_names)}")
-    if model.skeleton.joint_names != data.skeleton.joint_names:
-        raise CheckpointError(f"{model.path}: skeleton {model.skeleton.name} ({model.skeleton.num_joints} joints) differs from "
-                              f"the data's {data.skeleton.name} ({data.skeleton.num_joints} joints)")
 
 
 def model_predictions(model, data: InteractionDataset, test_idx: np.ndarray, labels: np.ndarray | None = None) -> dict[int, np.ndarray]:
@@ -134,10 +125,10 @@ def label_control(model, data: InteractionDataset, judges: FoldJudges) -> dict:
 
 def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptions | None = None) -> dict:
     """Everything about `model` on LOSO fold `subject`: see docs/evaluation.md for each number."""
-    from imm_model.inference import ReactionModel
+    from imm_model.inference import ReactionModel, check_compatible
 
     opts = opts or EvalOptions()
-    check_compatible(model, data)
+    check_compatible(model, data, str(model.path))
     judges = FoldJudges(data, subject, opts)
     result = {"subject": subject, "group": fold_group(subject), "checkpoint": str(model.path),
               "classifier": {"real_accuracy": judges.real_accuracy},
@@ -151,7 +142,7 @@ def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptio
         if name == "men":
             path = opts.men_checkpoint(subject) if opts.men_checkpoint else cache.fold_baseline_model("men", data, subject, opts.progress)
             men = ReactionModel.load(path)
-            check_compatible(men, data)
+            check_compatible(men, data, str(men.path))
             preds = model_predictions(men, data, judges.test)
             result["_latent"]["men"] = _latents(men, data, all_idx)
         else:
