@@ -133,3 +133,42 @@ def test_plausibility_of_real_motion_and_of_a_frozen_pose(sample_data):
     assert plausibility.plausibility(list(leaders), inside, list(reals), sk, 15.0)["interpenetration"] == 1.0
     far = [r + np.array([5.0, 0, 0]) for r in reals]
     assert plausibility.plausibility(list(leaders), far, list(reals), sk, 15.0)["interpenetration"] == 0.0
+
+
+PLAUSIBLE = {"limb_speed_ratio": 0.5, "bone_error_cm": 1.0, "interpenetration": 0.0, "foot_skate_mps": 0.1,
+             "real_bone_error_cm": 0.5, "real_interpenetration": 0.0, "real_foot_skate_mps": 0.2}
+
+
+def _fake_scores(x: float) -> dict:
+    classes = {c: {"afd": x, "afd_squared": x * x, "fid": 10 * x, "accuracy": 0.5} for c in ("a", "b")}
+    return {"classes": classes, "fid": 10 * x, "accuracy": 0.5, "diversity": 1.0, "plausibility": PLAUSIBLE | {"speed_ratio": x}}
+
+
+def _fake_fold_result(subject: str, group: str, seed: int, afd: float) -> dict:
+    """A synthetic fold result with the shape evaluate_fold returns (made-up numbers, for the report's arithmetic)."""
+    return {"subject": subject, "group": group, "seed": seed, "real_diversity": 1.0,
+            "classifier": {"real_accuracy": {"interaction": 0.9, "follower": 0.7, "follower_judge": 0.7}},
+            "model": _fake_scores(afd), "baselines": {"nn1": _fake_scores(2.0), "knn_dtw": _fake_scores(1.0)},
+            "adherence": {"a": 0.4, "b": 0.4}, "adherence_judge": {"a": 0.3, "b": 0.3},
+            "adherence_matrix": [[1, 0], [0, 1]], "adherence_matrix_judge": [[1, 0], [0, 1]],
+            "adherence_off_diagonal": 0.0, "adherence_off_diagonal_judge": 0.0,
+            "mix": [{"pair": ["a", "b"], "mass": 1.0, "first": 0.5, "second": 0.5, "both_top2": 1.0}],
+            "avoid": {"p_zero": 0.5, "p_avoid": 0.2, "change": -0.3}, "_latent": {}}
+
+
+def test_report_groups_folds_and_seeds():
+    from imm_model.evaluation.report import summarize
+    from imm_model.evaluation.tables import markdown_report
+
+    results = [_fake_fold_result("s01", "dev", 0, 0.6), _fake_fold_result("s02", "test", 0, 0.8),
+               _fake_fold_result("s01", "dev", 1, 0.8), _fake_fold_result("s02", "test", 1, 1.0)]
+    s = summarize(results, ("a", "b"))
+    assert s["folds"] == ["s01", "s02"] and s["seeds"] == [0, 1] and set(s["groups"]) == {"all", "dev", "test"}
+    assert s["classes"]["a"]["afd"] == pytest.approx(0.8) and s["classes"]["a"]["afd_std"] == pytest.approx(np.std([0.6, 0.8, 0.8, 1.0]))
+    assert s["groups"]["dev"]["classes"]["a"]["afd"] == pytest.approx(0.7)
+    assert s["groups"]["test"]["classes"]["b"]["strongest_baseline"] == "knn_dtw"
+    assert s["groups"]["test"]["classes"]["b"]["ratio_strongest"] == pytest.approx(0.9)
+    assert s["classes"]["a"]["ratio_nn1"] == pytest.approx(0.4)
+    assert all("_latent" not in r for r in s["per_fold"])
+    text = markdown_report(s)
+    assert "## dev folds" in text and "## test folds" in text and "0.800 ± 0.141" in text
