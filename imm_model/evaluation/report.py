@@ -67,7 +67,10 @@ def group_summary(results: list[dict], class_names: tuple[str, ...]) -> dict:
         if "nn1" in names:
             entry["ratio_nn1"] = entry["afd"] / entry["baselines"]["nn1"]["afd"]
         classes[c] = entry
-    mean_over = lambda key: float(np.nanmean([classes[c].get(key, np.nan) for c in class_names]))  # noqa: E731
+    def mean_over(key: str) -> float:
+        vals = [classes[c][key] for c in class_names if np.isfinite(classes[c].get(key, np.nan))]
+        return float(np.mean(vals)) if vals else float("nan")
+
     out = {
         "n_results": len(results),
         "classes": classes,

@@ -89,8 +89,9 @@ def headline(summary: dict) -> str:
         folds = sorted({r["subject"] for r in summary["per_fold"] if g == "all" or r["group"] == g})
         acc = s["classifier"]["real_accuracy"]
         m = s["mean"]
+        nn1 = f", to 1-NN {m['ratio_nn1']:.3f}" if np.isfinite(m["ratio_nn1"]) else ""
         lines.append(f"{g} ({', '.join(folds)}; {s['n_results']} results): AFD {m['afd']:.3f}, ratio to the strongest baseline "
-                     f"{m['ratio_strongest']:.3f}, to 1-NN {m['ratio_nn1']:.3f}; off-label adherence {s['adherence_off_diagonal']:.2f} "
+                     f"{m['ratio_strongest']:.3f}{nn1}; off-label adherence {s['adherence_off_diagonal']:.2f} "
                      f"(judge {s['adherence_off_diagonal_judge']:.2f}); classifiers on real data: interaction "
                      f"{acc['interaction']:.2f}, follower {acc['follower']:.2f}, judge {acc['follower_judge']:.2f}")
     return "\n".join(lines)
