@@ -153,8 +153,8 @@ IMM = TrainConfig(
 # binary real/fake head beside a multi-class head. Trained on the same folds, so it isolates what the label adds.
 MEN = replace(IMM, name="men", model=IMM.model | {"label_input": False}, discriminator="binary+class")
 
-# `imm` + the label critic (issue 9, in progress; docs/training.md "Label critic"): the label is obeyed on the
-# dev folds measured so far, at a cost in bone length; not yet the shipped recipe.
+# `imm` + the label critic (issue 9, in progress; docs/training.md "Label critic"): on dev folds s01 and s04 the
+# label is obeyed (independent judge 0.96-0.97 off-label); on s03 selection stopped too early. Not shipped.
 IMM_CRITIC = replace(IMM, name="imm-critic", lambda_critic=0.05, critic_mix_prob=0.5)
 
 NAMED: dict[str, TrainConfig] = {"paper": PAPER, "imm": IMM, "men": MEN, "imm-critic": IMM_CRITIC}
