@@ -26,11 +26,21 @@ def test_bundle_contents(sample_data):
 
 
 @pytest.mark.shared
-def test_build_sample_is_byte_for_byte_reproducible(tmp_path, sbu_root):
-    out = tmp_path / "rebuilt.npz"
+def test_build_sample_is_reproducible(tmp_path, sbu_root):
+    """Rebuilt from the raw files: every array identical to the bundled one, except the float64 facing angles,
+    whose last bit depends on the numpy build's arctan2/mean kernels (seen: 4e-16 rad with numpy 2.4.6)."""
+    out, again = tmp_path / "rebuilt.npz", tmp_path / "again.npz"
     assert main(["data", "build-sample", "--raw", str(sbu_root), "--out", str(out)]) == 0
+    assert main(["data", "build-sample", "--raw", str(sbu_root), "--out", str(again)]) == 0
     digest = lambda p: hashlib.sha256(p.read_bytes()).hexdigest()  # noqa: E731
-    assert digest(out) == digest(SAMPLE_DATA)
+    assert digest(out) == digest(again)  # deterministic on one machine, byte for byte
+    with np.load(out) as rebuilt, np.load(SAMPLE_DATA) as bundled:
+        assert sorted(rebuilt.files) == sorted(bundled.files)
+        for name in rebuilt.files:
+            if name == "yaw":
+                np.testing.assert_allclose(rebuilt[name], bundled[name], rtol=0, atol=1e-12)
+            else:
+                assert np.array_equal(rebuilt[name], bundled[name]), name
 
 
 def test_save_load_round_trip(tmp_path, sample_data):
