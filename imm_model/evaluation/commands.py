@@ -117,8 +117,10 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         if model.held_out_subject != subject:
             print(f"warning: {path} held out {model.held_out_subject}, not {subject}: its training set contains the test "
                   f"subject, so these numbers are optimistic", file=sys.stderr)
-        result = evaluate_fold(model, data, subject, opts) | {"seed": model.info.get("training", {}).get("seed")}
-        latent = latent or {"subject": subject, "latents": result["_latent"]}
+        first = latent is None  # the t-SNE figure shows the first fold's models only
+        result = evaluate_fold(model, data, subject, opts, latents=first) | {"seed": model.info.get("training", {}).get("seed")}
+        if first:
+            latent = {"subject": subject, "latents": result["_latent"]}
         results.append(result)
         print(f"[{k}/{len(jobs)}] fold {subject} ({result['group']}), {path}: model AFD "
               f"{sum(v['afd'] for v in result['model']['classes'].values()) / len(result['model']['classes']):.3f} "

@@ -108,10 +108,18 @@ def method_scores(data: InteractionDataset, judges: FoldJudges, predictions: dic
 def label_control(model, data: InteractionDataset, judges: FoldJudges) -> dict:
     """Adherence (both follower-only classifiers), mix and avoid for the model on the fold's test leaders."""
     y, c = data.actions[judges.test], len(data.class_names)
+    synthesized: dict[bytes, list[np.ndarray]] = {}  # both judges read the same followers: synthesize each label set once
+
+    def followers(labels: np.ndarray) -> list[np.ndarray]:
+        key = np.ascontiguousarray(labels, np.float32).tobytes()
+        if key not in synthesized:
+            synthesized[key] = model.synthesize_batch_canonical(judges.leaders, labels)
+        return synthesized[key]
+
     out: dict = {}
     for name, clf in (("", judges.follower), ("_judge", judges.judge)):
         def judge(labels: np.ndarray, clf=clf) -> np.ndarray:
-            return judges.follower_view(clf, model.synthesize_batch_canonical(judges.leaders, labels))
+            return judges.follower_view(clf, followers(labels))
 
         matrix, per_target = control.adherence_matrix(judge, y, c)
         out[f"adherence_matrix{name}"] = matrix.tolist()
@@ -123,8 +131,9 @@ def label_control(model, data: InteractionDataset, judges: FoldJudges) -> dict:
     return out
 
 
-def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptions | None = None) -> dict:
-    """Everything about `model` on LOSO fold `subject`: see docs/evaluation.md for each number."""
+def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptions | None = None, latents: bool = True) -> dict:
+    """Everything about `model` on LOSO fold `subject`: see docs/evaluation.md for each number. With `latents`,
+    `_latent` holds every sequence's embedding under the model (and the label-free baseline) for the t-SNE figure."""
     from imm_model.inference import ReactionModel, check_compatible
 
     opts = opts or EvalOptions()
@@ -137,14 +146,15 @@ def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptio
               "baselines": {}}
     result |= label_control(model, data, judges)
     all_idx = np.arange(len(data))
-    result["_latent"] = {"model": _latents(model, data, all_idx)}  # "_": for the figures, not the JSON
+    result["_latent"] = {"model": _latents(model, data, all_idx)} if latents else {}  # "_": for the figures, not the JSON
     for name in opts.baselines:
         if name == "men":
             path = opts.men_checkpoint(subject) if opts.men_checkpoint else cache.fold_baseline_model("men", data, subject, opts.progress)
             men = ReactionModel.load(path)
             check_compatible(men, data, str(men.path))
             preds = model_predictions(men, data, judges.test)
-            result["_latent"]["men"] = _latents(men, data, all_idx)
+            if latents:
+                result["_latent"]["men"] = _latents(men, data, all_idx)
         else:
             preds = baseline_predictions(name, data, loso_fold(data.subject_pairs, subject))
         result["baselines"][name] = method_scores(data, judges, preds)
