@@ -64,8 +64,12 @@ def _options(args: argparse.Namespace):
     configs = {}
     for name, base in (("interaction", classifiers.INTERACTION), ("follower", classifiers.FOLLOWER), ("judge", classifiers.FOLLOWER_JUDGE)):
         configs[name] = classifiers.ClassifierConfig.from_dict(base.to_dict() | overrides)
+    if args.men_run is not None and not args.men_run.is_dir():
+        raise ValueError(f"--men-run {args.men_run}: run directory not found")
     men = (lambda s: final_checkpoint(args.men_run / f"fold-{s}")) if args.men_run else None
     baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
+    if not baselines:
+        raise ValueError("--baselines: name at least one of nn1, knn_dtw, template, men")
     return EvalOptions(baselines=baselines, men_checkpoint=men, progress=not args.quiet, **configs)
 
 
