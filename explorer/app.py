@@ -21,6 +21,7 @@ from trame.widgets import vuetify3 as v3
 from explorer import charts
 from explorer.latent import METHODS, LatentMap
 from explorer.palette import CHARACTER_TITLES, CHARACTERS, class_color, display_name
+from explorer.reads_as_panel import reads_as_panel, reads_as_rows
 from explorer.scene import CAMERA_PRESETS, CHARACTER_KEYS, Scene, floor_height
 from explorer.session import FPS, Session
 
@@ -90,6 +91,7 @@ class Studio:
                 "loop": True,
                 "scale": 1.0,
                 "label_text": "",
+                "reads_as": [],  # explorer/reads_as_panel.py
                 "scene_layout": "overlay",
                 "show_leader": True,
                 "show_ground_truth": True,
@@ -191,6 +193,11 @@ class Studio:
             self.state[f"w_{i}"] = round(float(w), 3)
         self.state.scale = self.session.scale
         self.state.label_text = self.session.label_text()
+        self._write_reads_as()
+
+    def _write_reads_as(self) -> None:
+        ses = self.session
+        self.state.reads_as = reads_as_rows(ses.reads_as(), ses.weights, ses.class_names)
 
     def on_mix_change(self, **_):
         """Coalesce slider messages: the latest mix wins, at most one synthesis in flight, no fixed
@@ -225,6 +232,7 @@ class Studio:
         self.ctrl.view_update()  # the picture first: it is what the user is watching
         with s:
             s.label_text = ses.label_text()
+            self._write_reads_as()
         return True
 
     @_guard
@@ -549,6 +557,7 @@ class Studio:
                         v3.VSlider(v_model=("scale",), min=0, max=2, step=0.05, density="compact", hide_details=True, id="scale-slider")
                         html.Div("{{ Number(scale).toFixed(2) }}", classes="text-caption ml-1", style="width: 38px; text-align: right")
                     html.Div("{{ label_text }}", classes="text-body-2 mt-1 pa-2 rounded bg-grey-lighten-4", id="label-text")
+                    reads_as_panel()
                     v3.VDivider(classes="my-3")
                     html.Div("Characters", classes="text-overline")
                     for key, var in zip(CHARACTER_KEYS, ("show_leader", "show_ground_truth", "show_synthesized"), strict=True):

@@ -32,6 +32,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="remote (default): the server renders pictures; local: the browser renders with vtk.js (needs WebGL)",
     )  # fmt: skip
     p.add_argument("--sequence", default=None, help="sequence id (e.g. s04s02/01/001) or index to open first")
+    p.add_argument("--judge", default=None,
+                   help="follower-only classifier for the 'reads as' panel (default: the bundled one; 'none' hides the panel)")
     p.set_defaults(func=run_explore)
 
 
@@ -41,7 +43,8 @@ def run_explore(args: argparse.Namespace) -> int:
 
     data = args.data or SAMPLE_DATA
     checkpoint = args.checkpoint or SAMPLE_CHECKPOINT
-    for what, path in (("data file", data), ("checkpoint", checkpoint)):
+    judge = None if args.judge in (None, "none") else Path(args.judge)
+    for what, path in (("data file", data), ("checkpoint", checkpoint)) + ((("judge", judge),) if judge else ()):
         if not Path(path).is_file():
             print(f"imm explore: error: {what} not found: {path}", file=sys.stderr)
             return 2
@@ -52,6 +55,7 @@ def run_explore(args: argparse.Namespace) -> int:
         data=Path(data).resolve(), checkpoint=Path(checkpoint).resolve(), host=args.host, port=args.port,
         cache_dir=args.cache_dir.resolve() if args.cache_dir else None, export_dir=args.export_dir.resolve(),
         max_clients=max(1, args.max_clients), open_browser=not args.no_browser, sequence=args.sequence, render=args.render,
+        judge=str(judge.resolve()) if judge else args.judge,
     )  # fmt: skip
     try:
         return launch(config)

@@ -47,6 +47,7 @@ class LaunchConfig:
     open_browser: bool = True
     sequence: str | None = None
     render: str = "remote"
+    judge: str | None = None  # the 'reads as' classifier: a path, "none", or None for the bundled one
 
 
 def bind_socket(host: str, port: int) -> socket.socket:
@@ -83,6 +84,8 @@ class Launcher:
         cmd += ["--render", c.render]
         if c.sequence:
             cmd += ["--sequence", c.sequence]
+        if c.judge:
+            cmd += ["--judge", c.judge]
         env = {**os.environ, "OMP_NUM_THREADS": "1", "VTK_DEFAULT_OPENGL_WINDOW": "vtkEGLRenderWindow"}
         proc = await asyncio.create_subprocess_exec(*cmd, stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE, env=env)
         w = Worker(proc)

@@ -68,11 +68,22 @@ class SequenceRow:
         return f"{self.sequence_id} · {display_name(self.class_name)} · {self.frames} fr{mark}"
 
 
+class ReaderLike(Protocol):
+    """What the studio needs from `imm_model.reads_as.ReadsAs`."""
+
+    class_names: Sequence[str]
+
+    def probabilities(self, follower: np.ndarray) -> np.ndarray: ...
+
+
 class Session:
-    def __init__(self, data: InteractionDataset, model: ReactionModelLike, index: int = 0) -> None:
+    def __init__(self, data: InteractionDataset, model: ReactionModelLike, index: int = 0, reader: ReaderLike | None = None) -> None:
         check_compatible(model, data, "model")
+        if reader is not None and tuple(reader.class_names) != tuple(data.class_names):
+            raise CheckpointError(f"the 'reads as' classifier's classes {list(reader.class_names)} differ from the data's")
         self.data = data
         self.model = model
+        self.reader = reader
         self.class_names = tuple(data.class_names)
         self.weights = np.zeros(len(self.class_names), np.float32)
         self.scale = 1.0
@@ -147,6 +158,10 @@ class Session:
             raise ValueError(f"model returned shape {out.shape}, expected {self.ground_truth.shape}")
         self.synth = out
         return out
+
+    def reads_as(self) -> np.ndarray | None:
+        """(C,) the follower-only classifier's class probabilities for the synthesized follower (None without one)."""
+        return None if self.reader is None else np.asarray(self.reader.probabilities(self.synth), np.float64)
 
     def distances_m(self) -> np.ndarray:
         """(T,) per-frame distance between GT and synthesized 45-d pose vectors, metres."""

@@ -32,6 +32,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--port", type=int, default=0)
     p.add_argument("--render", choices=("remote", "local"), default="remote")
     p.add_argument("--sequence", default=None, help="sequence id or index to open first")
+    p.add_argument("--judge", type=Path, default=None, help="'reads as' classifier (default: the bundled one; 'none' hides the panel)")
     p.add_argument("--idle-exit", type=float, default=60.0, help="seconds without a client before exiting (after the first one)")
     p.add_argument("--watch-stdin", action="store_true", help="exit when stdin closes (the launcher died)")
     return p.parse_args(argv)
@@ -47,7 +48,19 @@ def load_everything(args: argparse.Namespace):
     model = load_model(args.checkpoint, data)
     cache_dir = args.cache_dir or default_cache_dir()
     latent = LatentMap.build(model, data, cache_dir, cache_key(args.checkpoint, args.data))
-    return data, model, latent
+    return data, model, latent, load_reader(args.judge)
+
+
+def load_reader(path: Path | None):
+    """The 'reads as' classifier, or None when asked for none or when the bundled one is absent."""
+    from imm_model.paths import SAMPLE_JUDGE
+    from imm_model.reads_as import ReadsAs
+
+    if path is not None and str(path) == "none":
+        return None
+    if path is None and not SAMPLE_JUDGE.exists():
+        return None
+    return ReadsAs.load(path or SAMPLE_JUDGE)
 
 
 def start_index(data, sequence: str | None) -> int:
@@ -57,7 +70,7 @@ def start_index(data, sequence: str | None) -> int:
     return int(sequence) if sequence.isdigit() else data.index_of(sequence)
 
 
-def serve(data, model, latent, args: argparse.Namespace) -> int:
+def serve(data, model, latent, reader, args: argparse.Namespace) -> int:
     from trame.app import get_server
     from wslink.websocket import LinkProtocol
 
@@ -67,7 +80,7 @@ def serve(data, model, latent, args: argparse.Namespace) -> int:
 
     patch_image_delivery()
     server = get_server("imm-studio", client_type="vue3")
-    session = Session(data, model, start_index(data, args.sequence))
+    session = Session(data, model, start_index(data, args.sequence), reader)
     Studio(server, session, latent, export_dir=args.export_dir, render=args.render)
 
     clients: set[str] = set()
@@ -111,12 +124,12 @@ def main(argv=None) -> int:
     # (plus rendering) share the cores; more threads made each synthesis 4x slower here.
     torch.set_num_threads(1)
     try:
-        data, model, latent = load_everything(args)
+        data, model, latent, reader = load_everything(args)
     except Exception as err:  # one line for the launcher / terminal, never a traceback
         msg = str(err.args[0] if isinstance(err, KeyError) and err.args else err).strip().splitlines()
         _say("ERROR", msg[0] if msg else type(err).__name__)
         return 2
-    return serve(data, model, latent, args)
+    return serve(data, model, latent, reader, args)
 
 
 if __name__ == "__main__":

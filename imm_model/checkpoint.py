@@ -101,7 +101,7 @@ def optimizer_to_tensors(opt: torch.optim.Optimizer, prefix: str) -> tuple[dict[
     for pid, st in sd["state"].items():
         for name, v in st.items():
             if torch.is_tensor(v):
-                tensors[f"{prefix}.{pid}.{name}"] = v
+                tensors[f"{prefix}.{pid}.{name}"] = v.detach().cpu()
             else:
                 scalars[f"{pid}.{name}"] = v
     return tensors, {"param_groups": sd["param_groups"], "scalars": scalars}

@@ -41,6 +41,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     build.add_argument("--raw", type=Path, default=None, help="raw SBU folder (default: ../shared/datasets/sbu_kinect_interaction)")
     build.add_argument("--out", type=Path, default=None, help="output .npz (default: sample_data/sbu_interactions.npz)")
     build.set_defaults(func=_cmd_build_sample)
+    judge = sub.add_parser("build-judge", help="train the studio's 'reads as' classifier (follower-only, real data only)")
+    judge.add_argument("--fold", default="s04", help="held-out subject, as the bundled model's (default s04)")
+    judge.add_argument("--data", type=Path, default=None, help="dataset bundle (default: the bundled SBU sample)")
+    judge.add_argument("--out", type=Path, default=None, help="output .safetensors (default: sample_data/follower_judge.safetensors)")
+    judge.set_defaults(func=_cmd_build_judge)
 
 
 def _cmd_summary(args: argparse.Namespace) -> int:
@@ -68,6 +73,22 @@ def _cmd_build_sample(args: argparse.Namespace) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     data.save(out)
     print(f"wrote {out}: {len(data)} sequences, {int(data.lengths.sum())} frames, {out.stat().st_size / 1e6:.2f} MB")
+    return 0
+
+
+def _cmd_build_judge(args: argparse.Namespace) -> int:
+    from imm_model.cache import fold_classifier
+    from imm_model.checkpoint import save_checkpoint
+    from imm_model.data.dataset import InteractionDataset
+    from imm_model.model.classifier import FOLLOWER_JUDGE
+    from imm_model.paths import SAMPLE_DATA, SAMPLE_JUDGE
+
+    data = InteractionDataset.load(args.data or SAMPLE_DATA)
+    out = args.out or SAMPLE_JUDGE
+    model = fold_classifier(FOLLOWER_JUDGE, data, args.fold)
+    save_checkpoint(out, model.state_dict(), {"kind": "classifier", "config": FOLLOWER_JUDGE.to_dict(), "subject": args.fold,
+                                              "class_names": list(data.class_names), "dataset": data.dataset})
+    print(f"wrote {out}: follower-only {FOLLOWER_JUDGE.arch} classifier, subject {args.fold} held out")
     return 0
 
 

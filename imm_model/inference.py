@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from imm_model.device import add_device_argument
 from imm_model.errors import CheckpointError, DataFormatError, LabelError
 
 MAX_LENGTH_FACTOR = 10  # inputs longer than this times the longest training sequence are refused
@@ -27,12 +28,18 @@ MAX_LENGTH_FACTOR = 10  # inputs longer than this times the longest training seq
 class ReactionModel:
     """A trained generator with what is needed to use it: classes, skeleton, canonical mode."""
 
-    def __init__(self, generator, meta: dict[str, Any], path: Path | None = None):
+    def __init__(self, generator, meta: dict[str, Any], path: Path | None = None, device: str = "cpu"):
+        import torch
+
         from imm_model.model.fast import FastGenerator
         from imm_model.skeleton import Skeleton
 
-        self.generator = generator.eval()
-        self.fast = FastGenerator(self.generator)  # same numbers, ~4x faster for one unpadded sequence
+        self.device = torch.device(device)
+        # same numbers, ~4x faster for one unpadded sequence on a CPU; on a GPU (or with the paper's frame-by-frame
+        # attentive decoder, which it does not implement) the batched generator serves all
+        fast_ok = self.device.type == "cpu" and generator.cfg.attention_query == "encoder"
+        self.fast = FastGenerator(generator.eval()) if fast_ok else None
+        self.generator = generator.eval().to(self.device)
         self.config = generator.cfg
         self.info: dict[str, Any] = meta
         self.path = path
@@ -44,7 +51,7 @@ class ReactionModel:
 
     # ---- loading --------------------------------------------------------------------------
     @classmethod
-    def load(cls, path: Path | str | None = None) -> ReactionModel:
+    def load(cls, path: Path | str | None = None, device: str = "cpu") -> ReactionModel:
         """Load a checkpoint (default: the bundled one). Any problem -> CheckpointError (one line)."""
         from imm_model.checkpoint import load_checkpoint, load_module_state, prefixed
         from imm_model.model import Generator, ModelConfig
@@ -63,7 +70,7 @@ class ReactionModel:
             raise CheckpointError(f"{path}: model config disagrees with the class names or the skeleton")
         generator = Generator(cfg)
         load_module_state(generator, prefixed(tensors, "generator"), "generator", path)
-        return cls(generator, meta, path)
+        return cls(generator, meta, path, device)
 
     # ---- labels and inputs ----------------------------------------------------------------
     def label_vector(self, label: Mapping[str, float] | Sequence[float] | np.ndarray, scale: float = 1.0) -> np.ndarray:
@@ -132,6 +139,8 @@ class ReactionModel:
         import torch
 
         t = len(leader_canonical)
+        if self.fast is None:
+            return self.synthesize_batch_canonical([leader_canonical], np.asarray(label_vector).reshape(1, -1))[0]
         with torch.inference_mode():
             x = torch.as_tensor(np.asarray(leader_canonical, dtype=np.float32).reshape(1, t, -1))
             lab = torch.as_tensor(np.asarray(label_vector, dtype=np.float32).reshape(1, -1))
@@ -168,12 +177,13 @@ class ReactionModel:
         lengths = np.array([len(a) for a in leaders])
         x, mask = pad_sequences([np.asarray(a, dtype=np.float32).reshape(len(a), -1) for a in leaders])
         with torch.inference_mode():
-            lab, lens = torch.from_numpy(labels), torch.from_numpy(lengths)
+            x, mask = x.to(self.device), mask.to(self.device)
+            lab, lens = torch.from_numpy(labels).to(self.device), torch.from_numpy(lengths).to(self.device)
             if latent:
                 h = self.generator.encode(x, lab, lens)
                 m = mask[..., None].float()
-                return ((h * m).sum(1) / m.sum(1)).numpy(), lengths
-            return self.generator(x, lab, lens).numpy(), lengths
+                return ((h * m).sum(1) / m.sum(1)).cpu().numpy(), lengths
+            return self.generator(x, lab, lens).cpu().numpy(), lengths
 
 
 def check_compatible(model, data, where: str = "checkpoint") -> None:
@@ -274,14 +284,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, required=True, help="output .npz (follower, leader, label; world metres)")
     p.add_argument("--checkpoint", type=Path, default=None, help="default: the bundled model")
     p.add_argument("--data", type=Path, default=None, help="dataset for --sequence (default: the bundled sample)")
+    add_device_argument(p)
     p.set_defaults(func=_cmd_generate)
 
 
 def _cmd_generate(args: argparse.Namespace) -> int:
     import torch
 
+    from imm_model.device import resolve_device
+
     torch.set_num_threads(2)
-    model = ReactionModel.load(args.checkpoint)
+    model = ReactionModel.load(args.checkpoint, resolve_device(args.device))
     if args.sequence:
         from imm_model.data.dataset import InteractionDataset
         from imm_model.paths import SAMPLE_DATA

@@ -9,6 +9,7 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 SAMPLE_DIR = REPO_ROOT / "sample_data"
 SAMPLE_DATA = SAMPLE_DIR / "sbu_interactions.npz"
 SAMPLE_CHECKPOINT = SAMPLE_DIR / "imm_sbu.safetensors"
+SAMPLE_JUDGE = SAMPLE_DIR / "follower_judge.safetensors"  # the studio's "reads as" classifier (imm_model/reads_as.py)
 
 
 def shared_datasets() -> Path:

@@ -153,7 +153,9 @@ def _fake_fold_result(subject: str, group: str, seed: int, afd: float) -> dict:
             "adherence_matrix": [[1, 0], [0, 1]], "adherence_matrix_judge": [[1, 0], [0, 1]],
             "adherence_off_diagonal": 0.0, "adherence_off_diagonal_judge": 0.0,
             "mix": [{"pair": ["a", "b"], "mass": 1.0, "first": 0.5, "second": 0.5, "both_top2": 1.0}],
-            "avoid": {"p_zero": 0.5, "p_avoid": 0.2, "change": -0.3}, "_latent": {}}
+            "mix_judge": [{"pair": ["a", "b"], "mass": 1.0, "first": 0.8, "second": 0.2, "both_top2": 1.0}],
+            "avoid": {"p_zero": 0.5, "p_avoid": 0.2, "change": -0.3},
+            "avoid_judge": {"p_zero": 0.5, "p_avoid": 0.3, "change": -0.2}, "_latent": {}}
 
 
 def test_report_groups_folds_and_seeds():
@@ -170,5 +172,6 @@ def test_report_groups_folds_and_seeds():
     assert s["groups"]["test"]["classes"]["b"]["ratio_strongest"] == pytest.approx(0.9)
     assert s["classes"]["a"]["ratio_nn1"] == pytest.approx(0.4)
     assert all("_latent" not in r for r in s["per_fold"])
+    assert s["mix_pairs_ok"] == 1 and s["mix_pairs_ok_judge"] == 0  # 0.2 < 0.25 on the second member
     text = markdown_report(s)
     assert "## dev folds" in text and "## test folds" in text and "0.800 ± 0.141" in text

@@ -81,6 +81,9 @@ def test_class_slider_changes_follower(page):
     time.sleep(0.3)
     assert probe.state(page, f"w_{other}") == 1.0
     assert names[other] in probe.state(page, "label_text")
+    reads = probe.state(page, "reads_as")  # the 'reads as' panel follows the mix
+    assert len(reads) == len(names) and reads[other]["asked"] == "+" and sum(r["p"] for r in reads) == pytest.approx(1, abs=0.01)
+    assert page.locator("#reads-as .reads-as-row").count() == len(names)
     after_px = color_mask(probe.view_pixels(page), SYNTHESIZED)
     changed = int((before_px ^ after_px).sum())
     shot(page, "studio-mixed")

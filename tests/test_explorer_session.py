@@ -101,3 +101,37 @@ def test_mismatched_model_is_one_line(sample_data):
     with pytest.raises(CheckpointError, match="skeleton other") as err:
         check_compatible(wrong_skel, sample_data, "ckpt")
     assert "\n" not in str(err.value)
+
+
+def test_reads_as_follows_the_label(sample_data, model):
+    """The 'reads as' panel's numbers: the bundled follower-only classifier on the synthesized follower."""
+    from explorer.reads_as_panel import reads_as_rows
+    from explorer.session import Session
+    from imm_model.paths import SAMPLE_JUDGE
+    from imm_model.reads_as import ReadsAs
+
+    reader = ReadsAs.load(SAMPLE_JUDGE)
+    ses = Session(sample_data, model, index=0, reader=reader)
+    p = ses.reads_as()
+    assert p.shape == (6,) and p.sum() == pytest.approx(1.0) and np.all(p >= 0)
+    before = p.copy()
+    other = (ses.own_class + 3) % 6
+    ses.set_label(np.eye(6)[other])
+    assert not np.allclose(ses.reads_as(), before)  # a new label, a new reading
+    rows = reads_as_rows(ses.reads_as(), ses.weights, ses.class_names)
+    assert [r["asked"] for r in rows].count("+") == 1 and rows[other]["asked"] == "+"
+    assert Session(sample_data, model, index=0).reads_as() is None  # no classifier, no panel
+
+
+def test_reads_as_refuses_other_classes_and_files(sample_data, model, tmp_path):
+    from explorer.session import Session
+    from imm_model.reads_as import ReadsAs
+
+    with pytest.raises(CheckpointError, match="classes"):
+        Session(sample_data, model, reader=SimpleNamespace(class_names=("a", "b")))
+    bad = tmp_path / "x.safetensors"
+    bad.write_bytes(b"not a file")
+    with pytest.raises(CheckpointError):
+        ReadsAs.load(bad)
+    with pytest.raises(CheckpointError, match="not a reaction classifier"):
+        ReadsAs.load(SAMPLE_CHECKPOINT)

@@ -270,8 +270,12 @@ def test_label_critic_scores_the_true_and_a_drawn_label(sample_data, tmp_path, m
     gen = torch.Generator().manual_seed(0)
     actions = torch.arange(6).repeat(50)
     labels, target = drawn_labels(actions, 6, 0.5, gen)
-    assert (labels[torch.arange(300), actions] == 0).all()  # never the leader's own class
+    own = labels[torch.arange(300), actions]
+    one_hot = labels.sum(1) == 1
+    assert (own[one_hot] == 0).all()  # a one-hot label is never the leader's own class ...
+    assert (own[~one_hot] == 1).any() and (own[~one_hot] == 0).any()  # ... a mix may include it
     assert set(labels.sum(1).tolist()) == {1.0, 2.0} and torch.allclose(target.sum(1), torch.ones(300))
+    assert labels.max() == 1.0  # two different members
 
     followers = [sample_data.canonical(i)[1].reshape(-1, 45) for i in range(40)]
     quick = train_classifier(ClassifierConfig(inputs="follower", epochs=1, hidden=8, features=8), followers, sample_data.actions[:40], 6)

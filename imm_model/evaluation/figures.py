@@ -73,11 +73,11 @@ def mix_heatmap(group: dict, class_names: list[str], path: Path) -> Path:
     plt = _plt()
     idx = {c: k for k, c in enumerate(class_names)}
     m = np.full((len(class_names),) * 2, np.nan)
-    for r in group["mix"]:
+    for r in group["mix_judge"]:
         i, j = idx[r["pair"][0]], idx[r["pair"][1]]
         m[i, j], m[j, i] = r["first"], r["second"]
     fig, ax = plt.subplots(figsize=(7, 6))
-    im = _heatmap(ax, m, class_names, class_names, "mix: P(row class) when row + column are both +1")
+    im = _heatmap(ax, m, class_names, class_names, "mix (independent judge): P(row class) when row + column are both +1")
     ax.set_xlabel("mixed with")
     fig.colorbar(im, ax=ax, shrink=0.8)
     fig.tight_layout()

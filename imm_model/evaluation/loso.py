@@ -125,9 +125,8 @@ def label_control(model, data: InteractionDataset, judges: FoldJudges) -> dict:
         out[f"adherence_matrix{name}"] = matrix.tolist()
         out[f"adherence{name}"] = dict(zip(data.class_names, per_target.tolist(), strict=True))
         out[f"adherence_off_diagonal{name}"] = control.off_diagonal_mean(matrix)
-        if not name:
-            out["mix"] = control.mix_table(judge, len(y), data.class_names)
-            out["avoid"] = control.avoid_effect(judge, y, c)
+        out[f"mix{name}"] = control.mix_table(judge, len(y), data.class_names)
+        out[f"avoid{name}"] = control.avoid_effect(judge, y, c)
     return out
 
 

@@ -9,7 +9,8 @@
   lowest foot height).
 - speed_ratio: mean joint speed of the generated followers over that of the real ones, and limb_speed_ratio
   the same for joints relative to the follower's own root. Real motion is first smoothed with a
-  Savitzky-Golay filter (window 7, order 2) so that Kinect jitter does not count as motion.
+  Savitzky-Golay filter (window 7, order 2) so that Kinect jitter does not count as motion; smooth_limb_speed_ratio
+  smooths the generated motion too, so a model cannot reach the real speed by jittering.
 """
 
 from __future__ import annotations
@@ -104,4 +105,6 @@ def plausibility(leaders: list[np.ndarray], followers: list[np.ndarray], reals: 
     out["limb_speed_mps"], out["real_limb_speed_mps"] = speed(followers, root), speed(real_smooth, root)
     out["speed_ratio"] = out["speed_mps"] / out["real_speed_mps"]
     out["limb_speed_ratio"] = out["limb_speed_mps"] / out["real_limb_speed_mps"]
+    # the same with the generated motion smoothed too: motion that is only jitter scores far lower here
+    out["smooth_limb_speed_ratio"] = speed([smooth(np.asarray(b, np.float64)) for b in followers], root) / out["real_limb_speed_mps"]
     return out

@@ -11,7 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 PER_CLASS_METRICS = ("afd", "afd_squared", "fid", "accuracy")
-PLAUSIBILITY_KEYS = ("bone_error_cm", "interpenetration", "foot_skate_mps", "speed_ratio", "limb_speed_ratio")
+MIX_SHARE = 0.25  # a two-class mix reads as mixed when each member gets at least this share of the probability
+PLAUSIBILITY_KEYS = ("bone_error_cm", "interpenetration", "foot_skate_mps", "speed_ratio", "limb_speed_ratio",
+                     "smooth_limb_speed_ratio")
 
 
 def _stat(values: list[float]) -> tuple[float, float]:
@@ -83,19 +85,21 @@ def group_summary(results: list[dict], class_names: tuple[str, ...]) -> dict:
         "real_diversity": _stat([r["real_diversity"] for r in results])[0],
         "adherence_matrix": np.nanmean([r["adherence_matrix"] for r in results], axis=0).tolist(),
         "adherence_matrix_judge": np.nanmean([r["adherence_matrix_judge"] for r in results], axis=0).tolist(),
-        "mix": _mean_mix(results),
-        "avoid": {k: _stat([r["avoid"][k] for r in results])[0] for k in results[0]["avoid"]},
     }
+    for judge in ("", "_judge"):  # the follower GRU (also the training critic of imm-critic) and the independent judge
+        out[f"mix{judge}"] = _mean_mix(results, f"mix{judge}")
+        out[f"mix_pairs_ok{judge}"] = sum(r["first"] >= MIX_SHARE and r["second"] >= MIX_SHARE for r in out[f"mix{judge}"])
+        out[f"avoid{judge}"] = {k: _stat([r[f"avoid{judge}"][k] for r in results])[0] for k in results[0][f"avoid{judge}"]}
     _with_std(out, "adherence_off_diagonal", [r["adherence_off_diagonal"] for r in results])
     _with_std(out, "adherence_off_diagonal_judge", [r["adherence_off_diagonal_judge"] for r in results])
     out["plausibility"] = out["model_overall"]["plausibility"]
     return out
 
 
-def _mean_mix(results: list[dict]) -> list[dict]:
+def _mean_mix(results: list[dict], key_: str) -> list[dict]:
     rows = []
-    for k, row in enumerate(results[0]["mix"]):
-        rows.append({"pair": row["pair"]} | {key: _stat([r["mix"][k][key] for r in results])[0]
+    for k, row in enumerate(results[0][key_]):
+        rows.append({"pair": row["pair"]} | {key: _stat([r[key_][k][key] for r in results])[0]
                                              for key in row if key != "pair"})
     return rows
 

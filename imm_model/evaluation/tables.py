@@ -52,21 +52,26 @@ def control_table(group: dict) -> str:
 
 
 def mix_table(group: dict) -> str:
-    lines = ["| mix (+1 each) | mass on the pair | first | second | both in the top 2 |", "|---|---:|---:|---:|---:|"]
-    for r in group["mix"]:
-        lines.append(f"| {r['pair'][0]} + {r['pair'][1]} | {r['mass']:.2f} | {r['first']:.2f} | {r['second']:.2f} | {r['both_top2']:.2f} |")
+    lines = ["| mix (+1 each) | first / second, follower GRU | first / second, independent judge | mass on the pair (judge) "
+             "| both in the top 2 (judge) |", "|---|---:|---:|---:|---:|"]
+    for r, j in zip(group["mix"], group["mix_judge"], strict=True):
+        lines.append(f"| {r['pair'][0]} + {r['pair'][1]} | {r['first']:.2f} / {r['second']:.2f} | {j['first']:.2f} / {j['second']:.2f} "
+                     f"| {j['mass']:.2f} | {j['both_top2']:.2f} |")
+    lines.append(f"| **pairs with >= 0.25 on each member** | {group['mix_pairs_ok']} / {len(group['mix'])} "
+                 f"| {group['mix_pairs_ok_judge']} / {len(group['mix'])} | | |")
     return "\n".join(lines)
 
 
 def plausibility_table(group: dict) -> str:
-    cols = ("bone_error_cm", "interpenetration", "foot_skate_mps", "speed_ratio", "limb_speed_ratio")
-    lines = ["| method | bone error (cm) | interpenetrating frames | foot skate (m/s) | speed / real | limb speed / real |",
-             "|---|---:|---:|---:|---:|---:|"]
+    cols = ("bone_error_cm", "interpenetration", "foot_skate_mps", "speed_ratio", "limb_speed_ratio", "smooth_limb_speed_ratio")
+    lines = ["| method | bone error (cm) | interpenetrating frames | foot skate (m/s) | speed / real | limb speed / real "
+             "| limb speed, both smoothed / real |", "|---|---:|---:|---:|---:|---:|---:|"]
     rows = [("model", group["model_overall"]["plausibility"])]
     rows += [(BASELINE_TITLES.get(b, b), v["plausibility"]) for b, v in group["baselines_overall"].items()]
     real = group["model_overall"]["plausibility"]
     rows.append(("real followers", {"bone_error_cm": real["real_bone_error_cm"], "interpenetration": real["real_interpenetration"],
-                                    "foot_skate_mps": real["real_foot_skate_mps"], "speed_ratio": 1.0, "limb_speed_ratio": 1.0}))
+                                    "foot_skate_mps": real["real_foot_skate_mps"], "speed_ratio": 1.0, "limb_speed_ratio": 1.0,
+                                    "smooth_limb_speed_ratio": 1.0}))
     for name, p in rows:
         lines.append(f"| {name} | " + " | ".join(f"{p[k]:.3f}" for k in cols) + " |")
     return "\n".join(lines)
@@ -107,6 +112,7 @@ def markdown_report(summary: dict) -> str:
                   "### All classes", "", overall_table(s), "",
                   "### Label control (follower-only classifiers)", "", control_table(s), "",
                   f"Avoid (-1 on the leader's class vs all zero): P(leader's class) {s['avoid']['p_zero']:.2f} -> "
-                  f"{s['avoid']['p_avoid']:.2f} (change {s['avoid']['change']:+.2f}).", "",
+                  f"{s['avoid']['p_avoid']:.2f} (change {s['avoid']['change']:+.2f}); independent judge "
+                  f"{s['avoid_judge']['p_zero']:.2f} -> {s['avoid_judge']['p_avoid']:.2f}.", "",
                   "### Mix", "", mix_table(s), "", "### Plausibility", "", plausibility_table(s), ""]
     return "\n".join(parts)

@@ -102,7 +102,7 @@ class MotionClassifier(nn.Module):
     def features(self, x: torch.Tensor, lengths: torch.Tensor) -> torch.Tensor:
         """x (B, T, D) canonical metres (padded), lengths (B,) -> (B, features): the FID embedding."""
         z = (self.frame_inputs(x) - self.mean) / self.std
-        mask = (torch.arange(x.shape[1])[None] < lengths[:, None]).float()[..., None]
+        mask = (torch.arange(x.shape[1], device=x.device)[None] < lengths[:, None]).float()[..., None]
         if self.cfg.arch == "gru":  # packed, so neither direction reads padding: a batch never changes a result
             packed = nn.utils.rnn.pack_padded_sequence(z, lengths.cpu(), batch_first=True, enforce_sorted=False)
             h, _ = nn.utils.rnn.pad_packed_sequence(self.body(packed)[0], batch_first=True, total_length=x.shape[1])

@@ -8,6 +8,7 @@ from imm_model.typed_config import checked_kwargs
 
 BODY_PARTS = ("left_arm", "right_arm", "left_leg", "right_leg", "trunk")
 DECODER_INPUTS = ("concat", "sum", "context")
+ATTENTION_QUERIES = ("encoder", "decoder")
 
 
 @dataclass(frozen=True)
@@ -33,10 +34,15 @@ class ModelConfig:
     # False: the whole-body stream reads the pose alone, the label is ignored (the label-free, Men et al.
     # 2022-style baseline `--config men`; the paper's ablation "without the multi-hot embedding").
     label_input: bool = True
+    # The attention query: "encoder", the frame's own encoding h_t (all frames at once, fast); "decoder", the
+    # decoder's previous state as in the paper's Eq. 3 (frame by frame, layers.AttentiveDecoder).
+    attention_query: str = "encoder"
 
     def __post_init__(self) -> None:
         if self.decoder_input not in DECODER_INPUTS:
             raise ValueError(f"decoder_input must be one of {DECODER_INPUTS}, not {self.decoder_input!r}")
+        if self.attention_query not in ATTENTION_QUERIES:
+            raise ValueError(f"attention_query must be one of {ATTENTION_QUERIES}, not {self.attention_query!r}")
 
     @property
     def pose_dim(self) -> int:

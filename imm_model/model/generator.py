@@ -12,7 +12,7 @@ import torch
 import torch.nn as nn
 
 from imm_model.model.config import ModelConfig
-from imm_model.model.layers import AdditiveAttention, BiLSTM, Dropout, reverse_index
+from imm_model.model.layers import AdditiveAttention, AttentiveDecoder, BiLSTM, Dropout, reverse_index
 
 
 class Generator(nn.Module):
@@ -30,8 +30,11 @@ class Generator(nn.Module):
         in_sizes = [3 * len(p) for p in cfg.body_parts] + [d + cfg.num_classes if cfg.label_input else d]
         self.embed = nn.ModuleList(nn.Linear(n, cfg.stream_embed) for n in in_sizes)
         self.encoders = nn.ModuleList(BiLSTM(cfg.stream_embed, cfg.encoder_hidden) for _ in in_sizes)
-        self.attention = AdditiveAttention(cfg.latent_dim, cfg.attention_dim)
-        self.decoder = BiLSTM(cfg.decoder_input_dim, cfg.decoder_hidden)
+        if cfg.attention_query == "decoder":
+            self.attentive = AttentiveDecoder(cfg.latent_dim, cfg.decoder_input_dim, cfg.attention_dim, cfg.decoder_hidden)
+        else:
+            self.attention = AdditiveAttention(cfg.latent_dim, cfg.attention_dim)
+            self.decoder = BiLSTM(cfg.decoder_input_dim, cfg.decoder_hidden)
         self.drop = Dropout(cfg.dropout, per_sequence=cfg.dropout_per_sequence)
         self.out = nn.Linear(2 * cfg.decoder_hidden, d)
 
@@ -63,6 +66,9 @@ class Generator(nn.Module):
         T = leader.shape[1]
         mask = torch.arange(T, device=leader.device)[None] < lengths[:, None]
         h = self.drop(self.encode(leader, labels, lengths))
-        context = self.attention(h, mask)
-        dec = self.drop(self.decoder(self.decoder_input(h, context), reverse_index(lengths, T)))
+        rev = reverse_index(lengths, T)
+        if self.cfg.attention_query == "decoder":
+            dec = self.drop(self.attentive(h, mask, rev, self.decoder_input))
+        else:
+            dec = self.drop(self.decoder(self.decoder_input(h, self.attention(h, mask)), rev))
         return self.out(dec) * self.follower_std + self.follower_mean

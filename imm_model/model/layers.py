@@ -63,6 +63,38 @@ class AdditiveAttention(nn.Module):
         return torch.softmax(scores, dim=-1) @ h
 
 
+class AttentiveDecoder(nn.Module):
+    """The paper's Eq. 3: the attention query at frame t is the decoder's previous state, so the decoder runs frame
+    by frame. c_t = sum_s softmax_s(v^T tanh(W h_s + U d_{t-1})) h_s, then d_t = LSTMCell(x_t, d_{t-1}) with x_t
+    built from (h_t, c_t) by `combine`. A backward LSTM over the forward states makes it the paper's "attentive
+    Bi-LSTM decoder" (the text does not say how the backward direction attends; here it reads the forward states).
+    (B, T, D) encodings -> (B, T, 2H). O(T^2) per sequence and a Python loop over frames: ~T x slower on a CPU.
+    """
+
+    def __init__(self, dim: int, input_size: int, attention_dim: int, hidden_size: int):
+        super().__init__()
+        self.key = nn.Linear(dim, attention_dim)
+        self.query = nn.Linear(hidden_size, attention_dim, bias=False)
+        self.v = nn.Linear(attention_dim, 1, bias=False)
+        self.cell = nn.LSTMCell(input_size, hidden_size)
+        self.bwd = nn.LSTM(hidden_size, hidden_size, batch_first=True)
+
+    def forward(self, h: torch.Tensor, mask: torch.Tensor, rev: torch.Tensor, combine) -> torch.Tensor:
+        B, T, _ = h.shape
+        keys = self.key(h)  # (B, T, A), once for all queries
+        state = (h.new_zeros(B, self.cell.hidden_size), h.new_zeros(B, self.cell.hidden_size))
+        outputs = []
+        for t in range(T):  # frames past a sequence's end never feed back into its valid frames (causal)
+            scores = self.v(torch.tanh(keys + self.query(state[0])[:, None])).squeeze(-1)  # (B, T)
+            weights = torch.softmax(scores.masked_fill(~mask, float("-inf")), dim=-1)
+            context = (weights[..., None] * h).sum(1)  # (B, D)
+            state = self.cell(combine(h[:, t], context), state)
+            outputs.append(state[0])
+        fwd = torch.stack(outputs, dim=1)  # (B, T, H)
+        bwd, _ = self.bwd(gather_time(fwd, rev))
+        return torch.cat([fwd, gather_time(bwd, rev)], dim=-1)
+
+
 class Dropout(nn.Module):
     """Inverted dropout on (B, T, D) features; `per_sequence`: one mask per sequence, shared by all frames.
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from imm_model.device import add_device_argument
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("train", help="train the reaction model (one LOSO fold, all folds, or all data)")
@@ -18,6 +20,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--export", type=Path, default=None, help="copy the (single fold's) best generator to this .safetensors")
     p.add_argument("--threads", type=int, default=2, help="torch CPU threads (default 2)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_device_argument(p)
     p.set_defaults(func=_cmd_train)
 
 
@@ -33,12 +36,14 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from imm_model.checkpoint import final_checkpoint
     from imm_model.data.dataset import InteractionDataset
     from imm_model.data.splits import all_subjects
+    from imm_model.device import resolve_device
     from imm_model.evaluation.commands import normalize_fold
     from imm_model.paths import SAMPLE_DATA
     from imm_model.training.config import load_config
     from imm_model.training.trainer import Trainer, export_generator, refit
 
     torch.set_num_threads(args.threads)
+    device = resolve_device(args.device)
     cfg = load_config(args.config, epochs=args.epochs, seed=args.seed)
     data = InteractionDataset.load(args.data or SAMPLE_DATA)
     subjects = all_subjects(data.subject_pairs)
@@ -56,7 +61,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=1) + "\n")
     for subject in folds:
-        trainer = Trainer(cfg, data, subject, fold_dir(args.out, subject))
+        trainer = Trainer(cfg, data, subject, fold_dir(args.out, subject), device)
         if args.resume and (trainer.out / "last.safetensors").exists():
             trainer.resume()
         state = trainer.fit(progress=not args.quiet)

@@ -29,13 +29,14 @@ class LabelCritic:
 def drawn_labels(actions: torch.Tensor, num_classes: int, mix_prob: float, gen: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
     """For each row, a label other than its class -> (label vectors (B, C), target probabilities (B, C)).
 
-    One-hot of a random other class; with probability `mix_prob` a second random class is added at +1 too
-    (a mix whose target puts half the probability on each member)."""
+    One-hot of a random other class; with probability `mix_prob` a second class is added at +1 too, any class
+    but the first, the row's own class included (a mix whose target puts half the probability on each member).
+    """
     B, C = len(actions), num_classes
     k1 = torch.randint(1, C, (B,), generator=gen)  # offsets from the own class: never 0
     labels = F.one_hot((actions + k1) % C, C).float()
-    if C >= 3:  # a second offset in 1..C-1 other than k1
-        k2 = (k1 - 1 + torch.randint(1, C - 1, (B,), generator=gen)) % (C - 1) + 1
+    if C >= 3:
+        k2 = (k1 + torch.randint(1, C, (B,), generator=gen)) % C  # any offset but k1; 0 is the own class
         mix = torch.rand(B, generator=gen) < mix_prob
         labels = labels + F.one_hot((actions + k2) % C, C).float() * mix[:, None]
     return labels, labels / labels.sum(-1, keepdim=True)

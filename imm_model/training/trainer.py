@@ -34,10 +34,12 @@ from imm_model.errors import CheckpointError
 from imm_model.model import Discriminator, Generator, model_config_for
 from imm_model.training import losses
 from imm_model.training.config import TrainConfig
+from imm_model.training.critic import drawn_labels
 from imm_model.training.curves import plot_curves
 from imm_model.training.data import Augmenter, PaddedData
+from imm_model.training.energy import class_profiles, energy_loss, limb_speeds, mixed_profile
 
-LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", "l1", "bone", "cont", "adv", "critic", "d_loss", "d_real_acc", "d_fake_acc",
+LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", "l1", "bone", "cont", "adv", "critic", "energy", "d_loss", "d_real_acc", "d_fake_acc",
               "val_afd_m", "val_l1", "seconds")
 
 
@@ -98,8 +100,10 @@ class FoldState:
 
 
 class Trainer:
-    def __init__(self, cfg: TrainConfig, data: InteractionDataset, subject: str | None, out_dir: Path | str):
+    def __init__(self, cfg: TrainConfig, data: InteractionDataset, subject: str | None, out_dir: Path | str,
+                 device: torch.device | str = "cpu"):
         self.cfg, self.data, self.subject = cfg, data, subject
+        self.device = torch.device(device)  # batches are drawn and augmented on the CPU, then moved here
         self.out = Path(out_dir)
         if subject is None:  # train on everything (no held-out subject); validation still carved out
             train = np.arange(len(data))
@@ -109,6 +113,7 @@ class Trainer:
         self.padded = PaddedData.from_dataset(data)
         self.G, self.D = build_models(cfg, data, cfg.seed)
         self._set_normalization()
+        self.G, self.D = self.G.to(self.device), self.D.to(self.device)
         self.G_ema = copy.deepcopy(self.G).requires_grad_(False) if cfg.ema_decay > 0 else None
         self.opt_g = make_optimizer(cfg, self.G.parameters(), cfg.lr_g)
         self.opt_d = make_optimizer(cfg, self.D.parameters(), cfg.lr_d)
@@ -116,8 +121,9 @@ class Trainer:
         mirror = torch.tensor([c not in cfg.mirror_exclude_classes for c in data.class_names])
         self.augment = Augmenter(data.skeleton, cfg.mirror_prob, cfg.rotate_deg, cfg.role_swap_prob, swap, cfg.time_warp,
                                  cfg.scale_jitter, mirror)
-        self.bones = torch.tensor(data.skeleton.bones, dtype=torch.int64)
+        self.bones = torch.tensor(data.skeleton.bones, dtype=torch.int64, device=self.device)
         self.critic = self._label_critic() if cfg.lambda_critic > 0 else None
+        self.profiles = self._class_profiles() if cfg.lambda_energy > 0 else None
         self.state = FoldState()
 
     # ---- setup ----------------------------------------------------------------------------
@@ -134,7 +140,12 @@ class Trainer:
         from imm_model.model.classifier import FOLLOWER
         from imm_model.training.critic import LabelCritic
 
-        return LabelCritic(fold_classifier(FOLLOWER, self.data, self.subject))
+        return LabelCritic(fold_classifier(FOLLOWER, self.data, self.subject).to(self.device))
+
+    def _class_profiles(self) -> torch.Tensor:
+        followers = [self.data.follower[self.data.frames(i)] for i in self.train_idx]
+        profiles = class_profiles(followers, self.data.actions[self.train_idx], len(self.data.class_names), self.data.skeleton.root)
+        return profiles.to(self.device)
 
     def meta(self, kind: str) -> dict:
         d = self.data
@@ -172,7 +183,7 @@ class Trainer:
         if self.G_ema is not None:
             t.update({f"generator_train.{k}": v for k, v in self.G.state_dict().items()})
         t.update({f"discriminator.{k}": v for k, v in self.D.state_dict().items()})
-        return t
+        return {k: v.detach().cpu() for k, v in t.items()}
 
     def save_best(self) -> None:
         save_checkpoint(self.out / "best.safetensors", self.weights(), self.meta("best"))
@@ -213,20 +224,20 @@ class Trainer:
         sampler = LengthBucketSampler(self.data.lengths, self.train_idx, cfg.batch_size, seed=cfg.seed)
         sampler.set_epoch(epoch)
         w_adv = adversarial_weight(cfg, epoch)
-        w_critic = adversarial_weight(cfg, epoch, cfg.lambda_critic)
         use_d = cfg.lambda_adv > 0
         scale = lr_scale(cfg, self.state.history, self.select_from) if lr_multiplier is None else lr_multiplier
         for opt, lr in ((self.opt_g, cfg.lr_g), (self.opt_d, cfg.lr_d)):
             for group in opt.param_groups:
                 group["lr"] = lr * scale
-        sums = dict.fromkeys(("l1", "bone", "cont", "adv", "critic", "d_loss", "d_real_acc", "d_fake_acc"), 0.0)
+        sums = dict.fromkeys(("l1", "bone", "cont", "adv", "critic", "energy", "d_loss", "d_real_acc", "d_fake_acc"), 0.0)
         n = n_d = 0
         self.G.train()
         self.D.train()
         for k, batch in enumerate(sampler):
             idx = torch.as_tensor(batch)
-            leader, follower, lengths, actions = self.augment(self.padded, idx, gen)
-            mask = torch.arange(leader.shape[1])[None] < lengths[:, None]
+            batch_cpu = self.augment(self.padded, idx, gen)
+            leader, follower, lengths, actions = (x.to(self.device) for x in batch_cpu)
+            mask = torch.arange(leader.shape[1], device=self.device)[None] < lengths[:, None]
             labels = torch.nn.functional.one_hot(actions, len(self.data.class_names)).float()
             fake = self.G(leader, labels, lengths)
             if use_d and k % cfg.d_every == 0:  # discriminator step(s): G's output detached, D alone is updated
@@ -243,42 +254,55 @@ class Trainer:
                 sums["d_fake_acc"] += float((fake_logits.argmax(-1) == fake_logits.shape[-1] - 1).float().mean())  # "fake"
                 n_d += 1
             # generator step: D frozen (no gradient accumulates in it, and it is not stepped)
-            l1 = losses.masked_l1(fake, follower, mask)
-            bone = losses.bone_loss(fake, follower, self.bones, mask)
-            cont = losses.continuity_loss(fake, follower, mask)
-            g_loss = cfg.lambda_l1 * l1 + cfg.lambda_bone * bone + cfg.lambda_cont * cont
-            if cfg.lambda_afd > 0:
-                g_loss = g_loss + cfg.lambda_afd * losses.afd_metres(fake, follower, mask).mean()
-            if self.critic is not None and w_critic > 0:
-                critic = self._critic_loss(leader, fake, lengths, actions, gen)
-                g_loss = g_loss + w_critic * critic
-                sums["critic"] += float(critic.detach())
-            if use_d and w_adv > 0:
-                self.D.requires_grad_(False)
-                adv = losses.generator_adv_loss(self.D(fake, lengths), actions, cfg.discriminator)
-                g_loss = g_loss + w_adv * adv
-                sums["adv"] += float(adv.detach())
+            g_loss, terms = self._generator_loss(epoch, leader, follower, fake, lengths, actions, mask, gen)
             self.opt_g.zero_grad(set_to_none=True)
             g_loss.backward()
             self.opt_g.step()
             if self.G_ema is not None:
                 self._update_ema(epoch * len(sampler) + k)
-            sums["l1"] += float(l1.detach())
-            sums["bone"] += float(bone.detach())
-            sums["cont"] += float(cont.detach())
+            for key, value in terms.items():
+                sums[key] += value
             n += 1
         d_keys = ("d_loss", "d_real_acc", "d_fake_acc")
         return {k: v / (max(n_d, 1) if k in d_keys else n) for k, v in sums.items()} | {"adv_weight": w_adv, "lr_scale": scale}
 
-    def _critic_loss(self, leader, fake, lengths, actions, gen) -> torch.Tensor:
-        """The critic's loss on the true label's follower plus on a follower for a drawn other label."""
-        from imm_model.training.critic import drawn_labels
-
-        c = len(self.data.class_names)
-        labels, target = drawn_labels(actions, c, self.cfg.critic_mix_prob, gen)
-        other = self.G(leader, labels, lengths)
-        own = torch.nn.functional.one_hot(actions, c).float()
-        return self.critic.loss(fake, lengths, own) + self.critic.loss(other, lengths, target)
+    def _generator_loss(self, epoch, leader, follower, fake, lengths, actions, mask, gen) -> tuple[torch.Tensor, dict]:
+        """The generator's loss for one batch -> (loss, {term: value} for the log)."""
+        cfg = self.cfg
+        l1 = losses.masked_l1(fake, follower, mask)
+        bone = losses.bone_loss(fake, follower, self.bones, mask)
+        cont = losses.continuity_loss(fake, follower, mask)
+        l1_term = l1 * (mask.sum() * fake.shape[-1]) if cfg.l1_reduction == "sum" else l1
+        g_loss = cfg.lambda_l1 * l1_term + cfg.lambda_bone * bone + cfg.lambda_cont * cont
+        terms = {"l1": float(l1.detach()), "bone": float(bone.detach()), "cont": float(cont.detach())}
+        if cfg.lambda_afd > 0:
+            g_loss = g_loss + cfg.lambda_afd * losses.afd_metres(fake, follower, mask).mean()
+        w_critic = adversarial_weight(cfg, epoch, cfg.lambda_critic)
+        w_energy = adversarial_weight(cfg, epoch, cfg.lambda_energy)
+        root = self.data.skeleton.root
+        if w_energy > 0:
+            with torch.no_grad():
+                target = limb_speeds(follower, lengths, root)
+            energy = energy_loss(fake, target, lengths, root)
+            g_loss = g_loss + w_energy * energy
+            terms["energy"] = float(energy.detach())
+        if self.critic is not None and w_critic > 0:
+            # a follower for a drawn label: no ground truth, so only the critic (and energy) terms apply to it
+            c = len(self.data.class_names)
+            labels, target = (x.to(self.device) for x in drawn_labels(actions.cpu(), c, cfg.critic_mix_prob, gen))
+            other = self.G(leader, labels, lengths)
+            own = torch.nn.functional.one_hot(actions, c).float()
+            critic = self.critic.loss(fake, lengths, own) + self.critic.loss(other, lengths, target)
+            g_loss = g_loss + w_critic * critic
+            terms["critic"] = float(critic.detach())
+            if w_energy > 0:
+                g_loss = g_loss + w_energy * energy_loss(other, mixed_profile(labels, self.profiles), lengths, root)
+        if cfg.lambda_adv > 0 and (w_adv := adversarial_weight(cfg, epoch)) > 0:
+            self.D.requires_grad_(False)
+            adv = losses.generator_adv_loss(self.D(fake, lengths), actions, cfg.discriminator)
+            g_loss = g_loss + w_adv * adv
+            terms["adv"] = float(adv.detach())
+        return g_loss, terms
 
     @torch.no_grad()
     def _update_ema(self, step: int) -> None:
@@ -290,8 +314,8 @@ class Trainer:
     def validate(self) -> dict:
         G = self.shipped_generator.eval()
         idx = torch.as_tensor(self.val_idx)
-        leader, follower, lengths, actions = self.padded.batch(idx)
-        mask = torch.arange(leader.shape[1])[None] < lengths[:, None]
+        leader, follower, lengths, actions = (x.to(self.device) for x in self.padded.batch(idx))
+        mask = torch.arange(leader.shape[1], device=self.device)[None] < lengths[:, None]
         labels = torch.nn.functional.one_hot(actions, len(self.data.class_names)).float()
         pred = G(leader, labels, lengths)
         return {"val_afd_m": float(losses.afd_metres(pred, follower, mask).mean()),
@@ -362,7 +386,7 @@ def refit(selection: Trainer, progress: bool = True) -> Path:
         raise ValueError("refit needs a finished selection run (no best epoch yet)")
     epochs = selection.state.best_epoch + 1
     history = selection.state.history
-    t = Trainer(selection.cfg, selection.data, selection.subject, selection.out)
+    t = Trainer(selection.cfg, selection.data, selection.subject, selection.out, selection.device)
     t.train_idx = np.concatenate([t.train_idx, t.val_idx])
     for epoch in tqdm(range(epochs), desc=f"refit {t.subject or 'all'}", disable=not progress, leave=False, dynamic_ncols=True):
         t.train_epoch(epoch, lr_multiplier=lr_scale(t.cfg, history[:epoch], selection.select_from))

@@ -1,0 +1,37 @@
+"""The "reads as" panel: which interaction the synthesized reaction on screen reads as, per the follower-only
+classifier (imm_model/reads_as.py), one bar per class, the asked-for classes marked. Updated with every slider
+move, so a user sees whether a mix reads as intended."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from trame.widgets import html
+from trame.widgets import vuetify3 as v3
+
+from explorer.palette import class_color, display_name
+
+
+def reads_as_rows(probabilities: np.ndarray | None, weights: Sequence[float], class_names: Sequence[str]) -> list[dict]:
+    """The panel's state: one row per class with its probability and whether the label asks for (+) or avoids (-) it."""
+    if probabilities is None:
+        return []
+    return [{"name": display_name(n), "p": round(float(p), 3), "color": class_color(i),
+             "asked": "+" if w > 1e-6 else "-" if w < -1e-6 else ""}
+            for i, (n, p, w) in enumerate(zip(class_names, probabilities, weights, strict=True))]
+
+
+def reads_as_panel() -> None:
+    """Place the panel (inside the drawer's current container)."""
+    with html.Div(v_if="reads_as.length", id="reads-as"):
+        with html.Div(classes="d-flex align-center mt-2"):
+            html.Div("Reads as", classes="text-overline")
+            html.Div("follower-only classifier, real data", classes="text-caption text-medium-emphasis ml-2")
+        with html.Div(v_for="(row, i) in reads_as", key=("i",), classes="d-flex align-center reads-as-row", style="height: 18px"):
+            html.Div("{{ row.name }}", classes="text-caption",
+                     style=("row.asked ? 'width: 112px; font-weight: 700' : 'width: 112px'",))
+            v3.VProgressLinear(model_value=("row.p * 100",), color=("row.color",), height=8, rounded=True,
+                               bg_color="grey-lighten-2", classes="reads-as-bar")
+            html.Div("{{ (row.p * 100).toFixed(0) + '%' + (row.asked ? ' ' + row.asked : '') }}", classes="text-caption ml-1",
+                     style="width: 44px; text-align: right")

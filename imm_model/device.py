@@ -1,0 +1,28 @@
+"""Which torch device to compute on: `--device auto|cpu|cuda` (auto: CUDA when this torch build sees a GPU)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import torch
+
+CHOICES = ("auto", "cpu", "cuda")
+
+
+def resolve_device(name: str) -> torch.device:
+    """'auto' | 'cpu' | 'cuda' -> a torch.device; asking for CUDA without one is a one-line ValueError."""
+    import torch  # here, so that building the CLI's parser does not import torch
+
+    if name not in CHOICES:
+        raise ValueError(f"--device {name!r}: expected one of {', '.join(CHOICES)}")
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name == "cuda" and not torch.cuda.is_available():
+        raise ValueError("--device cuda: this torch build sees no CUDA device (a CPU wheel, or no GPU); use --device cpu")
+    return torch.device(name)
+
+
+def add_device_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--device", default="auto", help="auto (CUDA if available, else CPU), cpu or cuda")
