@@ -213,6 +213,33 @@ def test_cli_train_one_epoch_and_resume(tmp_path, capsys):
     assert "s99" in capsys.readouterr().err
 
 
+def test_cli_train_never_loses_work(tmp_path, capsys):
+    """A finished run is never replaced without --overwrite; a refused command writes nothing; a run killed
+    before its first checkpoint is not silently restarted by --resume; bad paths and numbers fail before training."""
+    cfg = tmp_path / "tiny.json"
+    cfg.write_text(json.dumps(TINY.to_dict() | {"epochs": 1, "refit": False}))
+    out = tmp_path / "run"
+    base = ["train", "--config", str(cfg), "--fold", "s04", "--out", str(out), "--quiet"]
+    assert main(base) == 0
+    best = (out / "fold-s04" / "best.safetensors").read_bytes()
+    saved_config = (out / "config.json").read_text()
+    assert main(base) == 2 and "--overwrite replaces it" in capsys.readouterr().err
+    assert (out / "fold-s04" / "best.safetensors").read_bytes() == best
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps(TINY.to_dict() | {"epochs": 1, "lr_g": 0.5}))
+    assert main(["train", "--config", str(other), "--fold", "s04", "--out", str(out), "--quiet", "--resume"]) == 2
+    assert "different config" in capsys.readouterr().err and (out / "config.json").read_text() == saved_config
+    (out / "fold-s04" / "last.safetensors").unlink()  # as if killed before the first checkpoint
+    assert main(base + ["--resume"]) == 2 and "no last.safetensors" in capsys.readouterr().err
+    assert main(base + ["--overwrite"]) == 0
+    for extra, message in ((["--threads", "0"], "--threads must be"), (["--epochs", "0"], "--epochs must be"),
+                           (["--export", str(tmp_path / "missing" / "g.safetensors")], "not a writable directory"),
+                           (["--export", str(cfg)], "expected a .safetensors")):
+        assert main(["train", "--config", str(cfg), "--fold", "s04", "--out", str(tmp_path / "new"), "--quiet"] + extra) == 2
+        assert message in capsys.readouterr().err, extra
+    assert not (tmp_path / "new").exists()  # nothing written by a refused command
+
+
 def test_augmentation_keeps_skeletons_valid(sample_data):
     from imm_model.training.data import Augmenter, PaddedData, mirror_permutation
 

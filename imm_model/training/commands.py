@@ -17,6 +17,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--epochs", type=int, default=None, help="override the recipe's number of epochs")
     p.add_argument("--seed", type=int, default=None, help="override the recipe's seed")
     p.add_argument("--resume", action="store_true", help="continue from each fold's last.safetensors")
+    p.add_argument("--overwrite", action="store_true", help="replace the runs already in --out (default: refuse)")
     p.add_argument("--export", type=Path, default=None, help="copy the (single fold's) best generator to this .safetensors")
     p.add_argument("--threads", type=int, default=2, help="torch CPU threads (default 2)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -42,6 +43,12 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from imm_model.training.config import load_config
     from imm_model.training.trainer import Trainer, export_generator, refit
 
+    if args.threads < 1:
+        raise ValueError(f"--threads must be >= 1, not {args.threads}")
+    if args.epochs is not None and args.epochs < 1:
+        raise ValueError(f"--epochs must be >= 1, not {args.epochs}")
+    if args.resume and args.overwrite:
+        raise ValueError("--resume and --overwrite contradict each other: choose one")
     torch.set_num_threads(args.threads)
     device = resolve_device(args.device)
     cfg = load_config(args.config, epochs=args.epochs, seed=args.seed)
@@ -56,9 +63,10 @@ def _cmd_train(args: argparse.Namespace) -> int:
         folds = [args.fold]
     else:
         raise ValueError(f"--fold {args.fold!r}: expected one of {subjects}, 'all' or 'none'")
-    if args.export and len(folds) != 1:
-        raise ValueError("--export needs a single fold")
-    args.out.mkdir(parents=True, exist_ok=True)
+    if args.export:
+        check_export_path(args.export, len(folds), args.overwrite)
+    check_run_dirs(args.out, folds, cfg.to_dict(), args.resume, args.overwrite)
+    args.out.mkdir(parents=True, exist_ok=True)  # written only once every check has passed
     (args.out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=1) + "\n")
     for subject in folds:
         trainer = Trainer(cfg, data, subject, fold_dir(args.out, subject), device)
@@ -74,3 +82,43 @@ def _cmd_train(args: argparse.Namespace) -> int:
             export_generator(final_checkpoint(trainer.out), args.export)
             print(f"exported generator to {args.export}")
     return 0
+
+
+RUN_FILES = ("last.safetensors", "best.safetensors", "final.safetensors", "log.csv")
+
+
+def check_run_dirs(out: Path, folds: list, config: dict, resume: bool, overwrite: bool) -> None:
+    """Refuse, before anything is written, to replace finished work or to resume what cannot be resumed."""
+    import json
+
+    saved = out / "config.json"
+    if resume and saved.is_file():
+        try:
+            before = json.loads(saved.read_text())
+        except (OSError, json.JSONDecodeError) as err:
+            raise ValueError(f"{saved}: unreadable ({err}); --overwrite starts the runs again") from None
+        same = lambda d: {k: v for k, v in d.items() if k != "epochs"}  # noqa: E731 (more epochs is fine)
+        if same(before) != same(config):
+            raise ValueError(f"--resume: {out} was trained with a different config; resume with the same --config/--seed")
+    for subject in folds:
+        fold = fold_dir(out, subject)
+        present = [f for f in RUN_FILES if (fold / f).exists()]
+        if present and not (resume or overwrite):
+            raise ValueError(f"{fold} already holds a run ({', '.join(present)}): --resume continues it, --overwrite replaces it")
+        if resume and present and "last.safetensors" not in present:
+            raise ValueError(f"--resume: {fold} has no last.safetensors to continue from; --overwrite starts it again")
+
+
+def check_export_path(path: Path, num_folds: int, overwrite: bool) -> None:
+    """An --export destination that would fail or destroy something is refused before training starts."""
+    import os
+
+    if num_folds != 1:
+        raise ValueError("--export needs a single fold")
+    if path.suffix != ".safetensors":
+        raise ValueError(f"--export {path}: expected a .safetensors file name")
+    if path.exists() and not overwrite:
+        raise ValueError(f"--export {path}: the file exists; pass --overwrite to replace it")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir() or not os.access(parent, os.W_OK):
+        raise ValueError(f"--export {path}: {parent} is not a writable directory")

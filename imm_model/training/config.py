@@ -78,12 +78,14 @@ class TrainConfig:
     # that model as final.safetensors (docs/training.md, row "CDL + refit").
     refit: bool = False
     checkpoint_every: int = 25
+    checkpoint_minutes: float = 5.0  # ... and whenever this much time has passed since the last one
     seed: int = 0
 
     def __post_init__(self) -> None:
         # checked here so a bad JSON recipe fails at load time with the field's name, not mid-epoch
         checks = (
             ("d_every", self.d_every >= 1, "an integer >= 1"),
+            ("checkpoint_minutes", self.checkpoint_minutes > 0, "> 0"),
             ("lr_decay_patience", self.lr_decay_patience >= 0, ">= 0 (0 = off)"),
             ("lr_decay_factor", 0 < self.lr_decay_factor <= 1, "in (0, 1]"),
             ("ema_window_fraction", self.ema_window_fraction >= 0, ">= 0 (0 = the default warm-up)"),

@@ -332,6 +332,7 @@ class Trainer:
         desc = f"train {self.subject or 'all'}"
         select_from = min(self.select_from, total - 1)  # a run shorter than the warm-up still keeps a best
         bar = tqdm(range(self.state.epoch, total), desc=desc, disable=not progress, leave=False, dynamic_ncols=True)
+        last_saved = time.monotonic()
         for epoch in bar:
             t0 = time.perf_counter()
             row = {"epoch": epoch} | self.train_epoch(epoch) | self.validate()
@@ -345,9 +346,11 @@ class Trainer:
             bar.set_postfix(l1=f"{row['l1']:.4f}", val=f"{row['val_afd_m']:.4f}", best=f"{self.state.best_val:.4f}@{self.state.best_epoch}")
             stop = (cfg.patience > 0 and epoch + 1 >= max(cfg.min_epochs, select_from + cfg.patience)
                     and epoch - max(self.state.best_epoch, select_from) >= cfg.patience)
-            if (epoch + 1) % cfg.checkpoint_every == 0 or stop or epoch + 1 == total:
+            due = (epoch + 1) % cfg.checkpoint_every == 0 or time.monotonic() - last_saved > 60 * cfg.checkpoint_minutes
+            if due or stop or epoch + 1 == total:
                 self.save_last()
                 self.plot()
+                last_saved = time.monotonic()
             if stop:
                 break
         return self.state
