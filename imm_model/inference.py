@@ -68,8 +68,12 @@ class ReactionModel:
             raise CheckpointError(f"{path}: sidecar lacks a valid model description ({type(err).__name__}: {err})") from None
         if cfg.num_classes != len(classes) or cfg.num_joints != skeleton.num_joints:
             raise CheckpointError(f"{path}: model config disagrees with the class names or the skeleton")
+        weights = prefixed(tensors, "generator")
+        bad = sorted(k for k, v in weights.items() if not v.is_floating_point() or not v.isfinite().all())
+        if bad:
+            raise CheckpointError(f"{path}: weights that are not finite floats ({', '.join(bad[:3])}{', ...' if len(bad) > 3 else ''})")
         generator = Generator(cfg)
-        load_module_state(generator, prefixed(tensors, "generator"), "generator", path)
+        load_module_state(generator, weights, "generator", path)
         return cls(generator, meta, path, device)
 
     # ---- labels and inputs ----------------------------------------------------------------
@@ -284,6 +288,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, required=True, help="output .npz (follower, leader, label; world metres)")
     p.add_argument("--checkpoint", type=Path, default=None, help="default: the bundled model")
     p.add_argument("--data", type=Path, default=None, help="dataset for --sequence (default: the bundled sample)")
+    p.add_argument("--force", action="store_true", help="replace --out if it exists")
     add_device_argument(p)
     p.set_defaults(func=_cmd_generate)
 
@@ -292,7 +297,9 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     import torch
 
     from imm_model.device import resolve_device
+    from imm_model.outputs import check_finite, check_output
 
+    check_output(args.out, args.force, inputs=(args.leader, args.checkpoint, args.data))
     torch.set_num_threads(2)
     model = ReactionModel.load(args.checkpoint, resolve_device(args.device))
     if args.sequence:
@@ -304,7 +311,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     else:
         leader = read_leader_file(args.leader)
     vec = model.label_vector(parse_label(args.label, model.class_names), args.scale)
-    follower = model.synthesize(leader, vec)
+    follower = check_finite(model.synthesize(leader, vec), "the synthesized follower (leader coordinates out of range?)")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     tmp = args.out.with_name(args.out.name + ".tmp.npz")
     np.savez(tmp, follower=follower, leader=np.asarray(leader, np.float32), label=vec,

@@ -122,3 +122,30 @@ def test_corrupt_bundle_is_a_one_line_error_and_cli_exits_2(tmp_path, capsys):
     assert err.startswith("imm data: error:") and "broken.npz" in err and "\n" not in err
     assert main(["data", "summary", "--data", str(tmp_path / "nowhere")]) == 2
     assert "no such file or folder" in capsys.readouterr().err
+
+
+def test_outputs_never_replace_files_or_inputs_and_never_write_nan(tmp_path, capsys):
+    """--out over an existing file needs --force; an input is never the output; NaN weights are refused at load."""
+    import torch
+
+    from imm_model.checkpoint import load_checkpoint, save_checkpoint
+    from imm_model.paths import SAMPLE_CHECKPOINT
+
+    out = tmp_path / "x.npz"
+    args = ["generate", "--sequence", "s01s02/03/001", "--label", "kicking=1", "--out", str(out)]
+    assert main(args) == 0
+    first = out.read_bytes()
+    assert main(args) == 2 and "pass --force" in capsys.readouterr().err and out.read_bytes() == first
+    assert main(args + ["--force"]) == 0
+    assert main(["generate", "--leader", str(out), "--label", "kicking=1", "--out", str(out), "--force"]) == 2
+    assert "an input of this command" in capsys.readouterr().err
+    tensors, meta = load_checkpoint(SAMPLE_CHECKPOINT)
+    key = next(k for k in tensors if k.startswith("generator.") and tensors[k].is_floating_point())
+    tensors[key] = torch.full_like(tensors[key], float("nan"))
+    save_checkpoint(tmp_path / "nan.safetensors", tensors, meta)
+    assert main(["generate", "--sequence", "s01s02/03/001", "--label", "kicking=1", "--out", str(tmp_path / "y.npz"),
+                 "--checkpoint", str(tmp_path / "nan.safetensors")]) == 2
+    assert "not finite" in capsys.readouterr().err and not (tmp_path / "y.npz").exists()
+    (tmp_path / "r.json").write_text("{}")
+    assert main(["evaluate", "--json", str(tmp_path / "r.json"), "--quiet"]) == 2  # refused before evaluating
+    assert "pass --force" in capsys.readouterr().err

@@ -35,6 +35,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--markdown", type=Path, default=None, help="write every table as Markdown")
     p.add_argument("--figures", type=Path, default=None, help="write PNG figures into this folder")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.add_argument("--force", action="store_true", help="replace existing --json/--markdown files")
     p.set_defaults(func=_cmd_evaluate)
 
 
@@ -106,8 +107,12 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from imm_model.evaluation.report import summarize
     from imm_model.evaluation.tables import headline, metric_table
     from imm_model.inference import ReactionModel
+    from imm_model.outputs import check_finite, check_output
     from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA
 
+    for option in ("json", "markdown"):  # checked before hours of evaluation, not after
+        if getattr(args, option) is not None:
+            check_output(getattr(args, option), args.force, inputs=(args.data, args.checkpoint), option=f"--{option}")
     torch.set_num_threads(2)
     data = InteractionDataset.load(args.data or SAMPLE_DATA)
     if args.run is None and args.checkpoint is None:
@@ -130,6 +135,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
               f"{sum(v['afd'] for v in result['model']['classes'].values()) / len(result['model']['classes']):.3f} "
               f"({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
     summary = summarize(results, data.class_names)
+    check_finite(summary["mean"]["afd"], "the model's mean AFD (a checkpoint with NaN weights?)")
     print(headline(summary))
     print(metric_table(summary, "afd"))
     _write_outputs(args, summary, latent, data)
