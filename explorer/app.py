@@ -13,22 +13,27 @@ from pathlib import Path
 
 import numpy as np
 from trame.app import asynchronous
-from trame.ui.vuetify3 import SinglePageWithDrawerLayout
-from trame.widgets import html, plotly
-from trame.widgets import vtk as vtk_widgets
-from trame.widgets import vuetify3 as v3
 
 from explorer import charts
 from explorer.latent import METHODS, LatentMap
-from explorer.palette import CHARACTER_TITLES, CHARACTERS, class_color, display_name
-from explorer.reads_as_panel import reads_as_panel, reads_as_rows
-from explorer.scene import CAMERA_PRESETS, CHARACTER_KEYS, Scene, floor_height
+from explorer.layout import SPEEDS, build_layout
+from explorer.palette import class_color, display_name
+from explorer.reads_as_panel import reads_as_rows
+from explorer.scene import CHARACTER_KEYS, Scene, floor_height
 from explorer.session import FPS, Session
 
 REVIEW_DELAY_S = 0.04  # after a new mix: distance chart, AFD and latent star follow the picture
 MIN_YIELD_S = 0.005  # even when late, give the image delivery and incoming messages a turn
-SPEEDS = [0.25, 0.5, 1.0, 1.5, 2.0]
 CHART_PERIOD_S = 0.25  # the distance chart follows playback at most 4x a second (plotly redraws are costly)
+
+
+def playback_speed(value) -> float:
+    """The page's speed value, clamped to the offered range (a crafted 1e-300 or -2 must not freeze or reverse playback)."""
+    try:
+        speed = float(value)
+    except (TypeError, ValueError):
+        return 1.0
+    return min(max(speed, SPEEDS[0]), SPEEDS[-1]) if math.isfinite(speed) else 1.0
 
 
 def _one_line(err: BaseException) -> str:
@@ -295,7 +300,7 @@ class Studio:
         pos, last = float(self.state.frame or 0), loop.time()
         shown = int(pos)
         while self.state.playing:
-            rate = FPS * float(self.state.speed or 1.0)
+            rate = FPS * playback_speed(self.state.speed)
             if int(self.state.frame or 0) != shown:  # the user scrubbed while playing
                 pos = shown = int(self.state.frame or 0)
             now = loop.time()
@@ -432,230 +437,4 @@ class Studio:
 
     # ---- layout --------------------------------------------------------------------------
     def _build_ui(self):
-        names = self.session.class_names
-        with SinglePageWithDrawerLayout(self.server, full_height=True) as layout:
-            layout.title.set_text("IMM Studio")
-            layout.footer.hide()
-            self.server.state.trame__title = "IMM Studio"
-            with layout.toolbar as tb:
-                tb.density = "compact"
-                tb.color = "#263238"
-                tb.theme = "dark"
-                v3.VSpacer()
-                v3.VChip(
-                    "{{ sequence_title }}",
-                    size="small",
-                    variant="outlined",
-                    classes="mr-2",
-                    id="sequence-chip",
-                )
-                v3.VChip(
-                    "held out: never seen in training",
-                    v_if="sequence_held_out",
-                    size="small",
-                    color="amber",
-                    variant="flat",
-                    classes="mr-2",
-                )
-                v3.VChip("seen in training", v_else=True, size="small", color="blue-grey-lighten-3", variant="flat", classes="mr-2")
-                v3.VSpacer()
-                with v3.VBtnToggle(v_model=("scene_layout",), density="compact", mandatory=True, variant="outlined", classes="mr-3"):
-                    v3.VBtn("Overlay", value="overlay", size="small")
-                    v3.VBtn("Side by side", value="side_by_side", size="small")
-                for preset in CAMERA_PRESETS:
-                    v3.VBtn(
-                        "reset" if preset == "default" else preset,
-                        size="small",
-                        variant="text",
-                        prepend_icon="mdi-camera-retake" if preset == "default" else None,
-                        click=(self.ctrl.set_camera, f"['{preset}']"),
-                    )
-                with v3.VMenu():
-                    with v3.Template(v_slot_activator="{ props }"):
-                        v3.VBtn("Export", v_bind="props", size="small", variant="tonal", prepend_icon="mdi-download", classes="ml-2")
-                    with v3.VList(density="compact"):
-                        v3.VListItem(
-                            title="Synthesized follower (.npz)",
-                            click="utils.download('follower.npz', trigger('export_npz'), 'application/octet-stream')",
-                        )
-                        v3.VListItem(
-                            title="Animation (.gif)", click="utils.download('studio.gif', trigger('export_video', ['gif']), 'image/gif')"
-                        )
-                        v3.VListItem(
-                            title="Animation (.mp4)", click="utils.download('studio.mp4', trigger('export_video', ['mp4']), 'video/mp4')"
-                        )
-
-            with layout.drawer as drawer:
-                drawer.width = 330
-                with html.Div(classes="pa-3"):
-                    html.Div("Sequence", classes="text-overline")
-                    v3.VSelect(
-                        label="Class",
-                        v_model=("class_filter",),
-                        items=("class_filter_items",),
-                        density="compact",
-                        hide_details=True,
-                        classes="mb-2",
-                    )
-                    v3.VSelect(
-                        label="Subject pair",
-                        v_model=("pair_filter",),
-                        items=("pair_filter_items",),
-                        density="compact",
-                        hide_details=True,
-                        classes="mb-2",
-                    )
-                    with v3.VBtnToggle(
-                        v_model=("held_filter",), density="compact", mandatory=True, variant="outlined", divided=True, classes="mb-2"
-                    ):
-                        v3.VBtn("all", value="all", size="x-small")
-                        v3.VBtn("held out", value="held", size="x-small")
-                        v3.VBtn("seen", value="seen", size="x-small")
-                    v3.VAutocomplete(
-                        label="Sequence",
-                        v_model=("sequence_index",),
-                        items=("sequence_items",),
-                        density="compact",
-                        hide_details=True,
-                        id="sequence-picker",
-                    )
-                    html.Div(
-                        "Held out = subject {{ held_out_subject }}: the bundled model never saw these (generalization); "
-                        "the others were in its training set (memorization).",
-                        classes="text-caption text-medium-emphasis mt-1",
-                    )
-                    v3.VDivider(classes="my-3")
-                    with html.Div(classes="d-flex align-center"):
-                        html.Div("Label mix", classes="text-overline")
-                        v3.VSpacer()
-                        v3.VBtn("match", size="x-small", variant="tonal", click=self.ctrl.match_label, id="match-label", classes="mr-1")
-                        v3.VBtn("reset", size="x-small", variant="tonal", click=self.ctrl.reset_label, id="reset-label")
-                    for i, name in enumerate(names):
-                        with html.Div(classes="d-flex align-center", style="height: 30px"):
-                            html.Div(
-                                display_name(name), classes="text-body-2", style=f"width: 118px; color: {class_color(i)}; font-weight: 600"
-                            )
-                            v3.VSlider(
-                                v_model=(f"w_{i}",),
-                                min=-1,
-                                max=1,
-                                step=0.05,
-                                density="compact",
-                                hide_details=True,
-                                color=class_color(i),
-                                track_color="grey-lighten-2",
-                                classes=f"class-slider slider-{name}",
-                                id=f"slider-{i}",
-                            )
-                            html.Div(
-                                f"{{{{ (w_{i} >= 0 ? '+' : '') + Number(w_{i}).toFixed(2) }}}}",
-                                classes="text-caption ml-1",
-                                style="width: 38px; text-align: right",
-                            )
-                    with html.Div(classes="d-flex align-center", style="height: 30px"):
-                        html.Div("scale", classes="text-body-2", style="width: 118px; font-weight: 600")
-                        v3.VSlider(v_model=("scale",), min=0, max=2, step=0.05, density="compact", hide_details=True, id="scale-slider")
-                        html.Div("{{ Number(scale).toFixed(2) }}", classes="text-caption ml-1", style="width: 38px; text-align: right")
-                    html.Div("{{ label_text }}", classes="text-body-2 mt-1 pa-2 rounded bg-grey-lighten-4", id="label-text")
-                    reads_as_panel()
-                    v3.VDivider(classes="my-3")
-                    html.Div("Characters", classes="text-overline")
-                    for key, var in zip(CHARACTER_KEYS, ("show_leader", "show_ground_truth", "show_synthesized"), strict=True):
-                        v3.VCheckbox(
-                            v_model=(var,),
-                            label=CHARACTER_TITLES[key],
-                            color=CHARACTERS[key],
-                            density="compact",
-                            hide_details=True,
-                            base_color=CHARACTERS[key],
-                            style=f"color: {CHARACTERS[key]}",
-                        )
-
-            with layout.content:
-                with v3.VContainer(fluid=True, classes="pa-2 fill-height d-flex flex-column align-stretch", style="gap: 6px"):
-                    v3.VAlert(
-                        "{{ error }}",
-                        v_if="error",
-                        type="error",
-                        density="compact",
-                        closable=True,
-                        click_close="error = ''",
-                        id="error-alert",
-                    )
-                    with html.Div(style="flex: 1 1 60%; min-height: 320px; position: relative; width: 100%", classes="rounded border"):
-                        if self.render_mode == "local":  # vtk.js in the browser (see docs/explorer.md)
-                            view = vtk_widgets.VtkLocalView(self.scene.render_window, ref="view")
-                        else:
-                            view = vtk_widgets.VtkRemoteView(
-                                self.scene.render_window, ref="view", interactive_ratio=1, interactive_quality=60, still_quality=80
-                            )
-                        self._view = view
-                        self.ctrl.view_update = self.push_view
-                        with html.Div(style="position: absolute; left: 8px; top: 6px; pointer-events: none", classes="text-caption"):
-                            for key in CHARACTER_KEYS:
-                                html.Span(
-                                    "● " + CHARACTER_TITLES[key], style=f"color: {CHARACTERS[key]}; font-weight: 600; margin-right: 10px"
-                                )
-                    with html.Div(classes="d-flex align-center", style="width: 100%; gap: 8px"):
-                        v3.VBtn(icon="mdi-skip-previous", size="small", variant="text", click=(self.ctrl.step_frame, "[-1]"))
-                        v3.VBtn(
-                            icon=("playing ? 'mdi-pause' : 'mdi-play'",),
-                            size="small",
-                            color="primary",
-                            click="playing = !playing",
-                            id="play-button",
-                        )
-                        v3.VBtn(icon="mdi-skip-next", size="small", variant="text", click=(self.ctrl.step_frame, "[1]"))
-                        v3.VSlider(
-                            v_model=("frame",),
-                            min=0,
-                            max=("num_frames - 1",),
-                            step=1,
-                            hide_details=True,
-                            density="compact",
-                            id="frame-slider",
-                            style="flex: 1 1 auto",
-                        )
-                        html.Div("{{ time_text }}", classes="text-caption", style="width: 190px", id="time-text")
-                        v3.VSelect(
-                            v_model=("speed",),
-                            items=("speeds", [{"title": f"{x:g}×", "value": x} for x in SPEEDS]),
-                            density="compact",
-                            hide_details=True,
-                            style="max-width: 92px",
-                            variant="outlined",
-                        )
-                        v3.VCheckbox(v_model=("loop",), label="loop", density="compact", hide_details=True, style="flex: 0 0 auto")
-                    with html.Div(classes="d-flex", style="flex: 0 0 250px; width: 100%; gap: 8px"):
-                        with v3.VCard(variant="outlined", style="flex: 1 1 50%", classes="pa-1"):
-                            with html.Div(classes="d-flex align-center px-2"):
-                                html.Div("Ground truth vs synthesized, per frame", classes="text-caption font-weight-bold")
-                                v3.VSpacer()
-                                html.Div("{{ afd_text }}", classes="text-caption", id="afd-text")
-                            plotly.Figure(
-                                state_variable_name="distance_figure",
-                                display_mode_bar=False,
-                                style="height: 215px",
-                                responsive=True,
-                            )
-                        with v3.VCard(variant="outlined", style="flex: 1 1 50%", classes="pa-1"):
-                            with html.Div(classes="d-flex align-center px-2"):
-                                html.Div("Latent map: click a point to load it", classes="text-caption font-weight-bold")
-                                html.Div("● seen in training  ○ held out", classes="text-caption text-medium-emphasis ml-2")
-                                v3.VProgressCircular(v_if="projection_busy", indeterminate=True, size=14, width=2, classes="ml-2")
-                                v3.VSpacer()
-                                with v3.VBtnToggle(
-                                    v_model=("projection",), density="compact", mandatory=True, variant="outlined", divided=True
-                                ):
-                                    v3.VBtn("t-SNE", value="tsne", size="x-small")
-                                    v3.VBtn("UMAP", value="umap", size="x-small", id="umap-button")
-                            plotly.Figure(
-                                state_variable_name="latent_figure",
-                                display_mode_bar=False,
-                                style="height: 215px",
-                                responsive=True,
-                                click=(self.ctrl.pick_latent_point, "[$event.points[0].customdata]"),
-                                id="latent-plot",
-                            )
-                    v3.VSnackbar("{{ notice }}", model_value=("!!notice",), timeout=4000, update_modelValue="notice = ''")
-        return layout
+        return build_layout(self)

@@ -1,0 +1,279 @@
+"""The studio page's layout (trame + Vuetify 3): what is on screen and which controller each control calls.
+
+The Studio (app.py) owns state and controllers; this module only places widgets, in pieces small enough to read.
+"""
+
+from __future__ import annotations
+
+from trame.ui.vuetify3 import SinglePageWithDrawerLayout
+from trame.widgets import html, plotly
+from trame.widgets import vtk as vtk_widgets
+from trame.widgets import vuetify3 as v3
+
+from explorer.palette import CHARACTER_TITLES, CHARACTERS, class_color, display_name
+from explorer.reads_as_panel import reads_as_panel
+from explorer.scene import CAMERA_PRESETS, CHARACTER_KEYS
+
+SPEEDS = [0.25, 0.5, 1.0, 1.5, 2.0]
+
+
+def build_layout(studio) -> SinglePageWithDrawerLayout:
+    with SinglePageWithDrawerLayout(studio.server, full_height=True) as layout:
+        layout.title.set_text("IMM Studio")
+        layout.footer.hide()
+        studio.server.state.trame__title = "IMM Studio"
+        with layout.toolbar as tb:
+            toolbar(studio, tb)
+        with layout.drawer as drawer:
+            drawer.width = 330
+            with html.Div(classes="pa-3"):
+                sequence_picker(studio)
+                v3.VDivider(classes="my-3")
+                label_mix(studio)
+                v3.VDivider(classes="my-3")
+                character_toggles(studio)
+        with layout.content:
+            with v3.VContainer(fluid=True, classes="pa-2 fill-height d-flex flex-column align-stretch", style="gap: 6px"):
+                scene_view(studio)
+                playback_bar(studio)
+                review_cards(studio)
+                v3.VSnackbar("{{ notice }}", model_value=("!!notice",), timeout=4000, update_modelValue="notice = ''")
+    return layout
+
+
+def toolbar(studio, tb) -> None:
+    """The top bar: the sequence and whether the model saw it, layout, camera presets, export."""
+    tb.density = "compact"
+    tb.color = "#263238"
+    tb.theme = "dark"
+    v3.VSpacer()
+    v3.VChip(
+        "{{ sequence_title }}",
+        size="small",
+        variant="outlined",
+        classes="mr-2",
+        id="sequence-chip",
+    )
+    v3.VChip(
+        "held out: never seen in training",
+        v_if="sequence_held_out",
+        size="small",
+        color="amber",
+        variant="flat",
+        classes="mr-2",
+    )
+    v3.VChip("seen in training", v_else=True, size="small", color="blue-grey-lighten-3", variant="flat", classes="mr-2")
+    v3.VSpacer()
+    with v3.VBtnToggle(v_model=("scene_layout",), density="compact", mandatory=True, variant="outlined", classes="mr-3"):
+        v3.VBtn("Overlay", value="overlay", size="small")
+        v3.VBtn("Side by side", value="side_by_side", size="small")
+    for preset in CAMERA_PRESETS:
+        v3.VBtn(
+            "reset" if preset == "default" else preset,
+            size="small",
+            variant="text",
+            prepend_icon="mdi-camera-retake" if preset == "default" else None,
+            click=(studio.ctrl.set_camera, f"['{preset}']"),
+        )
+    with v3.VMenu():
+        with v3.Template(v_slot_activator="{ props }"):
+            v3.VBtn("Export", v_bind="props", size="small", variant="tonal", prepend_icon="mdi-download", classes="ml-2")
+        with v3.VList(density="compact"):
+            v3.VListItem(
+                title="Synthesized follower (.npz)",
+                click="utils.download('follower.npz', trigger('export_npz'), 'application/octet-stream')",
+            )
+            v3.VListItem(
+                title="Animation (.gif)", click="utils.download('studio.gif', trigger('export_video', ['gif']), 'image/gif')"
+            )
+            v3.VListItem(
+                title="Animation (.mp4)", click="utils.download('studio.mp4', trigger('export_video', ['mp4']), 'video/mp4')"
+            )
+
+
+def sequence_picker(studio) -> None:
+    """Filters (class, subject pair, held out) and the sequence picker."""
+    html.Div("Sequence", classes="text-overline")
+    v3.VSelect(
+        label="Class",
+        v_model=("class_filter",),
+        items=("class_filter_items",),
+        density="compact",
+        hide_details=True,
+        classes="mb-2",
+    )
+    v3.VSelect(
+        label="Subject pair",
+        v_model=("pair_filter",),
+        items=("pair_filter_items",),
+        density="compact",
+        hide_details=True,
+        classes="mb-2",
+    )
+    with v3.VBtnToggle(
+        v_model=("held_filter",), density="compact", mandatory=True, variant="outlined", divided=True, classes="mb-2"
+    ):
+        v3.VBtn("all", value="all", size="x-small")
+        v3.VBtn("held out", value="held", size="x-small")
+        v3.VBtn("seen", value="seen", size="x-small")
+    v3.VAutocomplete(
+        label="Sequence",
+        v_model=("sequence_index",),
+        items=("sequence_items",),
+        density="compact",
+        hide_details=True,
+        id="sequence-picker",
+    )
+    html.Div(
+        "Held out = subject {{ held_out_subject }}: the bundled model never saw these (generalization); "
+        "the others were in its training set (memorization).",
+        classes="text-caption text-medium-emphasis mt-1",
+    )
+
+
+def label_mix(studio) -> None:
+    """One slider per class (-1 avoid .. +1 perform), the scale, the label in words and what it reads as."""
+    with html.Div(classes="d-flex align-center"):
+        html.Div("Label mix", classes="text-overline")
+        v3.VSpacer()
+        v3.VBtn("match", size="x-small", variant="tonal", click=studio.ctrl.match_label, id="match-label", classes="mr-1")
+        v3.VBtn("reset", size="x-small", variant="tonal", click=studio.ctrl.reset_label, id="reset-label")
+    for i, name in enumerate(studio.session.class_names):
+        with html.Div(classes="d-flex align-center", style="height: 30px"):
+            html.Div(
+                display_name(name), classes="text-body-2", style=f"width: 118px; color: {class_color(i)}; font-weight: 600"
+            )
+            v3.VSlider(
+                v_model=(f"w_{i}",),
+                min=-1,
+                max=1,
+                step=0.05,
+                density="compact",
+                hide_details=True,
+                color=class_color(i),
+                track_color="grey-lighten-2",
+                classes=f"class-slider slider-{name}",
+                id=f"slider-{i}",
+            )
+            html.Div(
+                f"{{{{ (w_{i} >= 0 ? '+' : '') + Number(w_{i}).toFixed(2) }}}}",
+                classes="text-caption ml-1",
+                style="width: 38px; text-align: right",
+            )
+    with html.Div(classes="d-flex align-center", style="height: 30px"):
+        html.Div("scale", classes="text-body-2", style="width: 118px; font-weight: 600")
+        v3.VSlider(v_model=("scale",), min=0, max=2, step=0.05, density="compact", hide_details=True, id="scale-slider")
+        html.Div("{{ Number(scale).toFixed(2) }}", classes="text-caption ml-1", style="width: 38px; text-align: right")
+    html.Div("{{ label_text }}", classes="text-body-2 mt-1 pa-2 rounded bg-grey-lighten-4", id="label-text")
+    reads_as_panel()
+
+
+def character_toggles(studio) -> None:
+    """Show or hide each of the three characters."""
+    html.Div("Characters", classes="text-overline")
+    for key, var in zip(CHARACTER_KEYS, ("show_leader", "show_ground_truth", "show_synthesized"), strict=True):
+        v3.VCheckbox(
+            v_model=(var,),
+            label=CHARACTER_TITLES[key],
+            color=CHARACTERS[key],
+            density="compact",
+            hide_details=True,
+            base_color=CHARACTERS[key],
+            style=f"color: {CHARACTERS[key]}",
+        )
+
+
+def scene_view(studio) -> None:
+    """The error alert and the 3D view (rendered on the server, or by vtk.js with --render local)."""
+    v3.VAlert(
+        "{{ error }}",
+        v_if="error",
+        type="error",
+        density="compact",
+        closable=True,
+        click_close="error = ''",
+        id="error-alert",
+    )
+    with html.Div(style="flex: 1 1 60%; min-height: 320px; position: relative; width: 100%", classes="rounded border"):
+        if studio.render_mode == "local":  # vtk.js in the browser (see docs/explorer.md)
+            view = vtk_widgets.VtkLocalView(studio.scene.render_window, ref="view")
+        else:
+            view = vtk_widgets.VtkRemoteView(
+                studio.scene.render_window, ref="view", interactive_ratio=1, interactive_quality=60, still_quality=80
+            )
+        studio._view = view
+        studio.ctrl.view_update = studio.push_view
+        with html.Div(style="position: absolute; left: 8px; top: 6px; pointer-events: none", classes="text-caption"):
+            for key in CHARACTER_KEYS:
+                html.Span(
+                    "● " + CHARACTER_TITLES[key], style=f"color: {CHARACTERS[key]}; font-weight: 600; margin-right: 10px"
+                )
+
+
+def playback_bar(studio) -> None:
+    """Play/pause, step, the frame slider, time, speed and loop."""
+    with html.Div(classes="d-flex align-center", style="width: 100%; gap: 8px"):
+        v3.VBtn(icon="mdi-skip-previous", size="small", variant="text", click=(studio.ctrl.step_frame, "[-1]"))
+        v3.VBtn(
+            icon=("playing ? 'mdi-pause' : 'mdi-play'",),
+            size="small",
+            color="primary",
+            click="playing = !playing",
+            id="play-button",
+        )
+        v3.VBtn(icon="mdi-skip-next", size="small", variant="text", click=(studio.ctrl.step_frame, "[1]"))
+        v3.VSlider(
+            v_model=("frame",),
+            min=0,
+            max=("num_frames - 1",),
+            step=1,
+            hide_details=True,
+            density="compact",
+            id="frame-slider",
+            style="flex: 1 1 auto",
+        )
+        html.Div("{{ time_text }}", classes="text-caption", style="width: 190px", id="time-text")
+        v3.VSelect(
+            v_model=("speed",),
+            items=("speeds", [{"title": f"{x:g}×", "value": x} for x in SPEEDS]),
+            density="compact",
+            hide_details=True,
+            style="max-width: 92px",
+            variant="outlined",
+        )
+        v3.VCheckbox(v_model=("loop",), label="loop", density="compact", hide_details=True, style="flex: 0 0 auto")
+
+
+def review_cards(studio) -> None:
+    """The per-frame error chart and the latent map."""
+    with html.Div(classes="d-flex", style="flex: 0 0 250px; width: 100%; gap: 8px"):
+        with v3.VCard(variant="outlined", style="flex: 1 1 50%", classes="pa-1"):
+            with html.Div(classes="d-flex align-center px-2"):
+                html.Div("Ground truth vs synthesized, per frame", classes="text-caption font-weight-bold")
+                v3.VSpacer()
+                html.Div("{{ afd_text }}", classes="text-caption", id="afd-text")
+            plotly.Figure(
+                state_variable_name="distance_figure",
+                display_mode_bar=False,
+                style="height: 215px",
+                responsive=True,
+            )
+        with v3.VCard(variant="outlined", style="flex: 1 1 50%", classes="pa-1"):
+            with html.Div(classes="d-flex align-center px-2"):
+                html.Div("Latent map: click a point to load it", classes="text-caption font-weight-bold")
+                html.Div("● seen in training  ○ held out", classes="text-caption text-medium-emphasis ml-2")
+                v3.VProgressCircular(v_if="projection_busy", indeterminate=True, size=14, width=2, classes="ml-2")
+                v3.VSpacer()
+                with v3.VBtnToggle(
+                    v_model=("projection",), density="compact", mandatory=True, variant="outlined", divided=True
+                ):
+                    v3.VBtn("t-SNE", value="tsne", size="x-small")
+                    v3.VBtn("UMAP", value="umap", size="x-small", id="umap-button")
+            plotly.Figure(
+                state_variable_name="latent_figure",
+                display_mode_bar=False,
+                style="height: 215px",
+                responsive=True,
+                click=(studio.ctrl.pick_latent_point, "[$event.points[0].customdata]"),
+                id="latent-plot",
+            )
