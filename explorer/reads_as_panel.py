@@ -26,12 +26,14 @@ def reads_as_panel() -> None:
     """Place the panel (inside the drawer's current container)."""
     with html.Div(v_if="reads_as.length", id="reads-as"):
         with html.Div(classes="d-flex align-center mt-2"):
-            html.Div("Reads as", classes="text-overline")
-            html.Div("follower-only classifier, real data", classes="text-caption text-medium-emphasis ml-2")
-        with html.Div(v_for="(row, i) in reads_as", key=("i",), classes="d-flex align-center reads-as-row", style="height: 18px"):
+            html.Div("Reads as", classes="text-overline", style="white-space: nowrap")
+            html.Div("classifier of real reactions · + asked", classes="text-caption text-medium-emphasis ml-2",
+                     style="white-space: nowrap")
+        with html.Div(v_for="(row, i) in reads_as", key=("i",), classes="d-flex align-center reads-as-row", style="height: 20px"):
             html.Div("{{ row.name }}", classes="text-caption",
-                     style=("row.asked ? 'width: 112px; font-weight: 700' : 'width: 112px'",))
+                     style=("'width: 118px; white-space: nowrap; overflow: hidden; text-overflow: ellipsis; flex: 0 0 118px;'"
+                            " + (row.asked ? 'font-weight: 700' : '')",))
             v3.VProgressLinear(model_value=("row.p * 100",), color=("row.color",), height=8, rounded=True,
-                               bg_color="grey-lighten-2", classes="reads-as-bar")
-            html.Div("{{ (row.p * 100).toFixed(0) + '%' + (row.asked ? ' ' + row.asked : '') }}", classes="text-caption ml-1",
-                     style="width: 44px; text-align: right")
+                               bg_color="grey-lighten-2", classes="reads-as-bar", style="flex: 1 1 auto")
+            html.Div("{{ (row.asked ? row.asked + ' ' : '') + (row.p * 100).toFixed(0) + '%' }}", classes="text-caption ml-1",
+                     style="flex: 0 0 48px; text-align: right; white-space: nowrap")
