@@ -171,7 +171,12 @@ MEN = replace(IMM, name="men", model=IMM.model | {"label_input": False}, discrim
 # s03 stopped right after the critic's ramp. Not shipped until all folds and seeds are measured.
 IMM_CRITIC = replace(IMM, name="imm-critic", lambda_critic=0.05, critic_mix_prob=0.5, select_from_epoch=40)
 
-NAMED: dict[str, TrainConfig] = {"paper": PAPER, "imm": IMM, "men": MEN, "imm-critic": IMM_CRITIC}
+# `imm-critic` + motion energy (training/energy.py) + one dropout mask per sequence (issue 9; docs/training.md
+# "Label control and motion energy"): per-frame dropout masks made the training outputs jitter, so the energy term
+# was met by noise that vanished at inference (limbs at 0.35 of real speed); per-sequence masks remove that.
+IMM_CONTROL = replace(IMM_CRITIC, name="imm-control", lambda_energy=3.0, model=IMM.model | {"dropout_per_sequence": True})
+
+NAMED: dict[str, TrainConfig] = {"paper": PAPER, "imm": IMM, "men": MEN, "imm-critic": IMM_CRITIC, "imm-control": IMM_CONTROL}
 
 
 def load_config(name_or_path: str, **overrides: Any) -> TrainConfig:
