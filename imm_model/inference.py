@@ -251,13 +251,18 @@ def parse_label(text: str, class_names: Sequence[str]) -> dict[str, float] | lis
     return [_as_float(p, f"class {i}") for i, p in enumerate(parts)]
 
 
-def read_leader_file(path: Path) -> np.ndarray:
-    """An .npz with a `leader` (T, J, 3) array, or an SBU skeleton_pos.txt -> world metres."""
+def read_leader_file(path: Path, bvh_map: Path | None = None) -> np.ndarray:
+    """A .bvh (any recognisable human skeleton, data/bvh.py), an .npz with a `leader` (T, J, 3) array, or an SBU
+    skeleton_pos.txt -> world metres."""
     from imm_model.data.leader import actor_by_motion_energy
     from imm_model.data.sbu import normalized_to_metres, parse_skeleton_file, read_sbu_sequence
 
     if not path.is_file():
         raise DataFormatError(f"{path}: leader file not found")
+    if path.suffix.lower() == ".bvh":
+        from imm_model.data.bvh import read_bvh
+
+        return read_bvh(path, bvh_map)
     if path.suffix == ".npz":
         try:
             with np.load(path, allow_pickle=False) as npz:
@@ -281,11 +286,13 @@ def read_leader_file(path: Path) -> np.ndarray:
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("generate", help="synthesize the follower's reaction to a leader motion")
     src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--leader", type=Path, help="an .npz with a 'leader' (T, 15, 3) array in metres, or an SBU skeleton_pos.txt")
+    src.add_argument("--leader", type=Path, help="a .bvh, an .npz with a 'leader' (T, 15, 3) array in metres, or an SBU skeleton_pos.txt")
     src.add_argument("--sequence", help="a sequence id of the bundled data, e.g. s01s02/03/001 (its leader is used)")
     p.add_argument("--label", required=True, help="e.g. kicking=1,hugging=0.5 or one value per class: 1,0,0,0,0.5,0")
     p.add_argument("--scale", type=float, default=1.0, help="multiplies the label vector (default 1)")
-    p.add_argument("--out", type=Path, required=True, help="output .npz (follower, leader, label; world metres)")
+    p.add_argument("--out", type=Path, required=True,
+                   help="output .npz (follower, leader, label; world metres) or .bvh (the follower; the leader as NAME.leader.bvh)")
+    p.add_argument("--bvh-map", type=Path, default=None, help="JSON {kinect joint: BVH joint name} for a skeleton the name table misses")
     p.add_argument("--checkpoint", type=Path, default=None, help="default: the bundled model")
     p.add_argument("--data", type=Path, default=None, help="dataset for --sequence (default: the bundled sample)")
     p.add_argument("--force", action="store_true", help="replace --out if it exists")
@@ -300,6 +307,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     from imm_model.outputs import check_finite, check_output
 
     check_output(args.out, args.force, inputs=(args.leader, args.checkpoint, args.data))
+    if args.out.suffix.lower() == ".bvh":
+        check_output(args.out.with_suffix(".leader.bvh"), args.force, inputs=(args.leader,))
     torch.set_num_threads(2)
     model = ReactionModel.load(args.checkpoint, resolve_device(args.device))
     if args.sequence:
@@ -309,14 +318,20 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         data = InteractionDataset.load(args.data or SAMPLE_DATA)
         leader = data.world(data.index_of(args.sequence))[0]
     else:
-        leader = read_leader_file(args.leader)
+        leader = read_leader_file(args.leader, args.bvh_map)
     vec = model.label_vector(parse_label(args.label, model.class_names), args.scale)
     follower = check_finite(model.synthesize(leader, vec), "the synthesized follower (leader coordinates out of range?)")
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = args.out.with_name(args.out.name + ".tmp.npz")
-    np.savez(tmp, follower=follower, leader=np.asarray(leader, np.float32), label=vec,
-             class_names=np.array(model.class_names), scale=np.float32(args.scale))
-    tmp.replace(args.out)
+    if args.out.suffix.lower() == ".bvh":
+        from imm_model.data.bvh import write_bvh
+
+        write_bvh(args.out, follower, model.skeleton)
+        write_bvh(args.out.with_suffix(".leader.bvh"), leader, model.skeleton)
+    else:
+        tmp = args.out.with_name(args.out.name + ".tmp.npz")
+        np.savez(tmp, follower=follower, leader=np.asarray(leader, np.float32), label=vec,
+                 class_names=np.array(model.class_names), scale=np.float32(args.scale))
+        tmp.replace(args.out)
     desc = ", ".join(f"{n}={v:g}" for n, v in zip(model.class_names, vec, strict=True) if v != 0) or "all zero"
     print(f"wrote {args.out}: follower {follower.shape[0]} frames x {follower.shape[1]} joints (label {desc})")
     return 0
