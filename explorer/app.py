@@ -135,6 +135,7 @@ class Studio:
         # Triggers, not controllers: the page awaits their return value (the file) to download it.
         self.server.trigger("export_npz")(self.export_npz)
         self.server.trigger("export_video")(self.export_video)
+        self.server.trigger("export_bvh")(self.export_bvh)
 
     def _guard(fn):  # noqa: N805 - decorator: user-facing errors become the page's one-line alert
         def wrapper(self, *args, **kwargs):
@@ -409,6 +410,12 @@ class Studio:
         data = self.session.export_npz()
         name = self.session.export_name("npz")
         self._save_copy(name, data)
+        return self.server.protocol.addAttachment(memoryview(data))
+
+    @_guard
+    def export_bvh(self, character: str = "follower"):
+        data = self.session.export_bvh(character)
+        self._save_copy(self.session.export_name("bvh").replace(".bvh", f".{character}.bvh"), data)
         return self.server.protocol.addAttachment(memoryview(data))
 
     @_guard

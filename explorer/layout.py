@@ -83,6 +83,12 @@ def toolbar(studio, tb) -> None:
                 title="Synthesized follower (.npz)",
                 click="utils.download('follower.npz', trigger('export_npz'), 'application/octet-stream')",
             )
+            for character in ("follower", "leader"):
+                v3.VListItem(
+                    title=f"{'Synthesized follower' if character == 'follower' else 'Leader'} (.bvh)",
+                    click=f"utils.download('{character}.bvh', trigger('export_bvh', ['{character}']), 'text/plain')",
+                    classes=f"export-bvh-{character}",
+                )
             v3.VListItem(
                 title="Animation (.gif)", click="utils.download('studio.gif', trigger('export_video', ['gif']), 'image/gif')"
             )

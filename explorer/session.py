@@ -171,25 +171,31 @@ class Session:
         """The paper's AFD (SBU normalized units) of the synthesized follower against ground truth."""
         return afd(self.synth, self.ground_truth, self.data.frame_of(self.index), self.data.skeleton, units="normalized")
 
-    def export_npz(self) -> bytes:
-        """The synthesized follower (and its inputs) as an .npz file's bytes."""
-        import io
+    def world(self, canonical: np.ndarray) -> np.ndarray:
+        """A (T, J, 3) motion of this sequence from the canonical frame back to world metres."""
+        return self.data.frame_of(self.index).to_world(np.asarray(canonical, np.float64), self.data.skeleton)
 
-        buf = io.BytesIO()
-        np.savez_compressed(
-            buf,
-            follower_canonical=self.synth,
-            leader_canonical=self.leader,
-            ground_truth_canonical=self.ground_truth,
-            label_vector=self.label_vector(),
-            weights=self.weights,
-            scale=np.float32(self.scale),
-            class_names=np.array(self.class_names),
-            joint_names=np.array(self.data.skeleton.joint_names),
-            sequence_id=np.array(self.data.sequence_ids[self.index]),
-            fps=np.float32(FPS),
-        )
-        return buf.getvalue()
+    def export_npz(self) -> bytes:
+        """The synthesized interaction as an .npz file's bytes (imm_model/interaction_file.py, docs/formats.md)."""
+        from imm_model.interaction_file import interaction_arrays, interaction_bytes
+
+        path = getattr(self.model, "path", None)
+        return interaction_bytes(interaction_arrays(
+            self.world(self.leader), self.world(self.synth), self.data.frame_of(self.index), self.data.skeleton,
+            class_names=self.class_names, label=self.label_vector(), scale=self.scale, checkpoint=Path(path).name if path else "",
+            fps=FPS, ground_truth=self.world(self.ground_truth), sequence_id=self.data.sequence_ids[self.index]))
+
+    def export_bvh(self, character: str = "follower") -> bytes:
+        """The synthesized follower (or the leader) as a BVH file's bytes, world metres (imm_model/data/bvh.py)."""
+        import tempfile
+
+        from imm_model.data.bvh import write_bvh
+
+        motion = self.world(self.synth if character == "follower" else self.leader)
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / "x.bvh"
+            write_bvh(path, motion, self.data.skeleton, FPS)
+            return path.read_bytes()
 
     def export_name(self, ext: str) -> str:
         sid = self.data.sequence_ids[self.index].replace("/", "-")

@@ -328,10 +328,13 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         write_bvh(args.out, follower, model.skeleton)
         write_bvh(args.out.with_suffix(".leader.bvh"), leader, model.skeleton)
     else:
-        tmp = args.out.with_name(args.out.name + ".tmp.npz")
-        np.savez(tmp, follower=follower, leader=np.asarray(leader, np.float32), label=vec,
-                 class_names=np.array(model.class_names), scale=np.float32(args.scale))
-        tmp.replace(args.out)
+        from imm_model.data.canonical import CanonicalFrame
+        from imm_model.interaction_file import interaction_arrays, save_interaction
+
+        frame = CanonicalFrame.from_leader(np.asarray(leader, np.float64), model.skeleton, model.canonical_mode)
+        save_interaction(args.out, interaction_arrays(
+            leader, follower, frame, model.skeleton, class_names=model.class_names, label=vec, scale=args.scale,
+            checkpoint=str(model.path.name if model.path else ""), fps=15.0, sequence_id=args.sequence))
     desc = ", ".join(f"{n}={v:g}" for n, v in zip(model.class_names, vec, strict=True) if v != 0) or "all zero"
     print(f"wrote {args.out}: follower {follower.shape[0]} frames x {follower.shape[1]} joints (label {desc})")
     return 0

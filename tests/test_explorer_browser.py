@@ -122,6 +122,18 @@ def test_play_advances_frames(page):
     page.wait_for_function("() => window.trame.state.get('playing') === false", timeout=5000)
 
 
+def test_export_bvh_downloads_a_file_that_reimports(page, tmp_path):
+    from imm_model.data.bvh import read_bvh
+
+    page.get_by_role("button", name="Export").click()
+    with page.expect_download(timeout=20000) as download:
+        page.locator(".export-bvh-follower").click()
+    path = tmp_path / "follower.bvh"
+    download.value.save_as(path)
+    motion = read_bvh(path)
+    assert motion.shape[1:] == (15, 3) and len(motion) == probe.state(page, "num_frames")
+
+
 def test_five_clients_are_independent(studio, browser):
     pages = []
     try:

@@ -78,13 +78,28 @@ def test_filters(session, sample_data):
     assert "[held out]" in session.rows()[held[0]].title
 
 
-def test_export_npz_roundtrip(session):
+def test_export_npz_roundtrip(session, sample_data, tmp_path):
+    """The studio writes the project's one .npz layout: world and canonical motions, skeleton, label; and
+    `imm generate --leader` reads it back."""
+    from imm_model.cli import main
+
     raw = session.export_npz()
     with np.load(io.BytesIO(raw)) as z:
-        np.testing.assert_array_equal(z["follower_canonical"], session.synth)
-        assert z["follower_canonical"].shape == session.ground_truth.shape
-        assert list(z["class_names"]) == list(session.class_names)
+        np.testing.assert_allclose(z["follower_canonical"], session.synth, atol=1e-5)
+        np.testing.assert_allclose(z["leader"], sample_data.world(session.index)[0], atol=1e-5)
+        np.testing.assert_allclose(z["ground_truth"], sample_data.world(session.index)[1], atol=1e-5)
+        assert list(z["class_names"]) == list(session.class_names) and list(z["parents"]) == list(sample_data.skeleton.parents)
+        assert str(z["format"]) == "imm-interaction-1" and float(z["fps"]) == 15.0
     assert session.export_name("npz").endswith(".npz") and "/" not in session.export_name("npz")
+    (tmp_path / "s.npz").write_bytes(raw)
+    assert main(["generate", "--leader", str(tmp_path / "s.npz"), "--label", "hugging=1", "--out", str(tmp_path / "o.npz")]) == 0
+
+
+def test_export_bvh_reimports(session, tmp_path):
+    from imm_model.data.bvh import read_bvh
+
+    (tmp_path / "f.bvh").write_bytes(session.export_bvh("follower"))
+    np.testing.assert_allclose(read_bvh(tmp_path / "f.bvh"), session.world(session.synth), atol=1e-3)
 
 
 def test_mismatched_model_is_one_line(sample_data):

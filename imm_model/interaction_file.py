@@ -1,0 +1,57 @@
+"""One .npz layout for every synthesized interaction the project writes (`imm generate`, the studio's export);
+`imm generate --leader` reads it back. docs/formats.md describes each key.
+
+World positions come with the canonical ones (A's root at the origin, A facing +Z, Y up) and with what is needed
+to read them: the skeleton's joint names and parents, the frame rate, the classes, the label and the model.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+
+from imm_model.data.canonical import CanonicalFrame
+from imm_model.skeleton import Skeleton
+
+FORMAT = "imm-interaction-1"
+
+
+def interaction_arrays(leader: np.ndarray, follower: np.ndarray, frame: CanonicalFrame, skeleton: Skeleton, *,
+                       class_names, label: np.ndarray, scale: float, checkpoint: str, fps: float,
+                       ground_truth: np.ndarray | None = None, sequence_id: str | None = None) -> dict[str, np.ndarray]:
+    """leader, follower (and ground truth): (T, J, 3) world metres -> the file's arrays."""
+    out = {
+        "format": np.array(FORMAT),
+        "leader": np.asarray(leader, np.float32),
+        "follower": np.asarray(follower, np.float32),
+        "leader_canonical": frame.to_canonical(np.asarray(leader, np.float64), skeleton).astype(np.float32),
+        "follower_canonical": frame.to_canonical(np.asarray(follower, np.float64), skeleton).astype(np.float32),
+        "joint_names": np.array(skeleton.joint_names),
+        "parents": np.array(skeleton.parents, np.int64),
+        "fps": np.float32(fps),
+        "class_names": np.array(list(class_names)),
+        "label": np.asarray(label, np.float32),
+        "scale": np.float32(scale),
+        "checkpoint": np.array(checkpoint),
+    }
+    if ground_truth is not None:
+        out["ground_truth"] = np.asarray(ground_truth, np.float32)
+        out["ground_truth_canonical"] = frame.to_canonical(np.asarray(ground_truth, np.float64), skeleton).astype(np.float32)
+    if sequence_id is not None:
+        out["sequence_id"] = np.array(sequence_id)
+    return out
+
+
+def interaction_bytes(arrays: dict[str, np.ndarray]) -> bytes:
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    return buf.getvalue()
+
+
+def save_interaction(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """Written to a temporary name first, so an interrupted write never leaves half a file under `path`."""
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_bytes(interaction_bytes(arrays))
+    tmp.replace(path)
