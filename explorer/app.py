@@ -88,6 +88,8 @@ class Studio:
                 "sequence_index": 0,
                 "sequence_title": "",
                 "sequence_held_out": False,
+                "sequence_uploaded": False,
+                "upload_file": None,
                 "frame": 0,
                 "num_frames": 1,
                 "time_text": "",
@@ -121,6 +123,7 @@ class Studio:
         s, c = self.state, self.ctrl
         s.change("class_filter", "pair_filter", "held_filter")(self.on_filter_change)
         s.change("sequence_index")(self.on_sequence_picked)
+        s.change("upload_file")(self.on_leader_uploaded)
         s.change("frame")(self.on_frame_change)
         s.change(*[f"w_{i}" for i in range(len(self.session.class_names))], "scale")(self.on_mix_change)
         s.change("scene_layout")(self.on_layout_change)
@@ -167,7 +170,7 @@ class Studio:
 
     @_guard
     def on_sequence_picked(self, sequence_index, **_):
-        if sequence_index is None or int(sequence_index) == self.session.index:
+        if sequence_index is None or (int(sequence_index) == self.session.index and self.session.upload is None):
             return
         self.load_sequence(int(sequence_index))
 
@@ -184,10 +187,36 @@ class Studio:
             row = ses.rows()[index]
             s.sequence_title = f"{row.sequence_id} · {display_name(row.class_name)}"
             s.sequence_held_out = row.held_out
+            s.sequence_uploaded = False
             s.num_frames = ses.num_frames
             s.frame = 0
             self._write_label_state()
             self.scene.set_sequence(ses.leader, ses.ground_truth, ses.synth, 0)
+            self.scene.set_camera(self.scene.camera_preset)
+            self._after_mix(force_chart=True)
+            s.error = ""
+        self.ctrl.view_update()
+
+    @_guard
+    def on_leader_uploaded(self, upload_file, **_):
+        """A leader file dropped or chosen in the page: it replaces the view's sequence (no ground truth).
+        A bad file leaves everything as it was and says why in one line."""
+        from trame.app.file_upload import ClientFile
+
+        if not upload_file:
+            return
+        file = ClientFile(upload_file[0] if isinstance(upload_file, list) else upload_file)
+        ses, s = self.session, self.state
+        try:
+            ses.load_upload(file.name or "upload", file.content or b"")
+        finally:
+            s.upload_file = None  # the same file can be chosen again
+        with s:
+            s.sequence_title = f"uploaded: {ses.upload.name} · {ses.num_frames} fr"
+            s.sequence_uploaded, s.sequence_held_out = True, False
+            s.num_frames, s.frame = ses.num_frames, 0
+            self._write_label_state()
+            self.scene.set_sequence(ses.leader, None, ses.synth, 0)
             self.scene.set_camera(self.scene.camera_preset)
             self._after_mix(force_chart=True)
             s.error = ""
@@ -251,7 +280,9 @@ class Studio:
         """Review numbers, distance chart and latent star for the current synthesized follower."""
         s, ses = self.state, self.session
         self._distances = ses.distances_m()
-        s.afd_text = f"AFD {ses.afd():.3f} (SBU units) · mean {self._distances.mean():.2f} m"
+        afd = ses.afd()
+        s.afd_text = ("uploaded leader: no ground truth to compare with, so no error chart" if afd is None
+                      else f"AFD {afd:.3f} (SBU units) · mean {self._distances.mean():.2f} m")
         self._update_time()
         self._update_distance_chart(force=force_chart)
         self._update_latent_figure()
@@ -265,6 +296,8 @@ class Studio:
 
     def _set_label_controls(self, weights) -> None:
         if weights is None:
+            if self.session.own_class is None:  # an uploaded leader has no class to match
+                return
             weights = np.eye(len(self.session.class_names))[self.session.own_class]
         with self.state:
             for i, w in enumerate(weights):
@@ -367,7 +400,7 @@ class Studio:
             d.held_out,
             d.sequence_ids,
             ses.class_names,
-            ses.index,
+            None if ses.upload else ses.index,
             mix_xy,
             ses.label_text(),
             method,

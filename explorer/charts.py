@@ -55,7 +55,7 @@ def latent_figure(
     held_out: np.ndarray,
     sequence_ids: Sequence[str],
     class_names: Sequence[str],
-    current_index: int,
+    current_index: int | None,
     mix_xy: np.ndarray | None,
     mix_text: str,
     method: str,
@@ -85,19 +85,20 @@ def latent_figure(
                 },
             }
         )
-    cur = coords[current_index]
-    data.append(
-        {
-            "type": "scatter",
-            "mode": "markers",
-            "name": "this sequence (match)",
-            "x": [float(cur[0])],
-            "y": [float(cur[1])],
-            "customdata": [int(current_index)],
-            "hovertemplate": f"{sequence_ids[current_index]} with its own label<extra></extra>",
-            "marker": {"size": 15, "symbol": "circle-open", "color": "#111", "line": {"width": 2.5, "color": "#111"}},
-        }
-    )
+    if current_index is not None:  # None: an uploaded leader, which has no point of its own on the map
+        cur = coords[current_index]
+        data.append(
+            {
+                "type": "scatter",
+                "mode": "markers",
+                "name": "this sequence (match)",
+                "x": [float(cur[0])],
+                "y": [float(cur[1])],
+                "customdata": [int(current_index)],
+                "hovertemplate": f"{sequence_ids[current_index]} with its own label<extra></extra>",
+                "marker": {"size": 15, "symbol": "circle-open", "color": "#111", "line": {"width": 2.5, "color": "#111"}},
+            }
+        )
     if mix_xy is not None:
         data.append(
             {
@@ -106,7 +107,7 @@ def latent_figure(
                 "name": "current mix (synth)",
                 "x": [float(mix_xy[0])],
                 "y": [float(mix_xy[1])],
-                "customdata": [int(current_index)],
+                "customdata": [-1 if current_index is None else int(current_index)],
                 "hovertemplate": mix_text.replace("%", "%%") + "<extra>current mix</extra>",
                 "marker": {"size": 18, "symbol": "star", "color": SYNTHESIZED, "line": {"width": 1.5, "color": "#111"}},
             }

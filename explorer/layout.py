@@ -54,9 +54,11 @@ def toolbar(studio, tb) -> None:
         classes="mr-2",
         id="sequence-chip",
     )
+    v3.VChip("uploaded: no ground truth", v_if="sequence_uploaded", size="small", color="teal-lighten-3", variant="flat",
+             classes="mr-2", id="uploaded-chip")
     v3.VChip(
         "held out: never seen in training",
-        v_if="sequence_held_out",
+        v_else_if="sequence_held_out",
         size="small",
         color="amber",
         variant="flat",
@@ -134,6 +136,16 @@ def sequence_picker(studio) -> None:
         "Held out = subject {{ held_out_subject }}: the bundled model never saw these (generalization); "
         "the others were in its training set (memorization).",
         classes="text-caption text-medium-emphasis mt-1",
+    )
+    v3.VFileInput(
+        label="Upload a leader (.bvh, .npz, SBU .txt; up to 20 MB)",
+        v_model=("upload_file", None),
+        accept=".bvh,.npz,.txt",
+        density="compact",
+        hide_details=True,
+        prepend_icon="mdi-upload",
+        classes="mt-2",
+        id="leader-upload",
     )
 
 

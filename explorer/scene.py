@@ -117,8 +117,12 @@ class Scene:
         return [solid, grid]
 
     # ---- content ------------------------------------------------------------------------
-    def set_sequence(self, leader: np.ndarray, ground_truth: np.ndarray, synthesized: np.ndarray, frame: int = 0) -> None:
+    def set_sequence(self, leader: np.ndarray, ground_truth: np.ndarray | None, synthesized: np.ndarray, frame: int = 0) -> None:
+        """ground_truth None (an uploaded leader): the red figure is hidden, whatever its checkbox says."""
         self.sequences = {"leader": leader, "ground_truth": ground_truth, "synthesized": synthesized}
+        self.sequences = {k: v for k, v in self.sequences.items() if v is not None}
+        for k in CHARACTER_KEYS:
+            self.figures[k].set_visible(self.visible[k] and k in self.sequences)
         self._apply_layout()
         self.set_frame(frame)
 
@@ -137,8 +141,9 @@ class Scene:
 
     def set_visible(self, key: str, visible: bool) -> None:
         self.visible[key] = bool(visible)
-        self.figures[key].set_visible(visible)
-        self.captions[key].SetVisibility(bool(visible) and self.layout == "side_by_side")
+        shown = bool(visible) and (key in self.sequences or not self.sequences)
+        self.figures[key].set_visible(shown)
+        self.captions[key].SetVisibility(shown and self.layout == "side_by_side")
 
     def set_layout(self, layout: str) -> None:
         if layout not in LAYOUTS:
@@ -155,6 +160,9 @@ class Scene:
         top = float(max(s[..., 1].max() for s in self.sequences.values())) + 0.25
         for slot, k in enumerate(CHARACTER_KEYS):
             fig, cap = self.figures[k], self.captions[k]
+            if k not in self.sequences:
+                cap.SetVisibility(False)
+                continue
             if self.layout == "overlay":
                 fig.place((0, 0, 0), (0, 0, 0), 0.0)
                 cap.SetVisibility(False)

@@ -13,12 +13,47 @@ from typing import Any, Protocol
 import numpy as np
 
 from explorer.palette import display_name
+from imm_model.data.canonical import CanonicalFrame
 from imm_model.data.dataset import InteractionDataset
-from imm_model.errors import CheckpointError
+from imm_model.errors import CheckpointError, DataFormatError, IMMError
 from imm_model.evaluation.metrics import afd, frame_distances
 from imm_model.inference import check_compatible
 
 FPS = 15.0  # SBU's frame rate
+MAX_UPLOAD_BYTES = 20_000_000
+UPLOAD_SUFFIXES = (".bvh", ".npz", ".txt")
+
+
+@dataclass(frozen=True)
+class Upload:
+    """A leader file from the page: shown with the synthesized follower only (there is no ground truth)."""
+
+    name: str
+    frame: CanonicalFrame
+
+
+def read_upload(name: str, content: bytes, model: ReactionModelLike, skeleton) -> tuple[np.ndarray, CanonicalFrame]:
+    """An uploaded .bvh / .npz / SBU .txt -> (canonical leader (T, J, 3) float32, its canonical frame).
+    Every problem is a one-line IMMError naming it (size, type, content, length)."""
+    import tempfile
+
+    from imm_model.inference import read_leader_file
+
+    suffix = Path(name).suffix.lower()
+    if suffix not in UPLOAD_SUFFIXES:
+        raise DataFormatError(f"{name}: unsupported file type; upload a {', '.join(UPLOAD_SUFFIXES)} leader")
+    if len(content) > MAX_UPLOAD_BYTES:
+        raise DataFormatError(f"{name}: {len(content) / 1e6:.0f} MB; uploads up to {MAX_UPLOAD_BYTES / 1e6:.0f} MB are accepted")
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / f"upload{suffix}"
+        path.write_bytes(content)
+        try:
+            world = read_leader_file(path)
+        except IMMError as err:
+            raise DataFormatError(f"{name}: {str(err).replace(str(path), '').lstrip(': ')}") from None
+    world = model.check_leader(world) if hasattr(model, "check_leader") else np.asarray(world, np.float64)
+    frame = CanonicalFrame.from_leader(world, skeleton, getattr(model, "canonical_mode", "first_frame"))
+    return frame.to_canonical(world, skeleton).astype(np.float32), frame
 
 
 class ReactionModelLike(Protocol):
@@ -84,6 +119,7 @@ class Session:
         self.data = data
         self.model = model
         self.reader = reader
+        self.upload: Upload | None = None
         self.class_names = tuple(data.class_names)
         self.weights = np.zeros(len(self.class_names), np.float32)
         self.scale = 1.0
@@ -113,6 +149,7 @@ class Session:
         if not 0 <= index < len(self.data):
             raise IndexError(f"sequence {index} outside 0..{len(self.data) - 1}")
         self.index = int(index)
+        self.upload = None
         self.leader, self.ground_truth = self.data.canonical(self.index)
         if match_label:
             self.match()
@@ -123,12 +160,30 @@ class Session:
     def num_frames(self) -> int:
         return int(self.leader.shape[0])
 
+    def load_upload(self, name: str, content: bytes) -> None:
+        """Make an uploaded leader the current one (label kept). On any error nothing changes."""
+        leader, frame = read_upload(name, content, self.model, self.data.skeleton)
+        previous = (self.upload, self.leader, self.ground_truth, self.synth)
+        self.upload, self.leader, self.ground_truth = Upload(Path(name).name, frame), leader, None
+        try:
+            self.synthesize()
+        except Exception:
+            self.upload, self.leader, self.ground_truth, self.synth = previous
+            raise
+
     @property
-    def own_class(self) -> int:
-        return int(self.data.actions[self.index])
+    def own_class(self) -> int | None:
+        """The current sequence's class (None for an uploaded leader: nobody labelled it)."""
+        return None if self.upload else int(self.data.actions[self.index])
+
+    @property
+    def frame(self) -> CanonicalFrame:
+        return self.upload.frame if self.upload else self.data.frame_of(self.index)
 
     # ---- label --------------------------------------------------------------------------
     def match(self) -> np.ndarray:
+        if self.own_class is None:
+            return self.synthesize()
         w = np.zeros(len(self.class_names), np.float32)
         w[self.own_class] = 1.0
         return self.set_label(w, 1.0)
@@ -154,8 +209,8 @@ class Session:
     # ---- synthesis and review -----------------------------------------------------------
     def synthesize(self) -> np.ndarray:
         out = np.asarray(self.model.synthesize_canonical(self.leader, self.label_vector()), np.float32)
-        if out.shape != self.ground_truth.shape:
-            raise ValueError(f"model returned shape {out.shape}, expected {self.ground_truth.shape}")
+        if out.shape != self.leader.shape:
+            raise ValueError(f"model returned shape {out.shape}, expected {self.leader.shape}")
         self.synth = out
         return out
 
@@ -165,15 +220,17 @@ class Session:
 
     def distances_m(self) -> np.ndarray:
         """(T,) per-frame distance between GT and synthesized 45-d pose vectors, metres."""
-        return frame_distances(self.synth, self.ground_truth)
+        return np.zeros(0) if self.ground_truth is None else frame_distances(self.synth, self.ground_truth)
 
-    def afd(self) -> float:
+    def afd(self) -> float | None:
         """The paper's AFD (SBU normalized units) of the synthesized follower against ground truth."""
-        return afd(self.synth, self.ground_truth, self.data.frame_of(self.index), self.data.skeleton, units="normalized")
+        if self.ground_truth is None:
+            return None
+        return afd(self.synth, self.ground_truth, self.frame, self.data.skeleton, units="normalized")
 
     def world(self, canonical: np.ndarray) -> np.ndarray:
         """A (T, J, 3) motion of this sequence from the canonical frame back to world metres."""
-        return self.data.frame_of(self.index).to_world(np.asarray(canonical, np.float64), self.data.skeleton)
+        return self.frame.to_world(np.asarray(canonical, np.float64), self.data.skeleton)
 
     def export_npz(self) -> bytes:
         """The synthesized interaction as an .npz file's bytes (imm_model/interaction_file.py, docs/formats.md)."""
@@ -181,9 +238,10 @@ class Session:
 
         path = getattr(self.model, "path", None)
         return interaction_bytes(interaction_arrays(
-            self.world(self.leader), self.world(self.synth), self.data.frame_of(self.index), self.data.skeleton,
+            self.world(self.leader), self.world(self.synth), self.frame, self.data.skeleton,
             class_names=self.class_names, label=self.label_vector(), scale=self.scale, checkpoint=Path(path).name if path else "",
-            fps=FPS, ground_truth=self.world(self.ground_truth), sequence_id=self.data.sequence_ids[self.index]))
+            fps=FPS, ground_truth=None if self.ground_truth is None else self.world(self.ground_truth),
+            sequence_id=None if self.upload else self.data.sequence_ids[self.index]))
 
     def export_bvh(self, character: str = "follower") -> bytes:
         """The synthesized follower (or the leader) as a BVH file's bytes, world metres (imm_model/data/bvh.py)."""
@@ -198,6 +256,6 @@ class Session:
             return path.read_bytes()
 
     def export_name(self, ext: str) -> str:
-        sid = self.data.sequence_ids[self.index].replace("/", "-")
+        sid = Path(self.upload.name).stem if self.upload else self.data.sequence_ids[self.index].replace("/", "-")
         mix = "_".join(f"{n}{w:+g}" for n, w in zip(self.class_names, self.weights, strict=True) if w) or "neutral"
         return f"{sid}_{mix}.{ext}"

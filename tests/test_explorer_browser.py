@@ -134,6 +134,39 @@ def test_export_bvh_downloads_a_file_that_reimports(page, tmp_path):
     assert motion.shape[1:] == (15, 3) and len(motion) == probe.state(page, "num_frames")
 
 
+def test_upload_a_bvh_leader_then_a_broken_file(page, tmp_path, sample_data):
+    """A real-format BVH leader joins the view without ground truth and exports as BVH; a broken file gets its
+    one-line reason in the page, and the page keeps working."""
+    from imm_model.data.bvh import read_bvh, write_bvh
+
+    leader = tmp_path / "my_leader.bvh"
+    write_bvh(leader, sample_data.world(12)[0])
+    n_mix = probe.state(page, "mix_count")
+    page.locator("input[type=file]").set_input_files(str(leader))
+    page.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=20000)
+    page.wait_for_selector("#uploaded-chip", timeout=10000)
+    assert "my_leader.bvh" in probe.state(page, "sequence_title") and "no ground truth" in probe.state(page, "afd_text")
+    assert probe.state(page, "num_frames") == len(sample_data.canonical(12)[0])
+    time.sleep(0.5)
+    shot(page, "studio-uploaded")
+    page.get_by_role("button", name="Export").click()
+    with page.expect_download(timeout=20000) as download:
+        page.locator(".export-bvh-follower").click()
+    download.value.save_as(tmp_path / "f.bvh")
+    assert read_bvh(tmp_path / "f.bvh").shape == (probe.state(page, "num_frames"), 15, 3)
+
+    broken = tmp_path / "broken.bvh"
+    broken.write_text("HIERARCHY\nROOT a\n{\nOFFSET 0 0\n")
+    page.locator("input[type=file]").set_input_files(str(broken))
+    page.wait_for_function("() => (window.trame.state.get('error') || '').includes('broken.bvh')", timeout=20000)
+    assert "\n" not in probe.state(page, "error")
+    assert "my_leader.bvh" in probe.state(page, "sequence_title")  # what the user had stays
+    names = probe.state(page, "class_names")
+    n_mix = probe.state(page, "mix_count")
+    probe.press_slider(page, f".slider-{names[1].replace(' ', '_')}", "End")
+    page.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=10000)
+
+
 def test_five_clients_are_independent(studio, browser):
     pages = []
     try:

@@ -158,3 +158,26 @@ def test_playback_speed_from_the_page_is_clamped():
     assert playback_speed(1.5) == 1.5 and playback_speed(None) == 1.0 and playback_speed("x") == 1.0
     assert playback_speed(1e-300) == 0.25 and playback_speed(-2) == 0.25 and playback_speed(1e9) == 2.0
     assert playback_speed(float("nan")) == 1.0
+
+
+def test_uploaded_leader_has_no_ground_truth_and_bad_files_change_nothing(session, sample_data, tmp_path):
+    from imm_model.data.bvh import write_bvh
+    from imm_model.errors import IMMError
+
+    write_bvh(tmp_path / "l.bvh", sample_data.world(9)[0])
+    before = session.synth.copy()
+    for name, content, message in (("x.obj", b"v 0 0 0", "unsupported file type"), ("x.bvh", b"", "not a BVH file"),
+                                   ("x.npz", b"garbage", "unreadable"), ("x.bvh", b"x" * 20_000_001, "up to 20 MB")):
+        with pytest.raises(IMMError, match=message):
+            session.load_upload(name, content)
+        assert session.upload is None and np.array_equal(session.synth, before)  # nothing changed
+    session.load_upload("l.bvh", (tmp_path / "l.bvh").read_bytes())
+    assert session.upload.name == "l.bvh" and session.ground_truth is None and session.own_class is None
+    assert session.synth.shape == session.leader.shape == sample_data.canonical(9)[0].shape
+    np.testing.assert_allclose(session.leader, sample_data.canonical(9)[0], atol=2e-3)  # same canonical frame
+    assert session.afd() is None and len(session.distances_m()) == 0
+    with np.load(io.BytesIO(session.export_npz())) as z:
+        assert "ground_truth" not in z.files and "sequence_id" not in z.files
+    assert session.export_name("bvh").startswith("l_")
+    session.select(0)
+    assert session.upload is None and session.ground_truth is not None
