@@ -130,3 +130,21 @@ def test_real_bvh_leader_end_to_end(path, tmp_path):
     follower = read_bvh(out)
     np.testing.assert_allclose(read_bvh(tmp_path / "y.leader.bvh"), leader, atol=1e-3)
     assert follower.shape == leader.shape and np.abs(bvhio_positions(out) - follower).max() < 1e-3
+
+
+@pytest.mark.skipif(not Path("/usr/bin/blender").exists(), reason="needs Debian's blender (apt-get install -y blender)")
+def test_blender_imports_the_export(sample_data, tmp_path):
+    """Blender's own BVH importer (headless) puts every joint where we wrote it (its Z-up: x, -z, y)."""
+    import subprocess
+
+    follower = sample_data.world(5)[1]
+    write_bvh(tmp_path / "b.bvh", follower)
+    script = Path(__file__).parent / "blender_import.py"
+    run = subprocess.run(["/usr/bin/blender", "-b", "--factory-startup", "--python", str(script), "--",
+                          str(tmp_path / "b.bvh"), str(tmp_path / "b.json")], capture_output=True, text=True, timeout=180)
+    assert (tmp_path / "b.json").exists(), run.stdout[-2000:] + run.stderr[-2000:]
+    frames = json.loads((tmp_path / "b.json").read_text())
+    for frame, joints in frames.items():
+        blender = np.array([joints[n] for n in KINECT15.joint_names])
+        ours = follower[int(frame) - 1]
+        assert np.abs(blender - np.stack([ours[:, 0], -ours[:, 2], ours[:, 1]], axis=-1)).max() < 1e-3
