@@ -6,7 +6,8 @@ import os
 from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
-SAMPLE_DIR = REPO_ROOT / "sample_data"
+# The bundled sample data and models ship inside the package (a wheel has them too); $IMM_SAMPLE_DIR overrides.
+SAMPLE_DIR = Path(os.environ.get("IMM_SAMPLE_DIR") or Path(__file__).resolve().parent / "sample_data")
 SAMPLE_DATA = SAMPLE_DIR / "sbu_interactions.npz"
 SAMPLE_CHECKPOINT = SAMPLE_DIR / "imm_sbu.safetensors"
 SAMPLE_JUDGE = SAMPLE_DIR / "follower_judge.safetensors"  # the studio's "reads as" classifier (imm_model/reads_as.py)
