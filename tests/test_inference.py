@@ -106,10 +106,10 @@ def test_generate_cli(tmp_path, sample_data, capsys):
         assert z["label"].tolist() == [1, 0, 0, 0.5, 0, 0]
     leader_file = tmp_path / "leader.npz"
     np.savez(leader_file, leader=sample_data.world(3)[0])
-    assert main(["generate", "--leader", str(leader_file), "--label", "kicking", "--scale", "2", "--out", str(out)]) == 0
-    assert main(["generate", "--leader", str(leader_file), "--label", "kick=1", "--out", str(out)]) == 2
+    assert main(["generate", "--leader", str(leader_file), "--label", "kicking", "--scale", "2", "--out", str(out), "--force"]) == 0
+    assert main(["generate", "--leader", str(leader_file), "--label", "kick=1", "--out", str(out), "--force"]) == 2
     err = capsys.readouterr().err
     assert "unknown class 'kick'" in err and len(err.strip().splitlines()) == 1
     np.savez(leader_file, other=np.zeros(3))
-    assert main(["generate", "--leader", str(leader_file), "--label", "kicking", "--out", str(out)]) == 2
+    assert main(["generate", "--leader", str(leader_file), "--label", "kicking", "--out", str(out), "--force"]) == 2
     assert "no 'leader' array" in capsys.readouterr().err
