@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import hashlib
 import os
+import tempfile
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -94,6 +96,9 @@ class LatentMap:
     latents: np.ndarray  # (N, D) embeddings with each sequence's own one-hot label
     coords: dict[str, np.ndarray] = field(default_factory=dict)  # method -> (N, 2)
     path: Path | None = None  # cache file, when cached
+    # one fit per method at a time: a second request for a method being fitted waits for that fit
+    _locks: dict[str, threading.Lock] = field(default_factory=lambda: {m: threading.Lock() for m in METHODS}, repr=False)
+    _save_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     @classmethod
     def build(cls, model, data: InteractionDataset, cache_dir: Path | None, key: str | None, methods=("tsne",)) -> LatentMap:
@@ -118,19 +123,23 @@ class LatentMap:
         return method in self.coords
 
     def ensure(self, method: str) -> np.ndarray:
-        if method not in self.coords:
-            self.coords[method] = project(self.latents, method)
-            self.save()
+        if method not in METHODS:
+            raise ValueError(f"projection must be one of {METHODS}, not {method!r}")
+        with self._locks[method]:
+            if method not in self.coords:
+                self.coords[method] = project(self.latents, method)
+                self.save()
         return self.coords[method]
 
     def save(self) -> None:
         if not self.path:
             return
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = self.path.with_name(self.path.name + f".{os.getpid()}.tmp")
-        with open(tmp, "wb") as f:
-            np.savez(f, latents=self.latents, **self.coords)
-        tmp.replace(self.path)  # atomic: several studio processes may share the cache
+        with self._save_lock:
+            # a unique temporary name: threads of one process and other studio processes may save at once
+            with tempfile.NamedTemporaryFile(dir=self.path.parent, prefix=self.path.name, suffix=".tmp", delete=False) as f:
+                np.savez(f, latents=self.latents, **dict(self.coords))
+            Path(f.name).replace(self.path)  # atomic
 
     def place(self, latent: np.ndarray, method: str, k: int = KNN) -> np.ndarray:
         """A new embedding -> 2D, as the inverse-distance-weighted mean of its k nearest neighbours'

@@ -73,3 +73,37 @@ def test_unknown_projection(sample_data):
 
     with pytest.raises(ValueError, match="projection must be one of"):
         project(np.zeros((5, 3)), "pca")
+
+
+def test_concurrent_requests_share_one_fit_per_method(tmp_path, monkeypatch):
+    """Ten UMAP requests while the first fit runs (as from ten toggles in the page): one fit, one cache file,
+    no temporary file left behind, no error."""
+    import threading
+    import time
+
+    from explorer import latent as latent_module
+
+    calls = []
+
+    def slow_project(latents, method, seed=0):
+        calls.append(method)
+        time.sleep(0.2)
+        return np.zeros((len(latents), 2), np.float32) + len(calls)
+
+    monkeypatch.setattr(latent_module, "project", slow_project)
+    lm = latent_module.LatentMap(np.random.default_rng(0).normal(size=(20, 8)).astype(np.float32), {}, tmp_path / "latent-x.npz")
+    errors = []
+
+    def request():
+        try:
+            lm.ensure("umap")
+        except Exception as err:  # noqa: BLE001 - any error fails the test below
+            errors.append(err)
+
+    threads = [threading.Thread(target=request) for _ in range(10)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert errors == [] and calls == ["umap"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["latent-x.npz"]
