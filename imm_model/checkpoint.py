@@ -66,7 +66,7 @@ def load_checkpoint(path: Path | str) -> tuple[dict[str, torch.Tensor], dict[str
         if text is None:
             raise CheckpointError(f"{path}: no JSON sidecar ({side.name}) and no embedded metadata")
         meta = json.loads(text)
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as err:  # RecursionError: absurdly nested JSON
         raise CheckpointError(f"{side}: unreadable checkpoint sidecar ({type(err).__name__})") from None
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise CheckpointError(f"{side}: not an IMM checkpoint sidecar (format {meta.get('format') if isinstance(meta, dict) else '?'})")

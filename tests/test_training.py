@@ -314,3 +314,23 @@ def test_label_critic_scores_the_true_and_a_drawn_label(sample_data, tmp_path, m
     assert row["critic"] > 0 and torch.equal(quick.head.weight, before)  # the critic is scored, never trained
     with pytest.raises(ValueError, match="critic_mix_prob must be in"):
         replace(TINY, critic_mix_prob=2.0)
+
+
+@pytest.mark.parametrize("text, message", [
+    ('{"lr_g": "fast"}', "lr_g must be a finite number"),
+    ("[1, 2]", "a config is a JSON object"),
+    ('{"model": 5}', "model must be a JSON object"),
+    ('{"model": {"encoder_hidden": 1e9}}', "encoder_hidden must be an integer"),
+    ('{"model": {"encoder_hidden": 100000}}', "encoder_hidden must be in 1..4096"),
+    ('{"model": {"dropout": "x"}}', "dropout must be a finite number"),
+    ('{"epochs": -3}', "epochs must be in 1..100000"),
+    ('{"mirror_exclude_classes": [1]}', "a list of items each a string"),
+    ('{"a":' * 5000 + "1" + "}" * 5000, "nested too deeply"),
+])
+def test_bad_config_files_are_one_line_and_write_nothing(tmp_path, capsys, text, message):
+    cfg = tmp_path / "c.json"
+    cfg.write_text(text)
+    assert main(["train", "--config", str(cfg), "--fold", "s04", "--out", str(tmp_path / "run"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "run").exists()

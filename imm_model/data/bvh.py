@@ -138,7 +138,7 @@ def _check_text(path: Path) -> None:
 def _read_mapping(path: Path) -> dict[str, str]:
     try:
         d = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as err:
+    except (OSError, json.JSONDecodeError, RecursionError) as err:
         raise DataFormatError(f"{path}: unreadable joint mapping ({type(err).__name__})") from None
     if not isinstance(d, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in d.items()):
         raise DataFormatError(f"{path}: a joint mapping is a JSON object of Kinect joint name -> BVH joint name")

@@ -58,7 +58,7 @@ def _options(args: argparse.Namespace):
     if args.classifier_config is not None:
         try:
             overrides = json.loads(args.classifier_config.read_text())
-        except (OSError, json.JSONDecodeError) as err:
+        except (OSError, json.JSONDecodeError, RecursionError) as err:
             raise ValueError(f"{args.classifier_config}: unreadable classifier config ({type(err).__name__})") from None
         if not isinstance(overrides, dict):
             raise ValueError(f"{args.classifier_config}: a classifier config is a JSON object")

@@ -9,6 +9,7 @@ from imm_model.typed_config import checked_kwargs
 BODY_PARTS = ("left_arm", "right_arm", "left_leg", "right_leg", "trunk")
 DECODER_INPUTS = ("concat", "sum", "context")
 ATTENTION_QUERIES = ("encoder", "decoder")
+MAX_WIDTH = 4096
 
 
 @dataclass(frozen=True)
@@ -43,6 +44,11 @@ class ModelConfig:
             raise ValueError(f"decoder_input must be one of {DECODER_INPUTS}, not {self.decoder_input!r}")
         if self.attention_query not in ATTENTION_QUERIES:
             raise ValueError(f"attention_query must be one of {ATTENTION_QUERIES}, not {self.attention_query!r}")
+        for name in ("stream_embed", "encoder_hidden", "decoder_hidden", "attention_dim", "disc_hidden"):
+            if not 1 <= getattr(self, name) <= MAX_WIDTH:  # a typo of 1e9 must not ask for a terabyte
+                raise ValueError(f"model config: {name} must be in 1..{MAX_WIDTH}, not {getattr(self, name)!r}")
+        if not 0 <= self.dropout < 1:
+            raise ValueError(f"model config: dropout must be in [0, 1), not {self.dropout!r}")
 
     @property
     def pose_dim(self) -> int:

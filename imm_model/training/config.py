@@ -9,6 +9,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from imm_model.model.config import ModelConfig
 from imm_model.training.losses import DISCRIMINATORS
 from imm_model.typed_config import checked_kwargs
 
@@ -83,6 +84,10 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         # checked here so a bad JSON recipe fails at load time with the field's name, not mid-epoch
+        ModelConfig.from_dict(dict(self.model))  # model sizes: types and ranges checked now, not when training starts
+        for name in ("lambda_adv", "lambda_l1", "lambda_bone", "lambda_cont", "lambda_afd"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"training config: {name} must be >= 0, not {getattr(self, name)!r}")
         checks = (
             ("d_every", self.d_every >= 1, "an integer >= 1"),
             ("checkpoint_minutes", self.checkpoint_minutes > 0, "> 0"),
@@ -94,6 +99,22 @@ class TrainConfig:
             ("critic_mix_prob", 0 <= self.critic_mix_prob <= 1, "in [0, 1]"),
             ("lambda_energy", self.lambda_energy >= 0, ">= 0 (0 = off)"),
             ("l1_reduction", self.l1_reduction in ("mean", "sum"), "'mean' or 'sum'"),
+            ("epochs", 1 <= self.epochs <= 100_000, "in 1..100000"),
+            ("batch_size", 1 <= self.batch_size <= 4096, "in 1..4096"),
+            ("lr_g", self.lr_g > 0, "> 0"),
+            ("lr_d", self.lr_d > 0, "> 0"),
+            ("weight_decay", self.weight_decay >= 0, ">= 0"),
+            ("optimizer", self.optimizer in ("adam", "rmsprop"), "'adam' or 'rmsprop'"),
+            ("val_fraction", 0 < self.val_fraction < 1, "in (0, 1)"),
+            ("checkpoint_every", self.checkpoint_every >= 1, ">= 1"),
+            ("d_steps", self.d_steps >= 1, ">= 1"),
+            ("ema_decay", 0 <= self.ema_decay < 1, "in [0, 1)"),
+            ("label_smoothing", 0 <= self.label_smoothing < 1, "in [0, 1)"),
+            ("mirror_prob", 0 <= self.mirror_prob <= 1, "in [0, 1]"),
+            ("role_swap_prob", 0 <= self.role_swap_prob <= 1, "in [0, 1]"),
+            ("time_warp", 0 <= self.time_warp < 1, "in [0, 1)"),
+            ("scale_jitter", 0 <= self.scale_jitter < 1, "in [0, 1)"),
+            ("patience", self.patience >= 0, ">= 0"),
         )
         for name, ok, expected in checks:
             if not ok:
@@ -189,11 +210,16 @@ def load_config(name_or_path: str, **overrides: Any) -> TrainConfig:
             raise ValueError(f"unknown config {name_or_path!r}: not one of {sorted(NAMED)} nor a JSON file")
         try:
             d = json.loads(path.read_text())
-        except json.JSONDecodeError as err:
-            raise ValueError(f"{path}: invalid JSON ({err.msg} at line {err.lineno})") from None
+        except (json.JSONDecodeError, RecursionError) as err:
+            where = f"{err.msg} at line {err.lineno}" if isinstance(err, json.JSONDecodeError) else "nested too deeply"
+            raise ValueError(f"{path}: invalid JSON ({where})") from None
+        if not isinstance(d, dict):
+            raise ValueError(f"{path}: a config is a JSON object ({{\"base\": \"imm\", ...overrides}}), not {type(d).__name__}")
         base = NAMED.get(d.pop("base", "imm"))
         if base is None:
-            raise ValueError(f"{path}: unknown base config")
+            raise ValueError(f"{path}: unknown base config (one of {sorted(NAMED)})")
+        if not isinstance(d.get("model", {}), dict):
+            raise ValueError(f"{path}: model must be a JSON object of model sizes, not {d['model']!r}")
         merged = base.to_dict() | d
         merged["model"] = base.model | d.get("model", {})  # model sizes merge key by key
         merged.setdefault("name", path.stem)
