@@ -135,7 +135,7 @@ def test_plausibility_of_real_motion_and_of_a_frozen_pose(sample_data):
     assert plausibility.plausibility(list(leaders), far, list(reals), sk, 15.0)["interpenetration"] == 0.0
 
 
-PLAUSIBLE = {"limb_speed_ratio": 0.5, "bone_error_cm": 1.0, "interpenetration": 0.0, "foot_skate_mps": 0.1,
+PLAUSIBLE = {"limb_speed_ratio": 0.5, "smooth_limb_speed_ratio": 0.4, "bone_error_cm": 1.0, "interpenetration": 0.0, "foot_skate_mps": 0.1,
              "real_bone_error_cm": 0.5, "real_interpenetration": 0.0, "real_foot_skate_mps": 0.2}
 
 

@@ -73,7 +73,7 @@ def plausibility_table(group: dict) -> str:
                                     "foot_skate_mps": real["real_foot_skate_mps"], "speed_ratio": 1.0, "limb_speed_ratio": 1.0,
                                     "smooth_limb_speed_ratio": 1.0}))
     for name, p in rows:
-        lines.append(f"| {name} | " + " | ".join(f"{p[k]:.3f}" for k in cols) + " |")
+        lines.append(f"| {name} | " + " | ".join(f"{p.get(k, float('nan')):.3f}" for k in cols) + " |")
     return "\n".join(lines)
 
 
