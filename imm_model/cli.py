@@ -20,7 +20,7 @@ COMMAND_MODULES: dict[str, str] = {
     "data": "imm_model.cli",
     "train": "imm_model.training.commands",
     "evaluate": "imm_model.evaluation.commands",
-    "generate": "imm_model.inference",
+    "generate": "imm_model.generate",
 }
 # Front ends built on the library (the studio) add commands through this entry-point group, so the
 # library never imports them by name.

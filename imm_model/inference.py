@@ -11,7 +11,6 @@ generator runs in that frame, and the follower is mapped back to the leader's wo
 
 from __future__ import annotations
 
-import argparse
 import functools
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -19,7 +18,6 @@ from typing import Any
 
 import numpy as np
 
-from imm_model.device import add_device_argument
 from imm_model.errors import CheckpointError, DataFormatError, LabelError
 
 MAX_LENGTH_FACTOR = 10  # inputs longer than this times the longest training sequence are refused
@@ -281,60 +279,3 @@ def read_leader_file(path: Path, bvh_map: Path | None = None) -> np.ndarray:
     _, positions = parse_skeleton_file(path)  # a skeleton_pos.txt outside the dataset's folder layout
     metres = normalized_to_metres(positions)
     return metres[actor_by_motion_energy(metres[0], metres[1])]
-
-
-def register(subparsers: argparse._SubParsersAction) -> None:
-    p = subparsers.add_parser("generate", help="synthesize the follower's reaction to a leader motion")
-    src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--leader", type=Path, help="a .bvh, an .npz with a 'leader' (T, 15, 3) array in metres, or an SBU skeleton_pos.txt")
-    src.add_argument("--sequence", help="a sequence id of the bundled data, e.g. s01s02/03/001 (its leader is used)")
-    p.add_argument("--label", required=True, help="e.g. kicking=1,hugging=0.5 or one value per class: 1,0,0,0,0.5,0")
-    p.add_argument("--scale", type=float, default=1.0, help="multiplies the label vector (default 1)")
-    p.add_argument("--out", type=Path, required=True,
-                   help="output .npz (follower, leader, label; world metres) or .bvh (the follower; the leader as NAME.leader.bvh)")
-    p.add_argument("--bvh-map", type=Path, default=None, help="JSON {kinect joint: BVH joint name} for a skeleton the name table misses")
-    p.add_argument("--checkpoint", type=Path, default=None, help="default: the bundled model")
-    p.add_argument("--data", type=Path, default=None, help="dataset for --sequence (default: the bundled sample)")
-    p.add_argument("--force", action="store_true", help="replace --out if it exists")
-    add_device_argument(p)
-    p.set_defaults(func=_cmd_generate)
-
-
-def _cmd_generate(args: argparse.Namespace) -> int:
-    import torch
-
-    from imm_model.device import resolve_device
-    from imm_model.outputs import check_finite, check_output
-
-    check_output(args.out, args.force, inputs=(args.leader, args.checkpoint, args.data))
-    if args.out.suffix.lower() == ".bvh":
-        check_output(args.out.with_suffix(".leader.bvh"), args.force, inputs=(args.leader,))
-    torch.set_num_threads(2)
-    model = ReactionModel.load(args.checkpoint, resolve_device(args.device))
-    if args.sequence:
-        from imm_model.data.dataset import InteractionDataset
-        from imm_model.paths import SAMPLE_DATA
-
-        data = InteractionDataset.load(args.data or SAMPLE_DATA)
-        leader = data.world(data.index_of(args.sequence))[0]
-    else:
-        leader = read_leader_file(args.leader, args.bvh_map)
-    vec = model.label_vector(parse_label(args.label, model.class_names), args.scale)
-    follower = check_finite(model.synthesize(leader, vec), "the synthesized follower (leader coordinates out of range?)")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    if args.out.suffix.lower() == ".bvh":
-        from imm_model.data.bvh import write_bvh
-
-        write_bvh(args.out, follower, model.skeleton)
-        write_bvh(args.out.with_suffix(".leader.bvh"), leader, model.skeleton)
-    else:
-        from imm_model.data.canonical import CanonicalFrame
-        from imm_model.interaction_file import interaction_arrays, save_interaction
-
-        frame = CanonicalFrame.from_leader(np.asarray(leader, np.float64), model.skeleton, model.canonical_mode)
-        save_interaction(args.out, interaction_arrays(
-            leader, follower, frame, model.skeleton, class_names=model.class_names, label=vec, scale=args.scale,
-            checkpoint=str(model.path.name if model.path else ""), fps=15.0, sequence_id=args.sequence))
-    desc = ", ".join(f"{n}={v:g}" for n, v in zip(model.class_names, vec, strict=True) if v != 0) or "all zero"
-    print(f"wrote {args.out}: follower {follower.shape[0]} frames x {follower.shape[1]} joints (label {desc})")
-    return 0

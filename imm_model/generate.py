@@ -1,0 +1,169 @@
+"""`imm generate`: synthesize reactions from the command line: one leader and one label, or a batch (leader
+files or folders, or dataset sequences, times labels or the one-hot grid), one output file per item."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from imm_model.device import add_device_argument
+from imm_model.errors import DataFormatError
+
+LEADER_SUFFIXES = (".bvh", ".npz", ".txt")
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser("generate", help="synthesize the follower's reaction to leader motions")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--leader", type=Path, nargs="+",
+                     help="leader files (.bvh, .npz with a 'leader' array, SBU skeleton_pos.txt) or folders of them")
+    src.add_argument("--sequence", help="a sequence id of the bundled data, e.g. s01s02/03/001 (its leader is used)")
+    src.add_argument("--sequences", help="'all', 'held-out' or comma-separated sequence ids of the bundled data")
+    p.add_argument("--label", action="append", default=None,
+                   help="e.g. kicking=1,hugging=0.5 or one value per class; repeat it for several labels")
+    p.add_argument("--grid", action="store_true", help="every one-hot label (one output per leader and class)")
+    p.add_argument("--scale", type=float, default=1.0, help="multiplies the label vector (default 1)")
+    p.add_argument("--out", type=Path, required=True,
+                   help="one item: a .npz or .bvh file (the leader as NAME.leader.bvh beside a .bvh); several: a folder")
+    p.add_argument("--format", choices=("npz", "bvh"), default="npz", help="file type of each item in a batch (default npz)")
+    p.add_argument("--checkpoint", type=Path, default=None, help="default: the bundled model")
+    p.add_argument("--data", type=Path, default=None, help="dataset for --sequence(s) (default: the bundled sample)")
+    p.add_argument("--bvh-map", type=Path, default=None, help="JSON {kinect joint: BVH joint name} for a skeleton the name table misses")
+    p.add_argument("--force", action="store_true", help="replace outputs that exist")
+    add_device_argument(p)
+    p.set_defaults(func=_cmd_generate)
+
+
+def leader_files(paths: list[Path]) -> list[Path]:
+    """Files as given, folders expanded to their leader files (sorted); nothing found is an error."""
+    files = []
+    for path in paths:
+        if path.is_dir():
+            files += sorted(f for f in path.iterdir() if f.suffix.lower() in LEADER_SUFFIXES and ".leader." not in f.name)
+        else:
+            files.append(path)
+    if not files:
+        raise DataFormatError(f"no leader files ({', '.join(LEADER_SUFFIXES)}) in {', '.join(map(str, paths))}")
+    return files
+
+
+def label_vectors(args: argparse.Namespace, model) -> list[np.ndarray]:
+    from imm_model.inference import parse_label
+
+    if args.grid:
+        return [np.eye(len(model.class_names), dtype=np.float32)[c] * args.scale for c in range(len(model.class_names))]
+    if not args.label:
+        raise ValueError("give --label (repeat it for several) or --grid")
+    return [model.label_vector(parse_label(text, model.class_names), args.scale) for text in args.label]
+
+
+def label_slug(vec: np.ndarray, class_names) -> str:
+    return "_".join(f"{n}{v:+g}" for n, v in zip(class_names, vec, strict=True) if v) or "neutral"
+
+
+def _leaders(args: argparse.Namespace, model) -> list[tuple[str, np.ndarray, str | None]]:
+    """-> (item name, world leader (T, J, 3), dataset sequence id or None) per leader."""
+    from imm_model.inference import read_leader_file
+
+    if args.leader:
+        return [(f.stem, read_leader_file(f, args.bvh_map), None) for f in leader_files(args.leader)]
+    from imm_model.data.dataset import InteractionDataset
+    from imm_model.paths import SAMPLE_DATA
+
+    data = InteractionDataset.load(args.data or SAMPLE_DATA)
+    if args.sequence:
+        ids = [args.sequence]
+    elif args.sequences == "all":
+        ids = list(data.sequence_ids)
+    elif args.sequences == "held-out":
+        ids = [s for i, s in enumerate(data.sequence_ids) if data.held_out[i]]
+    else:
+        ids = [s.strip() for s in args.sequences.split(",") if s.strip()]
+    return [(sid.replace("/", "-"), data.world(data.index_of(sid))[0], sid) for sid in ids]
+
+
+def _cmd_generate(args: argparse.Namespace) -> int:
+    import torch
+
+    from imm_model.device import resolve_device
+    from imm_model.inference import ReactionModel
+    from imm_model.outputs import check_output
+
+    one_leader = bool(args.sequence) or bool(args.leader and len(args.leader) == 1 and args.leader[0].is_file())
+    single = one_leader and not args.grid and len(args.label or []) <= 1
+    if single:  # refused before the model is even loaded
+        check_output(args.out, args.force, inputs=(*(args.leader or []), args.checkpoint, args.data))
+    torch.set_num_threads(2)
+    model = ReactionModel.load(args.checkpoint, resolve_device(args.device))
+    leaders, labels = _leaders(args, model), label_vectors(args, model)
+    if single:
+        return _generate_one(args, model, leaders[0], labels[0])
+    return _generate_batch(args, model, leaders, labels)
+
+
+def _generate_one(args: argparse.Namespace, model, leader_item, vec: np.ndarray) -> int:
+    _, leader, sid = leader_item
+    follower = _synthesize(model, [leader], vec)[0]
+    _write(args.out, leader, follower, model, vec, args.scale, sid)
+    desc = ", ".join(f"{n}={v:g}" for n, v in zip(model.class_names, vec, strict=True) if v != 0) or "all zero"
+    print(f"wrote {args.out}: follower {follower.shape[0]} frames x {follower.shape[1]} joints (label {desc})")
+    return 0
+
+
+def _generate_batch(args: argparse.Namespace, model, leaders: list, labels: list[np.ndarray]) -> int:
+    """Every leader x every label, one file each in the --out folder; all leaders in one batch per label."""
+    from tqdm import tqdm
+
+    from imm_model.outputs import check_output
+
+    if args.out.suffix.lower() in (".npz", ".bvh"):
+        raise ValueError(f"--out {args.out}: {len(leaders) * len(labels)} items need a folder, not a file name")
+    paths = {(k, c): args.out / f"{name}_{label_slug(vec, model.class_names)}.{args.format}"
+             for k, (name, _, _) in enumerate(leaders) for c, vec in enumerate(labels)}
+    for path in paths.values():  # all refused before anything is written
+        check_output(path, args.force, inputs=tuple(args.leader or ()))
+    args.out.mkdir(parents=True, exist_ok=True)
+    with tqdm(total=len(paths), desc="generate", unit="file") as bar:
+        for c, vec in enumerate(labels):
+            followers = _synthesize(model, [leader for _, leader, _ in leaders], vec)
+            for k, ((_, leader, sid), follower) in enumerate(zip(leaders, followers, strict=True)):
+                _write(paths[k, c], leader, follower, model, vec, args.scale, sid)
+                bar.update()
+    print(f"wrote {len(paths)} files ({len(leaders)} leaders x {len(labels)} labels) to {args.out}")
+    return 0
+
+
+def _synthesize(model, leaders: list[np.ndarray], vec: np.ndarray) -> list[np.ndarray]:
+    """World leaders -> world followers, one batched forward pass (each leader in its own canonical frame)."""
+    from imm_model.data.canonical import CanonicalFrame
+    from imm_model.outputs import check_finite
+
+    frames, canonical = [], []
+    for leader in leaders:
+        checked = model.check_leader(leader)
+        frame = CanonicalFrame.from_leader(checked, model.skeleton, model.canonical_mode)
+        frames.append(frame)
+        canonical.append(frame.to_canonical(checked, model.skeleton).astype(np.float32))
+    followers = model.synthesize_batch_canonical(canonical, np.repeat(vec[None], len(leaders), 0))
+    return [check_finite(f.to_world(b.astype(np.float64), model.skeleton), "the synthesized follower (leader coordinates out of range?)")
+            for f, b in zip(frames, followers, strict=True)]
+
+
+def _write(path: Path, leader: np.ndarray, follower: np.ndarray, model, vec: np.ndarray, scale: float, sid: str | None) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.suffix.lower() == ".bvh":
+        from imm_model.data.bvh import write_bvh
+
+        write_bvh(path, follower, model.skeleton)
+        write_bvh(path.with_suffix(".leader.bvh"), leader, model.skeleton)
+        return
+    from imm_model.data.canonical import CanonicalFrame
+    from imm_model.interaction_file import interaction_arrays, save_interaction
+
+    frame = CanonicalFrame.from_leader(np.asarray(leader, np.float64), model.skeleton, model.canonical_mode)
+    save_interaction(path, interaction_arrays(leader, follower, frame, model.skeleton, class_names=model.class_names, label=vec,
+                                              scale=scale, checkpoint=model.path.name if model.path else "", fps=15.0, sequence_id=sid))
+
+
