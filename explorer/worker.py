@@ -67,7 +67,11 @@ def start_index(data, sequence: str | None) -> int:
     if sequence is None:
         held = [i for i in range(len(data)) if data.held_out[i]]
         return held[0] if held else 0  # open on a sequence the model never saw: the honest default
-    return int(sequence) if sequence.isdigit() else data.index_of(sequence)
+    if sequence.isdigit() and int(sequence) < len(data):
+        return int(sequence)
+    if sequence in data.sequence_ids:
+        return data.index_of(sequence)
+    raise ValueError(f"--sequence {sequence!r}: no such sequence (an id such as {data.sequence_ids[0]}, or an index 0..{len(data) - 1})")
 
 
 def serve(data, model, latent, reader, args: argparse.Namespace) -> int:
@@ -80,7 +84,7 @@ def serve(data, model, latent, reader, args: argparse.Namespace) -> int:
 
     patch_image_delivery()
     server = get_server("imm-studio", client_type="vue3")
-    session = Session(data, model, start_index(data, args.sequence), reader)
+    session = Session(data, model, args.start, reader)
     Studio(server, session, latent, export_dir=args.export_dir, render=args.render)
 
     clients: set[str] = set()
@@ -125,6 +129,7 @@ def main(argv=None) -> int:
     torch.set_num_threads(1)
     try:
         data, model, latent, reader = load_everything(args)
+        args.start = start_index(data, args.sequence)
     except Exception as err:  # one line for the launcher / terminal, never a traceback
         msg = str(err.args[0] if isinstance(err, KeyError) and err.args else err).strip().splitlines()
         _say("ERROR", msg[0] if msg else type(err).__name__)

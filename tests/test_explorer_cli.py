@@ -44,6 +44,11 @@ def test_missing_checkpoint(tmp_path):
     assert_one_line_error(run_explore("--checkpoint", str(tmp_path / "nope.safetensors")), "checkpoint not found")
 
 
+def test_unknown_start_sequence_and_bad_judge(tmp_path):
+    assert_one_line_error(run_explore("--sequence", "nonexistent", "--cache-dir", str(tmp_path)), "no such sequence")
+    assert_one_line_error(run_explore("--judge", str(tmp_path / "nope.safetensors")), "judge not found")
+
+
 def test_corrupt_checkpoint(tmp_path):
     bad = tmp_path / "bad.safetensors"
     bad.write_bytes(b"\x00" * 64)
