@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from imm_model.data.batching import LengthBucketSampler, make_batch
+from imm_model.data.batching import LengthBucketSampler, pad_sequences
 from imm_model.data.splits import five_folds, loso_fold, loso_folds, subjects_of, validation_split
 
 
@@ -45,15 +45,13 @@ def test_validation_split_comes_from_training_only(sample_data):
 
 def test_batch_padding_and_masks(sample_data):
     idx = [0, 5, 17]
-    batch = make_batch(sample_data, idx)
+    leader, mask = pad_sequences([sample_data.canonical(i)[0].reshape(int(sample_data.lengths[i]), -1) for i in idx])
     t_max = int(sample_data.lengths[idx].max())
-    assert batch.leader.shape == (3, t_max, 45) and batch.mask.shape == (3, t_max)
+    assert leader.shape == (3, t_max, 45) and mask.shape == (3, t_max)
     for b, i in enumerate(idx):
         n = int(sample_data.lengths[i])
-        assert batch.mask[b].sum() == n
-        assert torch.all(batch.leader[b, n:] == 0) and torch.all(batch.follower[b, n:] == 0)
-        np.testing.assert_array_equal(batch.leader[b, :n].numpy(), sample_data.canonical(i)[0].reshape(n, -1))
-    assert torch.equal(batch.labels.argmax(1), batch.actions)
+        assert mask[b].sum() == n and torch.all(leader[b, n:] == 0)
+        np.testing.assert_array_equal(leader[b, :n].numpy(), sample_data.canonical(i)[0].reshape(n, -1))
 
 
 def test_length_buckets_cut_padding_and_cover_each_index_once(sample_data):

@@ -7,23 +7,9 @@ own longest sequence makes an epoch about twice as cheap as padding everything t
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import torch
-
-from imm_model.data.dataset import InteractionDataset
-
-
-@dataclass
-class Batch:
-    leader: torch.Tensor  # (B, T, J*3) canonical metres, zero-padded
-    follower: torch.Tensor  # (B, T, J*3)
-    mask: torch.Tensor  # (B, T) bool, True on valid frames
-    labels: torch.Tensor  # (B, C) one-hot of the sequence's class (float)
-    actions: torch.Tensor  # (B,) int64
-    lengths: torch.Tensor  # (B,) int64
-    indices: torch.Tensor  # (B,) int64 sequence indices into the dataset
 
 
 def pad_sequences(seqs: Sequence[np.ndarray]) -> tuple[torch.Tensor, torch.Tensor]:
@@ -35,28 +21,6 @@ def pad_sequences(seqs: Sequence[np.ndarray]) -> tuple[torch.Tensor, torch.Tenso
         out[b, : len(s)] = s
         mask[b, : len(s)] = True
     return torch.from_numpy(out), torch.from_numpy(mask)
-
-
-def make_batch(data: InteractionDataset, indices: Sequence[int]) -> Batch:
-    """Collect sequences `indices` of `data` into one padded batch."""
-    leaders, followers = [], []
-    for i in indices:
-        a, b = data.canonical(int(i))
-        leaders.append(a.reshape(len(a), -1))
-        followers.append(b.reshape(len(b), -1))
-    leader, mask = pad_sequences(leaders)
-    follower, _ = pad_sequences(followers)
-    actions = torch.as_tensor(data.actions[list(indices)], dtype=torch.int64)
-    labels = torch.nn.functional.one_hot(actions, len(data.class_names)).float()
-    return Batch(
-        leader=leader,
-        follower=follower,
-        mask=mask,
-        labels=labels,
-        actions=actions,
-        lengths=torch.as_tensor(data.lengths[list(indices)], dtype=torch.int64),
-        indices=torch.as_tensor(list(indices), dtype=torch.int64),
-    )
 
 
 class LengthBucketSampler(torch.utils.data.Sampler[list[int]]):

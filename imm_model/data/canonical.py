@@ -99,13 +99,3 @@ class CanonicalFrame:
         """(T, J, 3) canonical -> (T, J, 3) world, float64. Exact inverse of `to_canonical`."""
         rot = yaw_rotation(self.yaw, skeleton)
         return np.einsum("tij,tkj->tki", rot, positions) + self.origin[:, None, :]
-
-    def extended(self, num_frames: int) -> CanonicalFrame:
-        """The frame for a sequence of another length (first-frame mode only: it is constant)."""
-        if self.mode != "first_frame":
-            raise ValueError("a per-frame canonical frame cannot be applied to a sequence of another length")
-        return CanonicalFrame(
-            yaw=np.full(num_frames, self.yaw[0]),
-            origin=np.repeat(self.origin[:1], num_frames, axis=0),
-            mode=self.mode,
-        )

@@ -2,7 +2,7 @@
 leader from the fold's training sequences of the same class (the true class is given to all of them, as it
 is to the model):
 
-- `nn1` (the paper's NN, issue 3): the training leader closest after resampling to equal length (mean
+- `nn1` (the paper's NN): the training leader closest after resampling to equal length (mean
   per-frame pose-vector distance); its follower, resampled to the test length.
 - `knn_dtw`: the k = 3 training leaders closest under dynamic time warping; each one's follower is warped
   onto the test leader's timeline along the DTW path, expressed relative to its own leader's root and

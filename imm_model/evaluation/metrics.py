@@ -49,12 +49,6 @@ def afd(
     return float((frame_distances(pred, gt) ** power).mean())
 
 
-def mpjpe_mm(pred_canonical: np.ndarray, gt_canonical: np.ndarray) -> float:
-    """Mean per-joint position error in millimetres (positions in metres)."""
-    diff = np.asarray(pred_canonical, np.float64) - np.asarray(gt_canonical, np.float64)
-    return float(np.linalg.norm(diff, axis=-1).mean() * 1000.0)
-
-
 def per_class_mean(values: Mapping[int, float], actions: np.ndarray, class_names: Sequence[str]) -> dict[str, float]:
     """{sequence index: value} -> {class name: mean over that class's sequences} (classes present only)."""
     out: dict[str, float] = {}

@@ -1,4 +1,4 @@
-"""Model sizes as a typed config. `paper_model_config` gives the paper's SBU sizes."""
+"""Model sizes as a typed config (training/config.py holds the named recipes, `paper` among them)."""
 
 from __future__ import annotations
 

@@ -71,10 +71,6 @@ class Augmenter:
         self.scale_jitter = scale_jitter
         self.mirror_class_mask = mirror_class_mask  # (C,) bool: classes that may be mirrored (None = all)
 
-    @property
-    def active(self) -> bool:
-        return self.mirror_prob > 0 or self.rotate_deg > 0 or self.role_swap_prob > 0 or self.time_warp > 0 or self.scale_jitter > 0
-
     def __call__(self, data: PaddedData, idx: torch.Tensor, gen: torch.Generator):
         leader, follower, lengths, actions = data.batch(idx)
         B, T, _ = leader.shape
