@@ -189,7 +189,8 @@ class ReactionModel:
 
 
 def check_compatible(model, data, where: str = "checkpoint") -> None:
-    """Refuse a model (ReactionModel or alike) whose classes or skeleton differ from a dataset's (one-line CheckpointError)."""
+    """Refuse a model (ReactionModel or alike) whose classes, skeleton or canonical frame differ from a dataset's
+    (one-line CheckpointError)."""
     if tuple(model.class_names) != tuple(data.class_names):
         raise CheckpointError(f"{where}: classes {', '.join(model.class_names)} do not match the data's {', '.join(data.class_names)}")
     ms, ds = model.skeleton, data.skeleton
@@ -198,6 +199,9 @@ def check_compatible(model, data, where: str = "checkpoint") -> None:
             f"{where}: skeleton {getattr(ms, 'name', '?')} ({len(ms.joint_names)} joints) does not match "
             f"the data's {ds.name} ({len(ds.joint_names)} joints)"
         )
+    model_mode, data_mode = getattr(model, "canonical_mode", None), getattr(data, "canonical_mode", None)
+    if model_mode and data_mode and model_mode != data_mode:
+        raise CheckpointError(f"{where}: trained on the {model_mode!r} canonical frame, the data uses {data_mode!r}")
 
 
 def _as_float(v, name: str) -> float:

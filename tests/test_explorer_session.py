@@ -116,6 +116,9 @@ def test_mismatched_model_is_one_line(sample_data):
     with pytest.raises(CheckpointError, match="skeleton other") as err:
         check_compatible(wrong_skel, sample_data, "ckpt")
     assert "\n" not in str(err.value)
+    other_frame = SimpleNamespace(class_names=sample_data.class_names, skeleton=sk, canonical_mode="per_frame")
+    with pytest.raises(CheckpointError, match="canonical frame"):
+        check_compatible(other_frame, sample_data, "ckpt")
 
 
 def test_reads_as_follows_the_label(sample_data, model):
