@@ -2,8 +2,10 @@
 
 A trame server shares one state among all its clients, so two people on one server would move each
 other's sliders. The launcher listens on the public port; each visit to `/` takes a warm worker
-process (explorer/worker.py, already loaded and listening on its own port), redirects the browser to
-it and starts the next spare in the background. Workers exit when their user has gone.
+process (explorer/worker.py, already loaded and listening on its own port) when the front page's script
+claims one (a same-origin POST: a bare GET or another web page cannot), sends the browser to it and starts
+the next spare in the background. Workers exit when their user has gone, or when no browser connects to
+them within worker.CLAIM_TIMEOUT_S of the claim.
 """
 
 from __future__ import annotations
@@ -137,14 +139,31 @@ class Launcher:
 
     # ---- http ----------------------------------------------------------------------------
     async def handle(self, request):
+        """The front page: no studio process is taken by a GET (a bare request, a prefetch or another web
+        page's <img> would otherwise hold one); its script claims one with a same-origin POST."""
         from aiohttp import web
 
+        return web.Response(content_type="text/html", text=CLAIM_PAGE)
+
+    async def claim(self, request):
+        """POST /claim from the front page -> {"url": the studio process for this tab}. Refused for a request from
+        another web origin or addressed to a host name this studio does not serve (DNS rebinding)."""
+        from aiohttp import web
+
+        host = request.url.host or ""
+        origin = request.headers.get("Origin")
+        if host not in self.allowed_hosts() or (origin is not None and origin != f"http://{request.host}"):
+            return web.Response(status=403, text="refused: the studio only answers its own page")
         try:
             w = await self.take()
         except LaunchError as err:
             return web.Response(status=503, content_type="text/html", text=_error_page(str(err)))
-        host = request.url.host or self.config.host
-        raise web.HTTPFound(f"http://{host}:{w.port}/")
+        if w.process.stdin is not None:
+            w.process.stdin.write(b"claimed\n")  # the process exits if no browser connects to it soon
+        return web.json_response({"url": f"http://{host}:{w.port}/"})
+
+    def allowed_hosts(self) -> set[str]:
+        return {"localhost", "127.0.0.1", "::1", "[::1]", self.config.host} - {"0.0.0.0", "::"}
 
     async def run(self, sock: socket.socket) -> int:
         from aiohttp import web
@@ -159,6 +178,7 @@ class Launcher:
             raise
         app = web.Application()
         app.router.add_get("/", self.handle)
+        app.router.add_post("/claim", self.claim)
         runner = web.AppRunner(app, access_log=None)
         await runner.setup()
         await web.SockSite(runner, sock).start()
@@ -207,6 +227,17 @@ def _open_browser(url: str) -> None:
         webbrowser.open(url)
     except Exception:  # a missing browser must not stop the studio
         pass
+
+
+CLAIM_PAGE = """<!doctype html><title>IMM Studio</title>
+<body style="font-family:sans-serif;padding:2em"><h2>IMM Studio</h2><p id="m">starting your studio...</p>
+<script>
+fetch("claim", {method: "POST"}).then(async (r) => {
+  if (!r.ok) throw new Error(await r.text());
+  location.replace((await r.json()).url);
+}).catch((e) => { const m = document.getElementById("m"); m.style.color = "#b00020";
+  m.textContent = (e.message || String(e)).replace(/<[^>]*>/g, " ").replace(/\\s+/g, " ").replace("IMM Studio", "").trim(); });
+</script></body>"""
 
 
 def _error_page(message: str) -> str:

@@ -14,6 +14,8 @@ import threading
 import time
 from pathlib import Path
 
+# a claimed studio process whose browser never connects exits after this ($IMM_STUDIO_CLAIM_TIMEOUT: tests)
+CLAIM_TIMEOUT_S = float(os.environ.get("IMM_STUDIO_CLAIM_TIMEOUT", "20"))
 PREFIX = "IMM-WORKER"
 
 
@@ -102,15 +104,22 @@ def serve(data, model, latent, reader, args: argparse.Namespace) -> int:
 
     server.add_protocol_to_configure(lambda protocol: protocol.registerLinkProtocol(ClientTracker()))
 
+    claimed_at: list[float | None] = [None]
+
     def idle_watch():
         while True:
             time.sleep(1.0)
             if ever[0] and not clients and time.monotonic() - last_seen[0] > args.idle_exit:
                 os._exit(0)
+            # handed to a browser that never connected (a bare request, a closed tab): free the slot soon
+            if claimed_at[0] is not None and not ever[0] and time.monotonic() - claimed_at[0] > CLAIM_TIMEOUT_S:
+                os._exit(0)
 
     def stdin_watch():
-        sys.stdin.read()  # returns at EOF: the launcher is gone
-        os._exit(0)
+        for line in sys.stdin:  # the launcher writes "claimed" when it hands this process to a browser
+            if line.strip() == "claimed" and claimed_at[0] is None:
+                claimed_at[0] = time.monotonic()
+        os._exit(0)  # EOF: the launcher is gone
 
     threading.Thread(target=idle_watch, daemon=True).start()
     if args.watch_stdin:

@@ -84,9 +84,25 @@ def test_port_in_use():
     assert_one_line_error(proc, f"port {port}", "already in use")
 
 
+def _claim(host: str, port: int, origin: str | None = "same", host_header: str | None = None):
+    import http.client
+    import json
+
+    conn = http.client.HTTPConnection(host, port, timeout=60)
+    headers = {"Host": host_header or f"{host}:{port}"}
+    if origin is not None:
+        headers["Origin"] = f"http://{host}:{port}" if origin == "same" else origin
+    conn.request("POST", "/claim", headers=headers)
+    r = conn.getresponse()
+    body = r.read().decode()
+    return r.status, (json.loads(body) if r.status == 200 else body)
+
+
 @pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
-def test_launcher_redirects_and_reports_full_in_the_page(tmp_path):
-    """Each visit gets its own studio process; past --max-clients the page says so in one line."""
+def test_launcher_hands_out_processes_only_to_its_own_page(tmp_path):
+    """Bare GETs take no studio process (twenty of them, then a claim still gets one at once); a claim from another
+    web origin or for another host name is refused; each claim gets its own process; past --max-clients the
+    page says so in one line."""
     import http.client
     from urllib.parse import urlsplit
 
@@ -95,17 +111,38 @@ def test_launcher_redirects_and_reports_full_in_the_page(tmp_path):
     with StudioProcess("--max-clients", "1", cache_dir=tmp_path) as studio:
         u = urlsplit(studio.url)
         conn = http.client.HTTPConnection(u.hostname, u.port, timeout=60)
-        conn.request("GET", "/")
-        first = conn.getresponse()
-        first.read()
-        assert first.status == 302
-        worker = urlsplit(first.getheader("Location"))
-        assert worker.port != u.port
+        for _ in range(20):
+            conn.request("GET", "/")
+            r = conn.getresponse()
+            assert r.status == 200 and 'fetch("claim"' in r.read().decode()
+        assert _claim(u.hostname, u.port, origin="http://evil.example.com")[0] == 403
+        assert _claim(u.hostname, u.port, host_header=f"evil.example.com:{u.port}")[0] == 403  # DNS rebinding
+        status, answer = _claim(u.hostname, u.port)
+        assert status == 200
+        worker = urlsplit(answer["url"])
+        assert worker.port != u.port and worker.hostname == u.hostname  # no Host header echoed from elsewhere
         page = http.client.HTTPConnection(worker.hostname, worker.port, timeout=30)
         page.request("GET", "/index.html")
         assert page.getresponse().status == 200
-        conn.request("GET", "/")
-        second = conn.getresponse()
-        body = second.read().decode()
-        assert second.status == 503
-        assert "maximum of 1 clients" in body
+        status, body = _claim(u.hostname, u.port)
+        assert status == 503 and "maximum of 1 clients" in body
+
+
+@pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
+def test_a_claim_nobody_connects_to_is_released(tmp_path, monkeypatch):
+    """A tab that claims a process and never connects (closed at once) does not hold the only slot for long."""
+    import time
+    from urllib.parse import urlsplit
+
+    from explorer.probe import StudioProcess
+
+    monkeypatch.setenv("IMM_STUDIO_CLAIM_TIMEOUT", "2")
+    with StudioProcess("--max-clients", "1", cache_dir=tmp_path) as studio:
+        u = urlsplit(studio.url)
+        assert _claim(u.hostname, u.port)[0] == 200
+        assert _claim(u.hostname, u.port)[0] == 503
+        deadline = time.monotonic() + 30
+        while _claim(u.hostname, u.port)[0] != 200:
+            assert time.monotonic() < deadline, "the unconnected claim was never released"
+            time.sleep(1.0)
+
