@@ -14,6 +14,7 @@ import asyncio
 import errno
 import html
 import os
+import secrets
 import signal
 import socket
 import sys
@@ -73,13 +74,15 @@ class Launcher:
         self.config = config
         self.spares: list[Worker] = []
         self.busy: list[Worker] = []
+        self.sessions: dict[str, Worker] = {}  # /s/<token>/ -> the tab's studio process
         self.url = ""
 
     # ---- workers -------------------------------------------------------------------------
     async def spawn(self) -> Worker:
+        """A studio process on a loopback port of its own: browsers reach it only through this launcher (proxy.py)."""
         c = self.config
         cmd = [sys.executable, "-m", "explorer.worker", "--data", str(c.data), "--checkpoint", str(c.checkpoint),
-               "--host", c.host, "--port", "0", "--export-dir", str(c.export_dir), "--idle-exit", str(c.idle_exit),
+               "--host", "127.0.0.1", "--port", "0", "--export-dir", str(c.export_dir), "--idle-exit", str(c.idle_exit),
                "--watch-stdin"]  # fmt: skip
         if c.cache_dir:
             cmd += ["--cache-dir", str(c.cache_dir)]
@@ -112,6 +115,8 @@ class Launcher:
         for pool in (self.spares, self.busy):
             if w in pool:
                 pool.remove(w)
+        for token in [t for t, s in self.sessions.items() if s is w]:
+            del self.sessions[token]
 
     def _top_up(self) -> None:
         want = min(self.config.spares, self.config.max_clients - len(self.busy)) - len(self.spares)
@@ -160,7 +165,27 @@ class Launcher:
             return web.Response(status=503, content_type="text/html", text=_error_page(str(err)))
         if w.process.stdin is not None:
             w.process.stdin.write(b"claimed\n")  # the process exits if no browser connects to it soon
-        return web.json_response({"url": f"http://{host}:{w.port}/"})
+        token = secrets.token_urlsafe(18)
+        self.sessions[token] = w
+        return web.json_response({"url": f"s/{token}/"})  # relative: a reverse proxy's path prefix is kept
+
+    async def studio(self, request):
+        """/s/<token>/<path>: the tab's page, assets and websocket, forwarded to its studio process."""
+        from aiohttp import web
+
+        from explorer.proxy import forward_http, forward_websocket
+
+        w = self.sessions.get(request.match_info["token"])
+        if w is None or w.process.returncode is not None:
+            self.sessions.pop(request.match_info["token"], None)
+            raise web.HTTPFound("../../")  # an old or unknown link: back to the front page for a fresh studio
+        tail = request.match_info["tail"]
+        if request.headers.get("Upgrade", "").lower() == "websocket":
+            origin = request.headers.get("Origin")
+            if request.url.host not in self.allowed_hosts() or (origin is not None and origin != f"http://{request.host}"):
+                return web.Response(status=403, text="refused: the studio only answers its own page")
+            return await forward_websocket(request, w.port, tail)
+        return await forward_http(request, w.port, tail)
 
     def allowed_hosts(self) -> set[str]:
         return {"localhost", "127.0.0.1", "::1", "[::1]", self.config.host} - {"0.0.0.0", "::"}
@@ -179,6 +204,7 @@ class Launcher:
         app = web.Application()
         app.router.add_get("/", self.handle)
         app.router.add_post("/claim", self.claim)
+        app.router.add_get("/s/{token}/{tail:.*}", self.studio)
         runner = web.AppRunner(app, access_log=None)
         await runner.setup()
         await web.SockSite(runner, sock).start()

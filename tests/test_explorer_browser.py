@@ -167,6 +167,72 @@ def test_upload_a_bvh_leader_then_a_broken_file(page, tmp_path, sample_data):
     page.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=10000)
 
 
+class TcpRelay:
+    """A local port that forwards every connection to another (what `ssh -L` does), for the single-port test."""
+
+    def __init__(self, target_port: int):
+        import socket
+        import threading
+
+        self.server = socket.create_server(("127.0.0.1", 0))
+        self.port = self.server.getsockname()[1]
+        self.target = target_port
+        threading.Thread(target=self._accept, daemon=True).start()
+
+    def _accept(self):
+        import socket
+        import threading
+
+        while True:
+            try:
+                client, _ = self.server.accept()
+            except OSError:
+                return
+            upstream = socket.create_connection(("127.0.0.1", self.target))
+            for a, b in ((client, upstream), (upstream, client)):
+                threading.Thread(target=self._pump, args=(a, b), daemon=True).start()
+
+    @staticmethod
+    def _pump(src, dst):
+        try:
+            while data := src.recv(65536):
+                dst.sendall(data)
+        except OSError:
+            pass
+        finally:
+            for sock in (src, dst):
+                try:
+                    sock.shutdown(2)
+                except OSError:
+                    pass
+
+    def close(self):
+        self.server.close()
+
+
+def test_single_port_through_a_forwarded_port(studio, browser, tmp_path):
+    """A browser that can reach only one forwarded port (as through `ssh -L 8080:127.0.0.1:8080 host`): the page
+    loads, a slider re-synthesizes, an export downloads."""
+    from urllib.parse import urlsplit
+
+    relay = TcpRelay(urlsplit(studio.url).port)
+    try:
+        pg = probe.open_studio(browser, f"http://127.0.0.1:{relay.port}/", timeout_ms=90000)
+        assert pg.url.startswith(f"http://127.0.0.1:{relay.port}/s/")
+        names = probe.state(pg, "class_names")
+        n_mix = probe.state(pg, "mix_count")
+        probe.press_slider(pg, f".slider-{names[2].replace(' ', '_')}", "End")
+        pg.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=15000)
+        pg.get_by_role("button", name="Export").click()
+        with pg.expect_download(timeout=20000) as download:
+            pg.locator(".export-bvh-follower").click()
+        download.value.save_as(tmp_path / "f.bvh")
+        assert (tmp_path / "f.bvh").read_text().startswith("HIERARCHY")
+        pg.close()
+    finally:
+        relay.close()
+
+
 def test_five_clients_are_independent(studio, browser):
     pages = []
     try:
@@ -174,8 +240,9 @@ def test_five_clients_are_independent(studio, browser):
             pg = probe.open_studio(browser, studio.url, width=1200, height=800, timeout_ms=90000)
             probe.watch_view_images(pg)
             pages.append(pg)
-        ports = {pg.url.split(":")[2].split("/")[0] for pg in pages}
-        assert len(ports) == 5, "each client must get its own studio process"
+        sessions = {pg.url.split("/s/")[1].split("/")[0] for pg in pages}
+        assert len(sessions) == 5, "each client must get its own studio process"
+        assert all(pg.url.startswith(studio.url) for pg in pages)  # all through the launcher's one port
         texts = [probe.state(pg, "label_text") for pg in pages]
         # Client 0 mixes in a class; the others must not move.
         names = probe.state(pages[0], "class_names")

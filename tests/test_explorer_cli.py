@@ -101,8 +101,8 @@ def _claim(host: str, port: int, origin: str | None = "same", host_header: str |
 @pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
 def test_launcher_hands_out_processes_only_to_its_own_page(tmp_path):
     """Bare GETs take no studio process (twenty of them, then a claim still gets one at once); a claim from another
-    web origin or for another host name is refused; each claim gets its own process; past --max-clients the
-    page says so in one line."""
+    web origin or for another host name is refused; a claim's studio is served on the launcher's own port; past
+    --max-clients the page says so in one line."""
     import http.client
     from urllib.parse import urlsplit
 
@@ -118,12 +118,14 @@ def test_launcher_hands_out_processes_only_to_its_own_page(tmp_path):
         assert _claim(u.hostname, u.port, origin="http://evil.example.com")[0] == 403
         assert _claim(u.hostname, u.port, host_header=f"evil.example.com:{u.port}")[0] == 403  # DNS rebinding
         status, answer = _claim(u.hostname, u.port)
-        assert status == 200
-        worker = urlsplit(answer["url"])
-        assert worker.port != u.port and worker.hostname == u.hostname  # no Host header echoed from elsewhere
-        page = http.client.HTTPConnection(worker.hostname, worker.port, timeout=30)
-        page.request("GET", "/index.html")
-        assert page.getresponse().status == 200
+        assert status == 200 and answer["url"].startswith("s/")  # on the launcher's own port: single-port serving
+        conn.request("GET", "/" + answer["url"] + "index.html")
+        page = conn.getresponse()
+        assert page.status == 200 and "<base href" in page.read().decode()
+        conn.request("GET", "/s/not-a-session/index.html")
+        stale = conn.getresponse()
+        stale.read()
+        assert stale.status == 302  # an unknown or old link goes back to the front page
         status, body = _claim(u.hostname, u.port)
         assert status == 503 and "maximum of 1 clients" in body
 
