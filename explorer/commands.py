@@ -37,7 +37,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run_explore)
 
 
+STUDIO_MODULES = ("trame", "trame_vuetify", "trame_vtk", "pyvista", "vtk", "aiohttp", "plotly", "umap", "imageio", "threadpoolctl")
+
+
+def missing_studio_modules() -> list[str]:
+    import importlib.util
+
+    return [m for m in STUDIO_MODULES if importlib.util.find_spec(m) is None]
+
+
 def run_explore(args: argparse.Namespace) -> int:
+    missing = missing_studio_modules()
+    if missing:
+        print(f"imm explore: error: the studio needs its extra: pip install 'imm-studio[studio]' (missing: {', '.join(missing)})",
+              file=sys.stderr)
+        return 2
     from explorer.launcher import LaunchConfig, LaunchError, launch
     from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA
 

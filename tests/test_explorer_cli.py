@@ -148,3 +148,15 @@ def test_a_claim_nobody_connects_to_is_released(tmp_path, monkeypatch):
             assert time.monotonic() < deadline, "the unconnected claim was never released"
             time.sleep(1.0)
 
+
+
+def test_explore_without_the_studio_extra_says_how_to_install_it(monkeypatch, capsys):
+    import importlib.util
+
+    from imm_model.cli import main
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "aiohttp" else real(name, *a))
+    assert main(["explore", "--no-browser"]) == 2
+    err = capsys.readouterr().err
+    assert "pip install 'imm-studio[studio]'" in err and "aiohttp" in err and len(err.strip().splitlines()) == 1
