@@ -102,22 +102,8 @@ def toolbar(studio, tb) -> None:
 def sequence_picker(studio) -> None:
     """Filters (class, subject pair, held out) and the sequence picker."""
     html.Div("Sequence", classes="text-overline")
-    v3.VSelect(
-        label="Class",
-        v_model=("class_filter",),
-        items=("class_filter_items",),
-        density="compact",
-        hide_details=True,
-        classes="mb-2",
-    )
-    v3.VSelect(
-        label="Subject pair",
-        v_model=("pair_filter",),
-        items=("pair_filter_items",),
-        density="compact",
-        hide_details=True,
-        classes="mb-2",
-    )
+    for label, key in (("Class", "class_filter"), ("Subject pair", "pair_filter")):
+        v3.VSelect(label=label, v_model=(key,), items=(f"{key}_items",), density="compact", hide_details=True, classes="mb-2")
     with v3.VBtnToggle(
         v_model=("held_filter",), density="compact", mandatory=True, variant="outlined", divided=True, classes="mb-2"
     ):
