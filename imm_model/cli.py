@@ -21,6 +21,7 @@ COMMAND_MODULES: dict[str, str] = {
     "train": "imm_model.training.commands",
     "evaluate": "imm_model.evaluation.commands",
     "generate": "imm_model.generate",
+    "reproduce": "imm_model.reproduce.commands",
 }
 # Front ends built on the library (the studio) add commands through this entry-point group, so the
 # library never imports them by name.

@@ -34,8 +34,8 @@ class ReactionModel:
 
         self.device = torch.device(device)
         # same numbers, ~4x faster for one unpadded sequence on a CPU; on a GPU (or with the paper's frame-by-frame
-        # attentive decoder, which it does not implement) the batched generator serves all
-        fast_ok = self.device.type == "cpu" and generator.cfg.attention_query == "encoder"
+        # attentive decoder, or without the stream FC layers it folds in) the batched generator serves all
+        fast_ok = self.device.type == "cpu" and generator.cfg.attention_query == "encoder" and generator.cfg.stream_fc
         self.fast = FastGenerator(generator.eval()) if fast_ok else None
         self.generator = generator.eval().to(self.device)
         self.config = generator.cfg

@@ -67,6 +67,18 @@ def five_folds(subject_pairs: Sequence[str]) -> list[Fold]:
     return folds
 
 
+def half_split(actions: np.ndarray, seed: int = 0) -> Fold:
+    """The recognition protocol's half/half split (Yun et al. 2012, as the IMM paper uses it): per class, a
+    seeded shuffle, the first half (rounded up) trains and the rest tests."""
+    rng = np.random.default_rng(seed)
+    train = []
+    for c in np.unique(actions):
+        members = rng.permutation(np.flatnonzero(actions == c))
+        train.extend(members[: (len(members) + 1) // 2].tolist())
+    train_arr = np.sort(np.array(train, dtype=np.int64))
+    return Fold(name=f"half-{seed}", train=train_arr, test=np.setdiff1d(np.arange(len(actions)), train_arr))
+
+
 def validation_split(train: np.ndarray, actions: np.ndarray, fraction: float = 0.15, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Carve a class-stratified validation set out of a fold's training indices (never its test set).
 

@@ -35,6 +35,9 @@ class ModelConfig:
     # False: the whole-body stream reads the pose alone, the label is ignored (the label-free, Men et al.
     # 2022-style baseline `--config men`; the paper's ablation "without the multi-hot embedding").
     label_input: bool = True
+    # False: no per-stream fully connected layer, each Bi-LSTM reads its stream's coordinates directly (the
+    # paper's ablation "without the FC layers").
+    stream_fc: bool = True
     # The attention query: "encoder", the frame's own encoding h_t (all frames at once, fast); "decoder", the
     # decoder's previous state as in the paper's Eq. 3 (frame by frame, layers.AttentiveDecoder).
     attention_query: str = "encoder"

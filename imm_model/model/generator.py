@@ -28,8 +28,11 @@ class Generator(nn.Module):
         self.register_buffer("follower_mean", torch.zeros(d))
         self.register_buffer("follower_std", torch.ones(d))
         in_sizes = [3 * len(p) for p in cfg.body_parts] + [d + cfg.num_classes if cfg.label_input else d]
-        self.embed = nn.ModuleList(nn.Linear(n, cfg.stream_embed) for n in in_sizes)
-        self.encoders = nn.ModuleList(BiLSTM(cfg.stream_embed, cfg.encoder_hidden) for _ in in_sizes)
+        if cfg.stream_fc:
+            self.embed = nn.ModuleList(nn.Linear(n, cfg.stream_embed) for n in in_sizes)
+        else:
+            self.embed = nn.ModuleList(nn.Identity() for _ in in_sizes)
+        self.encoders = nn.ModuleList(BiLSTM(cfg.stream_embed if cfg.stream_fc else n, cfg.encoder_hidden) for n in in_sizes)
         if cfg.attention_query == "decoder":
             self.attentive = AttentiveDecoder(cfg.latent_dim, cfg.decoder_input_dim, cfg.attention_dim, cfg.decoder_hidden)
         else:

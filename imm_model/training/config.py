@@ -197,7 +197,20 @@ IMM_CRITIC = replace(IMM, name="imm-critic", lambda_critic=0.05, critic_mix_prob
 # was met by noise that vanished at inference (limbs at 0.35 of real speed); per-sequence masks remove that.
 IMM_CONTROL = replace(IMM_CRITIC, name="imm-control", lambda_energy=3.0, model=IMM.model | {"dropout_per_sequence": True})
 
-NAMED: dict[str, TrainConfig] = {"paper": PAPER, "imm": IMM, "men": MEN, "imm-critic": IMM_CRITIC, "imm-control": IMM_CONTROL}
+# The paper's ablation study (its Table 4), each one component of `imm` removed. "No D" keeps the rest of the
+# schedule; "no label" keeps the multi-class discriminator (unlike `men`, whose discriminator is Men et al.'s).
+# No refit (half the training time): `imm reproduce` compares them with `imm`'s selection model (best.safetensors).
+_IMM_SELECTED = replace(IMM, refit=False)
+ABLATIONS: dict[str, TrainConfig] = {
+    "imm-no-d": replace(_IMM_SELECTED, name="imm-no-d", lambda_adv=0.0),
+    "imm-no-bone": replace(_IMM_SELECTED, name="imm-no-bone", lambda_bone=0.0),
+    "imm-no-continuity": replace(_IMM_SELECTED, name="imm-no-continuity", lambda_cont=0.0),
+    "imm-no-fc": replace(_IMM_SELECTED, name="imm-no-fc", model=IMM.model | {"stream_fc": False}),
+    "imm-no-label": replace(_IMM_SELECTED, name="imm-no-label", model=IMM.model | {"label_input": False}),
+}
+
+NAMED: dict[str, TrainConfig] = {"paper": PAPER, "imm": IMM, "men": MEN, "imm-critic": IMM_CRITIC,
+                                 "imm-control": IMM_CONTROL, **ABLATIONS}
 
 
 def load_config(name_or_path: str, **overrides: Any) -> TrainConfig:

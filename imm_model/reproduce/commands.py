@@ -1,0 +1,109 @@
+"""`imm reproduce`: train and evaluate everything the paper's four tables need, then write the report.
+
+Every run and evaluation is a job (reproduce/plan.py) run on Ray (reproduce/runner.py); finished ones are
+reused, so a killed reproduce is simply started again with the same arguments.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+
+def _int_list(text: str) -> tuple[int, ...]:
+    try:
+        return tuple(int(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers, not {text!r}") from None
+
+
+def _name_list(text: str) -> tuple[str, ...]:
+    return tuple(x.strip() for x in text.split(",") if x.strip())
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    from imm_model.reproduce.plan import SBU_SUBJECTS, TABLES
+
+    p = subparsers.add_parser(
+        "reproduce", help="the paper's four tables (AFD, FID, ablation, recognition): every run on Ray, resumable",
+        description="Trains every run the tables need (7 LOSO folds x recipes x seeds, and the recognition study's half "
+                    "split) as Ray tasks, evaluates them, and writes OUT/report.md with the paper's numbers beside ours. "
+                    "Finished runs are reused (keyed by config, split, seed and data): rerun the same command after an "
+                    "interruption. docs/reproduction.md explains local and cluster use.")
+    p.add_argument("--out", type=Path, required=True, help="report folder (runs go to OUT/runs)")
+    p.add_argument("--seeds", type=_int_list, default=(0,), help="comma-separated training seeds (default 0)")
+    p.add_argument("--tables", type=_name_list, default=TABLES, help=f"comma-separated subset of {','.join(TABLES)}")
+    p.add_argument("--folds", type=_name_list, default=SBU_SUBJECTS, help="comma-separated LOSO subjects (default all 7)")
+    p.add_argument("--address", default=None, help="join this Ray cluster (default: start Ray on this machine)")
+    p.add_argument("--cpus-per-task", type=int, default=1, help="CPUs (torch threads) per job (default 1)")
+    p.add_argument("--backend", choices=("auto", "ray", "local"), default="auto",
+                   help="auto: Ray when installed, else local processes")
+    p.add_argument("--data", type=Path, default=None, help="SBU bundle (default: the bundled one)")
+    p.add_argument("--epochs", type=int, default=None, help=argparse.SUPPRESS)  # tiny runs in tests
+    p.add_argument("--classifier-epochs", type=int, default=None, help=argparse.SUPPRESS)
+    p.set_defaults(func=_cmd_reproduce)
+
+
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from imm_model.cache import dataset_hash
+    from imm_model.data.dataset import InteractionDataset
+    from imm_model.paths import SAMPLE_DATA
+    from imm_model.reproduce.plan import ReproducePlan
+    from imm_model.reproduce.report import write_report
+    from imm_model.reproduce.runner import Runner
+
+    t0 = time.perf_counter()
+    plan = ReproducePlan(out=args.out, seeds=args.seeds, tables=args.tables, folds=args.folds,
+                         epochs=args.epochs, classifier_epochs=args.classifier_epochs)
+    data_path = (args.data or SAMPLE_DATA).resolve()
+    data_hash = dataset_hash(InteractionDataset.load(data_path))
+    args.out.mkdir(parents=True, exist_ok=True)
+    out = args.out.resolve()
+    with Runner(args.address, args.cpus_per_task, args.backend) as runner:
+        trained = _train(runner, plan, out, data_path, data_hash, args.cpus_per_task)
+        results = _evaluate(runner, plan, out, data_path, trained, args.cpus_per_task)
+    wall = time.perf_counter() - t0
+    report = write_report(plan, results, out, wall)
+    failed = len(plan.training_jobs()) - len(trained) + sum(1 for r in results.values() if r is None)
+    print(f"report: {report} ({wall / 60:.1f} min wall{f'; {failed} jobs failed' if failed else ''})")
+    return 1 if failed else 0
+
+
+def _train(runner, plan, out: Path, data_path: Path, data_hash: str, cpus: int) -> set:
+    """Run every training job not finished yet -> the set of jobs that are finished."""
+    from imm_model.reproduce.jobs import run_status
+    from imm_model.reproduce.runner import Task
+    from imm_model.reproduce.tasks import train_run
+
+    keys = {job: job.key(data_hash) for job in plan.training_jobs()}
+    status = {job: run_status(job, out, key) for job, key in keys.items()}
+    finished = {job for job, s in status.items() if s == "done"}
+    todo = [job for job in keys if job not in finished]
+    resumed = sum(status[j] == "partial" for j in todo)
+    print(f"{len(keys)} training runs: {len(finished)} finished already (reused), {resumed} to resume, "
+          f"{len(todo) - resumed} to train")
+    describe = lambda info: f"{info['epochs']} epochs (best {info['best_epoch']}) in {info['seconds']:.0f} s"  # noqa: E731
+    tasks = [Task(job.name, train_run, (job, out, data_path, keys[job], cpus), describe) for job in todo]
+    for job, (ok, _) in zip(todo, runner.run(tasks, "training"), strict=True):
+        if ok:
+            finished.add(job)
+    return finished
+
+
+def _evaluate(runner, plan, out: Path, data_path: Path, trained: set, cpus: int) -> dict:
+    """Evaluate every checkpoint whose runs finished -> {EvalJob: result, or None if it could not run}."""
+    from imm_model.reproduce.runner import Task
+    from imm_model.reproduce.tasks import cached_result, evaluate_run
+
+    jobs = plan.eval_jobs()
+    ready = [j for j in jobs if j.run in trained and (j.men_run is None or j.men_run in trained)]
+    results: dict = {j: None for j in jobs}
+    results |= {j: cached_result(j, out) for j in ready}
+    todo = [j for j in ready if results[j] is None]
+    print(f"{len(jobs)} evaluations: {len(ready) - len(todo)} reused, {len(todo)} to run, {len(jobs) - len(ready)} "
+          "waiting on failed runs")
+    tasks = [Task(j.name, evaluate_run, (j, out, data_path, cpus), lambda r: "done") for j in todo]
+    for job, (ok, value) in zip(todo, runner.run(tasks, "evaluation"), strict=True):
+        results[job] = value if ok else None
+    return results

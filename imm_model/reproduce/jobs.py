@@ -1,0 +1,72 @@
+"""The training runs and evaluations `imm reproduce` needs, each keyed so that finished work is reused.
+
+A training run is (recipe, split, seed) on one dataset bundle. Its directory is
+OUT/runs/<recipe>-seed<seed>/fold-<split>, the layout `imm train` writes and `imm evaluate --run` reads.
+`job.json` there holds the run's key: a hash of the recipe's full config, the split, the seed, the data and
+the package version. A directory whose key differs is stale: it is moved aside (never deleted) and the run
+starts again; a directory with the same key and no `done.json` is resumed from its last checkpoint.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import imm_model
+
+HALF_SPLIT = "half"  # the recognition study's class-stratified half/half split of SBU (data/splits.py)
+
+
+@dataclass(frozen=True)
+class TrainJob:
+    recipe: str  # a named recipe (training/config.py)
+    split: str  # a LOSO subject "sXX", or HALF_SPLIT
+    seed: int
+    epochs: int | None = None  # override of the recipe's epochs (tiny runs in tests)
+
+    @property
+    def name(self) -> str:
+        return f"{self.recipe} seed {self.seed} fold {self.split}"
+
+    def run_dir(self, out: Path) -> Path:
+        return out / "runs" / f"{self.recipe}-seed{self.seed}" / f"fold-{self.split}"
+
+    def config(self):
+        from imm_model.training.config import load_config
+
+        return load_config(self.recipe, epochs=self.epochs, seed=self.seed)
+
+    def key(self, data_hash: str) -> str:
+        text = json.dumps({"config": self.config().to_dict(), "split": self.split, "seed": self.seed,
+                           "data": data_hash, "code": imm_model.__version__}, sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def run_status(job: TrainJob, out: Path, key: str) -> str:
+    """'done', 'partial' (same key, resumable) or 'new' (nothing there, or a stale run that is moved aside)."""
+    d = job.run_dir(out)
+    stamp = d / "job.json"
+    if not d.exists() or not any(d.iterdir()):
+        return "new"
+    try:
+        saved = json.loads(stamp.read_text())["key"]
+    except (OSError, ValueError, KeyError, TypeError):
+        saved = None
+    if saved != key:
+        aside = d.with_name(f"{d.name}.stale-{time.strftime('%Y%m%d-%H%M%S')}")
+        d.rename(aside)  # never lose work: a run from another config or data stays readable
+        return "new"
+    return "done" if (d / "done.json").exists() else "partial"
+
+
+def stamp_job(job: TrainJob, out: Path, key: str) -> None:
+    d = job.run_dir(out)
+    d.mkdir(parents=True, exist_ok=True)
+    (d / "job.json").write_text(json.dumps({"key": key, "job": asdict(job)}, indent=1) + "\n")
+
+
+def mark_done(job: TrainJob, out: Path, info: dict) -> None:
+    (job.run_dir(out) / "done.json").write_text(json.dumps(info, indent=1) + "\n")

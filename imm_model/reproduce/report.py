@@ -1,0 +1,156 @@
+"""OUT/report.md (+ PNG figures, + summary.json): each of the paper's tables with the paper's numbers, ours
+(mean ± std over folds and seeds) and the difference."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from imm_model.evaluation.report import group_summary
+from imm_model.evaluation.tables import BASELINE_TITLES, _pm
+from imm_model.reproduce import paper_numbers as paper
+from imm_model.reproduce.jobs import HALF_SPLIT
+from imm_model.reproduce.plan import ABLATION_RECIPES, ReproducePlan
+
+CLASS_TITLES = ("Kick", "Push", "Shake hands", "Hug", "Exchange obj.", "Punch")
+
+
+def _table(head: list[str], rows: list[list[str]]) -> str:
+    return "\n".join(["| " + " | ".join(head) + " |", "|---|" + "---:|" * (len(head) - 1)]
+                     + ["| " + " | ".join(r) + " |" for r in rows])
+
+
+def _metrics(results: dict, recipe: str, checkpoint: str) -> list[dict]:
+    return [r for j, r in results.items() if r is not None and j.kind == "metrics"
+            and j.run.recipe == recipe and j.checkpoint == checkpoint]
+
+
+def afd_section(summary: dict, class_names: list[str]) -> str:
+    cls = summary["classes"]
+    names = list(next(iter(cls.values()))["baselines"])
+    head = ["class", *paper.AFD_METHODS, "**ours: IMM**", *(f"ours: {BASELINE_TITLES[b]}" for b in names),
+            "ours - paper", "strongest baseline (ours)", "IMM / strongest"]
+    rows = []
+    for k, c in enumerate(class_names):
+        e = cls[c]
+        rows.append([CLASS_TITLES[k], *(f"{paper.AFD[m][k]:.2f}" for m in paper.AFD_METHODS), f"**{_pm(e['afd'], e['afd_std'])}**",
+                     *(_pm(e["baselines"][b]["afd"], e["baselines"][b]["afd_std"]) for b in names),
+                     f"{e['afd'] - paper.AFD['IMM (paper)'][k]:+.3f}", BASELINE_TITLES.get(e["strongest_baseline"], "-"),
+                     _pm(e["ratio_strongest"])])
+    mean = lambda f: float(np.mean([f(cls[c]) for c in class_names]))  # noqa: E731
+    rows.append(["**mean**", *(f"{np.mean(paper.AFD[m]):.2f}" for m in paper.AFD_METHODS), f"**{mean(lambda e: e['afd']):.3f}**",
+                 *(f"{mean(lambda e, b=b: e['baselines'][b]['afd']):.3f}" for b in names),
+                 f"{mean(lambda e: e['afd']) - np.mean(paper.AFD['IMM (paper)']):+.3f}", "", _pm(mean(lambda e: e["ratio_strongest"]))])
+    sq = mean(lambda e: e["afd_squared"])
+    return (_table(head, rows) + f"\n\nAFD in the paper's normalized units (docs/evaluation.md). With the authors' code's squared "
+            f"distance (`afd_squared`) our IMM scores {sq:.3f} on average.")
+
+
+def fid_section(summary: dict, class_names: list[str]) -> str:
+    cls = summary["classes"]
+    head = ["", *CLASS_TITLES[: len(class_names)]]
+    rows = [[f"paper: {m}", *(f"{v:.1f}" for v in paper.FID_SBU[m])] for m in paper.FID_SBU]
+    ratio_paper = np.array(paper.FID_SBU["IMM (paper)"]) / np.array(paper.FID_SBU["Men et al. 2022"])
+    rows.append(["paper: IMM / Men", *(f"{r:.2f}" for r in ratio_paper)])
+    men = [cls[c]["baselines"].get("men", {}) for c in class_names]
+    rows.append(["ours: label-free (Men-style)", *(_pm(m.get("fid", np.nan), m.get("fid_std"), 2) for m in men)])
+    rows.append(["ours: IMM", *(_pm(cls[c]["fid"], cls[c]["fid_std"], 2) for c in class_names)])
+    ratios = [cls[c]["fid"] / m.get("fid", np.nan) for c, m in zip(class_names, men, strict=True)]
+    rows.append(["ours: IMM / label-free", *(_pm(r, digits=2) for r in ratios)])
+    return (_table(head, rows) + "\n\nOur FID is computed on the 64-d features of our interaction classifier "
+            "(docs/evaluation.md); the paper does not say which features it used, so only the ratios are comparable.")
+
+
+def ablation_section(results: dict, class_names: list[str]) -> str:
+    head = ["recipe", "paper row", *CLASS_TITLES[: len(class_names)], "mean", "paper mean", "ours - paper", "FID",
+            "label adherence (judge)"]
+    rows = []
+    for recipe in ("imm", *ABLATION_RECIPES):
+        rs = _metrics(results, recipe, "best")
+        title, ref = paper.ABLATION_AFD[recipe]
+        if not rs:
+            rows.append([recipe, title, *["-"] * (len(class_names) + 5)])
+            continue
+        s = group_summary(rs, tuple(class_names))
+        afd = [s["classes"][c]["afd"] for c in class_names]
+        rows.append([f"`{recipe}`", title, *(_pm(s["classes"][c]["afd"], s["classes"][c]["afd_std"]) for c in class_names),
+                     f"**{np.mean(afd):.3f}**", f"{np.mean(ref):.3f}", f"{np.mean(afd) - np.mean(ref):+.3f}",
+                     _pm(s["model_overall"]["fid"], digits=2), _pm(s["adherence_off_diagonal_judge"], digits=2)])
+    return (_table(head, rows) + "\n\nAll rows are selection models (best.safetensors, chosen on the validation split, no refit), "
+            "so `imm` here is not the refit model of the AFD table. Label adherence: how often a follower asked for another "
+            "class than the leader's reads as it to the independent judge (chance 0.17).")
+
+
+def recognition_section(results: dict, class_names: list[str]) -> str:
+    C = len(class_names)
+    head = ["split", "# train", "# test", *CLASS_TITLES[:C], "overall"]
+    rows = [[f"paper: {k}", *(("99", "98") if k == "Original" else ("124", "123")), *(f"{v:.3f}" for v in vals), "-"]
+            for k, vals in paper.RECOGNITION.items()]
+    half = [r for j, r in results.items() if r is not None and j.kind == "recognition" and j.run.split == HALF_SPLIT]
+    loso = [r for j, r in results.items() if r is not None and j.kind == "recognition" and j.run.split != HALF_SPLIT]
+    titles = {"original": "original", "augmented": "augmented, synthesized in training only",
+              "augmented_paper": "augmented, the paper's protocol (synthesized in training and test)"}
+    for label, rs in (("half/half", half), ("LOSO", loso)):
+        for key, title in titles.items():
+            if rs and key in rs[0]:
+                per_class = np.nanmean([r[key]["per_class"] for r in rs], axis=0)
+                acc = [r[key]["accuracy"] for r in rs]
+                rows.append([f"ours, {label}: {title}", str(rs[0][key]["train"]) if label == "half/half" else "-",
+                             str(rs[0][key]["test"]) if label == "half/half" else "-",
+                             *(f"{v:.3f}" for v in per_class), _pm(float(np.mean(acc)), float(np.std(acc)))])
+    return (_table(head, rows) + "\n\nOurs: the evaluation's interaction classifier (GRU), mean over 3 classifier seeds and the "
+            "training seeds (LOSO: and the 7 folds); 50 synthesized interactions per class from the training leaders "
+            "(reproduce/recognition.py).")
+
+
+def disagreements_section() -> str:
+    rows = [[what, text, code, ours] for what, text, code, ours in paper.DISAGREEMENTS]
+    return _table(["", "paper's text", "authors' code", "this project"], rows)
+
+
+def write_report(plan: ReproducePlan, results: dict, out: Path, wall_s: float) -> Path:
+    """Write report.md, summary.json and figures; a table whose runs are missing says so."""
+    from imm_model.reproduce.figures import write_figures
+
+    any_result = next((r for r in results.values() if r is not None and "classes" in r.get("model", {})), None)
+    class_names = list(any_result["model"]["classes"]) if any_result else []
+    imm = _metrics(results, "imm", "final")
+    summary = group_summary(imm, tuple(class_names)) if imm else None
+    parts = [f"# The paper's tables, reproduced\n\n`imm reproduce --seeds {','.join(map(str, plan.seeds))} --tables "
+             f"{','.join(plan.tables)}` · folds {', '.join(plan.folds)} · {wall_s / 60:.1f} min wall on {os.cpu_count()} CPUs · "
+             f"{time.strftime('%Y-%m-%d')}. Mean ± std over folds and seeds; lower is better for AFD and FID."]
+    if summary and "afd" in plan.tables:
+        parts.append("## AFD on SBU (paper Table 1)\n\n" + afd_section(summary, class_names) + _dev_test(imm, class_names))
+    if summary and "fid" in plan.tables:
+        parts.append("## FID on SBU (paper Table 2)\n\n" + fid_section(summary, class_names))
+        parts.append("## FID on the MoCap set (paper Table 3)\n\nThe paper's 2C MoCap set is not public. K3HI is this "
+                     "project's second dataset (docs/reproduction.md); its table is not produced by this version.")
+    if "ablation" in plan.tables:
+        parts.append("## Ablation on SBU (paper Table 4)\n\n" + ablation_section(results, class_names))
+    if "recognition" in plan.tables:
+        parts.append("## Recognition with synthesized data (paper Table 5)\n\n" + recognition_section(results, class_names))
+    parts.append("## Where the paper's text and its code disagree\n\n" + disagreements_section())
+    missing = [j.name for j, r in results.items() if r is None]
+    if missing:
+        parts.append("## Missing\n\n" + "\n".join(f"- {m}" for m in missing))
+    figures = write_figures(results, summary, class_names, out) if class_names else []
+    parts.append("## Figures\n\n" + "\n".join(f"![{p.stem}]({p.name})" for p in figures))
+    path = out / "report.md"
+    path.write_text("\n\n".join(parts) + "\n")
+    (out / "summary.json").write_text(json.dumps({"imm": summary, "seeds": plan.seeds, "folds": plan.folds,
+                                                  "wall_s": wall_s}, indent=1, default=float) + "\n")
+    return path
+
+
+def _dev_test(imm: list[dict], class_names: list[str]) -> str:
+    lines = []
+    for group in ("dev", "test"):
+        rs = [r for r in imm if r["group"] == group]
+        if rs:
+            s = group_summary(rs, tuple(class_names))
+            lines.append(f"{group} folds: IMM {s['mean']['afd']:.3f}, IMM / strongest baseline {s['mean']['ratio_strongest']:.3f}")
+    return ("\n\n" + "; ".join(lines) + ".") if lines else ""

@@ -1,0 +1,122 @@
+"""Run many independent jobs on Ray (a local Ray on this machine's cores, or a cluster at --address), or,
+without Ray installed, in local processes. One progress bar over all jobs and one line per finished job.
+
+Ray core does the scheduling (num_cpus per task); this module only submits, waits and reports. The local
+fallback is a spawn-context multiprocessing pool of the same width, so results do not depend on the backend.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+from tqdm import tqdm
+
+
+@dataclass(frozen=True)
+class Task:
+    name: str
+    fn: Callable[..., Any]  # a module-level function (it is pickled to the worker)
+    args: tuple
+    describe: Callable[[Any], str] = str  # the one line printed when it finishes
+
+
+def _call(fn: Callable[..., Any], args: tuple) -> tuple[bool, Any]:
+    """Run in the worker: a failure comes back as its one-line reason, never as a lost batch."""
+    try:
+        return True, fn(*args)
+    except Exception as err:  # noqa: BLE001 (reported with the task's name, the other tasks go on)
+        return False, f"{type(err).__name__}: {err}"
+
+
+def _interrupt(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
+
+
+def ray_available() -> bool:
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+class Runner:
+    """`with Runner(address, cpus_per_task) as r: results = r.run(tasks)`; results in task order."""
+
+    def __init__(self, address: str | None = None, cpus_per_task: int = 1, backend: str = "auto"):
+        if backend not in ("auto", "ray", "local"):
+            raise ValueError(f"backend must be auto, ray or local, not {backend!r}")
+        if cpus_per_task < 1:
+            raise ValueError(f"cpus per task must be >= 1, not {cpus_per_task}")
+        if backend == "auto":
+            backend = "ray" if ray_available() else "local"
+        if backend == "ray" and not ray_available():
+            raise ValueError("Ray is not installed: pip install -e '.[cluster]' (or run without --address)")
+        if backend == "local" and address:
+            raise ValueError("--address needs Ray: pip install -e '.[cluster]'")
+        self.address, self.cpus, self.backend = address, cpus_per_task, backend
+        self.width = max(1, (os.cpu_count() or 1) // cpus_per_task)
+        self._pool = None
+
+    def __enter__(self) -> Runner:
+        # a SIGTERM (e.g. `kill`) unwinds like Ctrl-C, so local Ray and the worker processes are shut down
+        signal.signal(signal.SIGTERM, _interrupt)
+        if self.backend == "ray":
+            import ray
+
+            ray.init(address=self.address, include_dashboard=False, log_to_driver=False, configure_logging=False,
+                     **({} if self.address else {"num_cpus": os.cpu_count()}))
+            self.width = max(1, int(ray.cluster_resources().get("CPU", 1)) // self.cpus)
+            where = f"the Ray cluster at {self.address}" if self.address else "a local Ray"
+        else:
+            import multiprocessing
+
+            self._pool = multiprocessing.get_context("spawn").Pool(self.width, maxtasksperchild=1)
+            where = "local processes (Ray is not installed; pip install -e '.[cluster]' to use it)"
+        print(f"running on {where}: {self.width} jobs at a time, {self.cpus} CPU each", file=sys.stderr, flush=True)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._pool is not None:
+            self._pool.terminate()
+            self._pool.join()
+        if self.backend == "ray":
+            import ray
+
+            ray.shutdown()
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+    def run(self, tasks: list[Task], desc: str) -> list[tuple[bool, Any]]:
+        """Every task to the end (a failed one does not stop the others) -> [(ok, result or reason)]."""
+        results: list[tuple[bool, Any] | None] = [None] * len(tasks)
+        t0 = time.perf_counter()
+        with tqdm(total=len(tasks), desc=desc, dynamic_ncols=True, file=sys.stderr) as bar:
+            for i, (ok, value) in self._completed(tasks):
+                results[i] = (ok, value)
+                line = tasks[i].describe(value) if ok else f"FAILED: {value}"
+                bar.write(f"[{bar.n + 1}/{len(tasks)}] {tasks[i].name}: {line} ({time.perf_counter() - t0:.0f} s)")
+                bar.update()
+        return results  # type: ignore[return-value]
+
+    def _completed(self, tasks: list[Task]) -> Iterator[tuple[int, tuple[bool, Any]]]:
+        if self.backend == "ray":
+            import ray
+
+            remote = ray.remote(num_cpus=self.cpus)(_call)
+            pending = {remote.remote(t.fn, t.args): i for i, t in enumerate(tasks)}
+            while pending:
+                ready, _ = ray.wait(list(pending), num_returns=1)
+                yield pending.pop(ready[0]), ray.get(ready[0])
+        else:
+            futures = [self._pool.apply_async(_call, (t.fn, t.args)) for t in tasks]
+            waiting = dict(enumerate(futures))
+            while waiting:
+                for i in [i for i, f in waiting.items() if f.ready()]:
+                    yield i, waiting.pop(i).get()
+                time.sleep(0.2)

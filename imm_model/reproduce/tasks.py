@@ -1,0 +1,133 @@
+"""What one worker does for `imm reproduce`: train one run, or evaluate one checkpoint on its fold.
+
+These run in Ray workers or local processes (reproduce/runner.py), so they take plain arguments, load what
+they need themselves and write their results next to the run (resumable: a finished result is read back).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from imm_model.reproduce.jobs import HALF_SPLIT, TrainJob, mark_done, stamp_job
+
+
+def training_data(data_path: Path, split: str):
+    """The bundle, and the held-out subject Trainer takes (None for the half split: its training half only)."""
+    from imm_model.data.dataset import InteractionDataset
+    from imm_model.data.splits import half_split
+
+    data = InteractionDataset.load(data_path)
+    if split == HALF_SPLIT:
+        return data.subset(half_split(data.actions).train), None
+    return data, split
+
+
+def train_run(job: TrainJob, out: Path, data_path: Path, key: str, threads: int) -> dict:
+    """Train (or resume) one run to the end, refit included -> what done.json records."""
+    import torch
+
+    from imm_model.training.trainer import Trainer, refit
+
+    torch.set_num_threads(threads)
+    t0 = time.perf_counter()
+    data, subject = training_data(data_path, job.split)
+    stamp_job(job, out, key)
+    trainer = Trainer(job.config(), data, subject, job.run_dir(out))
+    if (trainer.out / "last.safetensors").exists():
+        trainer.resume()
+    state = trainer.fit(progress=False)
+    if trainer.cfg.refit:
+        refit(trainer, progress=False)
+    info = {"key": key, "best_epoch": state.best_epoch, "epochs": state.epoch, "seconds": round(time.perf_counter() - t0, 1)}
+    mark_done(job, out, info)
+    return info
+
+
+@dataclass(frozen=True)
+class EvalJob:
+    run: TrainJob
+    checkpoint: str  # "final" (what the run ships) or "best" (the selection model, for the ablation table)
+    kind: str = "metrics"  # "metrics" (evaluation/loso.py) or "recognition" (reproduce/recognition.py)
+    baselines: tuple[str, ...] = ()
+    men_run: TrainJob | None = None  # the label-free run whose checkpoint is the "men" baseline
+    classifier_epochs: int | None = None  # override (tiny runs in tests)
+
+    @property
+    def name(self) -> str:
+        return f"{'evaluate' if self.kind == 'metrics' else 'recognition study on'} {self.run.name} ({self.checkpoint})"
+
+    def result_path(self, out: Path) -> Path:
+        return self.run.run_dir(out) / f"{'eval' if self.kind == 'metrics' else 'recognition'}-{self.checkpoint}.json"
+
+    def checkpoint_path(self, out: Path) -> Path:
+        from imm_model.checkpoint import final_checkpoint
+
+        run_dir = self.run.run_dir(out)
+        return final_checkpoint(run_dir) if self.checkpoint == "final" else run_dir / "best.safetensors"
+
+    def key(self, out: Path) -> str:
+        """Changes when the run, the men run, the baselines or the classifiers change."""
+        stamp = lambda job: json.loads((job.run_dir(out) / "done.json").read_text())["key"]  # noqa: E731
+        text = json.dumps([stamp(self.run), self.checkpoint, self.kind, self.baselines,
+                           stamp(self.men_run) if self.men_run else None, self.classifier_epochs])
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    def options(self, out: Path):
+        from imm_model.checkpoint import final_checkpoint
+        from imm_model.evaluation.loso import EvalOptions
+        from imm_model.model.classifier import FOLLOWER, FOLLOWER_JUDGE, INTERACTION
+
+        defaults = {"interaction": INTERACTION, "follower": FOLLOWER, "judge": FOLLOWER_JUDGE}
+        n = self.classifier_epochs
+        judges = {k: replace(cfg, epochs=n) for k, cfg in defaults.items()} if n else {}
+        men = self.men_run
+        return EvalOptions(baselines=self.baselines, progress=False, **judges,
+                           men_checkpoint=(lambda s: final_checkpoint(men.run_dir(out))) if men else None)
+
+
+def cached_result(job: EvalJob, out: Path) -> dict | None:
+    path = job.result_path(out)
+    try:
+        saved = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return saved["result"] if saved.get("key") == job.key(out) else None
+
+
+def evaluate_run(job: EvalJob, out: Path, data_path: Path, threads: int) -> dict:
+    """One checkpoint on its split: every metric of docs/evaluation.md (LOSO fold), or the recognition study."""
+    import torch
+
+    from imm_model.data.dataset import InteractionDataset
+    from imm_model.inference import ReactionModel
+
+    torch.set_num_threads(threads)
+    if (result := cached_result(job, out)) is not None:
+        return result
+    data = InteractionDataset.load(data_path)
+    model = ReactionModel.load(job.checkpoint_path(out))
+    if job.kind == "recognition":
+        result = _recognition(job, model, data)
+    else:
+        from imm_model.evaluation.loso import evaluate_fold
+
+        result = evaluate_fold(model, data, job.run.split, job.options(out), latents=False)
+        result = {k: v for k, v in result.items() if not k.startswith("_")}
+    result |= {"seed": job.run.seed}
+    job.result_path(out).write_text(json.dumps({"key": job.key(out), "result": result}) + "\n")
+    return result
+
+
+def _recognition(job: EvalJob, model, data) -> dict:
+    from imm_model.data.splits import half_split, loso_fold
+    from imm_model.reproduce.recognition import study
+
+    if job.run.split == HALF_SPLIT:  # the paper's protocol, and the clean one
+        split, protocols = half_split(data.actions), ("clean", "paper")
+    else:
+        split, protocols = loso_fold(data.subject_pairs, job.run.split), ("clean",)
+    return study(model, data, split.train, split.test, protocols, job.classifier_epochs, seed=job.run.seed)
