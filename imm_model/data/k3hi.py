@@ -120,3 +120,39 @@ def load_k3hi(root: Path | str, leader: LeaderChoice = "actor", strict: bool = F
         raise DataFormatError(f"{skeletons}: no <class>/<n>/skeleton_A.mat files found")
     actors = read_actor_lists(root)
     return load_many(folders, lambda f: read_k3hi_sequence(f, leader, actors), strict=strict, class_names=K3HI_CLASSES)
+
+
+# The K3HI classes with an SBU counterpart (in SBU's class order). Approaching and departing are the two SBU classes
+# the IMM paper leaves out (no reaction to synthesize: both people walk), and pointing has no SBU counterpart, so
+# `imm reproduce` trains and scores K3HI on these five only.
+K3HI_SHARED_CLASSES: tuple[str, ...] = ("kicking", "pushing", "shaking", "exchanging", "punching")
+
+
+def read_split_lists(root: Path) -> dict[str, str]:
+    """'kicking/12' -> 'train' | 'test' from Train.txt and Test.txt (InterFormer's split)."""
+    split: dict[str, str] = {}
+    for name in ("Train", "Test"):
+        path = root / f"{name}.txt"
+        if not path.exists():
+            raise DataFormatError(f"{path}: K3HI split list not found")
+        for line in path.read_text().splitlines():
+            parts = line.split()
+            if len(parts) == 2:
+                first = Path(parts[0])
+                split[f"{first.parts[-3]}/{first.parts[-2]}"] = name.lower()
+    return split
+
+
+def k3hi_shared_dataset(root: Path | str):
+    """-> (InteractionDataset of the shared classes, train indices, test indices). Train: Train.txt; test: Test.txt
+    and the sequences neither list names (48 of 312; never anyone's training data), so each class has a test set."""
+    from imm_model.data.dataset import InteractionDataset
+
+    root = Path(root)
+    result = load_k3hi(root, strict=True)
+    shared = [it for it in result.interactions if it.action in K3HI_SHARED_CLASSES]
+    data = InteractionDataset.from_interactions(shared, class_names=K3HI_SHARED_CLASSES,
+                                                info={"source": "K3HI via InterFormer, see ../shared/datasets/k3hi/PROVENANCE.md"})
+    split = read_split_lists(root)
+    train = np.array([i for i, s in enumerate(data.sequence_ids) if split.get(s) == "train"], dtype=np.int64)
+    return data, train, np.setdiff1d(np.arange(len(data)), train)

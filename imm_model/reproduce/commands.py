@@ -48,16 +48,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _cmd_reproduce(args: argparse.Namespace) -> int:
     from imm_model.cache import dataset_hash
     from imm_model.data.dataset import InteractionDataset
-    from imm_model.paths import SAMPLE_DATA
+    from imm_model.paths import SAMPLE_DATA, k3hi_raw_root
     from imm_model.reproduce.plan import ReproducePlan
     from imm_model.reproduce.report import write_report
     from imm_model.reproduce.runner import Runner
 
     t0 = time.perf_counter()
-    plan = ReproducePlan(out=args.out, seeds=args.seeds, tables=args.tables, folds=args.folds,
-                         epochs=args.epochs, classifier_epochs=args.classifier_epochs)
+    plan = ReproducePlan(out=args.out, seeds=args.seeds, tables=args.tables, folds=args.folds, epochs=args.epochs,
+                         classifier_epochs=args.classifier_epochs, k3hi=k3hi_raw_root().is_dir())
+    if not plan.k3hi and "fid" in plan.tables:
+        print(f"K3HI not found at {k3hi_raw_root()}: the MoCap FID table is left out")
     data_path = (args.data or SAMPLE_DATA).resolve()
-    data_hash = dataset_hash(InteractionDataset.load(data_path))
+    data_hash = {"sbu": dataset_hash(InteractionDataset.load(data_path))}
+    if plan.k3hi and "fid" in plan.tables:
+        from imm_model.reproduce.k3hi_table import shared_data
+
+        data_hash["k3hi"] = dataset_hash(shared_data()[0])
     args.out.mkdir(parents=True, exist_ok=True)
     out = args.out.resolve()
     with Runner(args.address, args.cpus_per_task, args.backend) as runner:
@@ -70,13 +76,13 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-def _train(runner, plan, out: Path, data_path: Path, data_hash: str, cpus: int) -> set:
+def _train(runner, plan, out: Path, data_path: Path, data_hash: dict[str, str], cpus: int) -> set:
     """Run every training job not finished yet -> the set of jobs that are finished."""
     from imm_model.reproduce.jobs import run_status
     from imm_model.reproduce.runner import Task
     from imm_model.reproduce.tasks import train_run
 
-    keys = {job: job.key(data_hash) for job in plan.training_jobs()}
+    keys = {job: job.key(data_hash[job.dataset]) for job in plan.training_jobs()}
     status = {job: run_status(job, out, key) for job, key in keys.items()}
     finished = {job for job, s in status.items() if s == "done"}
     todo = [job for job in keys if job not in finished]
@@ -97,7 +103,7 @@ def _evaluate(runner, plan, out: Path, data_path: Path, trained: set, cpus: int)
     from imm_model.reproduce.tasks import cached_result, evaluate_run
 
     jobs = plan.eval_jobs()
-    ready = [j for j in jobs if j.run in trained and (j.men_run is None or j.men_run in trained)]
+    ready = [j for j in jobs if all(run in trained for run in j.needs)]
     results: dict = {j: None for j in jobs}
     results |= {j: cached_result(j, out) for j in ready}
     todo = [j for j in ready if results[j] is None]

@@ -23,13 +23,17 @@ HALF_SPLIT = "half"  # the recognition study's class-stratified half/half split 
 @dataclass(frozen=True)
 class TrainJob:
     recipe: str  # a named recipe (training/config.py)
-    split: str  # a LOSO subject "sXX", or HALF_SPLIT
+    split: str  # a LOSO subject "sXX", HALF_SPLIT, or a K3HI split (reproduce/k3hi_table.py)
     seed: int
     epochs: int | None = None  # override of the recipe's epochs (tiny runs in tests)
 
     @property
     def name(self) -> str:
         return f"{self.recipe} seed {self.seed} fold {self.split}"
+
+    @property
+    def dataset(self) -> str:
+        return "k3hi" if self.split.startswith("k3hi") else "sbu"
 
     def run_dir(self, out: Path) -> Path:
         return out / "runs" / f"{self.recipe}-seed{self.seed}" / f"fold-{self.split}"

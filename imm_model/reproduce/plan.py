@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from imm_model.evaluation.baselines import HEURISTIC_BASELINES
+from imm_model.reproduce import k3hi_table
 from imm_model.reproduce.jobs import HALF_SPLIT, TrainJob
 from imm_model.reproduce.tasks import EvalJob
 
@@ -22,6 +23,7 @@ class ReproducePlan:
     folds: tuple[str, ...] = SBU_SUBJECTS
     epochs: int | None = None  # override every recipe's epochs (tiny runs in tests)
     classifier_epochs: int | None = None
+    k3hi: bool = True  # the MoCap FID table on K3HI (with "fid"; needs ../shared/datasets/k3hi)
 
     def __post_init__(self) -> None:
         unknown = [t for t in self.tables if t not in TABLES]
@@ -45,6 +47,8 @@ class ReproducePlan:
         jobs = [self._run(r, f, s) for s in self.seeds for r in dict.fromkeys(recipes) for f in self.folds]
         if "recognition" in self.tables:
             jobs += [self._run("imm", HALF_SPLIT, s) for s in self.seeds]
+        if self.k3hi and "fid" in self.tables:
+            jobs += [self._run(r, split, s) for s in self.seeds for r in ("imm", "men") for split in k3hi_table.SPLITS]
         return jobs
 
     def eval_jobs(self) -> list[EvalJob]:
@@ -62,4 +66,7 @@ class ReproducePlan:
                     jobs.append(EvalJob(imm, "final", kind="recognition", classifier_epochs=n))
             if "recognition" in self.tables:
                 jobs.append(EvalJob(self._run("imm", HALF_SPLIT, s), "final", kind="recognition", classifier_epochs=n))
+            if self.k3hi and "fid" in self.tables:
+                runs = [self._run(r, split, s) for r in ("imm", "men") for split in k3hi_table.SPLITS]
+                jobs.append(EvalJob(runs[0], "final", kind="k3hi", also=tuple(runs[1:]), classifier_epochs=n))
         return jobs

@@ -16,10 +16,16 @@ from imm_model.reproduce.jobs import HALF_SPLIT, TrainJob, mark_done, stamp_job
 
 
 def training_data(data_path: Path, split: str):
-    """The bundle, and the held-out subject Trainer takes (None for the half split: its training half only)."""
+    """The training data, and the held-out subject Trainer takes (None for the half and K3HI splits: their training
+    part only)."""
     from imm_model.data.dataset import InteractionDataset
     from imm_model.data.splits import half_split
 
+    if split.startswith("k3hi"):
+        from imm_model.reproduce.k3hi_table import shared_data
+
+        data, splits = shared_data()
+        return data.subset(splits[split][0]), None
     data = InteractionDataset.load(data_path)
     if split == HALF_SPLIT:
         return data.subset(half_split(data.actions).train), None
@@ -51,17 +57,24 @@ def train_run(job: TrainJob, out: Path, data_path: Path, key: str, threads: int)
 class EvalJob:
     run: TrainJob
     checkpoint: str  # "final" (what the run ships) or "best" (the selection model, for the ablation table)
-    kind: str = "metrics"  # "metrics" (evaluation/loso.py) or "recognition" (reproduce/recognition.py)
+    # "metrics" (evaluation/loso.py), "recognition" (reproduce/recognition.py) or "k3hi" (reproduce/k3hi_table.py)
+    kind: str = "metrics"
     baselines: tuple[str, ...] = ()
     men_run: TrainJob | None = None  # the label-free run whose checkpoint is the "men" baseline
+    also: tuple[TrainJob, ...] = ()  # further runs it reads (the K3HI table: every recipe and split)
     classifier_epochs: int | None = None  # override (tiny runs in tests)
 
     @property
     def name(self) -> str:
-        return f"{'evaluate' if self.kind == 'metrics' else 'recognition study on'} {self.run.name} ({self.checkpoint})"
+        what = {"metrics": "evaluate", "recognition": "recognition study on", "k3hi": "K3HI table from"}[self.kind]
+        return f"{what} {self.run.name} ({self.checkpoint})"
+
+    @property
+    def needs(self) -> tuple[TrainJob, ...]:
+        return (self.run, *((self.men_run,) if self.men_run else ()), *self.also)
 
     def result_path(self, out: Path) -> Path:
-        return self.run.run_dir(out) / f"{'eval' if self.kind == 'metrics' else 'recognition'}-{self.checkpoint}.json"
+        return self.run.run_dir(out) / f"{'eval' if self.kind == 'metrics' else self.kind}-{self.checkpoint}.json"
 
     def checkpoint_path(self, out: Path) -> Path:
         from imm_model.checkpoint import final_checkpoint
@@ -72,8 +85,8 @@ class EvalJob:
     def key(self, out: Path) -> str:
         """Changes when the run, the men run, the baselines or the classifiers change."""
         stamp = lambda job: json.loads((job.run_dir(out) / "done.json").read_text())["key"]  # noqa: E731
-        text = json.dumps([stamp(self.run), self.checkpoint, self.kind, self.baselines,
-                           stamp(self.men_run) if self.men_run else None, self.classifier_epochs])
+        text = json.dumps([[stamp(job) for job in self.needs], self.checkpoint, self.kind, self.baselines,
+                           self.classifier_epochs])
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
     def options(self, out: Path):
@@ -99,22 +112,30 @@ def cached_result(job: EvalJob, out: Path) -> dict | None:
 
 
 def evaluate_run(job: EvalJob, out: Path, data_path: Path, threads: int) -> dict:
-    """One checkpoint on its split: every metric of docs/evaluation.md (LOSO fold), or the recognition study."""
+    """One checkpoint on its split: every metric of docs/evaluation.md (LOSO fold), the recognition study, or the
+    K3HI table (every recipe and split of the seed)."""
     import torch
 
+    from imm_model.checkpoint import final_checkpoint
     from imm_model.data.dataset import InteractionDataset
     from imm_model.inference import ReactionModel
 
     torch.set_num_threads(threads)
     if (result := cached_result(job, out)) is not None:
         return result
-    data = InteractionDataset.load(data_path)
-    model = ReactionModel.load(job.checkpoint_path(out))
-    if job.kind == "recognition":
-        result = _recognition(job, model, data)
+    if job.kind == "k3hi":
+        from imm_model.reproduce.k3hi_table import scores
+
+        runs: dict[str, dict] = {}
+        for run in (job.run, *job.also):
+            runs.setdefault(run.recipe, {})[run.split] = final_checkpoint(run.run_dir(out))
+        result = scores(runs, job.classifier_epochs)
+    elif job.kind == "recognition":
+        result = _recognition(job, ReactionModel.load(job.checkpoint_path(out)), InteractionDataset.load(data_path))
     else:
         from imm_model.evaluation.loso import evaluate_fold
 
+        model, data = ReactionModel.load(job.checkpoint_path(out)), InteractionDataset.load(data_path)
         result = evaluate_fold(model, data, job.run.split, job.options(out), latents=False)
         result = {k: v for k, v in result.items() if not k.startswith("_")}
     result |= {"seed": job.run.seed}
