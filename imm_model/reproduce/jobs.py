@@ -44,8 +44,14 @@ class TrainJob:
         return load_config(self.recipe, epochs=self.epochs, seed=self.seed)
 
     def key(self, data_hash: str) -> str:
-        text = json.dumps({"config": self.config().to_dict(), "split": self.split, "seed": self.seed,
-                           "data": data_hash, "code": imm_model.__version__}, sort_keys=True)
+        """Only the fields that differ from TrainConfig's defaults count, so adding an option (with a default that
+        keeps today's behaviour) does not invalidate finished runs."""
+        from imm_model.training.config import TrainConfig
+
+        cfg, default = self.config().to_dict(), TrainConfig().to_dict()
+        changed = {k: v for k, v in cfg.items() if v != default.get(k, object())}
+        text = json.dumps({"config": changed, "split": self.split, "seed": self.seed,
+                           "data": data_hash, "code": imm_model.__version__}, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
