@@ -316,6 +316,27 @@ def test_label_critic_scores_the_true_and_a_drawn_label(sample_data, tmp_path, m
         replace(TINY, critic_mix_prob=2.0)
 
 
+def test_label_critic_ensemble_and_augmentation(sample_data):
+    """Several critics average their losses; with augment each scores a turned/scaled/jittered copy, and the
+    gradient still reaches the generated follower."""
+    from imm_model.model.classifier import ClassifierConfig, MotionClassifier
+    from imm_model.training.critic import LabelCritic
+
+    torch.manual_seed(0)
+    a, b = (MotionClassifier(ClassifierConfig(inputs="follower", hidden=8, features=8, seed=s), 45, 6) for s in (0, 1))
+    x = torch.as_tensor(sample_data.canonical(0)[1].reshape(1, -1, 45)).repeat(2, 1, 1).requires_grad_(True)
+    lengths, target = torch.tensor([x.shape[1]] * 2), torch.eye(6)[:2]
+    gen = lambda: torch.Generator().manual_seed(0)  # noqa: E731
+    la, lb = (LabelCritic([c]).loss(x, lengths, target, gen()) for c in (a, b))
+    torch.testing.assert_close(LabelCritic([a, b]).loss(x, lengths, target, gen()), (la + lb) / 2)
+    augmented = LabelCritic([a], augment=True).loss(x, lengths, target, gen())
+    assert not torch.isclose(augmented, la)
+    augmented.backward()
+    assert x.grad is not None and x.grad.abs().sum() > 0
+    with pytest.raises(ValueError, match="critic_seeds must be"):
+        replace(TINY, critic_seeds=())
+
+
 @pytest.mark.parametrize("text, message", [
     ('{"lr_g": "fast"}', "lr_g must be a finite number"),
     ("[1, 2]", "a config is a JSON object"),

@@ -133,15 +133,16 @@ def _pad(sequences: list[np.ndarray]) -> tuple[torch.Tensor, torch.Tensor]:
     return x, lengths
 
 
-def _augment(x: torch.Tensor, cfg: ClassifierConfig, gen: torch.Generator) -> torch.Tensor:
-    """Yaw about the vertical (Y) axis, scale and noise; every character in a sequence alike."""
+def augment(x: torch.Tensor, cfg: ClassifierConfig, gen: torch.Generator) -> torch.Tensor:
+    """Yaw about the vertical (Y) axis, scale and noise; every character in a sequence alike. Differentiable in x;
+    the random draws come from the CPU generator `gen` and move to x's device."""
     B = x.shape[0]
     p = x.unflatten(-1, (-1, 3))
-    ang = (torch.rand(B, generator=gen) * 2 - 1) * math.radians(cfg.rotate_deg)
+    ang = ((torch.rand(B, generator=gen) * 2 - 1) * math.radians(cfg.rotate_deg)).to(x.device)
     c, s = torch.cos(ang)[:, None, None], torch.sin(ang)[:, None, None]
     p = torch.stack([c * p[..., 0] + s * p[..., 2], p[..., 1], -s * p[..., 0] + c * p[..., 2]], dim=-1)
-    p = p * (1 + (torch.rand(B, 1, 1, 1, generator=gen) * 2 - 1) * cfg.scale_jitter)
-    return p.flatten(-2) + torch.randn(x.shape, generator=gen) * cfg.noise_m
+    p = p * (1 + (torch.rand(B, 1, 1, 1, generator=gen) * 2 - 1) * cfg.scale_jitter).to(x.device)
+    return p.flatten(-2) + torch.randn(x.shape, generator=gen).to(x.device) * cfg.noise_m
 
 
 # ---- training and use -------------------------------------------------------------------------
@@ -165,7 +166,7 @@ def train_classifier(cfg: ClassifierConfig, sequences: list[np.ndarray], labels:
         for k in range(0, len(order), cfg.batch_size):
             idx = order[k:k + cfg.batch_size]
             t = int(lengths[idx].max())
-            logits = model(_augment(x[idx, :t], cfg, gen), lengths[idx])
+            logits = model(augment(x[idx, :t], cfg, gen), lengths[idx])
             loss = nn.functional.cross_entropy(logits, y[idx], label_smoothing=cfg.label_smoothing)
             opt.zero_grad(set_to_none=True)
             loss.backward()

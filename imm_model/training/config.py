@@ -39,6 +39,8 @@ class TrainConfig:
     # critic_mix_prob a two-class mix); its weight follows the adversarial warm-up and ramp. 0 = off.
     lambda_critic: float = 0.0
     critic_mix_prob: float = 0.0
+    critic_seeds: tuple[int, ...] = (0,)  # one frozen follower GRU per seed, their losses averaged
+    critic_augment: bool = False  # the critic scores a randomly turned/scaled/jittered copy (training/critic.py)
     # Motion energy (training/energy.py): per-joint limb speed of the generated follower vs the real one (for a
     # drawn label, vs the label's mix of per-class profiles); weight follows the adversarial warm-up and ramp.
     lambda_energy: float = 0.0
@@ -97,6 +99,8 @@ class TrainConfig:
             ("discriminator", self.discriminator in DISCRIMINATORS, f"one of {DISCRIMINATORS}"),
             ("lambda_critic", self.lambda_critic >= 0, ">= 0 (0 = off)"),
             ("critic_mix_prob", 0 <= self.critic_mix_prob <= 1, "in [0, 1]"),
+            ("critic_seeds", len(self.critic_seeds) >= 1 and all(0 <= s < 2**31 for s in self.critic_seeds),
+             "a non-empty list of seeds"),
             ("lambda_energy", self.lambda_energy >= 0, ">= 0 (0 = off)"),
             ("l1_reduction", self.l1_reduction in ("mean", "sum"), "'mean' or 'sum'"),
             ("epochs", 1 <= self.epochs <= 100_000, "in 1..100000"),
@@ -124,6 +128,7 @@ class TrainConfig:
         d = asdict(self)
         d["role_swap_classes"] = list(self.role_swap_classes)
         d["mirror_exclude_classes"] = list(self.mirror_exclude_classes)
+        d["critic_seeds"] = list(self.critic_seeds)
         return d
 
     @classmethod

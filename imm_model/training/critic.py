@@ -14,16 +14,25 @@ from __future__ import annotations
 import torch
 import torch.nn.functional as F
 
-from imm_model.model.classifier import MotionClassifier
+from imm_model.model.classifier import MotionClassifier, augment
 
 
 class LabelCritic:
-    def __init__(self, classifier: MotionClassifier):
-        self.classifier = classifier.eval().requires_grad_(False)
+    """One or several frozen classifiers (an ensemble of seeds: the generator cannot satisfy one network's quirks
+    alone). With `augment`, each scores a randomly turned, scaled and jittered copy of the follower, as the
+    classifiers saw their training data, so only what survives those changes counts."""
 
-    def loss(self, follower: torch.Tensor, lengths: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        """follower (B, T, 3J) canonical metres, target (B, C) class probabilities -> soft cross-entropy."""
-        return F.cross_entropy(self.classifier(follower, lengths), target)
+    def __init__(self, classifiers: list[MotionClassifier], augment: bool = False):
+        self.classifiers = [c.eval().requires_grad_(False) for c in classifiers]
+        self.augment = augment
+
+    def loss(self, follower: torch.Tensor, lengths: torch.Tensor, target: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
+        """follower (B, T, 3J) canonical metres, target (B, C) class probabilities -> soft cross-entropy (mean)."""
+        total = follower.new_zeros(())
+        for clf in self.classifiers:
+            x = augment(follower, clf.cfg, gen) if self.augment else follower
+            total = total + F.cross_entropy(clf(x, lengths), target)
+        return total / len(self.classifiers)
 
 
 def drawn_labels(actions: torch.Tensor, num_classes: int, mix_prob: float, gen: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:

@@ -136,11 +136,14 @@ class Trainer:
         self.D.follower_std.copy_(self.G.follower_std)
 
     def _label_critic(self):
+        from dataclasses import replace
+
         from imm_model.cache import fold_classifier
         from imm_model.model.classifier import FOLLOWER
         from imm_model.training.critic import LabelCritic
 
-        return LabelCritic(fold_classifier(FOLLOWER, self.data, self.subject).to(self.device))
+        clfs = [fold_classifier(replace(FOLLOWER, seed=s), self.data, self.subject).to(self.device) for s in self.cfg.critic_seeds]
+        return LabelCritic(clfs, augment=self.cfg.critic_augment)
 
     def _class_profiles(self) -> torch.Tensor:
         followers = [self.data.follower[self.data.frames(i)] for i in self.train_idx]
@@ -292,7 +295,7 @@ class Trainer:
             labels, target = (x.to(self.device) for x in drawn_labels(actions.cpu(), c, cfg.critic_mix_prob, gen))
             other = self.G(leader, labels, lengths)
             own = torch.nn.functional.one_hot(actions, c).float()
-            critic = self.critic.loss(fake, lengths, own) + self.critic.loss(other, lengths, target)
+            critic = self.critic.loss(fake, lengths, own, gen) + self.critic.loss(other, lengths, target, gen)
             g_loss = g_loss + w_critic * critic
             terms["critic"] = float(critic.detach())
             if w_energy > 0:
