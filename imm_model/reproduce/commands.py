@@ -31,7 +31,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "split) as Ray tasks, evaluates them, and writes OUT/report.md with the paper's numbers beside ours. "
                     "Finished runs are reused (keyed by config, split, seed and data): rerun the same command after an "
                     "interruption. docs/reproduction.md explains local and cluster use.")
-    p.add_argument("--out", type=Path, required=True, help="report folder (runs go to OUT/runs)")
+    p.add_argument("--out", type=Path, required=True, help="report folder: report.md, summary.json, figures")
+    p.add_argument("--runs", type=Path, default=None, help="where the training runs go (default OUT/runs)")
     p.add_argument("--seeds", type=_int_list, default=(0,), help="comma-separated training seeds (default 0)")
     p.add_argument("--tables", type=_name_list, default=TABLES, help=f"comma-separated subset of {','.join(TABLES)}")
     p.add_argument("--folds", type=_name_list, default=SBU_SUBJECTS, help="comma-separated LOSO subjects (default all 7)")
@@ -54,7 +55,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     from imm_model.reproduce.runner import Runner
 
     t0 = time.perf_counter()
-    plan = ReproducePlan(out=args.out, seeds=args.seeds, tables=args.tables, folds=args.folds, epochs=args.epochs,
+    plan = ReproducePlan(seeds=args.seeds, tables=args.tables, folds=args.folds, epochs=args.epochs,
                          classifier_epochs=args.classifier_epochs, k3hi=k3hi_raw_root().is_dir())
     if not plan.k3hi and "fid" in plan.tables:
         print(f"K3HI not found at {k3hi_raw_root()}: the MoCap FID table is left out")
@@ -65,39 +66,39 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
         data_hash["k3hi"] = dataset_hash(shared_data()[0])
     args.out.mkdir(parents=True, exist_ok=True)
-    out = args.out.resolve()
+    runs = (args.runs or args.out / "runs").resolve()
     with Runner(args.address, args.cpus_per_task, args.backend) as runner:
-        trained = _train(runner, plan, out, data_path, data_hash, args.cpus_per_task)
-        results = _evaluate(runner, plan, out, data_path, trained, args.cpus_per_task)
+        trained = _train(runner, plan, runs, data_path, data_hash, args.cpus_per_task)
+        results = _evaluate(runner, plan, runs, data_path, trained, args.cpus_per_task)
     wall = time.perf_counter() - t0
-    report = write_report(plan, results, out, wall)
+    report = write_report(plan, results, args.out.resolve(), wall)
     failed = len(plan.training_jobs()) - len(trained) + sum(1 for r in results.values() if r is None)
     print(f"report: {report} ({wall / 60:.1f} min wall{f'; {failed} jobs failed' if failed else ''})")
     return 1 if failed else 0
 
 
-def _train(runner, plan, out: Path, data_path: Path, data_hash: dict[str, str], cpus: int) -> set:
+def _train(runner, plan, runs: Path, data_path: Path, data_hash: dict[str, str], cpus: int) -> set:
     """Run every training job not finished yet -> the set of jobs that are finished."""
     from imm_model.reproduce.jobs import run_status
     from imm_model.reproduce.runner import Task
     from imm_model.reproduce.tasks import train_run
 
     keys = {job: job.key(data_hash[job.dataset]) for job in plan.training_jobs()}
-    status = {job: run_status(job, out, key) for job, key in keys.items()}
+    status = {job: run_status(job, runs, key) for job, key in keys.items()}
     finished = {job for job, s in status.items() if s == "done"}
     todo = [job for job in keys if job not in finished]
     resumed = sum(status[j] == "partial" for j in todo)
     print(f"{len(keys)} training runs: {len(finished)} finished already (reused), {resumed} to resume, "
           f"{len(todo) - resumed} to train")
     describe = lambda info: f"{info['epochs']} epochs (best {info['best_epoch']}) in {info['seconds']:.0f} s"  # noqa: E731
-    tasks = [Task(job.name, train_run, (job, out, data_path, keys[job], cpus), describe) for job in todo]
+    tasks = [Task(job.name, train_run, (job, runs, data_path, keys[job], cpus), describe) for job in todo]
     for job, (ok, _) in zip(todo, runner.run(tasks, "training"), strict=True):
         if ok:
             finished.add(job)
     return finished
 
 
-def _evaluate(runner, plan, out: Path, data_path: Path, trained: set, cpus: int) -> dict:
+def _evaluate(runner, plan, runs: Path, data_path: Path, trained: set, cpus: int) -> dict:
     """Evaluate every checkpoint whose runs finished -> {EvalJob: result, or None if it could not run}."""
     from imm_model.reproduce.runner import Task
     from imm_model.reproduce.tasks import cached_result, evaluate_run
@@ -105,11 +106,11 @@ def _evaluate(runner, plan, out: Path, data_path: Path, trained: set, cpus: int)
     jobs = plan.eval_jobs()
     ready = [j for j in jobs if all(run in trained for run in j.needs)]
     results: dict = {j: None for j in jobs}
-    results |= {j: cached_result(j, out) for j in ready}
+    results |= {j: cached_result(j, runs) for j in ready}
     todo = [j for j in ready if results[j] is None]
     print(f"{len(jobs)} evaluations: {len(ready) - len(todo)} reused, {len(todo)} to run, {len(jobs) - len(ready)} "
           "waiting on failed runs")
-    tasks = [Task(j.name, evaluate_run, (j, out, data_path, cpus), lambda r: "done") for j in todo]
+    tasks = [Task(j.name, evaluate_run, (j, runs, data_path, cpus), lambda r: "done") for j in todo]
     for job, (ok, value) in zip(todo, runner.run(tasks, "evaluation"), strict=True):
         results[job] = value if ok else None
     return results

@@ -1,7 +1,8 @@
 """The training runs and evaluations `imm reproduce` needs, each keyed so that finished work is reused.
 
 A training run is (recipe, split, seed) on one dataset bundle. Its directory is
-OUT/runs/<recipe>-seed<seed>/fold-<split>, the layout `imm train` writes and `imm evaluate --run` reads.
+RUNS/<recipe>-seed<seed>/fold-<split> (RUNS: `--runs`, default OUT/runs), the layout `imm train` writes and
+`imm evaluate --run` reads.
 `job.json` there holds the run's key: a hash of the recipe's full config, the split, the seed, the data and
 the package version. A directory whose key differs is stale: it is moved aside (never deleted) and the run
 starts again; a directory with the same key and no `done.json` is resumed from its last checkpoint.
@@ -35,8 +36,8 @@ class TrainJob:
     def dataset(self) -> str:
         return "k3hi" if self.split.startswith("k3hi") else "sbu"
 
-    def run_dir(self, out: Path) -> Path:
-        return out / "runs" / f"{self.recipe}-seed{self.seed}" / f"fold-{self.split}"
+    def run_dir(self, runs: Path) -> Path:
+        return runs / f"{self.recipe}-seed{self.seed}" / f"fold-{self.split}"
 
     def config(self):
         from imm_model.training.config import load_config
@@ -55,9 +56,9 @@ class TrainJob:
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def run_status(job: TrainJob, out: Path, key: str) -> str:
+def run_status(job: TrainJob, runs: Path, key: str) -> str:
     """'done', 'partial' (same key, resumable) or 'new' (nothing there, or a stale run that is moved aside)."""
-    d = job.run_dir(out)
+    d = job.run_dir(runs)
     stamp = d / "job.json"
     if not d.exists() or not any(d.iterdir()):
         return "new"
@@ -72,11 +73,11 @@ def run_status(job: TrainJob, out: Path, key: str) -> str:
     return "done" if (d / "done.json").exists() else "partial"
 
 
-def stamp_job(job: TrainJob, out: Path, key: str) -> None:
-    d = job.run_dir(out)
+def stamp_job(job: TrainJob, runs: Path, key: str) -> None:
+    d = job.run_dir(runs)
     d.mkdir(parents=True, exist_ok=True)
     (d / "job.json").write_text(json.dumps({"key": key, "job": asdict(job)}, indent=1) + "\n")
 
 
-def mark_done(job: TrainJob, out: Path, info: dict) -> None:
-    (job.run_dir(out) / "done.json").write_text(json.dumps(info, indent=1) + "\n")
+def mark_done(job: TrainJob, runs: Path, info: dict) -> None:
+    (job.run_dir(runs) / "done.json").write_text(json.dumps(info, indent=1) + "\n")

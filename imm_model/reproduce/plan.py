@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 from imm_model.evaluation.baselines import HEURISTIC_BASELINES
 from imm_model.reproduce import k3hi_table
@@ -17,7 +16,6 @@ SBU_SUBJECTS = ("s01", "s02", "s03", "s04", "s05", "s06", "s07")
 
 @dataclass(frozen=True)
 class ReproducePlan:
-    out: Path
     seeds: tuple[int, ...] = (0,)
     tables: tuple[str, ...] = TABLES
     folds: tuple[str, ...] = SBU_SUBJECTS

@@ -32,7 +32,7 @@ def training_data(data_path: Path, split: str):
     return data, split
 
 
-def train_run(job: TrainJob, out: Path, data_path: Path, key: str, threads: int) -> dict:
+def train_run(job: TrainJob, runs: Path, data_path: Path, key: str, threads: int) -> dict:
     """Train (or resume) one run to the end, refit included -> what done.json records."""
     import torch
 
@@ -41,15 +41,15 @@ def train_run(job: TrainJob, out: Path, data_path: Path, key: str, threads: int)
     torch.set_num_threads(threads)
     t0 = time.perf_counter()
     data, subject = training_data(data_path, job.split)
-    stamp_job(job, out, key)
-    trainer = Trainer(job.config(), data, subject, job.run_dir(out))
+    stamp_job(job, runs, key)
+    trainer = Trainer(job.config(), data, subject, job.run_dir(runs))
     if (trainer.out / "last.safetensors").exists():
         trainer.resume()
     state = trainer.fit(progress=False)
     if trainer.cfg.refit:
         refit(trainer, progress=False)
     info = {"key": key, "best_epoch": state.best_epoch, "epochs": state.epoch, "seconds": round(time.perf_counter() - t0, 1)}
-    mark_done(job, out, info)
+    mark_done(job, runs, info)
     return info
 
 
@@ -73,23 +73,23 @@ class EvalJob:
     def needs(self) -> tuple[TrainJob, ...]:
         return (self.run, *((self.men_run,) if self.men_run else ()), *self.also)
 
-    def result_path(self, out: Path) -> Path:
-        return self.run.run_dir(out) / f"{'eval' if self.kind == 'metrics' else self.kind}-{self.checkpoint}.json"
+    def result_path(self, runs: Path) -> Path:
+        return self.run.run_dir(runs) / f"{'eval' if self.kind == 'metrics' else self.kind}-{self.checkpoint}.json"
 
-    def checkpoint_path(self, out: Path) -> Path:
+    def checkpoint_path(self, runs: Path) -> Path:
         from imm_model.checkpoint import final_checkpoint
 
-        run_dir = self.run.run_dir(out)
+        run_dir = self.run.run_dir(runs)
         return final_checkpoint(run_dir) if self.checkpoint == "final" else run_dir / "best.safetensors"
 
-    def key(self, out: Path) -> str:
+    def key(self, runs: Path) -> str:
         """Changes when the run, the men run, the baselines or the classifiers change."""
-        stamp = lambda job: json.loads((job.run_dir(out) / "done.json").read_text())["key"]  # noqa: E731
+        stamp = lambda job: json.loads((job.run_dir(runs) / "done.json").read_text())["key"]  # noqa: E731
         text = json.dumps([[stamp(job) for job in self.needs], self.checkpoint, self.kind, self.baselines,
                            self.classifier_epochs])
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
-    def options(self, out: Path):
+    def options(self, runs: Path):
         from imm_model.checkpoint import final_checkpoint
         from imm_model.evaluation.loso import EvalOptions
         from imm_model.model.classifier import FOLLOWER, FOLLOWER_JUDGE, INTERACTION
@@ -99,19 +99,19 @@ class EvalJob:
         judges = {k: replace(cfg, epochs=n) for k, cfg in defaults.items()} if n else {}
         men = self.men_run
         return EvalOptions(baselines=self.baselines, progress=False, **judges,
-                           men_checkpoint=(lambda s: final_checkpoint(men.run_dir(out))) if men else None)
+                           men_checkpoint=(lambda s: final_checkpoint(men.run_dir(runs))) if men else None)
 
 
-def cached_result(job: EvalJob, out: Path) -> dict | None:
-    path = job.result_path(out)
+def cached_result(job: EvalJob, runs: Path) -> dict | None:
+    path = job.result_path(runs)
     try:
         saved = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
-    return saved["result"] if saved.get("key") == job.key(out) else None
+    return saved["result"] if saved.get("key") == job.key(runs) else None
 
 
-def evaluate_run(job: EvalJob, out: Path, data_path: Path, threads: int) -> dict:
+def evaluate_run(job: EvalJob, runs: Path, data_path: Path, threads: int) -> dict:
     """One checkpoint on its split: every metric of docs/evaluation.md (LOSO fold), the recognition study, or the
     K3HI table (every recipe and split of the seed)."""
     import torch
@@ -121,25 +121,25 @@ def evaluate_run(job: EvalJob, out: Path, data_path: Path, threads: int) -> dict
     from imm_model.inference import ReactionModel
 
     torch.set_num_threads(threads)
-    if (result := cached_result(job, out)) is not None:
+    if (result := cached_result(job, runs)) is not None:
         return result
     if job.kind == "k3hi":
         from imm_model.reproduce.k3hi_table import scores
 
-        runs: dict[str, dict] = {}
+        checkpoints: dict[str, dict] = {}
         for run in (job.run, *job.also):
-            runs.setdefault(run.recipe, {})[run.split] = final_checkpoint(run.run_dir(out))
-        result = scores(runs, job.classifier_epochs)
+            checkpoints.setdefault(run.recipe, {})[run.split] = final_checkpoint(run.run_dir(runs))
+        result = scores(checkpoints, job.classifier_epochs)
     elif job.kind == "recognition":
-        result = _recognition(job, ReactionModel.load(job.checkpoint_path(out)), InteractionDataset.load(data_path))
+        result = _recognition(job, ReactionModel.load(job.checkpoint_path(runs)), InteractionDataset.load(data_path))
     else:
         from imm_model.evaluation.loso import evaluate_fold
 
-        model, data = ReactionModel.load(job.checkpoint_path(out)), InteractionDataset.load(data_path)
-        result = evaluate_fold(model, data, job.run.split, job.options(out), latents=False)
+        model, data = ReactionModel.load(job.checkpoint_path(runs)), InteractionDataset.load(data_path)
+        result = evaluate_fold(model, data, job.run.split, job.options(runs), latents=False)
         result = {k: v for k, v in result.items() if not k.startswith("_")}
     result |= {"seed": job.run.seed}
-    job.result_path(out).write_text(json.dumps({"key": job.key(out), "result": result}) + "\n")
+    job.result_path(runs).write_text(json.dumps({"key": job.key(runs), "result": result}) + "\n")
     return result
 
 
