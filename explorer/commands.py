@@ -23,6 +23,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--host", default="127.0.0.1",
         help="address to bind (default 127.0.0.1: this machine only; 0.0.0.0 exposes the studio to your network)",
     )  # fmt: skip
+    p.add_argument("--token", default=None,
+                   help="access token required in the first URL (default: none on 127.0.0.1; a random one for any other --host)")
+    p.add_argument("--no-auth", action="store_true", help="with a non-loopback --host: serve anyone who can reach the port")
     p.add_argument("--no-browser", action="store_true", help="do not open a browser window")
     p.add_argument("--cache-dir", type=Path, default=None, help="latent-map cache (default: ~/.cache/imm-studio)")
     p.add_argument("--export-dir", type=Path, default=Path("imm-exports"), help="where exports are also saved (default ./imm-exports)")
@@ -46,6 +49,26 @@ def missing_studio_modules() -> list[str]:
     return [m for m in STUDIO_MODULES if importlib.util.find_spec(m) is None]
 
 
+def access(args: argparse.Namespace) -> tuple[str | None, bool]:
+    """-> (token, no_auth). On a non-loopback --host the studio is reachable from the network: it then needs a token
+    (given or random, printed in its URL) unless --no-auth says otherwise; either way a warning is printed."""
+    import secrets
+
+    from explorer.launcher import LOOPBACK
+
+    if args.token is not None and (len(args.token) < 8 or not args.token.isascii() or not args.token.isprintable()):
+        raise ValueError("--token must be at least 8 printable ASCII characters")
+    if args.host in LOOPBACK:
+        return args.token, False
+    if args.no_auth:
+        print(f"imm explore: warning: --host {args.host} --no-auth: anyone who can reach this port can use the studio",
+              file=sys.stderr)
+        return None, True
+    print(f"imm explore: warning: --host {args.host} exposes the studio to the network; it answers only URLs with its "
+          "token (printed below)", file=sys.stderr)
+    return args.token or secrets.token_urlsafe(24), False
+
+
 def run_explore(args: argparse.Namespace) -> int:
     missing = missing_studio_modules()
     if missing:
@@ -65,8 +88,13 @@ def run_explore(args: argparse.Namespace) -> int:
     if not 0 <= args.port <= 65535:
         print(f"imm explore: error: --port must be 0..65535, not {args.port}", file=sys.stderr)
         return 2
+    try:
+        token, no_auth = access(args)
+    except ValueError as err:
+        print(f"imm explore: error: {err}", file=sys.stderr)
+        return 2
     config = LaunchConfig(
-        data=Path(data).resolve(), checkpoint=Path(checkpoint).resolve(), host=args.host, port=args.port,
+        token=token, no_auth=no_auth, data=Path(data).resolve(), checkpoint=Path(checkpoint).resolve(), host=args.host, port=args.port,
         cache_dir=args.cache_dir.resolve() if args.cache_dir else None, export_dir=args.export_dir.resolve(),
         max_clients=max(1, args.max_clients), open_browser=not args.no_browser, sequence=args.sequence, render=args.render,
         judge=str(judge.resolve()) if judge else args.judge,

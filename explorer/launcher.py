@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import errno
+import hmac
 import html
 import os
 import secrets
@@ -23,6 +24,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from explorer.worker import PREFIX
+
+TOKEN_COOKIE = "imm_studio_token"
+LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
 
 class LaunchError(Exception):
@@ -51,6 +55,10 @@ class LaunchConfig:
     sequence: str | None = None
     render: str = "remote"
     judge: str | None = None  # the 'reads as' classifier: a path, "none", or None for the bundled one
+    # Access: None serves loopback host names only (DNS rebinding); a token is required in the first URL (then a
+    # cookie) and admits any host name; no_auth admits every request (the user chose so for a non-loopback --host).
+    token: str | None = None
+    no_auth: bool = False
 
 
 def bind_socket(host: str, port: int) -> socket.socket:
@@ -148,16 +156,20 @@ class Launcher:
         page's <img> would otherwise hold one); its script claims one with a same-origin POST."""
         from aiohttp import web
 
-        return web.Response(content_type="text/html", text=CLAIM_PAGE)
+        if not self.authorized(request):
+            return web.Response(status=403, content_type="text/html",
+                                text=_error_page("this studio needs its access token: open the address it printed at start"))
+        page = web.Response(content_type="text/html", text=CLAIM_PAGE)
+        if self.config.token and "token" in request.query:  # later requests (claim, studio) carry it as a cookie
+            page.set_cookie(TOKEN_COOKIE, self.config.token, httponly=True, samesite="Strict", path="/")
+        return page
 
     async def claim(self, request):
         """POST /claim from the front page -> {"url": the studio process for this tab}. Refused for a request from
         another web origin or addressed to a host name this studio does not serve (DNS rebinding)."""
         from aiohttp import web
 
-        host = request.url.host or ""
-        origin = request.headers.get("Origin")
-        if host not in self.allowed_hosts() or (origin is not None and origin != f"http://{request.host}"):
+        if not self.authorized(request):
             return web.Response(status=403, text="refused: the studio only answers its own page")
         try:
             w = await self.take()
@@ -175,20 +187,32 @@ class Launcher:
 
         from explorer.proxy import forward_http, forward_websocket
 
+        if not self.authorized(request):
+            return web.Response(status=403, text="refused: the studio only answers its own page")
         w = self.sessions.get(request.match_info["token"])
         if w is None or w.process.returncode is not None:
             self.sessions.pop(request.match_info["token"], None)
             raise web.HTTPFound("../../")  # an old or unknown link: back to the front page for a fresh studio
         tail = request.match_info["tail"]
         if request.headers.get("Upgrade", "").lower() == "websocket":
-            origin = request.headers.get("Origin")
-            if request.url.host not in self.allowed_hosts() or (origin is not None and origin != f"http://{request.host}"):
-                return web.Response(status=403, text="refused: the studio only answers its own page")
             return await forward_websocket(request, w.port, tail)
         return await forward_http(request, w.port, tail)
 
     def allowed_hosts(self) -> set[str]:
         return {"localhost", "127.0.0.1", "::1", "[::1]", self.config.host} - {"0.0.0.0", "::"}
+
+    def authorized(self, request) -> bool:
+        """Another web origin is always refused. Then: the access token (first URL or cookie) if there is one;
+        without one, a host name this studio serves (a DNS-rebinding page names its own)."""
+        origin = request.headers.get("Origin")
+        if origin is not None and origin != f"http://{request.host}":
+            return False
+        if self.config.no_auth:
+            return True
+        if self.config.token is None:
+            return (request.url.host or "") in self.allowed_hosts()
+        given = request.query.get("token") or request.cookies.get(TOKEN_COOKIE) or ""
+        return hmac.compare_digest(given.encode(), self.config.token.encode())
 
     async def run(self, sock: socket.socket) -> int:
         from aiohttp import web
@@ -209,8 +233,9 @@ class Launcher:
         await runner.setup()
         await web.SockSite(runner, sock).start()
         port = sock.getsockname()[1]
-        shown = "localhost" if self.config.host in ("127.0.0.1", "localhost") else self.config.host
-        self.url = f"http://{shown}:{port}/"
+        wildcard = {"0.0.0.0": socket.gethostname(), "::": socket.gethostname()}
+        shown = "localhost" if self.config.host in LOOPBACK else wildcard.get(self.config.host, self.config.host)
+        self.url = f"http://{shown}:{port}/" + (f"?token={self.config.token}" if self.config.token else "")
         print(
             f"IMM Studio ready at {self.url} ({time.monotonic() - t0:.1f} s; one studio process per browser tab, Ctrl+C to stop)",
             flush=True,

@@ -84,7 +84,7 @@ def test_port_in_use():
     assert_one_line_error(proc, f"port {port}", "already in use")
 
 
-def _claim(host: str, port: int, origin: str | None = "same", host_header: str | None = None):
+def _claim(host: str, port: int, origin: str | None = "same", host_header: str | None = None, cookie: str | None = None):
     import http.client
     import json
 
@@ -92,6 +92,8 @@ def _claim(host: str, port: int, origin: str | None = "same", host_header: str |
     headers = {"Host": host_header or f"{host}:{port}"}
     if origin is not None:
         headers["Origin"] = f"http://{host}:{port}" if origin == "same" else origin
+    if cookie is not None:
+        headers["Cookie"] = cookie
     conn.request("POST", "/claim", headers=headers)
     r = conn.getresponse()
     body = r.read().decode()
@@ -148,6 +150,51 @@ def test_a_claim_nobody_connects_to_is_released(tmp_path, monkeypatch):
             assert time.monotonic() < deadline, "the unconnected claim was never released"
             time.sleep(1.0)
 
+
+
+@pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
+def test_a_token_guards_the_front_page_the_claim_and_the_studio(tmp_path):
+    """With --token only the printed URL opens the studio; its cookie then admits the claim and the studio."""
+    import http.client
+    from urllib.parse import urlsplit
+
+    from explorer.probe import StudioProcess
+
+    with StudioProcess("--token", "s3cret-token", cache_dir=tmp_path) as studio:
+        u = urlsplit(studio.url)
+        assert u.query == "token=s3cret-token"
+        conn = http.client.HTTPConnection(u.hostname, u.port, timeout=60)
+
+        def get(path: str, cookie: str | None = None):
+            conn.request("GET", path, headers={"Cookie": cookie} if cookie else {})
+            r = conn.getresponse()
+            r.read()
+            return r
+
+        assert get("/").status == 403 and get("/?token=wrong-token").status == 403
+        first = get("/?token=s3cret-token")
+        assert first.status == 200 and "HttpOnly" in first.getheader("Set-Cookie")
+        cookie = first.getheader("Set-Cookie").split(";")[0]
+        assert _claim(u.hostname, u.port)[0] == 403
+        status, answer = _claim(u.hostname, u.port, cookie=cookie)
+        assert status == 200
+        assert get("/" + answer["url"] + "index.html").status == 403
+        assert get("/" + answer["url"] + "index.html", cookie=cookie).status == 200
+
+
+def test_a_network_host_needs_a_token_or_no_auth(capsys):
+    import argparse
+
+    from explorer.commands import access
+
+    args = lambda **kw: argparse.Namespace(**({"host": "127.0.0.1", "token": None, "no_auth": False} | kw))  # noqa: E731
+    assert access(args()) == (None, False)  # loopback: no token unless asked for
+    token, no_auth = access(args(host="0.0.0.0"))
+    assert len(token) >= 24 and not no_auth and "exposes the studio" in capsys.readouterr().err
+    assert access(args(host="0.0.0.0", token="my-long-token")) == ("my-long-token", False)
+    assert access(args(host="0.0.0.0", no_auth=True)) == (None, True) and "--no-auth" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="at least 8"):
+        access(args(token="short"))
 
 
 def test_explore_without_the_studio_extra_says_how_to_install_it(monkeypatch, capsys):
