@@ -18,13 +18,15 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-from explorer import probe
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the studio driver lives beside the tests
+from tests import studio_probe as probe  # noqa: E402
 
 VIEW_SIZE = (1400, 900)
 

@@ -123,3 +123,10 @@ def final_checkpoint(fold_dir: Path | str) -> Path:
     fold_dir = Path(fold_dir)
     final = fold_dir / "final.safetensors"
     return final if final.exists() else fold_dir / "best.safetensors"
+
+
+def export_generator(best: Path | str, out: Path | str) -> None:
+    """Copy a run's checkpoint as a generator-only checkpoint (what inference needs)."""
+    tensors, meta = load_checkpoint(best)
+    generator = {k: v for k, v in tensors.items() if k.startswith("generator.")}
+    save_checkpoint(out, generator, {k: v for k, v in meta.items() if k != "format"} | {"kind": "generator"})

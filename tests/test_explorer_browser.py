@@ -19,7 +19,7 @@ pytestmark = [
     pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason=f"bundled checkpoint missing: {SAMPLE_CHECKPOINT}"),
 ]
 sync_api = pytest.importorskip("playwright.sync_api")
-probe = pytest.importorskip("explorer.probe")
+probe = pytest.importorskip("tests.studio_probe")
 ARTIFACTS = REPO_ROOT / "test-artifacts"
 
 
@@ -68,7 +68,7 @@ def test_page_shows_three_skeletons(page):
 
 def test_class_slider_changes_follower(page):
     from explorer.palette import SYNTHESIZED
-    from explorer.probe import color_mask
+    from tests.studio_probe import color_mask
 
     names = probe.state(page, "class_names")
     own = [i for i in range(len(names)) if probe.state(page, f"w_{i}") == 1.0][0]

@@ -108,7 +108,7 @@ def test_launcher_hands_out_processes_only_to_its_own_page(tmp_path):
     import http.client
     from urllib.parse import urlsplit
 
-    from explorer.probe import StudioProcess
+    from tests.studio_probe import StudioProcess
 
     with StudioProcess("--max-clients", "1", cache_dir=tmp_path) as studio:
         u = urlsplit(studio.url)
@@ -138,7 +138,7 @@ def test_a_claim_nobody_connects_to_is_released(tmp_path, monkeypatch):
     import time
     from urllib.parse import urlsplit
 
-    from explorer.probe import StudioProcess
+    from tests.studio_probe import StudioProcess
 
     monkeypatch.setenv("IMM_STUDIO_CLAIM_TIMEOUT", "2")
     with StudioProcess("--max-clients", "1", cache_dir=tmp_path) as studio:
@@ -158,7 +158,7 @@ def test_a_token_guards_the_front_page_the_claim_and_the_studio(tmp_path):
     import http.client
     from urllib.parse import urlsplit
 
-    from explorer.probe import StudioProcess
+    from tests.studio_probe import StudioProcess
 
     with StudioProcess("--token", "s3cret-token", cache_dir=tmp_path) as studio:
         u = urlsplit(studio.url)

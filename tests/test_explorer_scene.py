@@ -21,7 +21,7 @@ def scene(sample_data):
 
 
 def _count(img, hex_color):
-    from explorer.probe import color_mask
+    from tests.studio_probe import color_mask
 
     return int(color_mask(img, hex_color).sum())
 

@@ -8,12 +8,12 @@ from dataclasses import replace
 import pytest
 import torch
 
-from imm_model.checkpoint import final_checkpoint, load_checkpoint, save_checkpoint
+from imm_model.checkpoint import export_generator, final_checkpoint, load_checkpoint, save_checkpoint
 from imm_model.cli import main
 from imm_model.errors import CheckpointError
 from imm_model.inference import ReactionModel
 from imm_model.training.config import IMM, PAPER, TrainConfig, load_config
-from imm_model.training.trainer import Trainer, adversarial_weight, export_generator, lr_scale, refit
+from imm_model.training.trainer import Trainer, adversarial_weight, lr_scale, refit
 
 TINY = replace(
     IMM,

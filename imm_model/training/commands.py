@@ -34,14 +34,14 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
     import torch
 
-    from imm_model.checkpoint import final_checkpoint
+    from imm_model.checkpoint import export_generator, final_checkpoint
     from imm_model.data.dataset import InteractionDataset
     from imm_model.data.splits import all_subjects
     from imm_model.device import resolve_device
     from imm_model.evaluation.commands import normalize_fold
     from imm_model.paths import SAMPLE_DATA
     from imm_model.training.config import load_config
-    from imm_model.training.trainer import Trainer, export_generator, refit
+    from imm_model.training.trainer import Trainer, refit
 
     if args.threads < 1:
         raise ValueError(f"--threads must be >= 1, not {args.threads}")

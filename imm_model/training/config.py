@@ -134,7 +134,7 @@ class TrainConfig:
     @classmethod
     def from_dict(cls, d: dict) -> TrainConfig:
         d = checked_kwargs(cls, d, "training config")
-        for key in ("role_swap_classes", "mirror_exclude_classes"):
+        for key in ("role_swap_classes", "mirror_exclude_classes", "critic_seeds"):
             if key in d:
                 d[key] = tuple(d[key])
         return cls(**d)

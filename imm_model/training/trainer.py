@@ -401,9 +401,3 @@ def refit(selection: Trainer, progress: bool = True) -> Path:
     save_checkpoint(path, t.weights(), t.meta("final") | {"refit": {"epochs": epochs, "sequences": len(t.train_idx)}})
     return path
 
-
-def export_generator(best: Path | str, out: Path | str) -> None:
-    """Copy a run's best checkpoint as a generator-only checkpoint (what inference needs)."""
-    tensors, meta = load_checkpoint(best)
-    gen = {k: v for k, v in tensors.items() if k.startswith("generator.")}
-    save_checkpoint(out, gen, {k: v for k, v in meta.items() if k != "format"} | {"kind": "generator"})

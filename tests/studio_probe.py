@@ -1,5 +1,6 @@
 """Drive a running studio from Python: start `imm explore` in a subprocess and open it in headless
-Chromium with Playwright. Shared by tests/test_explorer_browser.py and benchmarks/explorer_latency.py.
+Chromium with Playwright. Shared by the studio tests and benchmarks/explorer_latency.py; not part of the installed
+package.
 """
 
 from __future__ import annotations
