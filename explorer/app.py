@@ -7,6 +7,7 @@ State keys and controllers are named for what the user does (play, scrub, mix, p
 from __future__ import annotations
 
 import asyncio
+import functools
 import math
 import time
 from pathlib import Path
@@ -15,12 +16,15 @@ import numpy as np
 from trame.app import asynchronous
 
 from explorer import charts
+from explorer.exports import Exports, one_line
+from explorer.keys import press
 from explorer.latent import METHODS, LatentMap
 from explorer.layout import SPEEDS, build_layout
 from explorer.palette import class_color, display_name
 from explorer.reads_as_panel import reads_as_rows
 from explorer.scene import CHARACTER_KEYS, Scene, floor_height
 from explorer.session import FPS, Session
+from explorer.url_state import apply_view, current_view, view_query
 
 REVIEW_DELAY_S = 0.04  # after a new mix: distance chart, AFD and latent star follow the picture
 MIN_YIELD_S = 0.005  # even when late, give the image delivery and incoming messages a turn
@@ -36,11 +40,6 @@ def playback_speed(value) -> float:
     return min(max(speed, SPEEDS[0]), SPEEDS[-1]) if math.isfinite(speed) else 1.0
 
 
-def _one_line(err: BaseException) -> str:
-    text = str(err.args[0] if isinstance(err, KeyError) and err.args else err) or type(err).__name__
-    return text.strip().splitlines()[0]
-
-
 class Studio:
     def __init__(
         self, server, session: Session, latent: LatentMap, *, export_dir: Path, start_index: int | None = None, render: str = "remote"
@@ -49,7 +48,7 @@ class Studio:
         self.render_mode = render
         self.session = session
         self.latent = latent
-        self.export_dir = Path(export_dir)
+        self.exports = Exports(self, export_dir)
         data = session.data
         self.scene = Scene(data.skeleton, floor_height(data.leader, data.follower, data.skeleton))
         self._mix_pending = False
@@ -109,6 +108,9 @@ class Studio:
                 "error": "",
                 "notice": "",
                 "mix_count": 0,  # increments after each re-synthesis (tests and benchmarks wait on it)
+                "url_query": "",  # the view as a query string (explorer/url_state.py); the page mirrors it in its URL
+                "key_slider": 0,  # the class slider the up/down keys move (explorer/keys.py)
+                "show_keys": False,
                 "held_out_subject": d.info.get("held_out_subject", ""),
             }
         )
@@ -135,18 +137,25 @@ class Studio:
         c.pick_latent_point = self.pick_latent_point
         c.set_camera = self.set_camera
         c.step_frame = self.step_frame
-        # Triggers, not controllers: the page awaits their return value (the file) to download it.
-        self.server.trigger("export_npz")(self.export_npz)
-        self.server.trigger("export_video")(self.export_video)
-        self.server.trigger("export_bvh")(self.export_bvh)
+        self.server.trigger("key_pressed")(self.guarded(lambda key: press(self, str(key)[:20])))
+        self.server.trigger("open_url_view")(self.guarded(lambda query: apply_view(self, str(query))))
+        s.change("scene_layout", "projection", "frame", "playing", "mix_count")(self.write_url)
 
-    def _guard(fn):  # noqa: N805 - decorator: user-facing errors become the page's one-line alert
-        def wrapper(self, *args, **kwargs):
+    def guarded(self, fn):
+        """`fn` with user-facing errors turned into the page's one-line alert (the page never goes blank)."""
+        def call(*args, **kwargs):
             try:
-                return fn(self, *args, **kwargs)
+                return fn(*args, **kwargs)
             except Exception as err:  # the page must never go blank on a bad input
-                self.state.error = f"{type(err).__name__}: {_one_line(err)}" if not str(err) else _one_line(err)
+                self.state.error = f"{type(err).__name__}: {one_line(err)}" if not str(err) else one_line(err)
                 return None
+
+        call.__name__ = getattr(fn, "__name__", "call")
+        return call
+
+    def _guard(fn):  # noqa: N805 - decorator for the methods below
+        def wrapper(self, *args, **kwargs):
+            return self.guarded(functools.partial(fn, self))(*args, **kwargs)
 
         wrapper.__name__ = fn.__name__
         return wrapper
@@ -289,20 +298,18 @@ class Studio:
         s.mix_count = (s.mix_count or 0) + 1
 
     def match_label(self):
-        self._set_label_controls(None)
+        if self.session.own_class is not None:  # an uploaded leader has no class to match
+            self.set_label(np.eye(len(self.session.class_names))[self.session.own_class])
 
     def reset_label(self):
-        self._set_label_controls(np.zeros(len(self.session.class_names)))
+        self.set_label(np.zeros(len(self.session.class_names)))
 
-    def _set_label_controls(self, weights) -> None:
-        if weights is None:
-            if self.session.own_class is None:  # an uploaded leader has no class to match
-                return
-            weights = np.eye(len(self.session.class_names))[self.session.own_class]
+    def set_label(self, weights, scale: float = 1.0) -> None:
+        """Move the sliders (the mix follows them, as when the user drags)."""
         with self.state:
             for i, w in enumerate(weights):
                 self.state[f"w_{i}"] = float(w)
-            self.state.scale = 1.0
+            self.state.scale = float(scale)
 
     # ---- playback ------------------------------------------------------------------------
     def _update_time(self) -> None:
@@ -370,12 +377,16 @@ class Studio:
     def set_camera(self, preset: str):
         self.scene.set_camera(preset)
         self.ctrl.view_update()
+        self.write_url()
+
+    def write_url(self, **_):
+        """The page keeps its address bar on what it shows (not during playback: every frame would be a write)."""
+        if not self.state.playing:
+            self.state.url_query = view_query(current_view(self))
 
     def push_view(self, **_):
         """Send a new picture. The web app only re-encodes a view whose render window is newer than
         the last image, and moving points or toggling actors does not touch the window: mark it."""
-        if self.render_mode == "remote" and tuple(self.scene.render_window.GetSize()) != self.scene.fitted_size:
-            self.scene.set_camera(self.scene.camera_preset)  # the browser resized the view: refit
         self.scene.render_window.Modified()
         self._view.update()
 
@@ -392,8 +403,7 @@ class Studio:
         method = s.projection or "tsne"
         if not self.latent.has(method):
             return
-        z = ses.model.latent_canonical_batch([ses.leader], ses.label_vector()[None, :])[0]
-        mix_xy = self.latent.place(z, method)
+        mix_xy = self.latent.place(ses.mix_latent(), method)
         s.latent_figure = charts.latent_figure(
             self.latent.coords[method],
             d.actions,
@@ -420,7 +430,7 @@ class Studio:
             await asyncio.to_thread(self.latent.ensure, method)
         except Exception as err:
             with self.state:
-                self.state.error = f"{method} projection failed: {_one_line(err)}"
+                self.state.error = f"{method} projection failed: {one_line(err)}"
                 self.state.projection = "tsne"
         with self.state:
             self.state.projection_busy = False
@@ -436,44 +446,6 @@ class Studio:
             self.state.pair_filter = ""
             self.state.held_filter = "all"
         self.load_sequence(index)
-
-    # ---- export --------------------------------------------------------------------------
-    @_guard
-    def export_npz(self):
-        data = self.session.export_npz()
-        name = self.session.export_name("npz")
-        self._save_copy(name, data)
-        return self.server.protocol.addAttachment(memoryview(data))
-
-    @_guard
-    def export_bvh(self, character: str = "follower"):
-        data = self.session.export_bvh(character)
-        self._save_copy(self.session.export_name("bvh").replace(".bvh", f".{character}.bvh"), data)
-        return self.server.protocol.addAttachment(memoryview(data))
-
-    @_guard
-    def export_video(self, fmt: str = "gif"):
-        import imageio.v3 as iio
-
-        images = self.scene.frames()
-        self.ctrl.view_update()
-        name = self.session.export_name(fmt)
-        if fmt == "mp4":
-            # even sizes for yuv420p
-            images = [im[: im.shape[0] // 2 * 2, : im.shape[1] // 2 * 2] for im in images]
-            data = iio.imwrite("<bytes>", np.stack(images), extension=".mp4", fps=FPS, codec="libx264")
-        else:
-            data = iio.imwrite("<bytes>", np.stack(images), extension=".gif", duration=1000.0 / FPS, loop=0)
-        self._save_copy(name, data)
-        return self.server.protocol.addAttachment(memoryview(data))
-
-    def _save_copy(self, name: str, data: bytes) -> None:
-        try:
-            self.export_dir.mkdir(parents=True, exist_ok=True)
-            (self.export_dir / name).write_bytes(data)
-            self.state.notice = f"saved {self.export_dir / name}"
-        except OSError as err:
-            self.state.notice = f"download only (could not save a copy: {_one_line(err)})"
 
     # ---- layout --------------------------------------------------------------------------
     def _build_ui(self):

@@ -285,7 +285,7 @@ CLAIM_PAGE = """<!doctype html><title>IMM Studio</title>
 <script>
 fetch("claim", {method: "POST"}).then(async (r) => {
   if (!r.ok) throw new Error(await r.text());
-  location.replace((await r.json()).url);
+  location.replace((await r.json()).url + location.search);  // a link's view (explorer/url_state.py) goes along
 }).catch((e) => { const m = document.getElementById("m"); m.style.color = "#b00020";
   m.textContent = (e.message || String(e)).replace(/<[^>]*>/g, " ").replace(/\\s+/g, " ").replace("IMM Studio", "").trim(); });
 </script></body>"""

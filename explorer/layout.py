@@ -6,10 +6,11 @@ The Studio (app.py) owns state and controllers; this module only places widgets,
 from __future__ import annotations
 
 from trame.ui.vuetify3 import SinglePageWithDrawerLayout
-from trame.widgets import html, plotly
+from trame.widgets import client, html, plotly
 from trame.widgets import vtk as vtk_widgets
 from trame.widgets import vuetify3 as v3
 
+from explorer.keys import KEY_HELP, LISTENER_JS
 from explorer.palette import CHARACTER_TITLES, CHARACTERS, class_color, display_name
 from explorer.reads_as_panel import reads_as_panel
 from explorer.scene import CAMERA_PRESETS, CHARACTER_KEYS
@@ -38,7 +39,29 @@ def build_layout(studio) -> SinglePageWithDrawerLayout:
                 playback_bar(studio)
                 review_cards(studio)
                 v3.VSnackbar("{{ notice }}", model_value=("!!notice",), timeout=4000, update_modelValue="notice = ''")
+                page_hooks()
+                keys_card()
     return layout
+
+
+# The studio page lives under /s/<token>/; the link to share is the front page with the same view.
+SHARE_LINK_JS = "utils.get('location.href').replace(/\\/s\\/[^/?#]+\\/(index\\.html)?(?=[?#]|$)/, '/')"
+
+
+def page_hooks() -> None:
+    """Keys, the view named in the page's URL (on load), and the URL kept on what is shown."""
+    client.ClientTriggers(mounted=f"{LISTENER_JS}; trigger('open_url_view', [utils.get('location.search')])")
+    client.ClientStateChange(value="url_query", change="url_query && utils.get('history').replaceState(null, '', url_query)")
+
+
+def keys_card() -> None:
+    with v3.VDialog(v_model=("show_keys",), max_width=440):
+        with v3.VCard(title="Keyboard", id="keys-card"):
+            with v3.VCardText():
+                for key, what in KEY_HELP:
+                    with html.Div(classes="d-flex py-1"):
+                        html.Kbd(key, style="min-width: 84px; text-align: center", classes="mr-3")
+                        html.Span(what)
 
 
 def toolbar(studio, tb) -> None:
@@ -97,6 +120,22 @@ def toolbar(studio, tb) -> None:
             v3.VListItem(
                 title="Animation (.mp4)", click="utils.download('studio.mp4', trigger('export_video', ['mp4']), 'video/mp4')"
             )
+    v3.VBtn(icon="mdi-camera", size="small", variant="text", title="Save the 3D view as a picture (.png)", id="screenshot",
+            click="utils.download('studio.png', trigger('export_png'), 'image/png')")
+    share_link()
+    v3.VBtn(icon="mdi-keyboard-outline", size="small", variant="text", title="Keyboard shortcuts (?)", click="show_keys = true")
+
+
+def share_link() -> None:
+    """A link that reopens this view (sequence, mix, scale, frame, layout, camera, map), copied when the browser allows."""
+    with v3.VMenu(close_on_content_click=False):
+        with v3.Template(v_slot_activator="{ props }"):
+            v3.VBtn(icon="mdi-link-variant", v_bind="props", size="small", variant="text", title="Link to this view", id="copy-link",
+                    click=f"share_link = {SHARE_LINK_JS}; utils.get('navigator.clipboard') && "
+                          "utils.get('navigator.clipboard').writeText(share_link).then(() => notice = 'link copied')")
+        with v3.VCard(min_width=420):
+            v3.VTextField(v_model=("share_link", ""), label="link to this view", readonly=True, density="compact",
+                          hide_details=True, id="share-link", classes="pa-2")
 
 
 def sequence_picker(studio) -> None:
@@ -145,7 +184,8 @@ def label_mix(studio) -> None:
     for i, name in enumerate(studio.session.class_names):
         with html.Div(classes="d-flex align-center", style="height: 30px"):
             html.Div(
-                display_name(name), classes="text-body-2", style=f"width: 118px; color: {class_color(i)}; font-weight: 600"
+                f"{i + 1} {display_name(name)}", classes=(f"key_slider === {i} ? 'text-body-2 text-decoration-underline' : 'text-body-2'",),
+                style=f"width: 118px; color: {class_color(i)}; font-weight: 600", title="keys: 1-6 select, up/down move",
             )
             v3.VSlider(
                 v_model=(f"w_{i}",),

@@ -88,6 +88,9 @@ class Scene:
         self.frame = 0
         self.camera_preset = "default"
         self.fitted_size: tuple[int, int] = (0, 0)
+        # The browser sizes the view when it likes (first load, window resize); every render at a new size refits
+        # the preset, so the same view in two tabs of the same size is the same picture.
+        self.plotter.renderer.AddObserver("StartEvent", lambda *_: self._refit_if_resized())
 
     @property
     def render_window(self):
@@ -129,6 +132,8 @@ class Scene:
     def set_synthesized(self, synthesized: np.ndarray) -> None:
         """New label mix: only the green figure changes, at the current frame."""
         self.sequences["synthesized"] = synthesized
+        if self.layout == "side_by_side":  # its spot follows its own first-frame root, which the mix moves
+            self._apply_layout()
         self.figures["synthesized"].set_pose(synthesized[min(self.frame, len(synthesized) - 1)])
 
     def set_frame(self, frame: int) -> None:
@@ -175,6 +180,10 @@ class Scene:
             cap.SetVisibility(self.visible[k])
 
     # ---- camera -------------------------------------------------------------------------
+    def _refit_if_resized(self) -> None:
+        if self.sequences and tuple(self.render_window.GetSize()) != self.fitted_size:
+            self.set_camera(self.camera_preset)
+
     def _points_of_interest(self) -> np.ndarray:
         """Corners of the box the camera must show: all frames of the three figures as placed."""
         if self.layout == "side_by_side" or not self.sequences:

@@ -206,6 +206,10 @@ class Session:
     def label_text(self) -> str:
         return label_words(self.weights, self.class_names, self.scale)
 
+    def mix_latent(self) -> np.ndarray:
+        """The current leader + mix in the model's latent space (the star on the latent map)."""
+        return self.model.latent_canonical_batch([self.leader], self.label_vector()[None, :])[0]
+
     # ---- synthesis and review -----------------------------------------------------------
     def synthesize(self) -> np.ndarray:
         out = np.asarray(self.model.synthesize_canonical(self.leader, self.label_vector()), np.float32)

@@ -25,7 +25,8 @@ ARTIFACTS = REPO_ROOT / "test-artifacts"
 
 @pytest.fixture(scope="module")
 def studio(tmp_path_factory):
-    with probe.StudioProcess(cache_dir=tmp_path_factory.mktemp("studio-cache")) as s:
+    # closed tabs keep their process for a minute (--idle-exit): room for the tabs earlier tests opened and closed
+    with probe.StudioProcess("--max-clients", "12", cache_dir=tmp_path_factory.mktemp("studio-cache")) as s:
         yield s
 
 
@@ -208,6 +209,96 @@ class TcpRelay:
 
     def close(self):
         self.server.close()
+
+
+def _press(page, key: str) -> None:
+    page.bring_to_front()
+    page.evaluate("() => document.activeElement && document.activeElement.blur()")  # keys typed on the page, not a slider
+    page.keyboard.press(key)
+
+
+def _wait_state(page, expression: str, timeout_ms: int = 15000) -> None:
+    page.wait_for_function(f"() => {{ const s = window.trame.state; return {expression}; }}", timeout=timeout_ms)
+
+
+def test_keyboard_drives_frames_playback_and_sliders(page):
+    probe.set_state(page, "sequence_index", 1)  # a dataset sequence (an uploaded leader has no class to match)
+    _wait_state(page, "s.get('sequence_uploaded') === false && s.get('sequence_index') === 1")
+    _press(page, "Home")
+    _wait_state(page, "s.get('frame') === 0")
+    _press(page, "ArrowRight")
+    _press(page, "ArrowRight")
+    _wait_state(page, "s.get('frame') === 2")
+    _press(page, "End")
+    _wait_state(page, "s.get('frame') === s.get('num_frames') - 1")
+    _press(page, "3")
+    _wait_state(page, "s.get('key_slider') === 2")
+    before = probe.state(page, "w_2")
+    _press(page, "ArrowUp")
+    _wait_state(page, f"Math.abs(s.get('w_2') - {min(1.0, before + 0.1)}) < 1e-6")
+    _press(page, "m")
+    _wait_state(page, "s.get('w_2') === 0 || s.get('w_2') === 1")
+    _press(page, "?")
+    page.wait_for_selector("#keys-card", state="visible", timeout=5000)
+    page.keyboard.press("Escape")
+    page.wait_for_selector("#keys-card", state="hidden", timeout=5000)
+    _press(page, " ")
+    _wait_state(page, "s.get('playing') === true")
+    _press(page, " ")
+    _wait_state(page, "s.get('playing') === false")
+
+
+def test_a_link_reopens_the_same_picture(studio, browser, page):
+    """The address bar follows the view; the copied link, opened in a new tab (a new studio process), shows the
+    same sequence, mix, frame, layout and camera: the two pictures match."""
+    _press(page, " ") if probe.state(page, "playing") else None
+    probe.set_state(page, "w_3", 0.5)
+    probe.set_state(page, "scene_layout", "side_by_side")
+    page.get_by_role("button", name="top").click()
+    probe.set_state(page, "frame", 7)
+    _wait_state(page, "s.get('url_query').includes('frame=7') && s.get('url_query').includes('camera=top')")
+    _wait_state(page, "s.get('url_query').includes('layout=side_by_side') && s.get('url_query').includes(':0.5')")
+    assert "frame=7" in page.url  # the address bar itself
+    page.locator("#copy-link").click()
+    _wait_state(page, "!!s.get('share_link')")
+    link = probe.state(page, "share_link")
+    assert link.startswith(studio.url) and "/s/" not in link, link
+    page.keyboard.press("Escape")  # close the link's card, which covers a corner of the view
+    query = probe.state(page, "url_query")
+    other = probe.open_studio(browser, link, timeout_ms=90000)
+    try:
+        _wait_state(other, f"s.get('url_query') === {query!r}", timeout_ms=30000)
+        time.sleep(1.0)  # the last picture of both views
+        a, b = probe.view_pixels(page).astype(float), probe.view_pixels(other).astype(float)
+        shot(page, "studio-link-sender")
+        shot(other, "studio-link-receiver")
+        assert a.shape == b.shape
+        assert np.abs(a - b).mean() < 2.0, np.abs(a - b).mean()
+    finally:
+        other.close()
+    probe.set_state(page, "scene_layout", "overlay")
+    page.get_by_role("button", name="reset").first.click()
+
+
+def test_a_bad_link_names_what_it_ignored(browser, studio):
+    other = probe.open_studio(browser, studio.url + "?seq=nope&scale=7&layout=overlay", timeout_ms=90000)
+    try:
+        _wait_state(other, "s.get('error').startsWith('link:')")
+        error = probe.state(other, "error")
+        assert "no sequence 'nope'" in error and "scale '7' is outside" in error
+    finally:
+        other.close()
+
+
+def test_screenshot_downloads_the_view_as_png(page, tmp_path):
+    from PIL import Image
+
+    with page.expect_download(timeout=20000) as download:
+        page.locator("#screenshot").click()
+    path = tmp_path / "view.png"
+    download.value.save_as(path)
+    with Image.open(path) as im:
+        assert im.format == "PNG" and min(im.size) > 100
 
 
 def test_single_port_through_a_forwarded_port(studio, browser, tmp_path):

@@ -1,0 +1,67 @@
+"""What the studio's Export menu and screenshot button hand to the browser: the reaction as .npz or .bvh, the
+animation as .gif or .mp4, the current 3D view as .png. Each is also saved into --export-dir.
+
+They are trame triggers, not controllers: the page awaits the returned bytes to download them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from explorer.session import FPS
+
+
+def one_line(err: BaseException) -> str:
+    text = str(err.args[0] if isinstance(err, KeyError) and err.args else err) or type(err).__name__
+    return text.strip().splitlines()[0]
+
+
+class Exports:
+    def __init__(self, studio, export_dir: Path):
+        self.studio, self.export_dir = studio, Path(export_dir)
+        for name in ("export_npz", "export_bvh", "export_video", "export_png"):
+            studio.server.trigger(name)(studio.guarded(getattr(self, name)))
+
+    @property
+    def session(self):
+        return self.studio.session
+
+    def _send(self, name: str, data: bytes):
+        self._save_copy(name, data)
+        return self.studio.server.protocol.addAttachment(memoryview(data))
+
+    def export_npz(self):
+        return self._send(self.session.export_name("npz"), self.session.export_npz())
+
+    def export_bvh(self, character: str = "follower"):
+        data = self.session.export_bvh(character)
+        return self._send(self.session.export_name("bvh").replace(".bvh", f".{character}.bvh"), data)
+
+    def export_png(self):
+        """The 3D view as the user sees it now (the server renders it; no browser canvas needed)."""
+        import imageio.v3 as iio
+
+        return self._send(self.session.export_name("png"), iio.imwrite("<bytes>", self.studio.scene.screenshot(), extension=".png"))
+
+    def export_video(self, fmt: str = "gif"):
+        import imageio.v3 as iio
+
+        images = self.studio.scene.frames()
+        self.studio.ctrl.view_update()
+        if fmt == "mp4":
+            images = [im[: im.shape[0] // 2 * 2, : im.shape[1] // 2 * 2] for im in images]  # even sizes for yuv420p
+            data = iio.imwrite("<bytes>", np.stack(images), extension=".mp4", fps=FPS, codec="libx264")
+        else:
+            data = iio.imwrite("<bytes>", np.stack(images), extension=".gif", duration=1000.0 / FPS, loop=0)
+        return self._send(self.session.export_name(fmt), data)
+
+    def _save_copy(self, name: str, data: bytes) -> None:
+        state = self.studio.state
+        try:
+            self.export_dir.mkdir(parents=True, exist_ok=True)
+            (self.export_dir / name).write_bytes(data)
+            state.notice = f"saved {self.export_dir / name}"
+        except OSError as err:
+            state.notice = f"download only (could not save a copy: {one_line(err)})"

@@ -1,0 +1,117 @@
+"""The view in the URL's query string, so a link reopens what its sender saw:
+`?seq=s01s02/03/001&mix=kicking:1,hugging:0.5&scale=1&frame=12&layout=overlay&camera=front&map=tsne`.
+
+Everything read from a URL is validated here (it comes from whoever wrote the link): unknown keys are ignored,
+bad values are named in one line and left out, the rest still applies.
+"""
+
+from __future__ import annotations
+
+import math
+from urllib.parse import parse_qs, quote, urlencode
+
+MAX_QUERY = 2000  # characters; a longer query is refused as a whole
+LAYOUTS = ("overlay", "side_by_side")
+MAPS = ("tsne", "umap")
+
+
+def view_query(view: dict) -> str:
+    """{seq, weights: {class: w}, scale, frame, layout, camera, map} -> "?..." (None values are left out)."""
+    parts = {}
+    if view.get("seq"):
+        parts["seq"] = view["seq"]
+    mix = ",".join(f"{name}:{w:g}" for name, w in view.get("weights", {}).items() if w)
+    parts["mix"] = mix or "none"
+    for key in ("scale", "frame", "layout", "camera", "map"):
+        if view.get(key) is not None:
+            parts[key] = f"{view[key]:g}" if isinstance(view[key], float) else str(view[key])
+    return "?" + urlencode(parts, safe=":,/", quote_via=quote)
+
+
+def _number(text: str, lo: float, hi: float, what: str) -> float:
+    try:
+        x = float(text)
+    except ValueError:
+        raise ValueError(f"{what} {text!r} is not a number") from None
+    if not math.isfinite(x) or not lo <= x <= hi:
+        raise ValueError(f"{what} {text!r} is outside {lo:g}..{hi:g}")
+    return x
+
+
+def _weights(text: str, class_names) -> dict[str, float]:
+    if text == "none":
+        return {}
+    weights = {}
+    for item in text.split(","):
+        name, _, value = item.partition(":")
+        if name not in class_names:
+            raise ValueError(f"mix: unknown class {name!r}")
+        weights[name] = _number(value, -1.0, 1.0, f"mix weight of {name}")
+    return weights
+
+
+def parse_view(query: str, class_names, sequence_ids, cameras) -> tuple[dict, list[str]]:
+    """"?seq=...&mix=..." -> (the valid parts, one-line reasons for the others)."""
+    query = query.lstrip("?")
+    if len(query) > MAX_QUERY:
+        return {}, [f"the link's view is {len(query)} characters long (at most {MAX_QUERY}): ignored"]
+    fields = {k: v[-1] for k, v in parse_qs(query, keep_blank_values=True).items()}
+    parsers = {
+        "seq": lambda v: v if v in sequence_ids else _fail(f"no sequence {v!r} in this dataset"),
+        "mix": lambda v: _weights(v, class_names),
+        "scale": lambda v: _number(v, 0.0, 2.0, "scale"),
+        "frame": lambda v: int(_number(v, 0, 1e6, "frame")),
+        "layout": lambda v: v if v in LAYOUTS else _fail(f"layout {v!r} is not one of {', '.join(LAYOUTS)}"),
+        "camera": lambda v: v if v in cameras else _fail(f"camera {v!r} is not one of {', '.join(cameras)}"),
+        "map": lambda v: v if v in MAPS else _fail(f"map {v!r} is not one of {', '.join(MAPS)}"),
+    }
+    view, problems = {}, []
+    for key, parse in parsers.items():
+        if key in fields:
+            try:
+                view[key] = parse(fields[key])
+            except ValueError as err:
+                problems.append(str(err))
+    return view, problems
+
+
+def _fail(message: str):
+    raise ValueError(message)
+
+
+def current_view(studio) -> dict:
+    """What the studio shows now, as view_query takes it (an uploaded leader has no sequence id to link to)."""
+    ses, s = studio.session, studio.state
+    return {
+        "seq": None if ses.upload else ses.data.sequence_ids[ses.index],
+        "weights": {n: round(float(w), 3) for n, w in zip(ses.class_names, ses.weights, strict=True)},
+        "scale": round(float(ses.scale), 3),
+        "frame": None if s.playing else int(s.frame or 0),
+        "layout": s.scene_layout,
+        "camera": studio.scene.camera_preset,
+        "map": s.projection,
+    }
+
+
+def apply_view(studio, query: str) -> None:
+    """Open the view a link describes; what cannot be applied is named in the page's alert."""
+    from explorer.scene import CAMERA_PRESETS
+
+    ses, s = studio.session, studio.state
+    view, problems = parse_view(query, ses.class_names, set(ses.data.sequence_ids), CAMERA_PRESETS)
+    if "seq" in view:
+        studio.load_sequence(ses.data.index_of(view["seq"]))
+    if "mix" in view or "scale" in view:
+        weights = [view.get("mix", {}).get(n, 0.0) for n in ses.class_names] if "mix" in view else ses.weights
+        studio.set_label(weights, view.get("scale", 1.0))
+    with s:
+        if "frame" in view:
+            s.frame = min(view["frame"], ses.num_frames - 1)
+        if "layout" in view:
+            s.scene_layout = view["layout"]
+        if "map" in view:
+            s.projection = view["map"]
+        if problems:
+            s.error = "link: " + "; ".join(problems)
+    if "camera" in view:
+        studio.set_camera(view["camera"])
