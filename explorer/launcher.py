@@ -23,7 +23,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from explorer.worker import PREFIX
+from explorer.worker import PREFIX, SECRET_ENV
 
 TOKEN_COOKIE = "imm_studio_token"
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
@@ -36,6 +36,7 @@ class LaunchError(Exception):
 @dataclass
 class Worker:
     process: asyncio.subprocess.Process
+    secret: str  # its wslink secret (proxy.py puts it into the browser's hello)
     port: int = 0
     ready: asyncio.Future = field(default_factory=lambda: asyncio.get_running_loop().create_future())
 
@@ -99,9 +100,10 @@ class Launcher:
             cmd += ["--sequence", c.sequence]
         if c.judge:
             cmd += ["--judge", c.judge]
-        env = {**os.environ, "OMP_NUM_THREADS": "1", "VTK_DEFAULT_OPENGL_WINDOW": "vtkEGLRenderWindow"}
+        secret = secrets.token_urlsafe(24)  # in the environment, not argv: `ps` shows argv to every local user
+        env = {**os.environ, "OMP_NUM_THREADS": "1", "VTK_DEFAULT_OPENGL_WINDOW": "vtkEGLRenderWindow", SECRET_ENV: secret}
         proc = await asyncio.create_subprocess_exec(*cmd, stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE, env=env)
-        w = Worker(proc)
+        w = Worker(proc, secret)
         asyncio.get_running_loop().create_task(self._read(w))
         return w
 
@@ -195,7 +197,7 @@ class Launcher:
             raise web.HTTPFound("../../")  # an old or unknown link: back to the front page for a fresh studio
         tail = request.match_info["tail"]
         if request.headers.get("Upgrade", "").lower() == "websocket":
-            return await forward_websocket(request, w.port, tail)
+            return await forward_websocket(request, w.port, tail, w.secret)
         return await forward_http(request, w.port, tail)
 
     def allowed_hosts(self) -> set[str]:

@@ -4,7 +4,9 @@ only the launcher's one port needs to be reachable (an SSH tunnel, a reverse pro
 A tab's studio lives under /s/<token>/ on the launcher's port. trame's page uses relative asset URLs
 (<base href=".">) and opens its websocket at <page path>/ws, so nothing in the page needs rewriting. The
 token is random and unguessable; the websocket also has to come from the studio's own origin, and its messages
-are capped in size.
+are capped in size. Each studio process has its own random wslink secret (not wslink's default): the proxy puts
+it into the browser's hello, so the page never knows it and another local user who finds a studio's loopback
+port cannot log in to it.
 """
 
 from __future__ import annotations
@@ -32,8 +34,30 @@ async def forward_http(request: web.Request, port: int, tail: str) -> web.Stream
             return response
 
 
-async def forward_websocket(request: web.Request, port: int, tail: str) -> web.WebSocketResponse:
-    """Relay a websocket between the browser and the studio process, both directions, text and binary."""
+HEADER = 12  # wslink's chunk header: message id, offset, total size (uint32 little-endian each)
+
+
+def with_secret(frame: bytes, secret: str) -> bytes:
+    """A browser's wslink hello (one msgpack chunk) with the studio's secret in it; any other frame unchanged."""
+    import msgpack
+
+    if len(frame) < HEADER or int.from_bytes(frame[4:8], "little") != 0 or int.from_bytes(frame[8:12], "little") != len(frame) - HEADER:
+        return frame  # not a whole message in one chunk: a hello always is (the worker refuses the rest unauthenticated)
+    try:
+        message = msgpack.unpackb(frame[HEADER:])
+    except (ValueError, msgpack.ExtraData, msgpack.FormatError, msgpack.StackError):
+        return frame
+    if not (isinstance(message, dict) and message.get("method") == "wslink.hello" and message.get("args")
+            and isinstance(message["args"][0], dict)):
+        return frame
+    message["args"][0]["secret"] = secret
+    body = msgpack.packb(message)
+    return frame[:4] + (0).to_bytes(4, "little") + len(body).to_bytes(4, "little") + body
+
+
+async def forward_websocket(request: web.Request, port: int, tail: str, secret: str | None = None) -> web.WebSocketResponse:
+    """Relay a websocket between the browser and the studio process, both directions, text and binary; the
+    browser's hello carries the studio's secret."""
     import asyncio
 
     browser = web.WebSocketResponse(max_msg_size=MAX_MESSAGE_BYTES, autoping=True)
@@ -46,7 +70,7 @@ async def forward_websocket(request: web.Request, port: int, tail: str) -> web.W
                     if msg.type == WSMsgType.TEXT:
                         await sink.send_str(msg.data)
                     elif msg.type == WSMsgType.BINARY:
-                        await sink.send_bytes(msg.data)
+                        await sink.send_bytes(with_secret(msg.data, secret) if secret and sink is studio else msg.data)
                     else:  # close or error: the other side is closed too
                         break
                 await sink.close()

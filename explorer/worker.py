@@ -17,6 +17,7 @@ from pathlib import Path
 # a claimed studio process whose browser never connects exits after this ($IMM_STUDIO_CLAIM_TIMEOUT: tests)
 CLAIM_TIMEOUT_S = float(os.environ.get("IMM_STUDIO_CLAIM_TIMEOUT", "20"))
 PREFIX = "IMM-WORKER"
+SECRET_ENV = "IMM_STUDIO_SECRET"  # the launcher's per-process wslink secret (explorer/proxy.py)
 
 
 def _say(*words: object) -> None:
@@ -86,6 +87,8 @@ def serve(data, model, latent, reader, args: argparse.Namespace) -> int:
 
     patch_image_delivery()
     server = get_server("imm-studio", client_type="vue3")
+    if secret := os.environ.pop(SECRET_ENV, None):
+        server.cli.set_defaults(authKey=secret)  # wslink's default secret is public: every process gets its own
     session = Session(data, model, args.start, reader)
     Studio(server, session, latent, export_dir=args.export_dir, render=args.render)
 

@@ -197,6 +197,56 @@ def test_a_network_host_needs_a_token_or_no_auth(capsys):
         access(args(token="short"))
 
 
+def _hello(port: int, secret: str) -> dict:
+    """One wslink hello straight to a studio process's own port -> its answer."""
+    import asyncio
+
+    import aiohttp
+    import msgpack
+
+    from explorer.proxy import HEADER
+
+    async def go():
+        body = msgpack.packb({"wslink": "1.0", "id": "system:c0:0", "method": "wslink.hello", "args": [{"secret": secret}]})
+        frame = (7).to_bytes(4, "little") + (0).to_bytes(4, "little") + len(body).to_bytes(4, "little") + body
+        async with aiohttp.ClientSession() as session, session.ws_connect(f"http://127.0.0.1:{port}/ws") as ws:
+            await ws.send_bytes(frame)
+            msg = await ws.receive(timeout=30)
+            return msgpack.unpackb(msg.data[HEADER:])
+
+    return asyncio.run(go())
+
+
+@pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
+def test_a_studio_process_answers_only_its_own_secret(tmp_path):
+    """Another local user who finds a studio process's loopback port cannot log in with wslink's public default;
+    the proxy puts the process's own secret into the browser's hello."""
+    import os
+
+    from explorer.proxy import with_secret
+    from explorer.worker import SECRET_ENV
+    from imm_model.paths import SAMPLE_DATA
+
+    cmd = [sys.executable, "-m", "explorer.worker", "--data", str(SAMPLE_DATA), "--checkpoint", str(SAMPLE_CHECKPOINT),
+           "--cache-dir", str(tmp_path), "--port", "0"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True, env=os.environ | {SECRET_ENV: "the-process-secret"})
+    try:
+        line = proc.stdout.readline()
+        assert line.startswith("IMM-WORKER READY"), line
+        port = int(line.split()[-1])
+        assert "error" in _hello(port, "wslink-secret")
+        assert _hello(port, "the-process-secret")["result"]["clientID"]
+    finally:
+        proc.kill()
+    import msgpack
+
+    hello = msgpack.packb({"id": "system:c0:0", "method": "wslink.hello", "args": [{"secret": "wslink-secret"}]})
+    frame = (9).to_bytes(4, "little") + (0).to_bytes(4, "little") + len(hello).to_bytes(4, "little") + hello
+    rewritten = with_secret(frame, "s3")
+    assert msgpack.unpackb(rewritten[12:])["args"][0]["secret"] == "s3" and rewritten[:4] == frame[:4]
+    assert with_secret(b"\x00" * 20, "s3") == b"\x00" * 20  # anything else passes unchanged
+
+
 def test_explore_without_the_studio_extra_says_how_to_install_it(monkeypatch, capsys):
     import importlib.util
 
