@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import asyncio
 import functools
-import math
 import time
 from pathlib import Path
 
@@ -19,25 +18,16 @@ from explorer import charts
 from explorer.exports import Exports, one_line
 from explorer.keys import press
 from explorer.latent import METHODS, LatentMap
-from explorer.layout import SPEEDS, build_layout
+from explorer.layout import build_layout
 from explorer.palette import class_color, display_name
+from explorer.playback import play
 from explorer.reads_as_panel import reads_as_rows
 from explorer.scene import CHARACTER_KEYS, Scene, floor_height
 from explorer.session import FPS, Session
 from explorer.url_state import apply_view, current_view, view_query
 
 REVIEW_DELAY_S = 0.04  # after a new mix: distance chart, AFD and latent star follow the picture
-MIN_YIELD_S = 0.005  # even when late, give the image delivery and incoming messages a turn
 CHART_PERIOD_S = 0.25  # the distance chart follows playback at most 4x a second (plotly redraws are costly)
-
-
-def playback_speed(value) -> float:
-    """The page's speed value, clamped to the offered range (a crafted 1e-300 or -2 must not freeze or reverse playback)."""
-    try:
-        speed = float(value)
-    except (TypeError, ValueError):
-        return 1.0
-    return min(max(speed, SPEEDS[0]), SPEEDS[-1]) if math.isfinite(speed) else 1.0
 
 
 class Studio:
@@ -293,7 +283,7 @@ class Studio:
         s.afd_text = ("uploaded leader: no ground truth to compare with, so no error chart" if afd is None
                       else f"AFD {afd:.3f} (SBU units) · mean {self._distances.mean():.2f} m")
         self._update_time()
-        self._update_distance_chart(force=force_chart)
+        self.update_distance_chart(force=force_chart)
         self._update_latent_figure()
         s.mix_count = (s.mix_count or 0) + 1
 
@@ -321,7 +311,7 @@ class Studio:
         self.scene.set_frame(int(frame or 0))
         self.ctrl.view_update()
         self._update_time()
-        self._update_distance_chart()
+        self.update_distance_chart()
 
     def step_frame(self, delta: int):
         n = self.session.num_frames
@@ -331,38 +321,7 @@ class Studio:
         if playing and (self._play_task is None or self._play_task.done()):
             if int(self.state.frame or 0) >= self.session.num_frames - 1:
                 self.state.frame = 0
-            self._play_task = asynchronous.create_task(self._play_loop())
-
-    async def _play_loop(self):
-        """Play in real time: the position advances with the wall clock (frames are skipped, not
-        slowed down, when a picture takes longer than a frame), and the loop sleeps until the next
-        frame is due (a loop that never yields starves the image delivery)."""
-        loop = asyncio.get_running_loop()
-        pos, last = float(self.state.frame or 0), loop.time()
-        shown = int(pos)
-        while self.state.playing:
-            rate = FPS * playback_speed(self.state.speed)
-            if int(self.state.frame or 0) != shown:  # the user scrubbed while playing
-                pos = shown = int(self.state.frame or 0)
-            now = loop.time()
-            pos, last = pos + (now - last) * rate, now
-            await asyncio.sleep(max(MIN_YIELD_S, (math.floor(pos) + 1 - pos) / rate))
-            now = loop.time()
-            pos, last = pos + (now - last) * rate, now
-            if not self.state.playing:
-                break
-            n = self.session.num_frames
-            with self.state:
-                if pos >= n:
-                    if self.state.loop:
-                        pos %= n
-                    else:
-                        pos = n - 1
-                        self.state.playing = False
-                shown = int(pos)
-                self.state.frame = shown
-        with self.state:
-            self._update_distance_chart(force=True)
+            self._play_task = asynchronous.create_task(play(self))
 
     # ---- view ----------------------------------------------------------------------------
     def on_layout_change(self, scene_layout, **_):
@@ -391,7 +350,7 @@ class Studio:
         self._view.update()
 
     # ---- charts --------------------------------------------------------------------------
-    def _update_distance_chart(self, force: bool = False) -> None:
+    def update_distance_chart(self, force: bool = False) -> None:
         now = time.monotonic()
         if not force and self.state.playing and now - self._last_chart < CHART_PERIOD_S:
             return

@@ -156,7 +156,7 @@ def test_reads_as_refuses_other_classes_and_files(sample_data, model, tmp_path):
 
 
 def test_playback_speed_from_the_page_is_clamped():
-    from explorer.app import playback_speed
+    from explorer.playback import playback_speed
 
     assert playback_speed(1.5) == 1.5 and playback_speed(None) == 1.0 and playback_speed("x") == 1.0
     assert playback_speed(1e-300) == 0.25 and playback_speed(-2) == 0.25 and playback_speed(1e9) == 2.0

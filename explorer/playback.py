@@ -1,0 +1,52 @@
+"""Real-time playback of the studio's three figures."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+
+from explorer.layout import SPEEDS
+from explorer.session import FPS
+
+MIN_YIELD_S = 0.005  # even when late, give the image delivery and incoming messages a turn
+
+
+def playback_speed(value) -> float:
+    """The page's speed value, clamped to the offered range (a crafted 1e-300 or -2 must not freeze or reverse playback)."""
+    try:
+        speed = float(value)
+    except (TypeError, ValueError):
+        return 1.0
+    return min(max(speed, SPEEDS[0]), SPEEDS[-1]) if math.isfinite(speed) else 1.0
+
+
+async def play(studio) -> None:
+    """Play in real time: the position advances with the wall clock (frames are skipped, not
+    slowed down, when a picture takes longer than a frame), and the loop sleeps until the next
+    frame is due (a loop that never yields starves the image delivery)."""
+    loop = asyncio.get_running_loop()
+    pos, last = float(studio.state.frame or 0), loop.time()
+    shown = int(pos)
+    while studio.state.playing:
+        rate = FPS * playback_speed(studio.state.speed)
+        if int(studio.state.frame or 0) != shown:  # the user scrubbed while playing
+            pos = shown = int(studio.state.frame or 0)
+        now = loop.time()
+        pos, last = pos + (now - last) * rate, now
+        await asyncio.sleep(max(MIN_YIELD_S, (math.floor(pos) + 1 - pos) / rate))
+        now = loop.time()
+        pos, last = pos + (now - last) * rate, now
+        if not studio.state.playing:
+            break
+        n = studio.session.num_frames
+        with studio.state:
+            if pos >= n:
+                if studio.state.loop:
+                    pos %= n
+                else:
+                    pos = n - 1
+                    studio.state.playing = False
+            shown = int(pos)
+            studio.state.frame = shown
+    with studio.state:
+        studio.update_distance_chart(force=True)
