@@ -15,6 +15,7 @@ import numpy as np
 from trame.app import asynchronous
 
 from explorer import charts
+from explorer.compare import Compare
 from explorer.exports import Exports, one_line
 from explorer.keys import press
 from explorer.latent import METHODS, LatentMap
@@ -39,6 +40,7 @@ class Studio:
         self.session = session
         self.latent = latent
         self.exports = Exports(self, export_dir)
+        self.compare = Compare(self)
         data = session.data
         self.scene = Scene(data.skeleton, floor_height(data.leader, data.follower, data.skeleton))
         self._mix_pending = False
@@ -46,6 +48,7 @@ class Studio:
         self._play_task = None
         self._last_chart = 0.0
         self._distances = np.zeros(1)
+        self._ab_distances = np.zeros(0)
         self._init_state()
         self._bind()
         self.ui = self._build_ui()
@@ -101,6 +104,8 @@ class Studio:
                 "url_query": "",  # the view as a query string (explorer/url_state.py); the page mirrors it in its URL
                 "key_slider": 0,  # the class slider the up/down keys move (explorer/keys.py)
                 "show_keys": False,
+                "pinned_text": "",  # A/B (explorer/compare.py): the pinned mix in words, "" when none
+                "ab_text": "",
                 "held_out_subject": d.info.get("held_out_subject", ""),
             }
         )
@@ -191,6 +196,7 @@ class Studio:
             s.frame = 0
             self._write_label_state()
             self.scene.set_sequence(ses.leader, ses.ground_truth, ses.synth, 0)
+            self.scene.set_pinned(ses.pinned)
             self.scene.set_camera(self.scene.camera_preset)
             self._after_mix(force_chart=True)
             s.error = ""
@@ -216,6 +222,7 @@ class Studio:
             s.num_frames, s.frame = ses.num_frames, 0
             self._write_label_state()
             self.scene.set_sequence(ses.leader, None, ses.synth, 0)
+            self.scene.set_pinned(ses.pinned)
             self.scene.set_camera(self.scene.camera_preset)
             self._after_mix(force_chart=True)
             s.error = ""
@@ -279,6 +286,8 @@ class Studio:
         """Review numbers, distance chart and latent star for the current synthesized follower."""
         s, ses = self.state, self.session
         self._distances = ses.distances_m()
+        self._ab_distances = ses.ab_distances_m()
+        s.ab_text = f"pinned ↔ current: mean {self._ab_distances.mean():.2f} m" if len(self._ab_distances) else ""
         afd = ses.afd()
         s.afd_text = ("uploaded leader: no ground truth to compare with, so no error chart" if afd is None
                       else f"AFD {afd:.3f} (SBU units) · mean {self._distances.mean():.2f} m")
@@ -355,7 +364,7 @@ class Studio:
         if not force and self.state.playing and now - self._last_chart < CHART_PERIOD_S:
             return
         self._last_chart = now
-        self.state.distance_figure = charts.distance_figure(self._distances, int(self.state.frame or 0), FPS)
+        self.state.distance_figure = charts.distance_figure(self._distances, int(self.state.frame or 0), FPS, self._ab_distances)
 
     def _update_latent_figure(self) -> None:
         s, ses, d = self.state, self.session, self.session.data

@@ -6,29 +6,29 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from explorer.palette import SYNTHESIZED, class_color, display_name
+from explorer.palette import PINNED, SYNTHESIZED, class_color, display_name
 
 FONT = {"family": "Roboto, sans-serif", "size": 11}
 
 
-def distance_figure(distances: np.ndarray, frame: int, fps: float) -> dict:
-    t = np.arange(len(distances))
+def _trace(y: np.ndarray, color: str, name: str, dash: str = "solid") -> dict:
+    return {"type": "scatter", "mode": "lines", "x": list(range(len(y))), "y": np.round(y, 4).tolist(),
+            "line": {"color": color, "width": 2, "dash": dash}, "hovertemplate": "frame %{x}: %{y:.3f} m<extra></extra>",
+            "name": name}
+
+
+def distance_figure(distances: np.ndarray, frame: int, fps: float, ab: np.ndarray | None = None) -> dict:
+    """Ground truth vs synthesized per frame; with `ab` (a pinned mix), pinned vs current as a second line."""
+    n = max(len(distances), 0 if ab is None else len(ab))
+    data = [_trace(distances, SYNTHESIZED, "ground truth ↔ current")] if len(distances) else []
+    if ab is not None and len(ab):
+        data.append(_trace(ab, PINNED, "pinned ↔ current", "dash"))
     return {
-        "data": [
-            {
-                "type": "scatter",
-                "mode": "lines",
-                "x": t.tolist(),
-                "y": np.round(distances, 4).tolist(),
-                "line": {"color": SYNTHESIZED, "width": 2},
-                "hovertemplate": "frame %{x}: %{y:.3f} m<extra></extra>",
-                "name": "distance",
-            }
-        ],
+        "data": data,
         "layout": {
             "margin": {"l": 48, "r": 10, "t": 8, "b": 34},
             "font": FONT,
-            "xaxis": {"title": {"text": f"frame ({fps:g} fps)"}, "range": [0, max(1, len(distances) - 1)], "zeroline": False},
+            "xaxis": {"title": {"text": f"frame ({fps:g} fps)"}, "range": [0, max(1, n - 1)], "zeroline": False},
             "yaxis": {"title": {"text": "45-d pose distance (m)"}, "rangemode": "tozero"},
             "shapes": [
                 {
@@ -41,7 +41,8 @@ def distance_figure(distances: np.ndarray, frame: int, fps: float) -> dict:
                     "line": {"color": "#333", "width": 1.5, "dash": "dot"},
                 }
             ],
-            "showlegend": False,
+            "showlegend": len(data) > 1,
+            "legend": {"orientation": "h", "x": 0, "y": 1.12, "font": {"size": 10}},
             "plot_bgcolor": "#ffffff",
             "paper_bgcolor": "rgba(0,0,0,0)",
             "autosize": True,

@@ -11,7 +11,7 @@ from trame.widgets import vtk as vtk_widgets
 from trame.widgets import vuetify3 as v3
 
 from explorer.keys import KEY_HELP, LISTENER_JS
-from explorer.palette import CHARACTER_TITLES, CHARACTERS, class_color, display_name
+from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED, class_color, display_name
 from explorer.reads_as_panel import reads_as_panel
 from explorer.scene import CAMERA_PRESETS, CHARACTER_KEYS
 
@@ -209,6 +209,7 @@ def label_mix(studio) -> None:
         v3.VSlider(v_model=("scale",), min=0, max=2, step=0.05, density="compact", hide_details=True, id="scale-slider")
         html.Div("{{ Number(scale).toFixed(2) }}", classes="text-caption ml-1", style="width: 38px; text-align: right")
     html.Div("{{ label_text }}", classes="text-body-2 mt-1 pa-2 rounded bg-grey-lighten-4", id="label-text")
+    compare_row(studio)
     reads_as_panel()
 
 
@@ -225,6 +226,17 @@ def character_toggles(studio) -> None:
             base_color=CHARACTERS[key],
             style=f"color: {CHARACTERS[key]}",
         )
+
+
+def compare_row(studio) -> None:
+    """A/B: pin this mix (purple in the view), then move the sliders; swap or clear."""
+    with html.Div(classes="d-flex align-center mt-1", style="gap: 4px"):
+        v3.VBtn("pin this mix", size="x-small", variant="tonal", prepend_icon="mdi-pin", click=studio.ctrl.pin_mix, id="pin-mix",
+                title="keep this mix to compare the next ones with")
+        v3.VBtn("swap", size="x-small", variant="tonal", click=studio.ctrl.swap_mix, disabled=("!pinned_text",), id="swap-mix")
+        v3.VBtn("clear", size="x-small", variant="tonal", click=studio.ctrl.clear_pin, disabled=("!pinned_text",), id="clear-pin")
+    html.Div("pinned: {{ pinned_text }} · {{ ab_text }}", v_if="pinned_text", classes="text-caption mt-1",
+             style=f"color: {PINNED}", id="pinned-text")
 
 
 def scene_view(studio) -> None:
@@ -252,6 +264,7 @@ def scene_view(studio) -> None:
                 html.Span(
                     "● " + CHARACTER_TITLES[key], style=f"color: {CHARACTERS[key]}; font-weight: 600; margin-right: 10px"
                 )
+            html.Span("● pinned: {{ pinned_text }}", v_if="pinned_text", style=f"color: {PINNED}; font-weight: 600")
 
 
 def playback_bar(studio) -> None:

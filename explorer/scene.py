@@ -18,7 +18,7 @@ import pyvista as pv  # noqa: E402
 import vtk  # noqa: E402
 from vtk.util.numpy_support import vtk_to_numpy  # noqa: E402
 
-from explorer.palette import CHARACTER_TITLES, CHARACTERS, rgb  # noqa: E402
+from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED, rgb  # noqa: E402
 from imm_model.skeleton import Skeleton  # noqa: E402
 
 CHARACTER_KEYS = ("leader", "ground_truth", "synthesized")
@@ -80,6 +80,8 @@ class Scene:
         self.skeleton = skeleton
         self.floor_y = float(floor_y)
         self.figures = {k: StickFigure(self.plotter, skeleton, CHARACTERS[k]) for k in CHARACTER_KEYS}
+        self.figures["pinned"] = StickFigure(self.plotter, skeleton, PINNED)  # A/B: shown only while a mix is pinned
+        self.figures["pinned"].set_visible(False)
         self.captions = {k: self._caption(CHARACTER_TITLES[k], CHARACTERS[k]) for k in CHARACTER_KEYS}
         self._floor_actors = self._floor()
         self.layout = "overlay"
@@ -126,6 +128,7 @@ class Scene:
         self.sequences = {k: v for k, v in self.sequences.items() if v is not None}
         for k in CHARACTER_KEYS:
             self.figures[k].set_visible(self.visible[k] and k in self.sequences)
+        self.figures["pinned"].set_visible(False)  # until set_pinned gives it the new leader's follower
         self._apply_layout()
         self.set_frame(frame)
 
@@ -135,6 +138,16 @@ class Scene:
         if self.layout == "side_by_side":  # its spot follows its own first-frame root, which the mix moves
             self._apply_layout()
         self.figures["synthesized"].set_pose(synthesized[min(self.frame, len(synthesized) - 1)])
+
+    def set_pinned(self, pinned: np.ndarray | None) -> None:
+        """A/B: the pinned mix's follower, drawn where the synthesized one is (None hides it)."""
+        if pinned is None:
+            self.sequences.pop("pinned", None)
+        else:
+            self.sequences["pinned"] = pinned
+            self.figures["pinned"].set_pose(pinned[min(self.frame, len(pinned) - 1)])
+        self.figures["pinned"].set_visible(pinned is not None and self.visible["synthesized"])
+        self._apply_layout()
 
     def set_frame(self, frame: int) -> None:
         if not self.sequences:
@@ -149,6 +162,8 @@ class Scene:
         shown = bool(visible) and (key in self.sequences or not self.sequences)
         self.figures[key].set_visible(shown)
         self.captions[key].SetVisibility(shown and self.layout == "side_by_side")
+        if key == "synthesized":  # the pinned follower is a synthesized one too
+            self.figures["pinned"].set_visible(shown and "pinned" in self.sequences)
 
     def set_layout(self, layout: str) -> None:
         if layout not in LAYOUTS:
@@ -163,21 +178,20 @@ class Scene:
         if not self.sequences:
             return
         top = float(max(s[..., 1].max() for s in self.sequences.values())) + 0.25
-        for slot, k in enumerate(CHARACTER_KEYS):
-            fig, cap = self.figures[k], self.captions[k]
-            if k not in self.sequences:
-                cap.SetVisibility(False)
-                continue
-            if self.layout == "overlay":
+        for slot, k in (*enumerate(CHARACTER_KEYS), (2, "pinned")):  # the pinned follower shares the synthesized spot
+            fig, cap = self.figures[k], self.captions.get(k)
+            if k not in self.sequences or self.layout == "overlay":
                 fig.place((0, 0, 0), (0, 0, 0), 0.0)
-                cap.SetVisibility(False)
+                if cap is not None:
+                    cap.SetVisibility(False)
                 continue
             root = self.sequences[k][0, self.skeleton.root]
             dx = (slot - 1) * SIDE_SPACING
             yaw = 0.0 if k == "leader" else 180.0
             fig.place((float(root[0]), 0.0, float(root[2])), (dx - float(root[0]), 0.0, -float(root[2])), yaw)
-            cap.SetPosition(dx, top, 0.0)
-            cap.SetVisibility(self.visible[k])
+            if cap is not None:
+                cap.SetPosition(dx, top, 0.0)
+                cap.SetVisibility(self.visible[k])
 
     # ---- camera -------------------------------------------------------------------------
     def _refit_if_resized(self) -> None:

@@ -125,6 +125,10 @@ class Session:
         self.scale = 1.0
         self.index = -1
         self.synth: np.ndarray | None = None
+        # A/B: a pinned mix and its follower for the current leader (None: nothing pinned)
+        self.pinned_weights: np.ndarray | None = None
+        self.pinned_scale = 1.0
+        self.pinned: np.ndarray | None = None
         self.select(index)
 
     # ---- sequences ----------------------------------------------------------------------
@@ -155,6 +159,7 @@ class Session:
             self.match()
         else:
             self.synthesize()
+        self._synthesize_pinned()
 
     @property
     def num_frames(self) -> int:
@@ -170,6 +175,7 @@ class Session:
         except Exception:
             self.upload, self.leader, self.ground_truth, self.synth = previous
             raise
+        self._synthesize_pinned()
 
     @property
     def own_class(self) -> int | None:
@@ -217,6 +223,27 @@ class Session:
             raise ValueError(f"model returned shape {out.shape}, expected {self.leader.shape}")
         self.synth = out
         return out
+
+    # ---- A/B: a pinned mix beside the current one ---------------------------------------------
+    def pin(self) -> None:
+        """Keep the current mix and its follower, to compare the next mixes with."""
+        self.pinned_weights, self.pinned_scale, self.pinned = self.weights.copy(), self.scale, self.synth.copy()
+
+    def clear_pin(self) -> None:
+        self.pinned_weights = self.pinned = None
+
+    def _synthesize_pinned(self) -> None:
+        """The pinned mix for a new leader (the comparison follows the sequence)."""
+        if self.pinned_weights is not None:
+            vec = np.asarray(self.model.label_vector([float(x) for x in self.pinned_weights], scale=self.pinned_scale), np.float32)
+            self.pinned = np.asarray(self.model.synthesize_canonical(self.leader, vec), np.float32)
+
+    def pinned_text(self) -> str:
+        return "" if self.pinned_weights is None else label_words(self.pinned_weights, self.class_names, self.pinned_scale)
+
+    def ab_distances_m(self) -> np.ndarray:
+        """(T,) per-frame distance between the pinned and the current follower, metres (empty when none is pinned)."""
+        return np.zeros(0) if self.pinned is None else frame_distances(self.synth, self.pinned)
 
     def reads_as(self) -> np.ndarray | None:
         """(C,) the follower-only classifier's class probabilities for the synthesized follower (None without one)."""

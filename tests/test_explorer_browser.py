@@ -301,6 +301,32 @@ def test_screenshot_downloads_the_view_as_png(page, tmp_path):
         assert im.format == "PNG" and min(im.size) > 100
 
 
+def test_pin_a_mix_then_compare_swap_and_clear(page):
+    """A/B: the pinned mix shows as a purple figure with its own line on the distance chart; swap puts it back on
+    the sliders; clear removes it."""
+    from explorer.palette import PINNED
+
+    probe.set_state(page, "sequence_index", 2)
+    _wait_state(page, "s.get('sequence_index') === 2 && s.get('sequence_uploaded') === false")
+    names = probe.state(page, "class_names")
+    own = [i for i in range(len(names)) if probe.state(page, f"w_{i}") == 1.0][0]
+    other = (own + 3) % len(names)
+    assert probe.count_colors(probe.view_pixels(page), [PINNED])[0] < 50
+    page.locator("#pin-mix").click()
+    _wait_state(page, "!!s.get('pinned_text')")
+    probe.set_state(page, f"w_{other}", 1.0)
+    _wait_state(page, "s.get('ab_text').includes('mean') && s.get('distance_figure').data.length === 2")
+    time.sleep(0.5)
+    assert probe.count_colors(probe.view_pixels(page), [PINNED])[0] > 300
+    page.locator("#swap-mix").click()  # the pinned mix (own class only) back on the sliders
+    _wait_state(page, f"s.get('w_{other}') === 0 && s.get('w_{own}') === 1")
+    assert probe.state(page, "pinned_text") != "" and "+1" in probe.state(page, "pinned_text")
+    page.locator("#clear-pin").click()
+    _wait_state(page, "s.get('pinned_text') === '' && s.get('distance_figure').data.length === 1")
+    time.sleep(0.5)
+    assert probe.count_colors(probe.view_pixels(page), [PINNED])[0] < 50
+
+
 def test_single_port_through_a_forwarded_port(studio, browser, tmp_path):
     """A browser that can reach only one forwarded port (as through `ssh -L 8080:127.0.0.1:8080 host`): the page
     loads, a slider re-synthesizes, an export downloads."""

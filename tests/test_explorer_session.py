@@ -184,3 +184,20 @@ def test_uploaded_leader_has_no_ground_truth_and_bad_files_change_nothing(sessio
     assert session.export_name("bvh").startswith("l_")
     session.select(0)
     assert session.upload is None and session.ground_truth is not None
+
+
+def test_pin_a_mix_and_compare(session):
+    """A/B: the pinned mix keeps its follower while the sliders move; it follows a new leader; clear drops it."""
+    assert session.pinned is None and len(session.ab_distances_m()) == 0
+    session.pin()
+    pinned, words = session.pinned.copy(), session.pinned_text()
+    assert np.allclose(session.ab_distances_m(), 0)
+    w = np.zeros(len(session.class_names), np.float32)
+    w[3] = 1.0
+    session.set_label(w, 1.0)
+    assert np.array_equal(session.pinned, pinned) and session.pinned_text() == words
+    assert session.ab_distances_m().mean() > 0.01 and len(session.ab_distances_m()) == session.num_frames
+    session.select(5)  # the pinned mix is re-synthesized for the new leader
+    assert session.pinned.shape == session.leader.shape and session.pinned_text() == words
+    session.clear_pin()
+    assert session.pinned is None and session.pinned_text() == ""
