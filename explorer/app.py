@@ -49,6 +49,7 @@ class Studio:
         self._last_chart = 0.0
         self._distances = np.zeros(1)
         self._ab_distances = np.zeros(0)
+        self._closest = np.zeros(0)
         self._init_state()
         self._bind()
         self.ui = self._build_ui()
@@ -106,6 +107,7 @@ class Studio:
                 "show_keys": False,
                 "pinned_text": "",  # A/B (explorer/compare.py): the pinned mix in words, "" when none
                 "ab_text": "",
+                "contact_text": "",  # interpenetration of the two bodies (explorer/charts.py contact_text)
                 "held_out_subject": d.info.get("held_out_subject", ""),
             }
         )
@@ -281,6 +283,7 @@ class Studio:
         with self.state:
             self._after_mix(force_chart=True)
             self.state.error = ""
+        self.ctrl.view_update()  # the interpenetrating limbs of the new mix
 
     def _after_mix(self, force_chart: bool = False) -> None:
         """Review numbers, distance chart and latent star for the current synthesized follower."""
@@ -288,6 +291,9 @@ class Studio:
         self._distances = ses.distances_m()
         self._ab_distances = ses.ab_distances_m()
         s.ab_text = f"pinned ↔ current: mean {self._ab_distances.mean():.2f} m" if len(self._ab_distances) else ""
+        self._closest, leader_bones, follower_bones = ses.contact()
+        self.scene.set_contact(leader_bones, follower_bones)
+        s.contact_text = charts.contact_text(self._closest)
         afd = ses.afd()
         s.afd_text = ("uploaded leader: no ground truth to compare with, so no error chart" if afd is None
                       else f"AFD {afd:.3f} (SBU units) · mean {self._distances.mean():.2f} m")
@@ -364,7 +370,8 @@ class Studio:
         if not force and self.state.playing and now - self._last_chart < CHART_PERIOD_S:
             return
         self._last_chart = now
-        self.state.distance_figure = charts.distance_figure(self._distances, int(self.state.frame or 0), FPS, self._ab_distances)
+        self.state.distance_figure = charts.distance_figure(self._distances, int(self.state.frame or 0), FPS, self._ab_distances,
+                                                            self._closest)
 
     def _update_latent_figure(self) -> None:
         s, ses, d = self.state, self.session, self.session.data

@@ -6,7 +6,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from explorer.palette import PINNED, SYNTHESIZED, class_color, display_name
+from explorer.palette import PINNED, SYNTHESIZED, WARNING, class_color, display_name
+from imm_model.evaluation.plausibility import PENETRATION_M
 
 FONT = {"family": "Roboto, sans-serif", "size": 11}
 
@@ -17,20 +18,43 @@ def _trace(y: np.ndarray, color: str, name: str, dash: str = "solid") -> dict:
             "name": name}
 
 
-def distance_figure(distances: np.ndarray, frame: int, fps: float, ab: np.ndarray | None = None) -> dict:
-    """Ground truth vs synthesized per frame; with `ab` (a pinned mix), pinned vs current as a second line."""
-    n = max(len(distances), 0 if ab is None else len(ab))
+def penetration_ranges(closest: np.ndarray) -> list[tuple[int, int]]:
+    """Runs of consecutive frames whose closest limbs are within the interpenetration threshold: [(first, last)]."""
+    bad = np.flatnonzero(np.asarray(closest) < PENETRATION_M)
+    if not len(bad):
+        return []
+    breaks = np.flatnonzero(np.diff(bad) > 1)
+    return [(int(bad[a]), int(bad[b])) for a, b in zip(np.r_[0, breaks + 1], np.r_[breaks, len(bad) - 1], strict=True)]
+
+
+def contact_text(closest: np.ndarray) -> str:
+    n = sum(b - a + 1 for a, b in penetration_ranges(closest))
+    if n == 0:
+        return f"no interpenetration (closest limbs {np.min(closest):.2f} m apart)" if len(closest) else ""
+    return f"bodies interpenetrate in {n} of {len(closest)} frames (limbs < {PENETRATION_M * 100:.0f} cm apart: orange)"
+
+
+def distance_figure(distances: np.ndarray, frame: int, fps: float, ab: np.ndarray | None = None,
+                    closest: np.ndarray | None = None) -> dict:
+    """Ground truth vs synthesized per frame; with `ab` (a pinned mix), pinned vs current; with `closest`, the
+    closest limb distance between leader and follower, and the interpenetrating frames shaded."""
+    n = max(len(distances), 0 if ab is None else len(ab), 0 if closest is None else len(closest))
     data = [_trace(distances, SYNTHESIZED, "ground truth ↔ current")] if len(distances) else []
     if ab is not None and len(ab):
         data.append(_trace(ab, PINNED, "pinned ↔ current", "dash"))
+    if closest is not None and len(closest):
+        data.append(_trace(closest, WARNING, "closest limbs, leader ↔ follower", "dot"))
+    ranges = penetration_ranges(closest) if closest is not None else []
+    bands = [{"type": "rect", "x0": a - 0.5, "x1": b + 0.5, "yref": "paper", "y0": 0, "y1": 1, "fillcolor": WARNING,
+              "opacity": 0.18, "line": {"width": 0}, "layer": "below"} for a, b in ranges]
     return {
         "data": data,
         "layout": {
             "margin": {"l": 48, "r": 10, "t": 8, "b": 34},
             "font": FONT,
             "xaxis": {"title": {"text": f"frame ({fps:g} fps)"}, "range": [0, max(1, n - 1)], "zeroline": False},
-            "yaxis": {"title": {"text": "45-d pose distance (m)"}, "rangemode": "tozero"},
-            "shapes": [
+            "yaxis": {"title": {"text": "distance (m)"}, "rangemode": "tozero"},
+            "shapes": bands + [
                 {
                     "type": "line",
                     "x0": frame,

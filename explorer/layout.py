@@ -11,7 +11,7 @@ from trame.widgets import vtk as vtk_widgets
 from trame.widgets import vuetify3 as v3
 
 from explorer.keys import KEY_HELP, LISTENER_JS
-from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED, class_color, display_name
+from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED, WARNING, class_color, display_name
 from explorer.reads_as_panel import reads_as_panel
 from explorer.scene import CAMERA_PRESETS, CHARACTER_KEYS
 
@@ -306,13 +306,14 @@ def review_cards(studio) -> None:
     with html.Div(classes="d-flex", style="flex: 0 0 250px; width: 100%; gap: 8px"):
         with v3.VCard(variant="outlined", style="flex: 1 1 50%", classes="pa-1"):
             with html.Div(classes="d-flex align-center px-2"):
-                html.Div("Ground truth vs synthesized, per frame", classes="text-caption font-weight-bold")
+                html.Div("Per frame: error and contact", classes="text-caption font-weight-bold")
                 v3.VSpacer()
                 html.Div("{{ afd_text }}", classes="text-caption", id="afd-text")
+            html.Div("{{ contact_text }}", classes="text-caption px-2", style=f"color: {WARNING}", id="contact-text")
             plotly.Figure(
                 state_variable_name="distance_figure",
                 display_mode_bar=False,
-                style="height: 215px",
+                style="height: 200px",
                 responsive=True,
             )
         with v3.VCard(variant="outlined", style="flex: 1 1 50%", classes="pa-1"):

@@ -18,7 +18,7 @@ import pyvista as pv  # noqa: E402
 import vtk  # noqa: E402
 from vtk.util.numpy_support import vtk_to_numpy  # noqa: E402
 
-from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED, rgb  # noqa: E402
+from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED, WARNING, rgb  # noqa: E402
 from imm_model.skeleton import Skeleton  # noqa: E402
 
 CHARACTER_KEYS = ("leader", "ground_truth", "synthesized")
@@ -69,6 +69,36 @@ class StickFigure:
             a.SetPosition(*position)
 
 
+class ContactOverlay:
+    """The bones of the leader and the synthesized follower that interpenetrate at the current frame, as thicker
+    tubes in the warning colour over both figures (overlay layout only: side by side the bodies are apart)."""
+
+    def __init__(self, plotter: pv.Plotter, skeleton: Skeleton):
+        self.bones = np.array(skeleton.bones)
+        self.poly = pv.PolyData(np.zeros((2 * skeleton.num_joints, 3), np.float32))
+        self._points = vtk_to_numpy(self.poly.GetPoints().GetData())
+        self.tube = vtk.vtkTubeFilter()
+        self.tube.SetInputData(self.poly)
+        self.tube.SetRadius(0.032)
+        self.tube.SetNumberOfSides(10)
+        self.actor = plotter.add_mesh(self.tube, color=rgb(WARNING), ambient=0.4, diffuse=0.6)
+        self.flags: tuple[np.ndarray, np.ndarray] | None = None  # (T, K) bones of the leader and of the follower
+        self.enabled = True
+
+    def show(self, leader: np.ndarray, follower: np.ndarray, frame: int) -> None:
+        if self.flags is None or not self.enabled:
+            self.actor.SetVisibility(False)
+            return
+        j = len(leader[frame])
+        bad_a, bad_b = (f[min(frame, len(f) - 1)] for f in self.flags)
+        lines = [[2, p, c] for p, c in self.bones[bad_a]] + [[2, j + p, j + c] for p, c in self.bones[bad_b]]
+        self.actor.SetVisibility(bool(lines))
+        if lines:
+            self._points[:j], self._points[j:] = leader[frame], follower[min(frame, len(follower) - 1)]
+            self.poly.GetPoints().Modified()
+            self.poly.lines = np.array(lines).ravel()
+
+
 class Scene:
     def __init__(self, skeleton: Skeleton, floor_y: float, window_size: tuple[int, int] = (1050, 500)):
         pv.global_theme.multi_samples = 0  # MSAA costs ~3x per frame on llvmpipe (docs/explorer.md)
@@ -82,6 +112,7 @@ class Scene:
         self.figures = {k: StickFigure(self.plotter, skeleton, CHARACTERS[k]) for k in CHARACTER_KEYS}
         self.figures["pinned"] = StickFigure(self.plotter, skeleton, PINNED)  # A/B: shown only while a mix is pinned
         self.figures["pinned"].set_visible(False)
+        self.contact = ContactOverlay(self.plotter, skeleton)
         self.captions = {k: self._caption(CHARACTER_TITLES[k], CHARACTERS[k]) for k in CHARACTER_KEYS}
         self._floor_actors = self._floor()
         self.layout = "overlay"
@@ -129,6 +160,7 @@ class Scene:
         for k in CHARACTER_KEYS:
             self.figures[k].set_visible(self.visible[k] and k in self.sequences)
         self.figures["pinned"].set_visible(False)  # until set_pinned gives it the new leader's follower
+        self.contact.flags = None  # until set_contact gives the new sequence's
         self._apply_layout()
         self.set_frame(frame)
 
@@ -149,6 +181,16 @@ class Scene:
         self.figures["pinned"].set_visible(pinned is not None and self.visible["synthesized"])
         self._apply_layout()
 
+    def set_contact(self, leader_bones: np.ndarray | None, follower_bones: np.ndarray | None) -> None:
+        """Which bones interpenetrate, per frame ((T, K) each; None: none shown)."""
+        self.contact.flags = None if leader_bones is None else (leader_bones, follower_bones)
+        self._show_contact()
+
+    def _show_contact(self) -> None:
+        self.contact.enabled = self.layout == "overlay" and self.visible["leader"] and self.visible["synthesized"]
+        if "synthesized" in self.sequences:
+            self.contact.show(self.sequences["leader"], self.sequences["synthesized"], self.frame)
+
     def set_frame(self, frame: int) -> None:
         if not self.sequences:
             return
@@ -156,6 +198,7 @@ class Scene:
         self.frame = int(np.clip(frame, 0, t - 1))
         for k, seq in self.sequences.items():
             self.figures[k].set_pose(seq[self.frame])
+        self._show_contact()
 
     def set_visible(self, key: str, visible: bool) -> None:
         self.visible[key] = bool(visible)
@@ -164,12 +207,14 @@ class Scene:
         self.captions[key].SetVisibility(shown and self.layout == "side_by_side")
         if key == "synthesized":  # the pinned follower is a synthesized one too
             self.figures["pinned"].set_visible(shown and "pinned" in self.sequences)
+        self._show_contact()
 
     def set_layout(self, layout: str) -> None:
         if layout not in LAYOUTS:
             raise ValueError(f"layout must be one of {LAYOUTS}")
         self.layout = layout
         self._apply_layout()
+        self._show_contact()
         self.set_camera(self.camera_preset)
 
     def _apply_layout(self) -> None:

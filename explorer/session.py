@@ -245,6 +245,13 @@ class Session:
         """(T,) per-frame distance between the pinned and the current follower, metres (empty when none is pinned)."""
         return np.zeros(0) if self.pinned is None else frame_distances(self.synth, self.pinned)
 
+    def contact(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Leader vs synthesized follower -> closest limb distance per frame (T,) in metres, and the leader's and the
+        follower's bones (T, K) closer than the evaluation's interpenetration threshold to the other body."""
+        from imm_model.evaluation.plausibility import penetrating_bones
+
+        return penetrating_bones(self.leader, self.synth, self.data.skeleton)
+
     def reads_as(self) -> np.ndarray | None:
         """(C,) the follower-only classifier's class probabilities for the synthesized follower (None without one)."""
         return None if self.reader is None else np.asarray(self.reader.probabilities(self.synth), np.float64)

@@ -327,6 +327,23 @@ def test_pin_a_mix_then_compare_swap_and_clear(page):
     assert probe.count_colors(probe.view_pixels(page), [PINNED])[0] < 50
 
 
+def test_interpenetrating_limbs_are_marked(page):
+    """A sequence whose synthesized hug goes into the leader: the count in words, shaded frames on the chart, and
+    orange limbs in the view at such a frame."""
+    from explorer.palette import WARNING
+
+    probe.set_state(page, "scene_layout", "overlay")
+    probe.set_state(page, "sequence_index", 5)
+    _wait_state(page, "s.get('sequence_index') === 5 && s.get('contact_text').includes('interpenetrate in')")
+    shapes = probe.state(page, "distance_figure")["layout"]["shapes"]
+    assert any(sh["type"] == "rect" for sh in shapes)
+    probe.set_state(page, "frame", 15)
+    _wait_state(page, "s.get('frame') === 15")
+    time.sleep(0.8)
+    assert probe.count_colors(probe.view_pixels(page), [WARNING])[0] > 100
+    shot(page, "studio-contact")
+
+
 def test_single_port_through_a_forwarded_port(studio, browser, tmp_path):
     """A browser that can reach only one forwarded port (as through `ssh -L 8080:127.0.0.1:8080 host`): the page
     loads, a slider re-synthesizes, an export downloads."""

@@ -201,3 +201,20 @@ def test_pin_a_mix_and_compare(session):
     assert session.pinned.shape == session.leader.shape and session.pinned_text() == words
     session.clear_pin()
     assert session.pinned is None and session.pinned_text() == ""
+
+
+def test_contact_marks_the_interpenetrating_frames_and_bones(session):
+    from explorer.charts import contact_text, distance_figure, penetration_ranges
+    from imm_model.evaluation.plausibility import PENETRATION_M, closest_distances
+
+    assert penetration_ranges(np.array([0.1, 0.01, 0.02, 0.2, 0.04])) == [(1, 2), (4, 4)]
+    assert penetration_ranges(np.array([0.3, 0.2])) == [] and "no interpenetration" in contact_text(np.array([0.3, 0.2]))
+    session.select(5)  # a hug the bundled model pushes into the leader (found by scanning the sample)
+    closest, leader_bones, follower_bones = session.contact()
+    np.testing.assert_allclose(closest, closest_distances(session.leader, session.synth, session.data.skeleton))
+    inside = closest < PENETRATION_M
+    assert inside.any() and np.array_equal(inside, leader_bones.any(1)) and np.array_equal(inside, follower_bones.any(1))
+    assert f"in {int(inside.sum())} of {len(closest)} frames" in contact_text(closest)
+    figure = distance_figure(session.distances_m(), 0, 15.0, closest=closest)
+    bands = [sh for sh in figure["layout"]["shapes"] if sh["type"] == "rect"]
+    assert len(bands) == len(penetration_ranges(closest)) and len(figure["data"]) == 2

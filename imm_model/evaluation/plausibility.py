@@ -54,12 +54,24 @@ def _segment_distances(p0, p1, q0, q1) -> np.ndarray:
     return np.linalg.norm(p0 + d1 * s[..., None] - q0 - d2 * t[..., None], axis=-1)
 
 
-def closest_distances(leader: np.ndarray, follower: np.ndarray, skeleton: Skeleton) -> np.ndarray:
-    """(T,) closest distance between any bone segment of A and any of B per frame (metres)."""
+def bone_pair_distances(leader: np.ndarray, follower: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    """(T, K, K) closest distance between bone segment i of A and bone segment j of B per frame (metres)."""
     bones = np.array(skeleton.bones)
     a0, a1 = leader[:, bones[:, 0]][:, :, None], leader[:, bones[:, 1]][:, :, None]  # (T, K, 1, 3)
     b0, b1 = follower[:, bones[:, 0]][:, None], follower[:, bones[:, 1]][:, None]  # (T, 1, K, 3)
-    return _segment_distances(a0, a1, b0, b1).min(axis=(1, 2))
+    return _segment_distances(a0, a1, b0, b1)
+
+
+def closest_distances(leader: np.ndarray, follower: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    """(T,) closest distance between any bone segment of A and any of B per frame (metres)."""
+    return bone_pair_distances(leader, follower, skeleton).min(axis=(1, 2))
+
+
+def penetrating_bones(leader: np.ndarray, follower: np.ndarray, skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """-> closest distance (T,), and which bones of A (T, K) and of B (T, K) come within PENETRATION_M of the other."""
+    d = bone_pair_distances(leader, follower, skeleton)
+    close = d < PENETRATION_M
+    return d.min(axis=(1, 2)), close.any(axis=2), close.any(axis=1)
 
 
 def interpenetration(leader: np.ndarray, follower: np.ndarray, skeleton: Skeleton) -> float:
