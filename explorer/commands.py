@@ -26,6 +26,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--token", default=None,
                    help="access token required in the first URL (default: none on 127.0.0.1; a random one for any other --host)")
     p.add_argument("--no-auth", action="store_true", help="with a non-loopback --host: serve anyone who can reach the port")
+    p.add_argument("--base-url", default=None,
+                   help="the address users open when a reverse proxy serves the studio under a path, e.g. "
+                        "https://lab.example.org/imm/ (printed instead of the local address; every page URL is relative)")
     p.add_argument("--no-browser", action="store_true", help="do not open a browser window")
     p.add_argument("--cache-dir", type=Path, default=None, help="latent-map cache (default: ~/.cache/imm-studio)")
     p.add_argument("--export-dir", type=Path, default=Path("imm-exports"), help="where exports are also saved (default ./imm-exports)")
@@ -88,13 +91,18 @@ def run_explore(args: argparse.Namespace) -> int:
     if not 0 <= args.port <= 65535:
         print(f"imm explore: error: --port must be 0..65535, not {args.port}", file=sys.stderr)
         return 2
+    base_url = args.base_url if args.base_url is None or args.base_url.endswith("/") else args.base_url + "/"
+    if base_url is not None and not base_url.startswith(("http://", "https://")):
+        print(f"imm explore: error: --base-url must start with http:// or https://, not {args.base_url!r}", file=sys.stderr)
+        return 2
     try:
         token, no_auth = access(args)
     except ValueError as err:
         print(f"imm explore: error: {err}", file=sys.stderr)
         return 2
     config = LaunchConfig(
-        token=token, no_auth=no_auth, data=Path(data).resolve(), checkpoint=Path(checkpoint).resolve(), host=args.host, port=args.port,
+        token=token, no_auth=no_auth, base_url=base_url,
+        data=Path(data).resolve(), checkpoint=Path(checkpoint).resolve(), host=args.host, port=args.port,
         cache_dir=args.cache_dir.resolve() if args.cache_dir else None, export_dir=args.export_dir.resolve(),
         max_clients=max(1, args.max_clients), open_browser=not args.no_browser, sequence=args.sequence, render=args.render,
         judge=str(judge.resolve()) if judge else args.judge,

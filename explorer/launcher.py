@@ -60,6 +60,7 @@ class LaunchConfig:
     # cookie) and admits any host name; no_auth admits every request (the user chose so for a non-loopback --host).
     token: str | None = None
     no_auth: bool = False
+    base_url: str | None = None  # the address users open, behind a reverse proxy (printed instead of the local one)
 
 
 def bind_socket(host: str, port: int) -> socket.socket:
@@ -237,11 +238,11 @@ class Launcher:
         port = sock.getsockname()[1]
         wildcard = {"0.0.0.0": socket.gethostname(), "::": socket.gethostname()}
         shown = "localhost" if self.config.host in LOOPBACK else wildcard.get(self.config.host, self.config.host)
-        self.url = f"http://{shown}:{port}/" + (f"?token={self.config.token}" if self.config.token else "")
-        print(
-            f"IMM Studio ready at {self.url} ({time.monotonic() - t0:.1f} s; one studio process per browser tab, Ctrl+C to stop)",
-            flush=True,
-        )
+        local = f"http://{shown}:{port}/"
+        self.url = (self.config.base_url or local) + (f"?token={self.config.token}" if self.config.token else "")
+        behind = f"; served from {local} behind it" if self.config.base_url else ""
+        print(f"IMM Studio ready at {self.url} ({time.monotonic() - t0:.1f} s{behind}; one studio process per browser tab, "
+              "Ctrl+C to stop)", flush=True)
         if self.config.open_browser:
             _open_browser(self.url)
         stop = asyncio.Event()

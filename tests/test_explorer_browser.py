@@ -367,6 +367,89 @@ def test_single_port_through_a_forwarded_port(studio, browser, tmp_path):
         relay.close()
 
 
+class PrefixProxy:
+    """A reverse proxy that serves the studio under /imm/ and passes Host and Origin through, as nginx does with
+    `location /imm/ { proxy_pass http://127.0.0.1:8080/; proxy_set_header Host $host; }` (plus the upgrade headers)."""
+
+    def __init__(self):
+        import threading
+
+        self.target, self.port = 0, 0
+        ready = threading.Event()
+        threading.Thread(target=self._serve, args=(ready,), daemon=True).start()  # its own loop: Playwright has the main one
+        ready.wait(10)
+
+    def _serve(self, ready) -> None:
+        import asyncio
+
+        from aiohttp import web
+
+        self.loop = asyncio.new_event_loop()
+        app = web.Application()
+        app.router.add_route("*", "/imm/{tail:.*}", self.handle)
+        runner = web.AppRunner(app)
+        self.loop.run_until_complete(runner.setup())
+        site = web.TCPSite(runner, "127.0.0.1", 0)
+        self.loop.run_until_complete(site.start())
+        self.port = runner.addresses[0][1]
+        ready.set()
+        self.loop.run_forever()
+
+    async def handle(self, request):
+        import asyncio
+
+        from aiohttp import ClientSession, WSMsgType, web
+
+        url = f"http://127.0.0.1:{self.target}/{request.match_info['tail']}"
+        skip = {"connection", "upgrade", "content-length", "transfer-encoding", "sec-websocket-key", "sec-websocket-version",
+                "sec-websocket-extensions"}
+        headers = {k: v for k, v in request.headers.items() if k.lower() not in skip}  # Host and Origin kept
+        async with ClientSession(auto_decompress=False) as session:
+            if request.headers.get("Upgrade", "").lower() == "websocket":
+                browser = web.WebSocketResponse(max_msg_size=0)
+                await browser.prepare(request)
+                async with session.ws_connect(url, headers=headers, max_msg_size=0) as studio:
+                    async def pump(a, b):
+                        async for m in a:
+                            if m.type not in (WSMsgType.TEXT, WSMsgType.BINARY):
+                                break
+                            await (b.send_str(m.data) if m.type == WSMsgType.TEXT else b.send_bytes(m.data))
+                        await b.close()
+                    await asyncio.wait([asyncio.ensure_future(pump(browser, studio)), asyncio.ensure_future(pump(studio, browser))],
+                                       return_when=asyncio.FIRST_COMPLETED)
+                return browser
+            async with session.request(request.method, url, params=request.query, headers=headers, data=await request.read(),
+                                       allow_redirects=False) as up:
+                body = await up.read()
+                keep = {k: v for k, v in up.headers.items() if k.lower() not in skip}
+                return web.Response(status=up.status, body=body, headers=keep)
+
+    def close(self):
+        self.loop.call_soon_threadsafe(self.loop.stop)
+
+
+def test_behind_a_reverse_proxy_with_a_path_prefix(browser, tmp_path):
+    """--base-url: the printed address is the proxy's; through /imm/ the page loads and a slider re-synthesizes."""
+    from urllib.parse import urlsplit
+
+    proxy = PrefixProxy()
+    base = f"http://127.0.0.1:{proxy.port}/imm/"
+    try:
+        with probe.StudioProcess("--base-url", base, cache_dir=tmp_path) as studio:
+            assert studio.url == base
+            served = [ln for ln in studio.lines if "served from" in ln][0]
+            proxy.target = urlsplit(served.split("served from ")[1].split()[0]).port
+            pg = probe.open_studio(browser, base, timeout_ms=90000)
+            assert pg.url.startswith(base + "s/"), pg.url
+            names = probe.state(pg, "class_names")
+            n_mix = probe.state(pg, "mix_count")
+            probe.press_slider(pg, f".slider-{names[2].replace(' ', '_')}", "End")
+            pg.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=15000)
+            pg.close()
+    finally:
+        proxy.close()
+
+
 def test_five_clients_are_independent(studio, browser):
     pages = []
     try:
