@@ -71,7 +71,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         trained = _train(runner, plan, runs, data_path, data_hash, args.cpus_per_task)
         results = _evaluate(runner, plan, runs, data_path, trained, args.cpus_per_task)
     wall = time.perf_counter() - t0
-    report = write_report(plan, results, args.out.resolve(), wall)
+    report = write_report(plan, results, args.out.resolve(), wall, runs)
     failed = len(plan.training_jobs()) - len(trained) + sum(1 for r in results.values() if r is None)
     print(f"report: {report} ({wall / 60:.1f} min wall{f'; {failed} jobs failed' if failed else ''})")
     return 1 if failed else 0

@@ -47,6 +47,16 @@ def write_figures(results: dict, summary: dict | None, class_names: list[str], o
         ax.set_ylabel("mean AFD over classes")
         ax.set_title("Ablations on SBU")
         paths.append(_save(fig, out / "ablation.png"))
+    recognition = [r for j, r in results.items() if r is not None and j.kind == "recognition" and j.run.split == "half"]
+    if recognition:
+        fig, ax = plt.subplots(figsize=(8, 3.2))
+        mean = lambda key: np.nanmean([r[key]["per_class"] for r in recognition], axis=0).tolist()  # noqa: E731
+        groups = {"paper: original": list(paper.RECOGNITION["Original"]), "paper: augmented": list(paper.RECOGNITION["Augmented"]),
+                  "ours: original": mean("original"), "ours: augmented (train only)": mean("augmented")}
+        _bars(ax, groups, {}, class_names)
+        ax.set_ylabel("accuracy")
+        ax.set_title("Recognition on SBU's half/half split, with and without synthesized data")
+        paths.append(_save(fig, out / "recognition.png"))
     plt.close("all")
     return paths
 

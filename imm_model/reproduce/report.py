@@ -143,17 +143,29 @@ def disagreements_section() -> str:
     return _table(["", "paper's text", "authors' code", "this project"], rows)
 
 
-def write_report(plan: ReproducePlan, results: dict, out: Path, wall_s: float) -> Path:
+def _run_seconds(plan: ReproducePlan, runs: Path) -> float:
+    """Training time of every run (what done.json recorded, in its worker), summed."""
+    total = 0.0
+    for job in plan.training_jobs():
+        try:
+            total += float(json.loads((job.run_dir(runs) / "done.json").read_text())["seconds"])
+        except (OSError, ValueError, KeyError):
+            pass
+    return total
+
+
+def write_report(plan: ReproducePlan, results: dict, out: Path, wall_s: float, runs: Path) -> Path:
     """Write report.md, summary.json and figures; a table whose runs are missing says so."""
     from imm_model.reproduce.figures import write_figures
 
-    any_result = next((r for r in results.values() if r is not None and "classes" in r.get("model", {})), None)
-    class_names = list(any_result["model"]["classes"]) if any_result else []
+    class_names = next((list(r["model"]["classes"]) for j, r in results.items() if r is not None and j.kind == "metrics"),
+                       next((r["class_names"] for j, r in results.items() if r is not None and j.kind == "recognition"), []))
     imm = _metrics(results, "imm", "final")
     summary = group_summary(imm, tuple(class_names)) if imm else None
     parts = [f"# The paper's tables, reproduced\n\n`imm reproduce --seeds {','.join(map(str, plan.seeds))} --tables "
-             f"{','.join(plan.tables)}` · folds {', '.join(plan.folds)} · {wall_s / 60:.1f} min wall on {os.cpu_count()} CPUs · "
-             f"{time.strftime('%Y-%m-%d')}. Mean ± std over folds and seeds; lower is better for AFD and FID."]
+             f"{','.join(plan.tables)}` · folds {', '.join(plan.folds)} · this invocation {wall_s / 60:.1f} min wall on "
+             f"{os.cpu_count()} CPUs; the {len(plan.training_jobs())} training runs took {_run_seconds(plan, runs) / 60:.0f} "
+             f"worker-minutes in all · {time.strftime('%Y-%m-%d')}. Mean ± std over folds and seeds; lower is better for AFD and FID."]
     if summary and "afd" in plan.tables:
         parts.append("## AFD on SBU (paper Table 1)\n\n" + afd_section(summary, class_names) + _dev_test(imm, class_names))
     if summary and "fid" in plan.tables:
