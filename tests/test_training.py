@@ -355,3 +355,24 @@ def test_bad_config_files_are_one_line_and_write_nothing(tmp_path, capsys, text,
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "run").exists()
+
+
+def test_role_swap_in_the_training_batches(sample_data):
+    """The production path: with role_swap_prob 1 every hugging row of a batch is the pair with B leading,
+    re-canonicalized on B (InteractionDataset.role_swapped, the one implementation); other classes unchanged."""
+    from imm_model.training.data import Augmenter, PaddedData
+
+    data = sample_data.subset(range(0, 197, 7))
+    padded = PaddedData.from_dataset(data)
+    hugging = torch.tensor([c == "hugging" for c in data.class_names])
+    augment = Augmenter(data.skeleton, 0.0, 0.0, 1.0, hugging)
+    idx = torch.arange(len(data))
+    leader, follower, lengths, actions = augment(padded, idx, torch.Generator().manual_seed(0))
+    swapped = data.role_swapped()
+    hug = data.class_names.index("hugging")
+    assert (actions == hug).any() and (actions != hug).any()
+    for i in range(len(data)):
+        t = int(lengths[i])
+        a, b = swapped.canonical(i) if actions[i] == hug else data.canonical(i)
+        torch.testing.assert_close(leader[i, :t], torch.as_tensor(a.reshape(t, -1)))
+        torch.testing.assert_close(follower[i, :t], torch.as_tensor(b.reshape(t, -1)))

@@ -10,7 +10,6 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from imm_model.data.canonical import CanonicalFrame
 from imm_model.data.dataset import InteractionDataset
 from imm_model.skeleton import Skeleton
 
@@ -36,15 +35,15 @@ class PaddedData:
 
     @classmethod
     def from_dataset(cls, data: InteractionDataset) -> PaddedData:
+        """Every sequence padded, and its role-swapped copy (B leading, re-canonicalized on B) from the one
+        implementation of the swap, InteractionDataset.role_swapped."""
+        swapped = data.role_swapped()
         n, t_max, d = len(data), int(data.lengths.max()), 3 * data.skeleton.num_joints
         arrays = np.zeros((4, n, t_max, d), dtype=np.float32)
         for i in range(n):
-            a, b = data.canonical(i)
-            t = len(a)
-            arrays[0, i, :t], arrays[1, i, :t] = a.reshape(t, -1), b.reshape(t, -1)
-            frame = CanonicalFrame.from_leader(b.astype(np.float64), data.skeleton, data.canonical_mode)
-            arrays[2, i, :t] = frame.to_canonical(b.astype(np.float64), data.skeleton).reshape(t, -1)
-            arrays[3, i, :t] = frame.to_canonical(a.astype(np.float64), data.skeleton).reshape(t, -1)
+            t = int(data.lengths[i])
+            for k, motion in enumerate((*data.canonical(i), *swapped.canonical(i))):
+                arrays[k, i, :t] = motion.reshape(t, -1)
         t = torch.from_numpy(arrays)
         return cls(t[0], t[1], t[2], t[3], torch.as_tensor(data.lengths), torch.as_tensor(data.actions))
 
