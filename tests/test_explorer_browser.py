@@ -221,9 +221,16 @@ def _wait_state(page, expression: str, timeout_ms: int = 15000) -> None:
     page.wait_for_function(f"() => {{ const s = window.trame.state; return {expression}; }}", timeout=timeout_ms)
 
 
+def _load_sequence(page, index: int) -> None:
+    """Pick a sequence as the page does and wait for the server's answer (the page's own sequence_index changes at
+    once; the label and the review follow from the server)."""
+    n = probe.state(page, "mix_count")
+    probe.set_state(page, "sequence_index", index)
+    _wait_state(page, f"s.get('mix_count') > {n} && s.get('sequence_uploaded') === false")
+
+
 def test_keyboard_drives_frames_playback_and_sliders(page):
-    probe.set_state(page, "sequence_index", 1)  # a dataset sequence (an uploaded leader has no class to match)
-    _wait_state(page, "s.get('sequence_uploaded') === false && s.get('sequence_index') === 1")
+    _load_sequence(page, 1)  # a dataset sequence (an uploaded leader has no class to match)
     _press(page, "Home")
     _wait_state(page, "s.get('frame') === 0")
     _press(page, "ArrowRight")
@@ -306,8 +313,7 @@ def test_pin_a_mix_then_compare_swap_and_clear(page):
     the sliders; clear removes it."""
     from explorer.palette import PINNED
 
-    probe.set_state(page, "sequence_index", 2)
-    _wait_state(page, "s.get('sequence_index') === 2 && s.get('sequence_uploaded') === false")
+    _load_sequence(page, 2)
     names = probe.state(page, "class_names")
     own = [i for i in range(len(names)) if probe.state(page, f"w_{i}") == 1.0][0]
     other = (own + 3) % len(names)
@@ -334,8 +340,8 @@ def test_interpenetrating_limbs_are_marked(page):
     from explorer.palette import WARNING
 
     probe.set_state(page, "scene_layout", "overlay")
-    probe.set_state(page, "sequence_index", 5)
-    _wait_state(page, "s.get('sequence_index') === 5 && s.get('contact_text').includes('interpenetrate in')")
+    _load_sequence(page, 5)
+    _wait_state(page, "s.get('contact_text').includes('interpenetrate in')")
     shapes = probe.state(page, "distance_figure")["layout"]["shapes"]
     assert any(sh["type"] == "rect" for sh in shapes)
     probe.set_state(page, "frame", 15)
