@@ -72,6 +72,10 @@ def test_checkpoint_not_matching_data_skeleton(tmp_path, sample_data):
     assert_one_line_error(run_explore("--data", str(path), "--cache-dir", str(tmp_path)), "skeleton", "renamed")
 
 
+def test_bad_base_url():
+    assert_one_line_error(run_explore("--base-url", "ftp://example.org/imm/"), "--base-url must start with http")
+
+
 def test_port_in_use():
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

@@ -116,3 +116,18 @@ def test_runner_reports_a_failed_job_and_finishes_the_others():
         results = r.run([Task("ok", int, ("3",)), Task("bad", int, ("x",))], "test")
     assert results[0] == (True, 3)
     assert results[1][0] is False and "invalid literal" in results[1][1]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--tables", "bogus"], "--tables: unknown table 'bogus'"),
+    (["--folds", "s09"], "--folds: 's09' is not an SBU subject"),
+    (["--seeds", "x"], "expected comma-separated integers"),
+    (["--cpus-per-task", "0"], "cpus per task must be >= 1"),
+    (["--data", "/nonexistent/bundle.npz"], "/nonexistent/bundle.npz"),
+])
+def test_bad_arguments_get_one_line(tmp_path, args, message):
+    proc = subprocess.run([sys.executable, "-m", "imm_model.cli", "reproduce", "--out", str(tmp_path / "r"), *args],
+                          capture_output=True, text=True, timeout=120)
+    last = proc.stderr.strip().splitlines()[-1]
+    assert proc.returncode == 2 and last.startswith("imm reproduce: error:") and message in last, proc.stderr
+    assert "Traceback" not in proc.stderr and not (tmp_path / "r" / "runs").exists()
