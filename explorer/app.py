@@ -50,6 +50,7 @@ class Studio:
         self._distances = np.zeros(1)
         self._ab_distances = np.zeros(0)
         self._closest = np.zeros(0)
+        self._contact_changed = False
         self._init_state()
         self._bind()
         self.ui = self._build_ui()
@@ -283,7 +284,8 @@ class Studio:
         with self.state:
             self._after_mix(force_chart=True)
             self.state.error = ""
-        self.ctrl.view_update()  # the interpenetrating limbs of the new mix
+        if self._contact_changed:  # the orange limbs of the new mix: one more picture only when they differ
+            self.ctrl.view_update()
 
     def _after_mix(self, force_chart: bool = False) -> None:
         """Review numbers, distance chart and latent star for the current synthesized follower."""
@@ -292,7 +294,7 @@ class Studio:
         self._ab_distances = ses.ab_distances_m()
         s.ab_text = f"pinned ↔ current: mean {self._ab_distances.mean():.2f} m" if len(self._ab_distances) else ""
         self._closest, leader_bones, follower_bones = ses.contact()
-        self.scene.set_contact(leader_bones, follower_bones)
+        self._contact_changed = self.scene.set_contact(leader_bones, follower_bones)
         s.contact_text = charts.contact_text(self._closest)
         afd = ses.afd()
         s.afd_text = ("uploaded leader: no ground truth to compare with, so no error chart" if afd is None

@@ -181,10 +181,15 @@ class Scene:
         self.figures["pinned"].set_visible(pinned is not None and self.visible["synthesized"])
         self._apply_layout()
 
-    def set_contact(self, leader_bones: np.ndarray | None, follower_bones: np.ndarray | None) -> None:
-        """Which bones interpenetrate, per frame ((T, K) each; None: none shown)."""
-        self.contact.flags = None if leader_bones is None else (leader_bones, follower_bones)
+    def set_contact(self, leader_bones: np.ndarray | None, follower_bones: np.ndarray | None) -> bool:
+        """Which bones interpenetrate, per frame ((T, K) each; None: none shown) -> whether that changed."""
+        new = None if leader_bones is None else (leader_bones, follower_bones)
+        old = self.contact.flags
+        changed = (old is None) != (new is None) or (new is not None and not all(
+            a.shape == b.shape and np.array_equal(a, b) for a, b in zip(old, new, strict=True)))
+        self.contact.flags = new
         self._show_contact()
+        return changed
 
     def _show_contact(self) -> None:
         self.contact.enabled = self.layout == "overlay" and self.visible["leader"] and self.visible["synthesized"]
