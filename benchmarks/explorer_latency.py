@@ -12,7 +12,8 @@ Measures, and prints with the machine's thread count and load:
      and the server's render capability (update + render + JPEG per frame, same view size) in fps.
   4. the same slider latency with a mix pinned (A/B compare: two followers in the view), and with five tabs open
      at once (each tab its own studio process);
-  5. memory: resident set size of each studio process (one per tab, plus the warm spare), and in all for 5 tabs.
+  5. memory with 5 tabs: RSS, PSS and USS of each studio process (one per tab, plus the warm spare) and of the
+     zygote they are forked from, and the PSS of all of them together (`--memory-only`: just this).
 Bars: slider p95 <= 60 ms idle, <= 100 ms with A/B or the 'reads as' panel, <= 150 ms with 5 tabs (issues 9, 12);
 warm start <= 4 s, cold <= 6 s (issue 12); >= 30 fps render capability; RSS per tab <= 300 MB (issue 13).
 """
@@ -123,16 +124,38 @@ def render_capability(frames: int = 60, size=(1052, 497)) -> float:
     return 1000.0 / wall_ms, 1000.0 / cpu_ms
 
 
-def studio_rss_mb(launcher_pid: int) -> list[float]:
-    """Resident set size (MB) of each studio process the launcher started (its child processes), from /proc."""
-    children = Path(f"/proc/{launcher_pid}/task/{launcher_pid}/children")
-    out = []
-    for pid in children.read_text().split() if children.exists() else []:
-        status = Path(f"/proc/{pid}/status")
-        rss = [ln for ln in status.read_text().splitlines() if ln.startswith("VmRSS:")] if status.exists() else []
-        if rss:
-            out.append(int(rss[0].split()[1]) / 1024)
-    return out
+def _children(pid: int) -> list[int]:
+    path = Path(f"/proc/{pid}/task/{pid}/children")
+    return [int(c) for c in path.read_text().split()] if path.exists() else []
+
+
+def _smaps_mb(pid: int) -> dict[str, float]:
+    """RSS; PSS (shared pages divided among the processes sharing them: the processes' PSS add up to what they use
+    together); USS (pages this process alone holds: what one more tab costs), in MB."""
+    kb = {}
+    for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines()[1:]:
+        name, value = line.split(":", 1)
+        kb[name] = int(value.split()[0])
+    return {"rss": kb["Rss"] / 1024, "pss": kb["Pss"] / 1024, "uss": (kb["Private_Clean"] + kb["Private_Dirty"]) / 1024}
+
+
+def studio_memory(launcher_pid: int) -> dict:
+    """Memory of the zygote (explorer/zygote.py, the launcher's child) and of each studio process it forked."""
+    kids = _children(launcher_pid)
+    zygotes = [k for k in kids if _children(k)]
+    tabs = [k for k in kids if k not in zygotes] + [c for z in zygotes for c in _children(z)]  # the former: no zygote
+    return {"zygote": [_smaps_mb(z) for z in zygotes], "tabs": [_smaps_mb(t) for t in tabs]}
+
+
+def print_memory(memory: dict, tabs: int) -> None:
+    procs = memory["tabs"]
+    total_pss = sum(m["pss"] for m in memory["zygote"] + procs)
+    col = lambda key, ms=procs: ", ".join(f"{m[key]:.0f}" for m in ms)  # noqa: E731
+    print(f"memory with {tabs} tabs open: {len(procs)} studio processes (one per tab + the warm spare) forked from one "
+          f"loaded zygote ({col('rss', memory['zygote'])} MB RSS)\n"
+          f"  per studio process: RSS {col('rss')} MB; PSS {col('pss')} MB; USS (its own pages) {col('uss')} MB\n"
+          f"  in all (PSS of the zygote and every studio process): {total_pss:.0f} MB = {total_pss / tabs:.0f} MB per tab   "
+          "[goal <= 300 MB per tab]")
 
 
 def _p(lat: np.ndarray) -> dict:
@@ -183,10 +206,10 @@ def measure_tabs(browser, studio: probe.StudioProcess, trials: int, res: dict, t
     """`tabs` tabs open at once (one studio process each): slider latency in each in turn, and memory."""
     pages = [probe.open_studio(browser, studio.url, *VIEW_SIZE, timeout_ms=120000) for _ in range(tabs)]
     try:
-        rss = studio_rss_mb(studio.proc.pid)
-        res["rss_mb"] = {"per_process": rss, "total": float(sum(rss))}
-        print(f"memory with {tabs} tabs open: {len(rss)} studio processes (one per tab + the warm spare), RSS "
-              f"{', '.join(f'{r:.0f}' for r in rss)} MB; {sum(rss):.0f} MB in all   [bar <= 300 MB per tab]")
+        res["memory_mb"] = studio_memory(studio.proc.pid)
+        print_memory(res["memory_mb"], tabs)
+        if not trials:
+            return
         lats = []
         for page in pages:
             probe.watch_view_images(page)
@@ -203,6 +226,7 @@ def main() -> int:
     ap.add_argument("--trials", type=int, default=40)
     ap.add_argument("--play-seconds", type=float, default=5.0)
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--memory-only", action="store_true", help="only the memory of 5 tabs (CPU load does not skew it)")
     args = ap.parse_args()
     from playwright.sync_api import sync_playwright
 
@@ -211,6 +235,14 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp, sync_playwright() as p:
         browser = probe.launch_chromium(p)
         cache = Path(tmp) / "cache"
+        if args.memory_only:
+            studio = probe.StudioProcess(cache_dir=cache, timeout=120)
+            try:
+                measure_tabs(browser, studio, 0, res)
+            finally:
+                studio.stop()
+                browser.close()
+            return 0
         studio = measure_start(browser, cache, res)
         try:
             page = measure_sliders(browser, studio, cache, args.trials, res)

@@ -18,7 +18,8 @@ from explorer import charts
 from explorer.compare import Compare
 from explorer.exports import Exports, one_line
 from explorer.keys import press
-from explorer.latent import METHODS, LatentMap
+from explorer.latent import LatentMap
+from explorer.latent_panel import LatentPanel
 from explorer.layout import build_layout
 from explorer.palette import class_color, display_name
 from explorer.playback import play
@@ -38,9 +39,9 @@ class Studio:
         self.server = server
         self.render_mode = render
         self.session = session
-        self.latent = latent
         self.exports = Exports(self, export_dir)
         self.compare = Compare(self)
+        self.latent_panel = LatentPanel(self, latent)
         data = session.data
         self.scene = Scene(data.skeleton, floor_height(data.leader, data.follower, data.skeleton))
         self._mix_pending = False
@@ -128,11 +129,9 @@ class Studio:
         s.change(*[f"w_{i}" for i in range(len(self.session.class_names))], "scale")(self.on_mix_change)
         s.change("scene_layout")(self.on_layout_change)
         s.change("show_leader", "show_ground_truth", "show_synthesized")(self.on_visibility_change)
-        s.change("projection")(self.on_projection_change)
         s.change("playing")(self.on_playing_change)
         c.match_label = self.match_label
         c.reset_label = self.reset_label
-        c.pick_latent_point = self.pick_latent_point
         c.set_camera = self.set_camera
         c.step_frame = self.step_frame
         self.server.trigger("key_pressed")(self.guarded(lambda key: press(self, str(key)[:20])))
@@ -301,7 +300,7 @@ class Studio:
                       else f"AFD {afd:.3f} (SBU units) · mean {self._distances.mean():.2f} m")
         self._update_time()
         self.update_distance_chart(force=force_chart)
-        self._update_latent_figure()
+        self.latent_panel.redraw()
         s.mix_count = (s.mix_count or 0) + 1
 
     def match_label(self):
@@ -374,55 +373,6 @@ class Studio:
         self._last_chart = now
         self.state.distance_figure = charts.distance_figure(self._distances, int(self.state.frame or 0), FPS, self._ab_distances,
                                                             self._closest)
-
-    def _update_latent_figure(self) -> None:
-        s, ses, d = self.state, self.session, self.session.data
-        method = s.projection or "tsne"
-        if not self.latent.has(method):
-            return
-        mix_xy = self.latent.place(ses.mix_latent(), method)
-        s.latent_figure = charts.latent_figure(
-            self.latent.coords[method],
-            d.actions,
-            d.held_out,
-            d.sequence_ids,
-            ses.class_names,
-            None if ses.upload else ses.index,
-            mix_xy,
-            ses.label_text(),
-            method,
-        )
-
-    def on_projection_change(self, projection, **_):
-        if projection not in METHODS:
-            return
-        if self.latent.has(projection):
-            self._update_latent_figure()
-            return
-        self.state.projection_busy = True
-        asynchronous.create_task(self._compute_projection(projection))
-
-    async def _compute_projection(self, method: str):
-        try:
-            await asyncio.to_thread(self.latent.ensure, method)
-        except Exception as err:
-            with self.state:
-                self.state.error = f"{method} projection failed: {one_line(err)}"
-                self.state.projection = "tsne"
-        with self.state:
-            self.state.projection_busy = False
-            self._update_latent_figure()
-
-    @_guard
-    def pick_latent_point(self, index):
-        if index is None:
-            return
-        index = int(index[0] if isinstance(index, list | tuple) else index)
-        with self.state:
-            self.state.class_filter = ""
-            self.state.pair_filter = ""
-            self.state.held_filter = "all"
-        self.load_sequence(index)
 
     # ---- layout --------------------------------------------------------------------------
     def _build_ui(self):

@@ -87,80 +87,43 @@ def latent_figure(
 ) -> dict:
     """One trace per class (legend = class colors); held-out sequences as open circles; the current
     sequence ringed in black; the current mix as a green star (green = synthesized, as in 3D)."""
-    data = []
+    data = _class_traces(coords, actions, held_out, sequence_ids, class_names)
+    if current_index is not None:  # None: an uploaded leader, which has no point of its own on the map
+        data.append(_point_trace("this sequence (match)", coords[current_index], int(current_index),
+                                 f"{sequence_ids[current_index]} with its own label<extra></extra>",
+                                 {"size": 15, "symbol": "circle-open", "color": "#111", "line": {"width": 2.5, "color": "#111"}}))
+    if mix_xy is not None:
+        data.append(_point_trace("current mix (synth)", mix_xy, -1 if current_index is None else int(current_index),
+                                 mix_text.replace("%", "%%") + "<extra>current mix</extra>",
+                                 {"size": 18, "symbol": "star", "color": SYNTHESIZED, "line": {"width": 1.5, "color": "#111"}}))
+    title = {"text": method.upper() if method == "umap" else "t-SNE", "x": 0, "y": 1, "xref": "paper", "yref": "paper",
+             "showarrow": False, "xanchor": "left", "font": {"size": 10, "color": "#777"}}
+    layout = {"margin": {"l": 8, "r": 8, "t": 8, "b": 8}, "font": FONT, "xaxis": {"visible": False}, "yaxis": {"visible": False},
+              "legend": {"orientation": "v", "x": 1.0, "xanchor": "left", "y": 1, "font": {"size": 10}},
+              "hovermode": "closest", "plot_bgcolor": "#ffffff", "paper_bgcolor": "rgba(0,0,0,0)", "annotations": [title],
+              "uirevision": method,  # keep the user's zoom while the star moves
+              "autosize": True}
+    return {"data": data, "layout": layout}
+
+
+def _class_traces(coords, actions, held_out, sequence_ids, class_names) -> list[dict]:
+    traces = []
     for c, name in enumerate(class_names):
         idx = np.flatnonzero(actions == c)
         if not len(idx):
             continue
-        data.append(
-            {
-                "type": "scatter",
-                "mode": "markers",
-                "name": display_name(name),
-                "x": np.round(coords[idx, 0], 3).tolist(),
-                "y": np.round(coords[idx, 1], 3).tolist(),
-                "customdata": idx.tolist(),
-                "text": [sequence_ids[i] + (" (held out)" if held_out[i] else "") for i in idx],
-                "hovertemplate": "%{text}<extra>" + display_name(name) + "</extra>",
-                "marker": {
-                    "color": class_color(c),
-                    "size": 8,
-                    "symbol": ["circle-open" if held_out[i] else "circle" for i in idx],
-                    "line": {"width": 1.5, "color": class_color(c)},
-                },
-            }
-        )
-    if current_index is not None:  # None: an uploaded leader, which has no point of its own on the map
-        cur = coords[current_index]
-        data.append(
-            {
-                "type": "scatter",
-                "mode": "markers",
-                "name": "this sequence (match)",
-                "x": [float(cur[0])],
-                "y": [float(cur[1])],
-                "customdata": [int(current_index)],
-                "hovertemplate": f"{sequence_ids[current_index]} with its own label<extra></extra>",
-                "marker": {"size": 15, "symbol": "circle-open", "color": "#111", "line": {"width": 2.5, "color": "#111"}},
-            }
-        )
-    if mix_xy is not None:
-        data.append(
-            {
-                "type": "scatter",
-                "mode": "markers",
-                "name": "current mix (synth)",
-                "x": [float(mix_xy[0])],
-                "y": [float(mix_xy[1])],
-                "customdata": [-1 if current_index is None else int(current_index)],
-                "hovertemplate": mix_text.replace("%", "%%") + "<extra>current mix</extra>",
-                "marker": {"size": 18, "symbol": "star", "color": SYNTHESIZED, "line": {"width": 1.5, "color": "#111"}},
-            }
-        )
-    return {
-        "data": data,
-        "layout": {
-            "margin": {"l": 8, "r": 8, "t": 8, "b": 8},
-            "font": FONT,
-            "xaxis": {"visible": False},
-            "yaxis": {"visible": False},
-            "legend": {"orientation": "v", "x": 1.0, "xanchor": "left", "y": 1, "font": {"size": 10}},
-            "hovermode": "closest",
-            "plot_bgcolor": "#ffffff",
-            "paper_bgcolor": "rgba(0,0,0,0)",
-            "annotations": [
-                {
-                    "text": method.upper() if method == "umap" else "t-SNE",
-                    "x": 0,
-                    "y": 1,
-                    "xref": "paper",
-                    "yref": "paper",
-                    "showarrow": False,
-                    "xanchor": "left",
-                    "font": {"size": 10, "color": "#777"},
-                }
-            ],
-            "uirevision": method,  # keep the user's zoom while the star moves
-            "autosize": True,
-        },
-    }
+        traces.append({
+            "type": "scatter", "mode": "markers", "name": display_name(name),
+            "x": np.round(coords[idx, 0], 3).tolist(), "y": np.round(coords[idx, 1], 3).tolist(),
+            "customdata": idx.tolist(),
+            "text": [sequence_ids[i] + (" (held out)" if held_out[i] else "") for i in idx],
+            "hovertemplate": "%{text}<extra>" + display_name(name) + "</extra>",
+            "marker": {"color": class_color(c), "size": 8, "symbol": ["circle-open" if held_out[i] else "circle" for i in idx],
+                       "line": {"width": 1.5, "color": class_color(c)}},
+        })  # fmt: skip
+    return traces
+
+
+def _point_trace(name: str, xy, customdata: int, hover: str, marker: dict) -> dict:
+    return {"type": "scatter", "mode": "markers", "name": name, "x": [float(xy[0])], "y": [float(xy[1])],
+            "customdata": [customdata], "hovertemplate": hover, "marker": marker}

@@ -1,11 +1,11 @@
 """`imm explore`'s front door: one studio process per browser client.
 
 A trame server shares one state among all its clients, so two people on one server would move each
-other's sliders. The launcher listens on the public port; each visit to `/` takes a warm worker
-process (explorer/worker.py, already loaded and listening on its own port) when the front page's script
-claims one (a same-origin POST: a bare GET or another web page cannot), sends the browser to it and starts
-the next spare in the background. Workers exit when their user has gone, or when no browser connects to
-them within worker.CLAIM_TIMEOUT_S of the claim.
+other's sliders. The launcher listens on the public port; each visit to `/` takes a warm studio
+process (explorer/worker.py, forked by explorer/zygote.py and listening on its own loopback port) when the
+front page's script claims one (a same-origin POST: a bare GET or another web page cannot), forwards the tab
+to it (proxy.py) and forks the next spare in the background. Studio processes exit when their user has gone,
+or when no browser connects to them within worker.CLAIM_TIMEOUT_S of the claim.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from explorer.worker import PREFIX, SECRET_ENV
+from explorer.worker import PREFIX
 
 TOKEN_COOKIE = "imm_studio_token"
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
@@ -35,9 +35,10 @@ class LaunchError(Exception):
 
 @dataclass
 class Worker:
-    process: asyncio.subprocess.Process
+    id: str  # the zygote's name for it (explorer/zygote.py)
     secret: str  # its wslink secret (proxy.py puts it into the browser's hello)
     port: int = 0
+    exited: bool = False
     ready: asyncio.Future = field(default_factory=lambda: asyncio.get_running_loop().create_future())
 
 
@@ -85,49 +86,78 @@ class Launcher:
         self.spares: list[Worker] = []
         self.busy: list[Worker] = []
         self.sessions: dict[str, Worker] = {}  # /s/<token>/ -> the tab's studio process
+        self.workers: dict[str, Worker] = {}  # by zygote id, until it exits
+        self.zygote: asyncio.subprocess.Process | None = None  # explorer/zygote.py: forks the studio processes
+        self.loaded: asyncio.Future | None = None
+        self.spawned = 0
         self.url = ""
 
     # ---- workers -------------------------------------------------------------------------
     async def spawn(self) -> Worker:
-        """A studio process on a loopback port of its own: browsers reach it only through this launcher (proxy.py)."""
-        c = self.config
-        cmd = [sys.executable, "-m", "explorer.worker", "--data", str(c.data), "--checkpoint", str(c.checkpoint),
-               "--host", "127.0.0.1", "--port", "0", "--export-dir", str(c.export_dir), "--idle-exit", str(c.idle_exit),
-               "--watch-stdin"]  # fmt: skip
-        if c.cache_dir:
-            cmd += ["--cache-dir", str(c.cache_dir)]
-        cmd += ["--render", c.render]
-        if c.sequence:
-            cmd += ["--sequence", c.sequence]
-        if c.judge:
-            cmd += ["--judge", c.judge]
-        secret = secrets.token_urlsafe(24)  # in the environment, not argv: `ps` shows argv to every local user
-        env = {**os.environ, "OMP_NUM_THREADS": "1", "VTK_DEFAULT_OPENGL_WINDOW": "vtkEGLRenderWindow", SECRET_ENV: secret}
-        proc = await asyncio.create_subprocess_exec(*cmd, stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE, env=env)
-        w = Worker(proc, secret)
-        asyncio.get_running_loop().create_task(self._read(w))
+        """A studio process on a loopback port of its own, forked by the zygote: browsers reach it only through this
+        launcher (proxy.py). Its secret goes through the zygote's stdin, not argv: `ps` shows argv to every local user."""
+        if self.zygote is None:
+            await self._start_zygote()
+        await self.loaded  # a bad data file or checkpoint fails here, in one line
+        self.spawned += 1
+        w = Worker(str(self.spawned), secrets.token_urlsafe(24))
+        self.workers[w.id] = w
+        self._tell(f"spawn {w.id} {w.secret}")
         return w
 
-    async def _read(self, w: Worker) -> None:
-        assert w.process.stdout is not None
-        while line := await w.process.stdout.readline():
-            text = line.decode(errors="replace").strip()
-            if not text.startswith(PREFIX + " "):
+    async def _start_zygote(self) -> None:
+        c = self.config
+        cmd = [sys.executable, "-m", "explorer.zygote", "--data", str(c.data), "--checkpoint", str(c.checkpoint),
+               "--host", "127.0.0.1", "--port", "0", "--export-dir", str(c.export_dir), "--idle-exit", str(c.idle_exit),
+               "--render", c.render]  # fmt: skip
+        cmd += ["--cache-dir", str(c.cache_dir)] if c.cache_dir else []
+        cmd += ["--sequence", c.sequence] if c.sequence else []
+        cmd += ["--judge", c.judge] if c.judge else []
+        env = {**os.environ, "OMP_NUM_THREADS": "1", "VTK_DEFAULT_OPENGL_WINDOW": "vtkEGLRenderWindow"}
+        self.loaded = asyncio.get_running_loop().create_future()
+        self.zygote = await asyncio.create_subprocess_exec(*cmd, stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE, env=env)
+        asyncio.get_running_loop().create_task(self._read())
+
+    def _tell(self, line: str) -> None:
+        if self.zygote is not None and self.zygote.stdin is not None and not self.zygote.stdin.is_closing():
+            self.zygote.stdin.write(line.encode() + b"\n")
+
+    async def _read(self) -> None:
+        """The zygote's lines: loaded, and each studio process's READY, ERROR and EXIT."""
+        assert self.zygote is not None and self.zygote.stdout is not None
+        while line := await self.zygote.stdout.readline():
+            words = line.decode(errors="replace").strip().split(" ", 3)
+            if len(words) < 2 or words[0] != PREFIX:
                 continue
-            kind, _, rest = text[len(PREFIX) + 1 :].partition(" ")
-            if kind == "READY" and not w.ready.done():
-                w.port = int(rest)
-                w.ready.set_result(True)
-            elif kind == "ERROR" and not w.ready.done():
-                w.ready.set_exception(LaunchError(rest))
-        code = await w.process.wait()
-        if not w.ready.done():
-            w.ready.set_exception(LaunchError(f"studio process exited with code {code} before it was ready"))
-        for pool in (self.spares, self.busy):
-            if w in pool:
-                pool.remove(w)
-        for token in [t for t, s in self.sessions.items() if s is w]:
-            del self.sessions[token]
+            kind, wid, rest = words[1], (words[2:3] or [""])[0], (words[3:4] or [""])[0]
+            if kind == "LOADED" and not self.loaded.done():
+                self.loaded.set_result(True)
+            elif kind == "ERROR" and wid == "-" and not self.loaded.done():
+                self.loaded.set_exception(LaunchError(rest))
+            elif (w := self.workers.get(wid)) is not None:
+                self._worker_says(w, kind, rest)
+        code = await self.zygote.wait()
+        if not self.loaded.done():
+            self.loaded.set_exception(LaunchError(f"the studio's loader exited with code {code} before it was ready"))
+        for w in list(self.workers.values()):
+            self._worker_says(w, "EXIT", str(code))
+
+    def _worker_says(self, w: Worker, kind: str, rest: str) -> None:
+        if kind == "READY" and not w.ready.done():
+            w.port = int(rest)
+            w.ready.set_result(True)
+        elif kind == "ERROR" and not w.ready.done():
+            w.ready.set_exception(LaunchError(rest))
+        elif kind == "EXIT":
+            w.exited = True
+            if not w.ready.done():
+                w.ready.set_exception(LaunchError(f"studio process exited with code {rest} before it was ready"))
+            self.workers.pop(w.id, None)
+            for pool in (self.spares, self.busy):
+                if w in pool:
+                    pool.remove(w)
+            for token in [t for t, s in self.sessions.items() if s is w]:
+                del self.sessions[token]
 
     def _top_up(self) -> None:
         want = min(self.config.spares, self.config.max_clients - len(self.busy)) - len(self.spares)
@@ -136,8 +166,15 @@ class Launcher:
             asyncio.get_running_loop().create_task(self._add_spare())
 
     async def _add_spare(self) -> None:
-        w = await self.spawn()
-        self.spares[self.spares.index(None)] = w  # type: ignore[arg-type]
+        try:
+            w = await self.spawn()
+        except LaunchError:
+            w = None  # the loader is gone: take() says so
+        slot = self.spares.index(None)  # type: ignore[arg-type]
+        if w is None:
+            del self.spares[slot]
+        else:
+            self.spares[slot] = w
 
     async def take(self) -> Worker:
         """A ready worker for a new client (waits for the spare when it is still loading)."""
@@ -178,8 +215,7 @@ class Launcher:
             w = await self.take()
         except LaunchError as err:
             return web.Response(status=503, content_type="text/html", text=_error_page(str(err)))
-        if w.process.stdin is not None:
-            w.process.stdin.write(b"claimed\n")  # the process exits if no browser connects to it soon
+        self._tell(f"claimed {w.id}")  # the process exits if no browser connects to it soon
         token = secrets.token_urlsafe(18)
         self.sessions[token] = w
         return web.json_response({"url": f"s/{token}/"})  # relative: a reverse proxy's path prefix is kept
@@ -193,7 +229,7 @@ class Launcher:
         if not self.authorized(request):
             return web.Response(status=403, text="refused: the studio only answers its own page")
         w = self.sessions.get(request.match_info["token"])
-        if w is None or w.process.returncode is not None:
+        if w is None or w.exited:
             self.sessions.pop(request.match_info["token"], None)
             raise web.HTTPFound("../../")  # an old or unknown link: back to the front page for a fresh studio
         tail = request.match_info["tail"]
@@ -221,9 +257,9 @@ class Launcher:
         from aiohttp import web
 
         t0 = time.monotonic()
-        first = await self.spawn()
-        self.spares.append(first)
         try:
+            first = await self.spawn()
+            self.spares.append(first)
             await first.ready  # bad data/checkpoint fail here, before any URL is printed
         except LaunchError:
             await self.shutdown()
@@ -257,15 +293,15 @@ class Launcher:
         return 0
 
     async def shutdown(self) -> None:
-        for w in [*self.spares, *self.busy]:
-            if w is not None and w.process.returncode is None:
-                w.process.terminate()
-        for w in [*self.spares, *self.busy]:
-            if w is not None:
-                try:
-                    await asyncio.wait_for(w.process.wait(), 5)
-                except (TimeoutError, ProcessLookupError):
-                    w.process.kill()
+        """Closing the zygote's stdin ends every studio process (their stdin closes too), then the zygote."""
+        if self.zygote is None or self.zygote.returncode is not None:
+            return
+        if self.zygote.stdin is not None:
+            self.zygote.stdin.close()
+        try:
+            await asyncio.wait_for(self.zygote.wait(), 5)
+        except TimeoutError:
+            self.zygote.kill()
 
 
 def _open_browser(url: str) -> None:

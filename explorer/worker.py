@@ -1,8 +1,10 @@
-"""One studio process = one user: loads data + model, builds the page, serves it on its own port.
+"""One studio process = one user: serves the page for the data, model and latent map it was given, on its own
+loopback port.
 
-Started by the launcher (launcher.py) as `python -m explorer.worker ...`. It talks to the launcher
-with single lines on stdout (`IMM-WORKER READY <port>` or `IMM-WORKER ERROR <message>`) and exits when
-its user has been gone for `--idle-exit` seconds or when the launcher goes away (stdin closes).
+Forked per browser tab by the zygote (explorer/zygote.py), which loaded everything once. It says
+`IMM-WORKER READY <id> <port>` (or `ERROR <id> <message>`) to the launcher and exits when its user has been gone
+for `--idle-exit` seconds, when no browser connects within CLAIM_TIMEOUT_S of being handed out, or when the
+launcher goes away (its stdin closes).
 """
 
 from __future__ import annotations
@@ -13,20 +15,37 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import TextIO
 
 # a claimed studio process whose browser never connects exits after this ($IMM_STUDIO_CLAIM_TIMEOUT: tests)
 CLAIM_TIMEOUT_S = float(os.environ.get("IMM_STUDIO_CLAIM_TIMEOUT", "20"))
 PREFIX = "IMM-WORKER"
-SECRET_ENV = "IMM_STUDIO_SECRET"  # the launcher's per-process wslink secret (explorer/proxy.py)
 
 
-def _say(*words: object) -> None:
-    sys.stdout.write(" ".join([PREFIX, *map(str, words)]) + "\n")
-    sys.stdout.flush()
+class Channel:
+    """Lines to the launcher, `IMM-WORKER <kind> [<worker id>] <words>`, each written whole (one write of a short
+    line to a pipe is atomic, so processes sharing the pipe never interleave)."""
+
+    def __init__(self, out: TextIO, worker_id: str | None = None):
+        self.out, self.worker_id = out, worker_id
+
+    def __call__(self, kind: str, *words: object) -> None:
+        ids = () if self.worker_id is None else (self.worker_id,)
+        self.out.write(" ".join([PREFIX, kind, *ids, *map(str, words)]) + "\n")
+        self.out.flush()
+
+
+def say_line(kind: str, *words: object) -> None:
+    Channel(sys.stdout)(kind, *words)
+
+
+def one_line_error(err: BaseException) -> str:
+    msg = str(err.args[0] if isinstance(err, KeyError) and err.args else err).strip().splitlines()
+    return msg[0] if msg else type(err).__name__
 
 
 def parse_args(argv=None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(prog="python -m explorer.worker")
+    p = argparse.ArgumentParser(prog="python -m explorer.zygote")
     p.add_argument("--data", type=Path, required=True)
     p.add_argument("--checkpoint", type=Path, required=True)
     p.add_argument("--cache-dir", type=Path, default=None)
@@ -37,7 +56,6 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--sequence", default=None, help="sequence id or index to open first")
     p.add_argument("--judge", type=Path, default=None, help="'reads as' classifier (default: the bundled one; 'none' hides the panel)")
     p.add_argument("--idle-exit", type=float, default=60.0, help="seconds without a client before exiting (after the first one)")
-    p.add_argument("--watch-stdin", action="store_true", help="exit when stdin closes (the launcher died)")
     return p.parse_args(argv)
 
 
@@ -77,7 +95,7 @@ def start_index(data, sequence: str | None) -> int:
     raise ValueError(f"--sequence {sequence!r}: no such sequence (an id such as {data.sequence_ids[0]}, or an index 0..{len(data) - 1})")
 
 
-def serve(data, model, latent, reader, args: argparse.Namespace) -> int:
+def serve(data, model, latent, reader, args: argparse.Namespace, *, secret: str, say: Channel) -> int:
     from trame.app import get_server
     from wslink.websocket import LinkProtocol
 
@@ -87,8 +105,7 @@ def serve(data, model, latent, reader, args: argparse.Namespace) -> int:
 
     patch_image_delivery()
     server = get_server("imm-studio", client_type="vue3")
-    if secret := os.environ.pop(SECRET_ENV, None):
-        server.cli.set_defaults(authKey=secret)  # wslink's default secret is public: every process gets its own
+    server.cli.set_defaults(authKey=secret)  # wslink's default secret is public: every process gets its own
     session = Session(data, model, args.start, reader)
     Studio(server, session, latent, export_dir=args.export_dir, render=args.render)
 
@@ -125,29 +142,7 @@ def serve(data, model, latent, reader, args: argparse.Namespace) -> int:
         os._exit(0)  # EOF: the launcher is gone
 
     threading.Thread(target=idle_watch, daemon=True).start()
-    if args.watch_stdin:
-        threading.Thread(target=stdin_watch, daemon=True).start()
-    server.controller.on_server_ready.add(lambda **_: _say("READY", server.port))
+    threading.Thread(target=stdin_watch, daemon=True).start()
+    server.controller.on_server_ready.add(lambda **_: say("READY", server.port))
     server.start(host=args.host, port=args.port, open_browser=False, show_connection_info=False, disable_logging=True)
     return 0
-
-
-def main(argv=None) -> int:
-    args = parse_args(argv)
-    import torch
-
-    # One intra-op thread: the model's per-request work is a few ms, and several studio processes
-    # (plus rendering) share the cores; more threads made each synthesis 4x slower here.
-    torch.set_num_threads(1)
-    try:
-        data, model, latent, reader = load_everything(args)
-        args.start = start_index(data, args.sequence)
-    except Exception as err:  # one line for the launcher / terminal, never a traceback
-        msg = str(err.args[0] if isinstance(err, KeyError) and err.args else err).strip().splitlines()
-        _say("ERROR", msg[0] if msg else type(err).__name__)
-        return 2
-    return serve(data, model, latent, reader, args)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

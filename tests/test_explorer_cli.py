@@ -6,6 +6,7 @@ import dataclasses
 import socket
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -224,22 +225,30 @@ def _hello(port: int, secret: str) -> dict:
 @pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
 def test_a_studio_process_answers_only_its_own_secret(tmp_path):
     """Another local user who finds a studio process's loopback port cannot log in with wslink's public default;
-    the proxy puts the process's own secret into the browser's hello."""
-    import os
-
+    the proxy puts the process's own secret into the browser's hello. Also the zygote's protocol: studio processes
+    forked on request, each with its own secret, and all gone when the launcher's end of the pipe closes."""
     from explorer.proxy import with_secret
-    from explorer.worker import SECRET_ENV
     from imm_model.paths import SAMPLE_DATA
 
-    cmd = [sys.executable, "-m", "explorer.worker", "--data", str(SAMPLE_DATA), "--checkpoint", str(SAMPLE_CHECKPOINT),
+    cmd = [sys.executable, "-m", "explorer.zygote", "--data", str(SAMPLE_DATA), "--checkpoint", str(SAMPLE_CHECKPOINT),
            "--cache-dir", str(tmp_path), "--port", "0"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True, env=os.environ | {SECRET_ENV: "the-process-secret"})
+    proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     try:
-        line = proc.stdout.readline()
-        assert line.startswith("IMM-WORKER READY"), line
-        port = int(line.split()[-1])
-        assert "error" in _hello(port, "wslink-secret")
-        assert _hello(port, "the-process-secret")["result"]["clientID"]
+        assert proc.stdout.readline().strip() == "IMM-WORKER LOADED"
+        proc.stdin.write("spawn 7 the-process-secret\nspawn 8 another-secret\n")
+        proc.stdin.flush()
+        ready = dict(proc.stdout.readline().split()[2:4] for _ in range(2))  # READY <id> <port>, in either order
+        assert set(ready) == {"7", "8"} and ready["7"] != ready["8"]
+        assert "error" in _hello(int(ready["7"]), "wslink-secret")
+        assert "error" in _hello(int(ready["7"]), "another-secret")
+        assert _hello(int(ready["7"]), "the-process-secret")["result"]["clientID"]
+        assert _hello(int(ready["8"]), "another-secret")["result"]["clientID"]
+        proc.stdin.close()  # the launcher is gone: every studio process exits, then the zygote
+        assert proc.wait(20) == 0
+        time.sleep(1)
+        for port in ready.values():
+            with pytest.raises(OSError):
+                socket.create_connection(("127.0.0.1", int(port)), timeout=5).close()
     finally:
         proc.kill()
     import msgpack

@@ -51,9 +51,14 @@ def test_tiny_reproduce_killed_then_resumed_writes_all_four_tables(tmp_path):
         assert title in report
     assert "imm-no-label" in report and "Missing" not in report
     assert (out / "afd.png").stat().st_size > 1000
-    third = _reproduce(out, env)  # everything is reused: no training, no evaluation
+    records = out / "records"  # the runs' small records, no checkpoint: enough to write the report again
+    assert list(records.glob("*/fold-*/done.json")) and not list(records.rglob("*.safetensors"))
+    again = tmp_path / "again"
+    third = _reproduce(again, env, "--runs", str(records))  # everything is reused: no training, no evaluation
     log = third.communicate(timeout=300)[0]
     assert "0 to resume, 0 to train" in log and "0 to run" in log, log
+    summary = lambda d: json.loads((d / "summary.json").read_text())["imm"]  # noqa: E731
+    assert summary(again) == summary(out)
 
 
 def test_a_run_with_another_key_is_moved_aside_not_deleted(tmp_path):

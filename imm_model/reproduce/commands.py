@@ -50,6 +50,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     from imm_model.cache import dataset_hash
     from imm_model.data.dataset import InteractionDataset
     from imm_model.paths import SAMPLE_DATA, k3hi_raw_root
+    from imm_model.reproduce.jobs import copy_records
     from imm_model.reproduce.plan import ReproducePlan
     from imm_model.reproduce.report import write_report
     from imm_model.reproduce.runner import Runner
@@ -72,8 +73,10 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         results = _evaluate(runner, plan, runs, data_path, trained, args.cpus_per_task)
     wall = time.perf_counter() - t0
     report = write_report(plan, results, args.out.resolve(), wall, runs)
+    records = copy_records(plan.training_jobs(), runs, args.out.resolve() / "records")
     failed = len(plan.training_jobs()) - len(trained) + sum(1 for r in results.values() if r is None)
-    print(f"report: {report} ({wall / 60:.1f} min wall{f'; {failed} jobs failed' if failed else ''})")
+    print(f"report: {report} ({wall / 60:.1f} min wall{f'; {failed} jobs failed' if failed else ''}); "
+          f"the records of {records} runs (no checkpoints) in {args.out / 'records'}")
     return 1 if failed else 0
 
 

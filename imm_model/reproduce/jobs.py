@@ -81,3 +81,22 @@ def stamp_job(job: TrainJob, runs: Path, key: str) -> None:
 
 def mark_done(job: TrainJob, runs: Path, info: dict) -> None:
     (job.run_dir(runs) / "done.json").write_text(json.dumps(info, indent=1) + "\n")
+
+
+def copy_records(jobs: list[TrainJob], runs: Path, dest: Path) -> int:
+    """Copy each finished run's small records (job.json, done.json and its cached evaluations: every *.json) to the
+    same layout under `dest` -> how many runs. `--runs dest` then rebuilds the report without a checkpoint: the runs
+    count as finished and their evaluations as cached. Kept beside the report because checkpoints are too large for
+    a repository (60 runs per seed), while the records are what the tables are computed from."""
+    import shutil
+
+    copied = 0
+    for job in jobs:
+        src, dst = job.run_dir(runs), job.run_dir(dest)
+        if not (src / "done.json").exists() or src.resolve() == dst.resolve():
+            continue
+        dst.mkdir(parents=True, exist_ok=True)
+        for f in src.glob("*.json"):
+            shutil.copy2(f, dst / f.name)
+        copied += 1
+    return copied

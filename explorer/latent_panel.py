@@ -1,0 +1,65 @@
+"""The latent map beside the 3D view: every sequence's latent as a point (t-SNE or UMAP), the current mix as a
+star, and a click on a point that opens that sequence. A method not fitted yet is fitted in a thread, so the
+page stays responsive (explorer/latent.py keeps one fit per method at a time)."""
+
+from __future__ import annotations
+
+import asyncio
+
+from trame.app import asynchronous
+
+from explorer import charts
+from explorer.exports import one_line
+from explorer.latent import METHODS, LatentMap
+
+
+class LatentPanel:
+    def __init__(self, studio, latent: LatentMap):
+        self.studio = studio
+        self.latent = latent
+        studio.state.change("projection")(self.on_projection_change)
+        studio.ctrl.pick_latent_point = studio.guarded(self.pick_point)
+
+    def redraw(self) -> None:
+        """The map for the chosen method (nothing while that method is still being fitted)."""
+        s, ses, d = self.studio.state, self.studio.session, self.studio.session.data
+        method = s.projection or "tsne"
+        if not self.latent.has(method):
+            return
+        s.latent_figure = charts.latent_figure(
+            self.latent.coords[method], d.actions, d.held_out, d.sequence_ids, ses.class_names,
+            None if ses.upload else ses.index, self.latent.place(ses.mix_latent(), method), ses.label_text(), method,
+        )  # fmt: skip
+
+    def on_projection_change(self, projection, **_):
+        if projection not in METHODS:
+            return
+        if self.latent.has(projection):
+            self.redraw()
+            return
+        self.studio.state.projection_busy = True
+        asynchronous.create_task(self._fit(projection))
+
+    async def _fit(self, method: str):
+        state = self.studio.state
+        try:
+            await asyncio.to_thread(self.latent.ensure, method)
+        except Exception as err:
+            with state:
+                state.error = f"{method} projection failed: {one_line(err)}"
+                state.projection = "tsne"
+        with state:
+            state.projection_busy = False
+            self.redraw()
+
+    def pick_point(self, index) -> None:
+        """A click on a point: open that sequence, with the filters cleared so that it is in the list."""
+        if index is None:
+            return
+        index = int(index[0] if isinstance(index, list | tuple) else index)
+        state = self.studio.state
+        with state:
+            state.class_filter = ""
+            state.pair_filter = ""
+            state.held_filter = "all"
+        self.studio.load_sequence(index)

@@ -1,0 +1,135 @@
+"""The parent of every studio process: loads the data, model, latent map and the heavy libraries once, then forks
+one studio process (explorer/worker.py `serve`) per browser tab.
+
+Why a fork server: a studio process that starts from scratch imports torch, VTK and trame and loads everything
+itself, ~5-10 s before a tab can open and ~350 MB of private memory each. A process forked from this loaded
+parent is serving in well under a second and shares those pages (copy-on-write) with its siblings; `gc.freeze`
+keeps the collector from touching, and so copying, the inherited objects.
+
+The launcher (launcher.py) talks to it with lines on its stdin and stdout:
+  launcher -> zygote   "spawn <id> <secret>"   fork studio process <id> with its own wslink secret
+                       "claimed <id>"          handed to a browser (it exits if none connects soon)
+                       end of file             the launcher is gone: every studio process exits, then this one
+  zygote -> launcher   "IMM-WORKER LOADED" or "IMM-WORKER ERROR - <message>" once, after loading
+                       "IMM-WORKER READY <id> <port>", "IMM-WORKER ERROR <id> <message>", "IMM-WORKER EXIT <id> <code>"
+This process stays single-threaded (a select loop): forking a process with threads is unsafe.
+"""
+
+from __future__ import annotations
+
+import gc
+import os
+import select
+import signal
+import sys
+
+from explorer import worker
+
+
+def preload() -> None:
+    """Import what a studio process needs before the first fork, so that no child imports it again."""
+    from trame.app import get_server  # noqa: F401
+    from trame_vtk.modules.vtk.protocols import publish_image_delivery  # noqa: F401
+    from wslink.websocket import LinkProtocol  # noqa: F401
+
+    import explorer.app  # noqa: F401 - the page, the scene (VTK, PyVista), the charts
+    import explorer.remote  # noqa: F401
+
+
+class ForkServer:
+    def __init__(self, loaded: tuple, args):
+        self.loaded, self.args = loaded, args
+        self.children: dict[int, tuple[str, int]] = {}  # pid -> (worker id, write end of its stdin pipe)
+
+    def run(self) -> int:
+        pending = b""
+        while True:
+            readable, _, _ = select.select([0], [], [], 0.5)
+            self.reap()
+            if not readable:
+                continue
+            chunk = os.read(0, 4096)
+            if not chunk:  # the launcher is gone
+                break
+            pending += chunk
+            while b"\n" in pending:
+                line, pending = pending.split(b"\n", 1)
+                self.command(line.decode(errors="replace").split())
+        for pid, (_, fd) in self.children.items():
+            os.close(fd)  # their stdin ends: each exits by itself (worker.serve's stdin watch)
+            os.kill(pid, signal.SIGTERM)
+        return 0
+
+    def command(self, words: list[str]) -> None:
+        if len(words) == 3 and words[0] == "spawn":
+            self.fork(words[1], words[2])
+        elif len(words) == 2 and words[0] == "claimed":
+            for wid, fd in self.children.values():
+                if wid == words[1]:
+                    os.write(fd, b"claimed\n")
+
+    def fork(self, wid: str, secret: str) -> None:
+        read_end, write_end = os.pipe()
+        pid = os.fork()
+        if pid == 0:
+            os.close(write_end)
+            self.become_studio(wid, secret, read_end)  # never returns
+        os.close(read_end)
+        self.children[pid] = (wid, write_end)
+
+    def become_studio(self, wid: str, secret: str, stdin_fd: int) -> None:
+        for _, fd in self.children.values():  # a sibling's pipe held open here would never reach end of file
+            os.close(fd)
+        os.dup2(stdin_fd, 0)
+        os.close(stdin_fd)
+        channel = os.fdopen(os.dup(1), "w")  # our lines to the launcher; stray prints go to stderr instead
+        os.dup2(2, 1)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        gc.enable()
+        code = 2
+        try:
+            code = worker.serve(*self.loaded, self.args, secret=secret, say=worker.Channel(channel, wid))
+        except BaseException as err:  # one line for the launcher, never a traceback
+            worker.Channel(channel, wid)("ERROR", worker.one_line_error(err))
+        finally:
+            os._exit(code)
+
+    def reap(self) -> None:
+        while self.children:
+            try:
+                pid, status = os.waitpid(-1, os.WNOHANG)
+            except ChildProcessError:
+                return
+            if pid == 0:
+                return
+            wid, fd = self.children.pop(pid, ("?", -1))
+            if fd >= 0:
+                os.close(fd)
+            worker.say_line("EXIT", wid, os.waitstatus_to_exitcode(status))
+
+
+def main(argv=None) -> int:
+    args = worker.parse_args(argv)
+    # Ctrl+C reaches the whole process group: the launcher handles it and closes our stdin, which ends everything.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    import torch
+
+    # One intra-op thread: the model's per-request work is a few ms, and several studio processes (plus
+    # rendering) share the cores; more threads made each synthesis 4x slower here. It also keeps this process
+    # free of thread pools, which a fork would not carry over.
+    torch.set_num_threads(1)
+    gc.disable()  # nothing to collect while loading, and freeze below keeps what was loaded out of later collections
+    try:
+        loaded = worker.load_everything(args)
+        args.start = worker.start_index(loaded[0], args.sequence)
+        preload()
+    except Exception as err:
+        worker.say_line("ERROR", "-", worker.one_line_error(err))
+        return 2
+    gc.freeze()
+    worker.say_line("LOADED")
+    return ForkServer(loaded, args).run()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
