@@ -15,8 +15,10 @@ import numpy as np
 os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 
 import pyvista as pv  # noqa: E402
-import vtk  # noqa: E402
-from vtk.util.numpy_support import vtk_to_numpy  # noqa: E402
+from vtkmodules.util.numpy_support import vtk_to_numpy  # noqa: E402
+from vtkmodules.vtkFiltersCore import vtkGlyph3D, vtkTubeFilter  # noqa: E402 - the modules used, not all of `vtk` (~1 s)
+from vtkmodules.vtkFiltersSources import vtkSphereSource  # noqa: E402
+from vtkmodules.vtkRenderingCore import vtkBillboardTextActor3D  # noqa: E402
 
 from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED, WARNING, rgb  # noqa: E402
 from imm_model.skeleton import Skeleton  # noqa: E402
@@ -37,16 +39,16 @@ class StickFigure:
         self.poly.lines = np.array([[2, p, c] for p, c in skeleton.bones]).ravel()
         self._points = vtk_to_numpy(self.poly.GetPoints().GetData())  # a view: writes go straight to VTK
 
-        tube = vtk.vtkTubeFilter()
+        tube = vtkTubeFilter()
         tube.SetInputData(self.poly)
         tube.SetRadius(bone_radius)
         tube.SetNumberOfSides(10)
         tube.CappingOn()
-        sphere = vtk.vtkSphereSource()
+        sphere = vtkSphereSource()
         sphere.SetRadius(joint_radius)
         sphere.SetThetaResolution(12)
         sphere.SetPhiResolution(10)
-        glyph = vtk.vtkGlyph3D()
+        glyph = vtkGlyph3D()
         glyph.SetInputData(self.poly)
         glyph.SetSourceConnection(sphere.GetOutputPort())
         glyph.ScalingOff()
@@ -77,7 +79,7 @@ class ContactOverlay:
         self.bones = np.array(skeleton.bones)
         self.poly = pv.PolyData(np.zeros((2 * skeleton.num_joints, 3), np.float32))
         self._points = vtk_to_numpy(self.poly.GetPoints().GetData())
-        self.tube = vtk.vtkTubeFilter()
+        self.tube = vtkTubeFilter()
         self.tube.SetInputData(self.poly)
         self.tube.SetRadius(0.032)
         self.tube.SetNumberOfSides(10)
@@ -131,7 +133,7 @@ class Scene:
 
     # ---- building blocks ----------------------------------------------------------------
     def _caption(self, text: str, color: str):
-        actor = vtk.vtkBillboardTextActor3D()
+        actor = vtkBillboardTextActor3D()
         actor.SetInput(text)
         prop = actor.GetTextProperty()
         prop.SetFontSize(18)

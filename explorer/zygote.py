@@ -28,6 +28,7 @@ from explorer import worker
 
 def preload() -> None:
     """Import what a studio process needs before the first fork, so that no child imports it again."""
+    import pyvista.plotting  # noqa: F401 - pyvista loads it (and matplotlib) lazily, at the first scene: ~1.4 s
     from trame.app import get_server  # noqa: F401
     from trame_vtk.modules.vtk.protocols import publish_image_delivery  # noqa: F401
     from wslink.websocket import LinkProtocol  # noqa: F401

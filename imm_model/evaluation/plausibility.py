@@ -16,7 +16,6 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 from imm_model.skeleton import Skeleton
 
@@ -34,6 +33,8 @@ def smooth(motion: np.ndarray) -> np.ndarray:
     """Savitzky-Golay smoothing in time of (T, J, 3); sequences shorter than the window are left as they are."""
     if len(motion) < SMOOTH_WINDOW:
         return motion
+    from scipy.signal import savgol_filter  # here: scipy.signal costs ~1 s to import, and the studio never smooths
+
     return savgol_filter(motion, SMOOTH_WINDOW, 2, axis=0)
 
 
