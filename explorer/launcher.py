@@ -137,8 +137,12 @@ class Launcher:
             elif (w := self.workers.get(wid)) is not None:
                 self._worker_says(w, kind, rest)
         code = await self.zygote.wait()
+        gone = LaunchError(f"the studio's loader (explorer/zygote.py) stopped with exit code {code}: restart imm explore")
         if not self.loaded.done():
             self.loaded.set_exception(LaunchError(f"the studio's loader exited with code {code} before it was ready"))
+        else:  # later spawns fail at once instead of waiting for a READY that cannot come
+            self.loaded = asyncio.get_running_loop().create_future()
+            self.loaded.set_exception(gone)
         for w in list(self.workers.values()):
             self._worker_says(w, "EXIT", str(code))
 

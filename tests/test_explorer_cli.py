@@ -138,6 +138,30 @@ def test_launcher_hands_out_processes_only_to_its_own_page(tmp_path):
 
 
 @pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
+def test_a_lost_loader_is_one_line_not_a_hang(tmp_path):
+    """The zygote killed (out of memory, say): its studio processes go with it, and a new tab is told so at once."""
+    import os
+    import signal
+    from pathlib import Path
+    from urllib.parse import urlsplit
+
+    from tests.studio_probe import StudioProcess
+
+    with StudioProcess(cache_dir=tmp_path) as studio:
+        u = urlsplit(studio.url)
+        zygote = int(Path(f"/proc/{studio.proc.pid}/task/{studio.proc.pid}/children").read_text().split()[0])
+        os.kill(zygote, signal.SIGKILL)
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline:
+            status, body = _claim(u.hostname, u.port)
+            if status != 200:
+                break
+            time.sleep(0.2)  # the spare was still up: it exits when its stdin (from the dead zygote) closes
+        assert status == 503 and "stopped with exit code" in body and "restart imm explore" in body, body
+        assert studio.proc.poll() is None  # the launcher itself stays up and answers
+
+
+@pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
 def test_a_claim_nobody_connects_to_is_released(tmp_path, monkeypatch):
     """A tab that claims a process and never connects (closed at once) does not hold the only slot for long."""
     import time
