@@ -115,12 +115,17 @@ def test_generator_without_stream_fc_reads_coordinates_directly():
 
 
 def test_runner_reports_a_failed_job_and_finishes_the_others():
+    """A failed job is reported and the others finish; a job that needs a failed one is skipped, one that needs a
+    finished one runs (evaluations wait for their training runs)."""
     from imm_model.reproduce.runner import Runner, Task
 
+    tasks = [Task("ok", int, ("3",)), Task("bad", int, ("x",)), Task("after ok", abs, (-2,), needs=(0,)),
+             Task("after bad", abs, (-5,), needs=(1, 0))]
     with Runner(backend="local") as r:
-        results = r.run([Task("ok", int, ("3",)), Task("bad", int, ("x",))], "test")
-    assert results[0] == (True, 3)
+        results = r.run(tasks, "test")
+    assert results[0] == (True, 3) and results[2] == (True, 2)
     assert results[1][0] is False and "invalid literal" in results[1][1]
+    assert results[3] == (False, "skipped: it needs bad, which failed")
 
 
 @pytest.mark.parametrize("args, message", [

@@ -69,8 +69,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     runs = (args.runs or args.out / "runs").resolve()
     with Runner(args.address, args.cpus_per_task, args.backend) as runner:
-        trained = _train(runner, plan, runs, data_path, data_hash, args.cpus_per_task)
-        results = _evaluate(runner, plan, runs, data_path, trained, args.cpus_per_task)
+        trained, results = _run_jobs(runner, plan, runs, data_path, data_hash, args.cpus_per_task)
     wall = time.perf_counter() - t0
     report = write_report(plan, results, args.out.resolve(), wall, runs)
     records = copy_records(plan.training_jobs(), runs, args.out.resolve() / "records")
@@ -80,40 +79,32 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-def _train(runner, plan, runs: Path, data_path: Path, data_hash: dict[str, str], cpus: int) -> set:
-    """Run every training job not finished yet -> the set of jobs that are finished."""
+def _run_jobs(runner, plan, runs: Path, data_path: Path, data_hash: dict[str, str], cpus: int) -> tuple[set, dict]:
+    """Every training run not finished yet, and every evaluation not cached, as one list of jobs: an evaluation starts
+    as soon as its runs have finished. -> (finished training jobs, {EvalJob: result, or None if it could not run})."""
     from imm_model.reproduce.jobs import run_status
     from imm_model.reproduce.runner import Task
-    from imm_model.reproduce.tasks import train_run
+    from imm_model.reproduce.tasks import cached_result, evaluate_run, train_run
 
     keys = {job: job.key(data_hash[job.dataset]) for job in plan.training_jobs()}
     status = {job: run_status(job, runs, key) for job, key in keys.items()}
     finished = {job for job, s in status.items() if s == "done"}
-    todo = [job for job in keys if job not in finished]
+    # the longest runs first (K3HI, then the refit recipes, then the ablations), so the last lanes are not left to one
+    todo = sorted((job for job in keys if job not in finished), key=lambda job: (job.dataset != "k3hi", not job.config().refit))
     resumed = sum(status[j] == "partial" for j in todo)
     print(f"{len(keys)} training runs: {len(finished)} finished already (reused), {resumed} to resume, "
           f"{len(todo) - resumed} to train")
     describe = lambda info: f"{info['epochs']} epochs (best {info['best_epoch']}) in {info['seconds']:.0f} s"  # noqa: E731
     tasks = [Task(job.name, train_run, (job, runs, data_path, keys[job], cpus), describe) for job in todo]
-    for job, (ok, _) in zip(todo, runner.run(tasks, "training"), strict=True):
-        if ok:
-            finished.add(job)
-    return finished
-
-
-def _evaluate(runner, plan, runs: Path, data_path: Path, trained: set, cpus: int) -> dict:
-    """Evaluate every checkpoint whose runs finished -> {EvalJob: result, or None if it could not run}."""
-    from imm_model.reproduce.runner import Task
-    from imm_model.reproduce.tasks import cached_result, evaluate_run
-
-    jobs = plan.eval_jobs()
-    ready = [j for j in jobs if all(run in trained for run in j.needs)]
-    results: dict = {j: None for j in jobs}
-    results |= {j: cached_result(j, runs) for j in ready}
-    todo = [j for j in ready if results[j] is None]
-    print(f"{len(jobs)} evaluations: {len(ready) - len(todo)} reused, {len(todo)} to run, {len(jobs) - len(ready)} "
-          "waiting on failed runs")
-    tasks = [Task(j.name, evaluate_run, (j, runs, data_path, cpus), lambda r: "done") for j in todo]
-    for job, (ok, value) in zip(todo, runner.run(tasks, "evaluation"), strict=True):
-        results[job] = value if ok else None
-    return results
+    index = {job: i for i, job in enumerate(todo)}
+    evals = plan.eval_jobs()
+    results: dict = {j: None for j in evals}
+    results |= {j: cached_result(j, runs) for j in evals if all(run in finished for run in j.needs)}
+    eval_todo = [j for j in evals if results[j] is None]
+    print(f"{len(evals)} evaluations: {len(evals) - len(eval_todo)} reused, {len(eval_todo)} to run")
+    tasks += [Task(j.name, evaluate_run, (j, runs, data_path, cpus), lambda r: "done",
+                   needs=tuple(index[run] for run in j.needs if run in index)) for j in eval_todo]
+    outcomes = runner.run(tasks, "jobs")
+    finished |= {job for job, (ok, _) in zip(todo, outcomes, strict=False) if ok}
+    results |= {j: (value if ok else None) for j, (ok, value) in zip(eval_todo, outcomes[len(todo):], strict=True)}
+    return finished, results

@@ -1,8 +1,10 @@
-"""Run many independent jobs on Ray (a local Ray on this machine's cores, or a cluster at --address), or,
-without Ray installed, in local processes. One progress bar over all jobs and one line per finished job.
+"""Run many jobs on Ray (a local Ray on this machine's cores, or a cluster at --address), or, without Ray
+installed, in local processes. One progress bar over all jobs and one line per finished job.
 
-Ray core does the scheduling (num_cpus per task); this module only submits, waits and reports. The local
-fallback is a spawn-context multiprocessing pool of the same width, so results do not depend on the backend.
+A job may need earlier jobs (an evaluation needs its training runs): it is submitted as soon as they have all
+finished, so evaluations fill the lanes that the last training runs leave idle. Ray core does the scheduling
+(num_cpus per task); this module only submits, waits and reports. The local fallback is a spawn-context
+multiprocessing pool of the same width, so results do not depend on the backend.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ class Task:
     fn: Callable[..., Any]  # a module-level function (it is pickled to the worker)
     args: tuple
     describe: Callable[[Any], str] = str  # the one line printed when it finishes
+    needs: tuple[int, ...] = ()  # indices of earlier tasks in the same list that must have succeeded first
 
 
 def _call(fn: Callable[..., Any], args: tuple) -> tuple[bool, Any]:
@@ -93,30 +96,53 @@ class Runner:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
     def run(self, tasks: list[Task], desc: str) -> list[tuple[bool, Any]]:
-        """Every task to the end (a failed one does not stop the others) -> [(ok, result or reason)]."""
+        """Every task to the end (a failed one does not stop the others; a task whose needs failed is reported
+        and skipped) -> [(ok, result or reason)] in task order."""
         results: list[tuple[bool, Any] | None] = [None] * len(tasks)
         t0 = time.perf_counter()
         with tqdm(total=len(tasks), desc=desc, dynamic_ncols=True, file=sys.stderr) as bar:
-            for i, (ok, value) in self._completed(tasks):
+            for i, (ok, value) in self._completed(tasks, results):
                 results[i] = (ok, value)
                 line = tasks[i].describe(value) if ok else f"FAILED: {value}"
                 bar.write(f"[{bar.n + 1}/{len(tasks)}] {tasks[i].name}: {line} ({time.perf_counter() - t0:.0f} s)")
                 bar.update()
         return results  # type: ignore[return-value]
 
-    def _completed(self, tasks: list[Task]) -> Iterator[tuple[int, tuple[bool, Any]]]:
-        if self.backend == "ray":
-            import ray
+    def _completed(self, tasks: list[Task], results: list) -> Iterator[tuple[int, tuple[bool, Any]]]:
+        """Submit each task once its needs have succeeded; yield (index, outcome) as tasks finish."""
+        submit, wait = self._ray_backend() if self.backend == "ray" else self._pool_backend()
+        waiting, running = set(range(len(tasks))), {}
+        while waiting or running:
+            for i in sorted(waiting):
+                needs = [results[j] for j in tasks[i].needs]
+                if any(r is not None and not r[0] for r in needs):
+                    waiting.discard(i)
+                    failed = next(tasks[j].name for j in tasks[i].needs if not results[j][0])
+                    yield i, (False, f"skipped: it needs {failed}, which failed")
+                elif all(r is not None for r in needs):
+                    waiting.discard(i)
+                    running[submit(tasks[i])] = i
+            if running:
+                handle, outcome = wait(running)
+                yield running.pop(handle), outcome
 
-            remote = ray.remote(num_cpus=self.cpus)(_call)
-            pending = {remote.remote(t.fn, t.args): i for i, t in enumerate(tasks)}
-            while pending:
-                ready, _ = ray.wait(list(pending), num_returns=1)
-                yield pending.pop(ready[0]), ray.get(ready[0])
-        else:
-            futures = [self._pool.apply_async(_call, (t.fn, t.args)) for t in tasks]
-            waiting = dict(enumerate(futures))
-            while waiting:
-                for i in [i for i, f in waiting.items() if f.ready()]:
-                    yield i, waiting.pop(i).get()
+    def _ray_backend(self):
+        import ray
+
+        remote = ray.remote(num_cpus=self.cpus)(_call)
+
+        def wait(running: dict):
+            ready, _ = ray.wait(list(running), num_returns=1)
+            return ready[0], ray.get(ready[0])
+
+        return (lambda t: remote.remote(t.fn, t.args)), wait
+
+    def _pool_backend(self):
+        def wait(running: dict):
+            while True:
+                for future in running:
+                    if future.ready():
+                        return future, future.get()
                 time.sleep(0.2)
+
+        return (lambda t: self._pool.apply_async(_call, (t.fn, t.args))), wait
