@@ -6,7 +6,9 @@ to the training set and the other to the test set of SBU's half/half split. Addi
 *test* set measures the classifier on the generator's output as much as on real motion, so besides that
 "paper" protocol we report a "clean" one (synthesized data in training only, real test data only) and the
 same under leave-one-subject-out. The classifier is the evaluation's interaction GRU (model/classifier.py),
-not the paper's discriminator-shaped one; each condition is averaged over CLASSIFIER_SEEDS.
+not the paper's discriminator-shaped one; on the half split each condition is averaged over CLASSIFIER_SEEDS,
+under LOSO it is trained once per training seed (reproduce/tasks.py: seven folds already give the spread, and
+three classifiers per condition made these studies a quarter of a seed's wall time).
 
 The synthesized interactions: training leaders of each class, with their own class label at scales
 SCALES (the label scale is IMM's "match" variation), 50 per class drawn without replacement.
@@ -44,12 +46,13 @@ def _per_class_accuracy(pred: np.ndarray, y: np.ndarray, C: int) -> list[float]:
     return [float((pred[y == c] == c).mean()) if (y == c).any() else float("nan") for c in range(C)]
 
 
-def _score(train: tuple[list, np.ndarray], test: tuple[list, np.ndarray], C: int, epochs: int | None) -> dict:
+def _score(train: tuple[list, np.ndarray], test: tuple[list, np.ndarray], C: int, epochs: int | None,
+           seeds: tuple[int, ...]) -> dict:
     """Train the interaction classifier on `train` for each seed, test on `test` -> mean accuracies."""
     from imm_model.model.classifier import INTERACTION, classify, train_classifier
 
     per_class, overall = [], []
-    for seed in CLASSIFIER_SEEDS:
+    for seed in seeds:
         cfg = replace(INTERACTION, seed=seed, **({"epochs": epochs} if epochs else {}))
         clf = train_classifier(cfg, train[0], train[1], C)
         pred = classify(clf, test[0])[0].argmax(-1)
@@ -60,7 +63,7 @@ def _score(train: tuple[list, np.ndarray], test: tuple[list, np.ndarray], C: int
 
 
 def study(model, data, train_idx: np.ndarray, test_idx: np.ndarray, protocols: tuple[str, ...],
-          classifier_epochs: int | None = None, seed: int = 0) -> dict:
+          classifier_epochs: int | None = None, seed: int = 0, classifier_seeds: tuple[int, ...] = CLASSIFIER_SEEDS) -> dict:
     """Accuracy per class without and with synthesized data, under each protocol ("clean", "paper")."""
     from imm_model.model.classifier import motion_inputs
 
@@ -73,12 +76,13 @@ def study(model, data, train_idx: np.ndarray, test_idx: np.ndarray, protocols: t
     leaders, followers, classes = synthesize_per_class(model, data, train_idx, seed)
     synth = motion_inputs(leaders, followers, "interaction")
     (train_x, train_y), (test_x, test_y) = real(train_idx), real(test_idx)
-    out = {"original": _score((train_x, train_y), (test_x, test_y), C, classifier_epochs)}
+    score = lambda train, test: _score(train, test, C, classifier_epochs, classifier_seeds)  # noqa: E731
+    out = {"original": score((train_x, train_y), (test_x, test_y))}
     if "clean" in protocols:
-        out["augmented"] = _score((train_x + synth, np.concatenate([train_y, classes])), (test_x, test_y), C, classifier_epochs)
+        out["augmented"] = score((train_x + synth, np.concatenate([train_y, classes])), (test_x, test_y))
     if "paper" in protocols:  # half of the synthesized set to training, half to the test set
         half = np.random.default_rng(seed).permutation(len(classes)) < len(classes) // 2
         pick = lambda xs, m: [x for x, k in zip(xs, m, strict=True) if k]  # noqa: E731
-        out["augmented_paper"] = _score((train_x + pick(synth, half), np.concatenate([train_y, classes[half]])),
-                                        (test_x + pick(synth, ~half), np.concatenate([test_y, classes[~half]])), C, classifier_epochs)
+        out["augmented_paper"] = score((train_x + pick(synth, half), np.concatenate([train_y, classes[half]])),
+                                       (test_x + pick(synth, ~half), np.concatenate([test_y, classes[~half]])))
     return out | {"class_names": list(data.class_names), "synthesized": len(classes)}

@@ -133,8 +133,9 @@ def recognition_section(results: dict, class_names: list[str]) -> str:
                 rows.append([f"ours, {label}: {title}", str(rs[0][key]["train"]) if label == "half/half" else "-",
                              str(rs[0][key]["test"]) if label == "half/half" else "-",
                              *(f"{v:.3f}" for v in per_class), _pm(float(np.mean(acc)), float(np.std(acc)))])
-    return (_table(head, rows) + "\n\nOurs: the evaluation's interaction classifier (GRU), mean over 3 classifier seeds and the "
-            "training seeds (LOSO: and the 7 folds); 50 synthesized interactions per class from the training leaders "
+    return (_table(head, rows) + "\n\nOurs: the evaluation's interaction classifier (GRU); half/half: mean over 3 classifier seeds and "
+            "the training seeds; LOSO: one classifier per training seed and fold, mean over both; "
+            "50 synthesized interactions per class from the training leaders "
             "(reproduce/recognition.py).")
 
 

@@ -82,11 +82,21 @@ class EvalJob:
         run_dir = self.run.run_dir(runs)
         return final_checkpoint(run_dir) if self.checkpoint == "final" else run_dir / "best.safetensors"
 
+    @property
+    def recognition_seeds(self) -> tuple[int, ...]:
+        """The recognition study's classifier seeds: three on the paper's half split, one per training seed under LOSO."""
+        from imm_model.reproduce.recognition import CLASSIFIER_SEEDS
+
+        return CLASSIFIER_SEEDS if self.run.split == HALF_SPLIT else (self.run.seed,)
+
     def key(self, runs: Path) -> str:
         """Changes when the run, the men run, the baselines or the classifiers change."""
+        from imm_model.reproduce.recognition import CLASSIFIER_SEEDS
+
         stamp = lambda job: json.loads((job.run_dir(runs) / "done.json").read_text())["key"]  # noqa: E731
+        seeds = self.recognition_seeds if self.kind == "recognition" else CLASSIFIER_SEEDS
         text = json.dumps([[stamp(job) for job in self.needs], self.checkpoint, self.kind, self.baselines,
-                           self.classifier_epochs])
+                           self.classifier_epochs, *([list(seeds)] if seeds != CLASSIFIER_SEEDS else [])])
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
     def options(self, runs: Path):
@@ -151,4 +161,5 @@ def _recognition(job: EvalJob, model, data) -> dict:
         split, protocols = half_split(data.actions), ("clean", "paper")
     else:
         split, protocols = loso_fold(data.subject_pairs, job.run.split), ("clean",)
-    return study(model, data, split.train, split.test, protocols, job.classifier_epochs, seed=job.run.seed)
+    return study(model, data, split.train, split.test, protocols, job.classifier_epochs, seed=job.run.seed,
+                 classifier_seeds=job.recognition_seeds)
