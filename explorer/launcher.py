@@ -89,6 +89,7 @@ class Launcher:
         self.workers: dict[str, Worker] = {}  # by zygote id, until it exits
         self.zygote: asyncio.subprocess.Process | None = None  # explorer/zygote.py: forks the studio processes
         self.loaded: asyncio.Future | None = None
+        self.gone = ""  # why the zygote is no more, once it has exited
         self.spawned = 0
         self.url = ""
 
@@ -99,6 +100,8 @@ class Launcher:
         if self.zygote is None:
             await self._start_zygote()
         await self.loaded  # a bad data file or checkpoint fails here, in one line
+        if self.gone:
+            raise LaunchError(self.gone)
         self.spawned += 1
         w = Worker(str(self.spawned), secrets.token_urlsafe(24))
         self.workers[w.id] = w
@@ -137,12 +140,10 @@ class Launcher:
             elif (w := self.workers.get(wid)) is not None:
                 self._worker_says(w, kind, rest)
         code = await self.zygote.wait()
-        gone = LaunchError(f"the studio's loader (explorer/zygote.py) stopped with exit code {code}: restart imm explore")
+        # later spawns fail at once instead of waiting for a READY that cannot come
+        self.gone = f"the studio's loader (explorer/zygote.py) stopped with exit code {code}: restart imm explore"
         if not self.loaded.done():
             self.loaded.set_exception(LaunchError(f"the studio's loader exited with code {code} before it was ready"))
-        else:  # later spawns fail at once instead of waiting for a READY that cannot come
-            self.loaded = asyncio.get_running_loop().create_future()
-            self.loaded.set_exception(gone)
         for w in list(self.workers.values()):
             self._worker_says(w, "EXIT", str(code))
 
@@ -155,7 +156,7 @@ class Launcher:
         elif kind == "EXIT":
             w.exited = True
             if not w.ready.done():
-                w.ready.set_exception(LaunchError(f"studio process exited with code {rest} before it was ready"))
+                w.ready.set_exception(LaunchError(self.gone or f"studio process exited with code {rest} before it was ready"))
             self.workers.pop(w.id, None)
             for pool in (self.spares, self.busy):
                 if w in pool:
