@@ -85,9 +85,10 @@ def mark_done(job: TrainJob, runs: Path, info: dict) -> None:
 
 def copy_records(jobs: list[TrainJob], runs: Path, dest: Path) -> int:
     """Copy each finished run's small records (job.json, done.json and its cached evaluations: every *.json but the
-    checkpoints' sidecars) to the same layout under `dest` -> how many runs. `--runs dest` then rebuilds the report without a checkpoint: the runs
-    count as finished and their evaluations as cached. Kept beside the report because checkpoints are too large for
-    a repository (60 runs per seed), while the records are what the tables are computed from."""
+    checkpoints' sidecars) to the same layout under `dest` -> how many runs. `--runs dest` then rebuilds the report
+    without a checkpoint: the runs count as finished and their evaluations as cached. Kept beside the report because
+    checkpoints are too large for a repository (60 runs per seed), while the records are what the tables are
+    computed from."""
     import shutil
 
     copied = 0
