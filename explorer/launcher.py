@@ -343,6 +343,8 @@ def _error_page(message: str) -> str:
 
 
 def launch(config: LaunchConfig) -> int:
+    if not hasattr(os, "fork"):
+        raise LaunchError("imm explore needs a system with fork() (Linux, macOS): its studio processes are forked from one loaded parent")
     sock = bind_socket(config.host, config.port)
     launcher = Launcher(config)
     try:

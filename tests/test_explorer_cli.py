@@ -284,6 +284,18 @@ def test_a_studio_process_answers_only_its_own_secret(tmp_path):
     assert with_secret(b"\x00" * 20, "s3") == b"\x00" * 20  # anything else passes unchanged
 
 
+def test_explore_without_fork_says_so_in_one_line(monkeypatch, capsys):
+    """Windows has no fork(), which the studio's processes come from: one line, exit 2, nothing started."""
+    import os
+
+    from imm_model.cli import main
+
+    monkeypatch.delattr(os, "fork")
+    assert main(["explore", "--no-browser", "--port", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "needs a system with fork()" in err and len(err.strip().splitlines()) == 1
+
+
 def test_explore_without_the_studio_extra_says_how_to_install_it(monkeypatch, capsys):
     import importlib.util
 
