@@ -79,7 +79,8 @@ def fold_classifier(cfg: ClassifierConfig, data: InteractionDataset, subject: st
 def fold_baseline_model(config: str, data: InteractionDataset, subject: str, progress: bool = True) -> Path:
     """A training recipe (e.g. the label-free `men`) trained on fold `subject` (cached) -> its final checkpoint."""
     from imm_model.training.config import load_config
-    from imm_model.training.trainer import Trainer, refit
+    from imm_model.training.refit import refit
+    from imm_model.training.trainer import Trainer
 
     cfg = load_config(config)
     key = entry_key("model", data, subject, cfg.to_dict())

@@ -13,7 +13,8 @@ from imm_model.cli import main
 from imm_model.errors import CheckpointError
 from imm_model.inference import ReactionModel
 from imm_model.training.config import IMM, PAPER, TrainConfig, load_config
-from imm_model.training.trainer import Trainer, adversarial_weight, lr_scale, refit
+from imm_model.training.refit import refit
+from imm_model.training.trainer import Trainer, adversarial_weight, lr_scale
 
 TINY = replace(
     IMM,

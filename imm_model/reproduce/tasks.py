@@ -36,7 +36,8 @@ def train_run(job: TrainJob, runs: Path, data_path: Path, key: str, threads: int
     """Train (or resume) one run to the end, refit included -> what done.json records."""
     import torch
 
-    from imm_model.training.trainer import Trainer, refit
+    from imm_model.training.refit import refit
+    from imm_model.training.trainer import Trainer
 
     torch.set_num_threads(threads)
     t0 = time.perf_counter()

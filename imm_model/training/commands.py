@@ -41,7 +41,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from imm_model.evaluation.commands import normalize_fold
     from imm_model.paths import SAMPLE_DATA
     from imm_model.training.config import load_config
-    from imm_model.training.trainer import Trainer, refit
+    from imm_model.training.refit import refit
+    from imm_model.training.trainer import Trainer
 
     if args.threads < 1:
         raise ValueError(f"--threads must be >= 1, not {args.threads}")
