@@ -39,11 +39,6 @@ def say_line(kind: str, *words: object) -> None:
     Channel(sys.stdout)(kind, *words)
 
 
-def one_line_error(err: BaseException) -> str:
-    msg = str(err.args[0] if isinstance(err, KeyError) and err.args else err).strip().splitlines()
-    return msg[0] if msg else type(err).__name__
-
-
 def parse_args(argv=None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="python -m explorer.zygote")
     p.add_argument("--data", type=Path, required=True)

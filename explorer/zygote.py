@@ -24,6 +24,7 @@ import signal
 import sys
 
 from explorer import worker
+from explorer.exports import one_line
 
 
 def preload() -> None:
@@ -91,7 +92,7 @@ class ForkServer:
         try:
             code = worker.serve(*self.loaded, self.args, secret=secret, say=worker.Channel(channel, wid))
         except BaseException as err:  # one line for the launcher, never a traceback
-            worker.Channel(channel, wid)("ERROR", worker.one_line_error(err))
+            worker.Channel(channel, wid)("ERROR", one_line(err))
         finally:
             os._exit(code)
 
@@ -125,7 +126,7 @@ def main(argv=None) -> int:
         args.start = worker.start_index(loaded[0], args.sequence)
         preload()
     except Exception as err:
-        worker.say_line("ERROR", "-", worker.one_line_error(err))
+        worker.say_line("ERROR", "-", one_line(err))
         return 2
     gc.freeze()
     worker.say_line("LOADED")
