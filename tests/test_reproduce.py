@@ -128,6 +128,20 @@ def test_runner_reports_a_failed_job_and_finishes_the_others():
     assert results[3] == (False, "skipped: it needs bad, which failed")
 
 
+def test_runner_starts_the_longest_ready_job_first():
+    """With one lane, jobs run by expected cost; a long job that becomes ready (its needs finished) goes before the
+    shorter ones that were ready from the start, so it cannot end up alone at the end."""
+    from imm_model.reproduce.runner import Runner, Task
+
+    tasks = [Task("short", time.time_ns, (), cost=1), Task("long", time.time_ns, (), cost=9),
+             Task("medium", time.time_ns, (), cost=5), Task("longest, after long", time.time_ns, (), needs=(1,), cost=100)]
+    with Runner(cpus_per_task=os.cpu_count() or 1, backend="local") as r:
+        assert r.width == 1
+        results = r.run(tasks, "test")
+    started = sorted(range(len(tasks)), key=lambda i: results[i][1])
+    assert [tasks[i].name for i in started] == ["long", "longest, after long", "medium", "short"]
+
+
 @pytest.mark.parametrize("args, message", [
     (["--tables", "bogus"], "--tables: unknown table 'bogus'"),
     (["--folds", "s09"], "--folds: 's09' is not an SBU subject"),

@@ -66,13 +66,13 @@ def knn_dtw_follower(data: InteractionDataset, train_idx: np.ndarray, i: int, k:
     query = leader.reshape(len(leader), -1)
     pool = _same_class_pool(data, train_idx, i)
     cands = [data.canonical(j)[0].astype(np.float64) for j in pool]
-    dist = [dtw_ndim.distance(query, c.reshape(len(c), -1)) for c in cands]
+    dist = [dtw_ndim.distance(query, c.reshape(len(c), -1), use_c=True) for c in cands]
     preds = []
     for n in np.argsort(dist, kind="stable")[:k]:
         a, b = cands[n], data.canonical(pool[n])[1].astype(np.float64)
         relative = b - a[:, root:root + 1]  # B relative to its own leader's root
         warped, count = np.zeros_like(leader), np.zeros(len(leader))
-        for t, s in dtw_ndim.warping_path(query, a.reshape(len(a), -1)):
+        for t, s in dtw_ndim.warping_path(query, a.reshape(len(a), -1), use_c=True):
             warped[t] += relative[s]
             count[t] += 1
         preds.append(warped / count[:, None, None] + leader[:, root:root + 1])

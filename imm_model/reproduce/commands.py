@@ -89,13 +89,12 @@ def _run_jobs(runner, plan, runs: Path, data_path: Path, data_hash: dict[str, st
     keys = {job: job.key(data_hash[job.dataset]) for job in plan.training_jobs()}
     status = {job: run_status(job, runs, key) for job, key in keys.items()}
     finished = {job for job, s in status.items() if s == "done"}
-    # the longest runs first (K3HI, then the refit recipes, then the ablations), so the last lanes are not left to one
-    todo = sorted((job for job in keys if job not in finished), key=lambda job: (job.dataset != "k3hi", not job.config().refit))
+    todo = [job for job in keys if job not in finished]  # the runner starts the longest first (Task.cost)
     resumed = sum(status[j] == "partial" for j in todo)
     print(f"{len(keys)} training runs: {len(finished)} finished already (reused), {resumed} to resume, "
           f"{len(todo) - resumed} to train")
     describe = lambda info: f"{info['epochs']} epochs (best {info['best_epoch']}) in {info['seconds']:.0f} s"  # noqa: E731
-    tasks = [Task(job.name, train_run, (job, runs, data_path, keys[job], cpus), describe) for job in todo]
+    tasks = [Task(job.name, train_run, (job, runs, data_path, keys[job], cpus), describe, cost=job.cost) for job in todo]
     index = {job: i for i, job in enumerate(todo)}
     evals = plan.eval_jobs()
     results: dict = {j: None for j in evals}
@@ -103,7 +102,7 @@ def _run_jobs(runner, plan, runs: Path, data_path: Path, data_hash: dict[str, st
     eval_todo = [j for j in evals if results[j] is None]
     print(f"{len(evals)} evaluations: {len(evals) - len(eval_todo)} reused, {len(eval_todo)} to run")
     tasks += [Task(j.name, evaluate_run, (j, runs, data_path, cpus), lambda r: "done",
-                   needs=tuple(index[run] for run in j.needs if run in index)) for j in eval_todo]
+                   needs=tuple(index[run] for run in j.needs if run in index), cost=j.cost) for j in eval_todo]
     outcomes = runner.run(tasks, "jobs")
     finished |= {job for job, (ok, _) in zip(todo, outcomes, strict=False) if ok}
     results |= {j: (value if ok else None) for j, (ok, value) in zip(eval_todo, outcomes[len(todo):], strict=True)}

@@ -6,9 +6,11 @@ to the training set and the other to the test set of SBU's half/half split. Addi
 *test* set measures the classifier on the generator's output as much as on real motion, so besides that
 "paper" protocol we report a "clean" one (synthesized data in training only, real test data only) and the
 same under leave-one-subject-out. The classifier is the evaluation's interaction GRU (model/classifier.py),
-not the paper's discriminator-shaped one; on the half split each condition is averaged over CLASSIFIER_SEEDS,
-under LOSO it is trained once per training seed (reproduce/tasks.py: seven folds already give the spread, and
-three classifiers per condition made these studies a quarter of a seed's wall time).
+not the paper's discriminator-shaped one; on the half split each condition is averaged over CLASSIFIER_SEEDS.
+Under LOSO each condition is one classifier with the evaluation's own seed, so the two conditions are paired and
+the spread over training seeds is the generator's: the real-only classifier is then the fold's cached judge
+(imm_model/cache.py), trained once per fold and not once per evaluation (three classifiers per condition had
+made these studies a quarter of a seed's wall time).
 
 The synthesized interactions: training leaders of each class, with their own class label at scales
 SCALES (the label scale is IMM's "match" variation), 50 per class drawn without replacement.
@@ -47,14 +49,15 @@ def _per_class_accuracy(pred: np.ndarray, y: np.ndarray, C: int) -> list[float]:
 
 
 def _score(train: tuple[list, np.ndarray], test: tuple[list, np.ndarray], C: int, epochs: int | None,
-           seeds: tuple[int, ...]) -> dict:
-    """Train the interaction classifier on `train` for each seed, test on `test` -> mean accuracies."""
+           seeds: tuple[int, ...], trained=None) -> dict:
+    """Train the interaction classifier on `train` for each seed (or take `trained(cfg)`, the same classifier
+    already trained), test on `test` -> mean accuracies."""
     from imm_model.model.classifier import INTERACTION, classify, train_classifier
 
     per_class, overall = [], []
     for seed in seeds:
         cfg = replace(INTERACTION, seed=seed, **({"epochs": epochs} if epochs else {}))
-        clf = train_classifier(cfg, train[0], train[1], C)
+        clf = trained(cfg) if trained else train_classifier(cfg, train[0], train[1], C)
         pred = classify(clf, test[0])[0].argmax(-1)
         per_class.append(_per_class_accuracy(pred, test[1], C))
         overall.append(float((pred == test[1]).mean()))
@@ -63,8 +66,10 @@ def _score(train: tuple[list, np.ndarray], test: tuple[list, np.ndarray], C: int
 
 
 def study(model, data, train_idx: np.ndarray, test_idx: np.ndarray, protocols: tuple[str, ...],
-          classifier_epochs: int | None = None, seed: int = 0, classifier_seeds: tuple[int, ...] = CLASSIFIER_SEEDS) -> dict:
-    """Accuracy per class without and with synthesized data, under each protocol ("clean", "paper")."""
+          classifier_epochs: int | None = None, seed: int = 0, classifier_seeds: tuple[int, ...] = CLASSIFIER_SEEDS,
+          real_only=None) -> dict:
+    """Accuracy per class without and with synthesized data, under each protocol ("clean", "paper").
+    `real_only(cfg)`, when given, is the classifier `cfg` already trained on the real `train_idx` (a cache)."""
     from imm_model.model.classifier import motion_inputs
 
     C = len(data.class_names)
@@ -77,7 +82,7 @@ def study(model, data, train_idx: np.ndarray, test_idx: np.ndarray, protocols: t
     synth = motion_inputs(leaders, followers, "interaction")
     (train_x, train_y), (test_x, test_y) = real(train_idx), real(test_idx)
     score = lambda train, test: _score(train, test, C, classifier_epochs, classifier_seeds)  # noqa: E731
-    out = {"original": score((train_x, train_y), (test_x, test_y))}
+    out = {"original": _score((train_x, train_y), (test_x, test_y), C, classifier_epochs, classifier_seeds, real_only)}
     if "clean" in protocols:
         out["augmented"] = score((train_x + synth, np.concatenate([train_y, classes])), (test_x, test_y))
     if "paper" in protocols:  # half of the synthesized set to training, half to the test set

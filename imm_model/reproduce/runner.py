@@ -1,10 +1,11 @@
 """Run many jobs on Ray (a local Ray on this machine's cores, or a cluster at --address), or, without Ray
 installed, in local processes. One progress bar over all jobs and one line per finished job.
 
-A job may need earlier jobs (an evaluation needs its training runs): it is submitted as soon as they have all
-finished, so evaluations fill the lanes that the last training runs leave idle. Ray core does the scheduling
-(num_cpus per task); this module only submits, waits and reports. The local fallback is a spawn-context
-multiprocessing pool of the same width, so results do not depend on the backend.
+A job may need earlier jobs (an evaluation needs its training runs). The runner keeps one job per free lane in
+flight and, when a lane frees, submits the ready job with the largest expected cost (longest first, so one long
+evaluation does not run alone at the end while the other lanes idle); Ray core places the tasks (num_cpus per
+task). The local fallback is a spawn-context multiprocessing pool of the same width, so results do not depend on
+the backend.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ class Task:
     args: tuple
     describe: Callable[[Any], str] = str  # the one line printed when it finishes
     needs: tuple[int, ...] = ()  # indices of earlier tasks in the same list that must have succeeded first
+    cost: float = 0.0  # expected seconds, for the order only (the longest ready task goes first)
 
 
 def _call(fn: Callable[..., Any], args: tuple) -> tuple[bool, Any]:
@@ -109,19 +111,23 @@ class Runner:
         return results  # type: ignore[return-value]
 
     def _completed(self, tasks: list[Task], results: list) -> Iterator[tuple[int, tuple[bool, Any]]]:
-        """Submit each task once its needs have succeeded; yield (index, outcome) as tasks finish."""
+        """Keep a task per lane in flight, the longest ready one first; yield (index, outcome) as tasks finish.
+        A task whose needs failed is yielded as skipped."""
         submit, wait = self._ray_backend() if self.backend == "ray" else self._pool_backend()
-        waiting, running = set(range(len(tasks))), {}
+        waiting, running = list(range(len(tasks))), {}
         while waiting or running:
-            for i in sorted(waiting):
+            ready = []
+            for i in list(waiting):
                 needs = [results[j] for j in tasks[i].needs]
                 if any(r is not None and not r[0] for r in needs):
-                    waiting.discard(i)
+                    waiting.remove(i)
                     failed = next(tasks[j].name for j in tasks[i].needs if not results[j][0])
                     yield i, (False, f"skipped: it needs {failed}, which failed")
                 elif all(r is not None for r in needs):
-                    waiting.discard(i)
-                    running[submit(tasks[i])] = i
+                    ready.append(i)
+            for i in sorted(ready, key=lambda i: -tasks[i].cost)[:self.width - len(running)]:
+                waiting.remove(i)
+                running[submit(tasks[i])] = i
             if running:
                 handle, outcome = wait(running)
                 yield running.pop(handle), outcome

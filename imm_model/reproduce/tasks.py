@@ -74,6 +74,14 @@ class EvalJob:
     def needs(self) -> tuple[TrainJob, ...]:
         return (self.run, *((self.men_run,) if self.men_run else ()), *self.also)
 
+    @property
+    def cost(self) -> float:
+        """Expected seconds on one lane (seed 0's log), to run the longest first: the half split's study trains nine
+        classifiers; a fold's first evaluation may train its three judges."""
+        if self.kind == "recognition":
+            return 600.0 if self.run.split == HALF_SPLIT else 80.0
+        return 80.0 if self.kind == "k3hi" else 60.0 if self.checkpoint == "final" else 10.0
+
     def result_path(self, runs: Path) -> Path:
         return self.run.run_dir(runs) / f"{'eval' if self.kind == 'metrics' else self.kind}-{self.checkpoint}.json"
 
@@ -85,10 +93,12 @@ class EvalJob:
 
     @property
     def recognition_seeds(self) -> tuple[int, ...]:
-        """The recognition study's classifier seeds: three on the paper's half split, one per training seed under LOSO."""
+        """The recognition study's classifier seeds: three on the paper's half split; under LOSO the evaluation's
+        interaction classifier's own seed, whatever the training seed (reproduce/recognition.py)."""
+        from imm_model.model.classifier import INTERACTION
         from imm_model.reproduce.recognition import CLASSIFIER_SEEDS
 
-        return CLASSIFIER_SEEDS if self.run.split == HALF_SPLIT else (self.run.seed,)
+        return CLASSIFIER_SEEDS if self.run.split == HALF_SPLIT else (INTERACTION.seed,)
 
     def key(self, runs: Path) -> str:
         """Changes when the run, the men run, the baselines or the classifiers change."""
@@ -155,12 +165,14 @@ def evaluate_run(job: EvalJob, runs: Path, data_path: Path, threads: int) -> dic
 
 
 def _recognition(job: EvalJob, model, data) -> dict:
+    from imm_model import cache
     from imm_model.data.splits import half_split, loso_fold
     from imm_model.reproduce.recognition import study
 
     if job.run.split == HALF_SPLIT:  # the paper's protocol, and the clean one
-        split, protocols = half_split(data.actions), ("clean", "paper")
-    else:
+        split, protocols, real_only = half_split(data.actions), ("clean", "paper"), None
+    else:  # the real-only classifier is the fold's evaluation classifier, trained once (cached)
         split, protocols = loso_fold(data.subject_pairs, job.run.split), ("clean",)
+        real_only = lambda cfg: cache.fold_classifier(cfg, data, job.run.split, progress=False)  # noqa: E731
     return study(model, data, split.train, split.test, protocols, job.classifier_epochs, seed=job.run.seed,
-                 classifier_seeds=job.recognition_seeds)
+                 classifier_seeds=job.recognition_seeds, real_only=real_only)
