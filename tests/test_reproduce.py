@@ -59,6 +59,12 @@ def test_tiny_reproduce_killed_then_resumed_writes_all_four_tables(tmp_path):
     assert "0 to resume, 0 to train" in log and "0 to run" in log, log
     summary = lambda d: json.loads((d / "summary.json").read_text())["imm"]  # noqa: E731
     assert summary(again) == summary(out)
+    interim = tmp_path / "interim"  # a seed not trained yet: listed as missing, nothing started
+    fourth = _reproduce(interim, env, "--runs", str(records), "--seeds", "0,7", "--report-only")
+    log = fourth.communicate(timeout=300)[0]
+    assert fourth.returncode != 0 and "not done are left out" in log, log
+    assert "evaluate imm seed 7 fold s04 (final)" in (interim / "report.md").read_text().split("## Missing")[1]
+    assert summary(interim) == summary(out) and not list(records.glob("*-seed7"))
 
 
 def test_a_run_with_another_key_is_moved_aside_not_deleted(tmp_path):

@@ -41,6 +41,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--backend", choices=("auto", "ray", "local"), default="auto",
                    help="auto: Ray when installed, else local processes")
     p.add_argument("--data", type=Path, default=None, help="SBU bundle (default: the bundled one)")
+    p.add_argument("--report-only", action="store_true",
+                   help="write the report from the runs and evaluations already finished, start nothing (an interim "
+                        "report while a cluster works; what is not done is listed under Missing)")
     p.add_argument("--epochs", type=int, default=None, help=argparse.SUPPRESS)  # tiny runs in tests
     p.add_argument("--classifier-epochs", type=int, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=_cmd_reproduce)
@@ -68,20 +71,25 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         data_hash["k3hi"] = dataset_hash(shared_data()[0])
     args.out.mkdir(parents=True, exist_ok=True)
     runs = (args.runs or args.out / "runs").resolve()
-    with Runner(args.address, args.cpus_per_task, args.backend) as runner:
-        trained, results = _run_jobs(runner, plan, runs, data_path, data_hash, args.cpus_per_task)
+    if args.report_only:
+        trained, results = _run_jobs(None, plan, runs, data_path, data_hash, args.cpus_per_task)
+    else:
+        with Runner(args.address, args.cpus_per_task, args.backend) as runner:
+            trained, results = _run_jobs(runner, plan, runs, data_path, data_hash, args.cpus_per_task)
     wall = time.perf_counter() - t0
     report = write_report(plan, results, args.out.resolve(), wall, runs)
     records = copy_records(plan.training_jobs(), runs, args.out.resolve() / "records")
     failed = len(plan.training_jobs()) - len(trained) + sum(1 for r in results.values() if r is None)
-    print(f"report: {report} ({wall / 60:.1f} min wall{f'; {failed} jobs failed' if failed else ''}); "
+    why = "not done" if args.report_only else "failed"
+    print(f"report: {report} ({wall / 60:.1f} min wall{f'; {failed} jobs {why}' if failed else ''}); "
           f"the records of {records} runs (no checkpoints) in {args.out / 'records'}")
     return 1 if failed else 0
 
 
 def _run_jobs(runner, plan, runs: Path, data_path: Path, data_hash: dict[str, str], cpus: int) -> tuple[set, dict]:
     """Every training run not finished yet, and every evaluation not cached, as one list of jobs: an evaluation starts
-    as soon as its runs have finished. -> (finished training jobs, {EvalJob: result, or None if it could not run})."""
+    as soon as its runs have finished (runner None: nothing is run).
+    -> (finished training jobs, {EvalJob: result, or None if it could not run})."""
     from imm_model.reproduce.jobs import run_status
     from imm_model.reproduce.runner import Task
     from imm_model.reproduce.tasks import cached_result, evaluate_run, train_run
@@ -103,6 +111,9 @@ def _run_jobs(runner, plan, runs: Path, data_path: Path, data_hash: dict[str, st
     print(f"{len(evals)} evaluations: {len(evals) - len(eval_todo)} reused, {len(eval_todo)} to run")
     tasks += [Task(j.name, evaluate_run, (j, runs, data_path, cpus), lambda r: "done",
                    needs=tuple(index[run] for run in j.needs if run in index), cost=j.cost) for j in eval_todo]
+    if runner is None:  # --report-only
+        print(f"report only: {len(todo)} training runs and {len(eval_todo)} evaluations not done are left out")
+        return finished, results
     outcomes = runner.run(tasks, "jobs")
     finished |= {job for job, (ok, _) in zip(todo, outcomes, strict=False) if ok}
     results |= {j: (value if ok else None) for j, (ok, value) in zip(eval_todo, outcomes[len(todo):], strict=True)}
