@@ -77,11 +77,12 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         with Runner(args.address, args.cpus_per_task, args.backend) as runner:
             trained, results = _run_jobs(runner, plan, runs, data_path, data_hash, args.cpus_per_task)
     wall = time.perf_counter() - t0
-    report = write_report(plan, results, args.out.resolve(), wall, runs)
+    report = write_report(plan, results, args.out.resolve(), None if args.report_only else wall, runs)
     records = copy_records(plan.training_jobs(), runs, args.out.resolve() / "records")
     failed = len(plan.training_jobs()) - len(trained) + sum(1 for r in results.values() if r is None)
-    why = "not done" if args.report_only else "failed"
-    print(f"report: {report} ({wall / 60:.1f} min wall{f'; {failed} jobs {why}' if failed else ''}); "
+    how = ["report only" if args.report_only else f"{wall / 60:.1f} min wall"]
+    how += [f"{failed} jobs {'not done' if args.report_only else 'failed'}"] if failed else []
+    print(f"report: {report} ({'; '.join(how)}); "
           f"the records of {records} runs (no checkpoints) in {args.out / 'records'}")
     return 1 if failed else 0
 

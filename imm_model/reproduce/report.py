@@ -134,7 +134,9 @@ def recognition_section(results: dict, class_names: list[str]) -> str:
                              str(rs[0][key]["test"]) if label == "half/half" else "-",
                              *(f"{v:.3f}" for v in per_class), _pm(float(np.mean(acc)), float(np.std(acc)))])
     return (_table(head, rows) + "\n\nOurs: the evaluation's interaction classifier (GRU); half/half: mean over 3 classifier seeds and "
-            "the training seeds; LOSO: one classifier per training seed and fold, mean over both; "
+            "the training seeds; LOSO: per fold one classifier per condition, with the evaluation's classifier seed for "
+            "every training seed (the conditions are paired; the spread over training seeds is the generator's), mean "
+            "over folds and training seeds; "
             "50 synthesized interactions per class from the training leaders "
             "(reproduce/recognition.py).")
 
@@ -155,17 +157,20 @@ def _run_seconds(plan: ReproducePlan, runs: Path) -> float:
     return total
 
 
-def write_report(plan: ReproducePlan, results: dict, out: Path, wall_s: float, runs: Path) -> Path:
-    """Write report.md, summary.json and figures; a table whose runs are missing says so."""
+def write_report(plan: ReproducePlan, results: dict, out: Path, wall_s: float | None, runs: Path) -> Path:
+    """Write report.md, summary.json and figures; a table whose runs are missing says so. wall_s None: nothing was
+    run (--report-only)."""
     from imm_model.reproduce.figures import write_figures
 
     class_names = next((list(r["model"]["classes"]) for j, r in results.items() if r is not None and j.kind == "metrics"),
                        next((r["class_names"] for j, r in results.items() if r is not None and j.kind == "recognition"), []))
     imm = _metrics(results, "imm", "final")
     summary = group_summary(imm, tuple(class_names)) if imm else None
+    when = "written from finished runs (--report-only)" if wall_s is None else \
+        f"this invocation {wall_s / 60:.1f} min wall on {os.cpu_count()} CPUs"
     parts = [f"# The paper's tables, reproduced\n\n`imm reproduce --seeds {','.join(map(str, plan.seeds))} --tables "
-             f"{','.join(plan.tables)}` · folds {', '.join(plan.folds)} · this invocation {wall_s / 60:.1f} min wall on "
-             f"{os.cpu_count()} CPUs; the {len(plan.training_jobs())} training runs took {_run_seconds(plan, runs) / 60:.0f} "
+             f"{','.join(plan.tables)}` · folds {', '.join(plan.folds)} · {when}; "
+             f"the {len(plan.training_jobs())} training runs took {_run_seconds(plan, runs) / 60:.0f} "
              f"worker-minutes in all · {time.strftime('%Y-%m-%d')}. Mean ± std over folds and seeds; lower is better for AFD and FID."]
     if summary and "afd" in plan.tables:
         parts.append("## AFD on SBU (paper Table 1)\n\n" + afd_section(summary, class_names) + _dev_test(imm, class_names))
