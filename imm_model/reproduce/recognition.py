@@ -6,11 +6,10 @@ to the training set and the other to the test set of SBU's half/half split. Addi
 *test* set measures the classifier on the generator's output as much as on real motion, so besides that
 "paper" protocol we report a "clean" one (synthesized data in training only, real test data only) and the
 same under leave-one-subject-out. The classifier is the evaluation's interaction GRU (model/classifier.py),
-not the paper's discriminator-shaped one; on the half split each condition is averaged over CLASSIFIER_SEEDS.
-Under LOSO each condition is one classifier with the evaluation's own seed, so the two conditions are paired and
-the spread over training seeds is the generator's: the real-only classifier is then the fold's cached judge
-(imm_model/cache.py), trained once per fold and not once per evaluation (three classifiers per condition had
-made these studies a quarter of a seed's wall time).
+not the paper's discriminator-shaped one. Each condition is one classifier with the evaluation's own seed
+(INTERACTION.seed) whatever the training seed, so the conditions are paired and the spread over training seeds is
+the generator's. Under LOSO the real-only classifier is the fold's cached judge (imm_model/cache.py), trained once
+per fold. (Three classifier seeds per condition had made these studies a quarter of a seed's wall time.)
 
 The synthesized interactions: training leaders of each class, with their own class label at scales
 SCALES (the label scale is IMM's "match" variation), 50 per class drawn without replacement.
@@ -24,7 +23,6 @@ import numpy as np
 
 PER_CLASS = 50
 SCALES = (0.8, 0.9, 1.0, 1.1, 1.2)
-CLASSIFIER_SEEDS = (0, 1, 2)
 
 
 def synthesize_per_class(model, data, train_idx: np.ndarray, seed: int) -> tuple[list, list, np.ndarray]:
@@ -66,7 +64,7 @@ def _score(train: tuple[list, np.ndarray], test: tuple[list, np.ndarray], C: int
 
 
 def study(model, data, train_idx: np.ndarray, test_idx: np.ndarray, protocols: tuple[str, ...],
-          classifier_epochs: int | None = None, seed: int = 0, classifier_seeds: tuple[int, ...] = CLASSIFIER_SEEDS,
+          classifier_epochs: int | None = None, seed: int = 0, classifier_seeds: tuple[int, ...] = (0,),
           real_only=None) -> dict:
     """Accuracy per class without and with synthesized data, under each protocol ("clean", "paper").
     `real_only(cfg)`, when given, is the classifier `cfg` already trained on the real `train_idx` (a cache)."""

@@ -133,10 +133,9 @@ def recognition_section(results: dict, class_names: list[str]) -> str:
                 rows.append([f"ours, {label}: {title}", str(rs[0][key]["train"]) if label == "half/half" else "-",
                              str(rs[0][key]["test"]) if label == "half/half" else "-",
                              *(f"{v:.3f}" for v in per_class), _pm(float(np.mean(acc)), float(np.std(acc)))])
-    return (_table(head, rows) + "\n\nOurs: the evaluation's interaction classifier (GRU); half/half: mean over 3 classifier seeds and "
-            "the training seeds; LOSO: per fold one classifier per condition, with the evaluation's classifier seed for "
-            "every training seed (the conditions are paired; the spread over training seeds is the generator's), mean "
-            "over folds and training seeds; "
+    return (_table(head, rows) + "\n\nOurs: the evaluation's interaction classifier (GRU), one per condition (and per fold under LOSO), "
+            "with the evaluation's classifier seed for every training seed (the conditions are paired; the spread "
+            "over training seeds is the generator's); mean over training seeds (and folds); "
             "50 synthesized interactions per class from the training leaders "
             "(reproduce/recognition.py).")
 

@@ -76,10 +76,10 @@ class EvalJob:
 
     @property
     def cost(self) -> float:
-        """Expected seconds on one lane (seed 0's log), to run the longest first: the half split's study trains nine
+        """Expected seconds on one lane (seed 0's log), to run the longest first: the half split's study trains three
         classifiers; a fold's first evaluation may train its three judges."""
         if self.kind == "recognition":
-            return 600.0 if self.run.split == HALF_SPLIT else 80.0
+            return 200.0 if self.run.split == HALF_SPLIT else 80.0
         return 80.0 if self.kind == "k3hi" else 60.0 if self.checkpoint == "final" else 10.0
 
     def result_path(self, runs: Path) -> Path:
@@ -91,23 +91,15 @@ class EvalJob:
         run_dir = self.run.run_dir(runs)
         return final_checkpoint(run_dir) if self.checkpoint == "final" else run_dir / "best.safetensors"
 
-    @property
-    def recognition_seeds(self) -> tuple[int, ...]:
-        """The recognition study's classifier seeds: three on the paper's half split; under LOSO the evaluation's
-        interaction classifier's own seed, whatever the training seed (reproduce/recognition.py)."""
-        from imm_model.model.classifier import INTERACTION
-        from imm_model.reproduce.recognition import CLASSIFIER_SEEDS
-
-        return CLASSIFIER_SEEDS if self.run.split == HALF_SPLIT else (INTERACTION.seed,)
-
     def key(self, runs: Path) -> str:
         """Changes when the run, the men run, the baselines or the classifiers change."""
-        from imm_model.reproduce.recognition import CLASSIFIER_SEEDS
+        from imm_model.model.classifier import INTERACTION
 
         stamp = lambda job: json.loads((job.run_dir(runs) / "done.json").read_text())["key"]  # noqa: E731
-        seeds = self.recognition_seeds if self.kind == "recognition" else CLASSIFIER_SEEDS
+        # the recognition study's classifier seed; a key without one is a half-split study over three seeds (older)
+        seeds = [[INTERACTION.seed]] if self.kind == "recognition" else []
         text = json.dumps([[stamp(job) for job in self.needs], self.checkpoint, self.kind, self.baselines,
-                           self.classifier_epochs, *([list(seeds)] if seeds != CLASSIFIER_SEEDS else [])])
+                           self.classifier_epochs, *seeds])
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
     def options(self, runs: Path):
@@ -167,6 +159,7 @@ def evaluate_run(job: EvalJob, runs: Path, data_path: Path, threads: int) -> dic
 def _recognition(job: EvalJob, model, data) -> dict:
     from imm_model import cache
     from imm_model.data.splits import half_split, loso_fold
+    from imm_model.model.classifier import INTERACTION
     from imm_model.reproduce.recognition import study
 
     if job.run.split == HALF_SPLIT:  # the paper's protocol, and the clean one
@@ -175,4 +168,4 @@ def _recognition(job: EvalJob, model, data) -> dict:
         split, protocols = loso_fold(data.subject_pairs, job.run.split), ("clean",)
         real_only = lambda cfg: cache.fold_classifier(cfg, data, job.run.split, progress=False)  # noqa: E731
     return study(model, data, split.train, split.test, protocols, job.classifier_epochs, seed=job.run.seed,
-                 classifier_seeds=job.recognition_seeds, real_only=real_only)
+                 classifier_seeds=(INTERACTION.seed,), real_only=real_only)
