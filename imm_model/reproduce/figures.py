@@ -16,7 +16,7 @@ def _bars(ax, groups: dict[str, list[float]], errors: dict[str, list[float]], la
     for k, (name, values) in enumerate(groups.items()):
         ax.bar(x + (k - (len(groups) - 1) / 2) * width, values, width, yerr=errors.get(name), label=name, capsize=2)
     ax.set_xticks(x, labels, rotation=20)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1), borderaxespad=0)  # beside the bars, never over them
 
 
 def write_figures(results: dict, summary: dict | None, class_names: list[str], out: Path) -> list[Path]:
