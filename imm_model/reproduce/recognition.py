@@ -46,26 +46,20 @@ def _per_class_accuracy(pred: np.ndarray, y: np.ndarray, C: int) -> list[float]:
     return [float((pred[y == c] == c).mean()) if (y == c).any() else float("nan") for c in range(C)]
 
 
-def _score(train: tuple[list, np.ndarray], test: tuple[list, np.ndarray], C: int, epochs: int | None,
-           seeds: tuple[int, ...], trained=None) -> dict:
-    """Train the interaction classifier on `train` for each seed (or take `trained(cfg)`, the same classifier
-    already trained), test on `test` -> mean accuracies."""
+def _score(train: tuple[list, np.ndarray], test: tuple[list, np.ndarray], C: int, epochs: int | None, trained=None) -> dict:
+    """Train the evaluation's interaction classifier on `train` (or take `trained(cfg)`, the same classifier already
+    trained), test on `test` -> accuracies."""
     from imm_model.model.classifier import INTERACTION, classify, train_classifier
 
-    per_class, overall = [], []
-    for seed in seeds:
-        cfg = replace(INTERACTION, seed=seed, **({"epochs": epochs} if epochs else {}))
-        clf = trained(cfg) if trained else train_classifier(cfg, train[0], train[1], C)
-        pred = classify(clf, test[0])[0].argmax(-1)
-        per_class.append(_per_class_accuracy(pred, test[1], C))
-        overall.append(float((pred == test[1]).mean()))
-    return {"per_class": np.nanmean(per_class, axis=0).tolist(), "accuracy": float(np.mean(overall)),
-            "accuracy_std": float(np.std(overall)), "train": len(train[1]), "test": len(test[1])}
+    cfg = replace(INTERACTION, **({"epochs": epochs} if epochs else {}))
+    clf = trained(cfg) if trained else train_classifier(cfg, train[0], train[1], C)
+    pred = classify(clf, test[0])[0].argmax(-1)
+    return {"per_class": _per_class_accuracy(pred, test[1], C), "accuracy": float((pred == test[1]).mean()),
+            "train": len(train[1]), "test": len(test[1])}
 
 
 def study(model, data, train_idx: np.ndarray, test_idx: np.ndarray, protocols: tuple[str, ...],
-          classifier_epochs: int | None = None, seed: int = 0, classifier_seeds: tuple[int, ...] = (0,),
-          real_only=None) -> dict:
+          classifier_epochs: int | None = None, seed: int = 0, real_only=None) -> dict:
     """Accuracy per class without and with synthesized data, under each protocol ("clean", "paper").
     `real_only(cfg)`, when given, is the classifier `cfg` already trained on the real `train_idx` (a cache)."""
     from imm_model.model.classifier import motion_inputs
@@ -79,8 +73,8 @@ def study(model, data, train_idx: np.ndarray, test_idx: np.ndarray, protocols: t
     leaders, followers, classes = synthesize_per_class(model, data, train_idx, seed)
     synth = motion_inputs(leaders, followers, "interaction")
     (train_x, train_y), (test_x, test_y) = real(train_idx), real(test_idx)
-    score = lambda train, test: _score(train, test, C, classifier_epochs, classifier_seeds)  # noqa: E731
-    out = {"original": _score((train_x, train_y), (test_x, test_y), C, classifier_epochs, classifier_seeds, real_only)}
+    score = lambda train, test: _score(train, test, C, classifier_epochs)  # noqa: E731
+    out = {"original": _score((train_x, train_y), (test_x, test_y), C, classifier_epochs, real_only)}
     if "clean" in protocols:
         out["augmented"] = score((train_x + synth, np.concatenate([train_y, classes])), (test_x, test_y))
     if "paper" in protocols:  # half of the synthesized set to training, half to the test set

@@ -159,7 +159,6 @@ def evaluate_run(job: EvalJob, runs: Path, data_path: Path, threads: int) -> dic
 def _recognition(job: EvalJob, model, data) -> dict:
     from imm_model import cache
     from imm_model.data.splits import half_split, loso_fold
-    from imm_model.model.classifier import INTERACTION
     from imm_model.reproduce.recognition import study
 
     if job.run.split == HALF_SPLIT:  # the paper's protocol, and the clean one
@@ -168,4 +167,4 @@ def _recognition(job: EvalJob, model, data) -> dict:
         split, protocols = loso_fold(data.subject_pairs, job.run.split), ("clean",)
         real_only = lambda cfg: cache.fold_classifier(cfg, data, job.run.split, progress=False)  # noqa: E731
     return study(model, data, split.train, split.test, protocols, job.classifier_epochs, seed=job.run.seed,
-                 classifier_seeds=(INTERACTION.seed,), real_only=real_only)
+                 real_only=real_only)
