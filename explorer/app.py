@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import asyncio
 import functools
-import time
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +28,6 @@ from explorer.session import FPS, Session
 from explorer.url_state import apply_view, current_view, view_query
 
 REVIEW_DELAY_S = 0.04  # after a new mix: distance chart, AFD and latent star follow the picture
-CHART_PERIOD_S = 0.25  # the distance chart follows playback at most 4x a second (plotly redraws are costly)
 
 
 class Studio:
@@ -47,7 +45,6 @@ class Studio:
         self._mix_pending = False
         self._mix_task = None
         self._play_task = None
-        self._last_chart = 0.0
         self._distances = np.zeros(1)
         self._ab_distances = np.zeros(0)
         self._closest = np.zeros(0)
@@ -101,6 +98,9 @@ class Studio:
                 "projection": "tsne",
                 "projection_busy": False,
                 "afd_text": "",
+                "distance_chart": "",  # explorer/charts.py markup; the frame cursor over it follows `frame` in the page
+                "latent_chart": "",
+                "latent_marks": {"ring": None, "star": None},  # the current sequence and mix on the map, percent of its box
                 "error": "",
                 "notice": "",
                 "mix_count": 0,  # increments after each re-synthesis (tests and benchmarks wait on it)
@@ -200,7 +200,7 @@ class Studio:
             self.scene.set_sequence(ses.leader, ses.ground_truth, ses.synth, 0)
             self.scene.set_pinned(ses.pinned)
             self.scene.set_camera(self.scene.camera_preset)
-            self._after_mix(force_chart=True)
+            self._after_mix()
             s.error = ""
         self.ctrl.view_update()
 
@@ -226,7 +226,7 @@ class Studio:
             self.scene.set_sequence(ses.leader, None, ses.synth, 0)
             self.scene.set_pinned(ses.pinned)
             self.scene.set_camera(self.scene.camera_preset)
-            self._after_mix(force_chart=True)
+            self._after_mix()
             s.error = ""
         self.ctrl.view_update()
 
@@ -281,12 +281,12 @@ class Studio:
     @_guard
     def update_review(self) -> None:
         with self.state:
-            self._after_mix(force_chart=True)
+            self._after_mix()
             self.state.error = ""
         if self._contact_changed:  # the orange limbs of the new mix: one more picture only when they differ
             self.ctrl.view_update()
 
-    def _after_mix(self, force_chart: bool = False) -> None:
+    def _after_mix(self) -> None:
         """Review numbers, distance chart and latent star for the current synthesized follower."""
         s, ses = self.state, self.session
         self._distances = ses.distances_m()
@@ -299,7 +299,7 @@ class Studio:
         s.afd_text = ("uploaded leader: no ground truth to compare with, so no error chart" if afd is None
                       else f"AFD {afd:.3f} (SBU units) · mean {self._distances.mean():.2f} m")
         self._update_time()
-        self.update_distance_chart(force=force_chart)
+        self.state.distance_chart = charts.distance_chart(self._distances, FPS, self._ab_distances, self._closest)
         self.latent_panel.redraw()
         s.mix_count = (s.mix_count or 0) + 1
 
@@ -327,7 +327,6 @@ class Studio:
         self.scene.set_frame(int(frame or 0))
         self.ctrl.view_update()
         self._update_time()
-        self.update_distance_chart()
 
     def step_frame(self, delta: int):
         n = self.session.num_frames
@@ -364,15 +363,6 @@ class Studio:
         the last image, and moving points or toggling actors does not touch the window: mark it."""
         self.scene.render_window.Modified()
         self._view.update()
-
-    # ---- charts --------------------------------------------------------------------------
-    def update_distance_chart(self, force: bool = False) -> None:
-        now = time.monotonic()
-        if not force and self.state.playing and now - self._last_chart < CHART_PERIOD_S:
-            return
-        self._last_chart = now
-        self.state.distance_figure = charts.distance_figure(self._distances, int(self.state.frame or 0), FPS, self._ab_distances,
-                                                            self._closest)
 
     # ---- layout --------------------------------------------------------------------------
     def _build_ui(self):

@@ -1,21 +1,50 @@
-"""Plotly figures as plain dicts (what trame-plotly puts in state): cheap to rebuild on every change."""
+"""The distance chart and the latent map, drawn as HTML + SVG markup that the page shows with `v-html`.
+
+Written by hand rather than with a charting library: Plotly, which drew them before, is 4.6 MB of the page's
+~7 MB of JavaScript and cost 1.5-2.7 s of its start-up (docs/explorer.md); these two charts need lines, shaded
+bands, points, hover labels and a click, which a few lines of markup do. What moves often (the frame cursor, the
+current mix's star) is not in the markup: the layout binds it to small state values (`distance_frames`,
+`latent_marks`), so playback and slider moves do not resend the charts.
+
+Both charts put their plot area in the same box (PLOT_BOX, CSS insets), so that the layout's overlays line up.
+Coordinates inside it are percentages (HTML) or a 0-1000 SVG viewBox stretched to the box, with strokes that
+do not scale.
+"""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
+from html import escape
 
 import numpy as np
 
 from explorer.palette import PINNED, SYNTHESIZED, WARNING, class_color, display_name
 from imm_model.evaluation.plausibility import PENETRATION_M
 
-FONT = {"family": "Roboto, sans-serif", "size": 11}
+DISTANCE_BOX = "left: 52px; right: 12px; top: 24px; bottom: 34px"  # plot area of the distance chart
+LATENT_BOX = "left: 12px; right: 132px; top: 18px; bottom: 10px"  # plot area of the latent map (legend at right)
 
-
-def _trace(y: np.ndarray, color: str, name: str, dash: str = "solid") -> dict:
-    return {"type": "scatter", "mode": "lines", "x": list(range(len(y))), "y": np.round(y, 4).tolist(),
-            "line": {"color": color, "width": 2, "dash": dash}, "hovertemplate": "frame %{x}: %{y:.3f} m<extra></extra>",
-            "name": name}
+CHART_CSS = """
+.imm-chart { position: absolute; inset: 0; font: 11px Roboto, sans-serif; color: #444; }
+.imm-plot { position: absolute; }
+.imm-plot > svg { position: absolute; inset: 0; width: 100%; height: 100%; overflow: visible; }
+.imm-tick-y { position: absolute; right: calc(100% + 5px); transform: translateY(-50%); white-space: nowrap; }
+.imm-tick-x { position: absolute; top: calc(100% + 3px); transform: translateX(-50%); }
+.imm-axis-x { position: absolute; bottom: 0; left: 52px; right: 12px; text-align: center; }
+.imm-axis-y { position: absolute; left: 0; top: 50%; transform: rotate(-90deg) translateX(50%); transform-origin: left top; }
+.imm-legend { position: absolute; display: flex; gap: 10px; font-size: 10px; }
+.imm-legend.vertical { flex-direction: column; gap: 2px; }
+.imm-swatch { display: inline-block; width: 14px; height: 0; border-top: 2px solid; vertical-align: middle; margin-right: 4px; }
+.imm-dot { display: inline-block; width: 8px; height: 8px; border-radius: 50%; margin-right: 4px; vertical-align: middle; }
+.imm-pt { position: absolute; width: 9px; height: 9px; margin: -4.5px 0 0 -4.5px; border-radius: 50%;
+          border: 1.5px solid; box-sizing: border-box; cursor: pointer; }
+.imm-pt:hover { transform: scale(1.6); z-index: 3; }
+.imm-pt:hover::after { content: attr(data-tip); position: absolute; left: 12px; top: -6px; white-space: nowrap;
+                       background: rgba(255,255,255,.92); border: 1px solid #bbb; padding: 1px 4px; font-size: 8px; }
+.imm-mark { position: absolute; transform: translate(-50%, -50%); pointer-events: none; }
+.imm-cursor { position: absolute; top: 0; bottom: 0; border-left: 1.5px dotted #333; pointer-events: none; }
+"""
 
 
 def penetration_ranges(closest: np.ndarray) -> list[tuple[int, int]]:
@@ -34,96 +63,79 @@ def contact_text(closest: np.ndarray) -> str:
     return f"bodies interpenetrate in {n} of {len(closest)} frames (limbs < {PENETRATION_M * 100:.0f} cm apart: orange)"
 
 
-def distance_figure(distances: np.ndarray, frame: int, fps: float, ab: np.ndarray | None = None,
-                    closest: np.ndarray | None = None) -> dict:
+def nice_ticks(top: float, count: int = 4) -> list[float]:
+    """0 and multiples of a 1/2/2.5/5 x 10^k step up to `top`, about `count` of them."""
+    if top <= 0:
+        return [0.0]
+    raw = top / count
+    magnitude = 10 ** math.floor(math.log10(raw))
+    step = next(m * magnitude for m in (1, 2, 2.5, 5, 10) if m * magnitude >= raw * 0.999)
+    return [round(i * step, 10) for i in range(int(top / step + 1e-9) + 1)]
+
+
+def _polyline(values: np.ndarray, x_of, top: float, color: str, series: str, dash: str = "") -> str:
+    points = " ".join(f"{x_of(i):.1f},{1000 - 1000 * v / top:.1f}" for i, v in enumerate(values))
+    dashes = f' stroke-dasharray="{dash}"' if dash else ""
+    return (f'<polyline data-series="{series}" points="{points}" fill="none" stroke="{color}" stroke-width="2"'
+            f' vector-effect="non-scaling-stroke"{dashes}/>')
+
+
+def distance_chart(distances: np.ndarray, fps: float, ab: np.ndarray | None = None,
+                   closest: np.ndarray | None = None) -> str:
     """Ground truth vs synthesized per frame; with `ab` (a pinned mix), pinned vs current; with `closest`, the
     closest limb distance between leader and follower, and the interpenetrating frames shaded."""
-    n = max(len(distances), 0 if ab is None else len(ab), 0 if closest is None else len(closest))
-    data = [_trace(distances, SYNTHESIZED, "ground truth ↔ current")] if len(distances) else []
-    if ab is not None and len(ab):
-        data.append(_trace(ab, PINNED, "pinned ↔ current", "dash"))
-    if closest is not None and len(closest):
-        data.append(_trace(closest, WARNING, "closest limbs, leader ↔ follower", "dot"))
-    ranges = penetration_ranges(closest) if closest is not None else []
-    bands = [{"type": "rect", "x0": a - 0.5, "x1": b + 0.5, "yref": "paper", "y0": 0, "y1": 1, "fillcolor": WARNING,
-              "opacity": 0.18, "line": {"width": 0}, "layer": "below"} for a, b in ranges]
-    return {
-        "data": data,
-        "layout": {
-            "margin": {"l": 48, "r": 10, "t": 8, "b": 34},
-            "font": FONT,
-            "xaxis": {"title": {"text": f"frame ({fps:g} fps)"}, "range": [0, max(1, n - 1)], "zeroline": False},
-            "yaxis": {"title": {"text": "distance (m)"}, "rangemode": "tozero"},
-            "shapes": bands + [
-                {
-                    "type": "line",
-                    "x0": frame,
-                    "x1": frame,
-                    "yref": "paper",
-                    "y0": 0,
-                    "y1": 1,
-                    "line": {"color": "#333", "width": 1.5, "dash": "dot"},
-                }
-            ],
-            "showlegend": len(data) > 1,
-            "legend": {"orientation": "h", "x": 0, "y": 1.12, "font": {"size": 10}},
-            "plot_bgcolor": "#ffffff",
-            "paper_bgcolor": "rgba(0,0,0,0)",
-            "autosize": True,
-        },
-    }
+    series = [(np.asarray(v), color, key, name, dash) for v, color, key, name, dash in (
+        (distances, SYNTHESIZED, "truth", "ground truth ↔ current", ""),
+        (ab, PINNED, "pinned", "pinned ↔ current", "6 4"),
+        (closest, WARNING, "closest", "closest limbs, leader ↔ follower", "2 3"),
+    ) if v is not None and len(v)]  # fmt: skip
+    n = max([len(v) for v, *_ in series], default=1)
+    top = max([float(np.max(v)) for v, *_ in series] + [1e-3]) * 1.05
+    y_ticks, x_ticks = nice_ticks(top), nice_ticks(n - 1, 6) if n > 1 else [0]
+    width = 1000 / max(1, n - 1)  # one frame in viewBox units
+
+    svg = [f'<rect class="penetration" x="{(a - 0.5) * width:.1f}" width="{(b - a + 1) * width:.1f}" y="0" height="1000"'
+           f' fill="{WARNING}" opacity="0.18"/>' for a, b in penetration_ranges(closest if closest is not None else [])]
+    svg += [f'<line x1="0" x2="1000" y1="{1000 - 1000 * t / top:.1f}" y2="{1000 - 1000 * t / top:.1f}" stroke="#e6e6e6"'
+            ' vector-effect="non-scaling-stroke"/>' for t in y_ticks]
+    svg += [_polyline(v, lambda i: i * width, top, color, key, dash) for v, color, key, _, dash in series]
+    labels = [f'<span class="imm-tick-y" style="top: {100 - 100 * t / top:.2f}%">{t:g}</span>' for t in y_ticks]
+    labels += [f'<span class="imm-tick-x" style="left: {100 * t / max(1, n - 1):.2f}%">{t:g}</span>' for t in x_ticks]
+    legend = "".join(f'<span><i class="imm-swatch" style="border-color: {color}; border-top-style: {"dashed" if dash else "solid"}">'
+                     f'</i>{escape(name)}</span>' for _, color, _, name, dash in series) if len(series) > 1 else ""
+    return (f'<div class="imm-chart"><div class="imm-legend" style="left: 52px; top: 2px">{legend}</div>'
+            f'<div class="imm-plot" style="{DISTANCE_BOX}">'
+            f'<svg viewBox="0 0 1000 1000" preserveAspectRatio="none">{"".join(svg)}</svg>{"".join(labels)}</div>'
+            f'<div class="imm-axis-x">frame ({fps:g} fps)</div><div class="imm-axis-y">distance (m)</div></div>')
 
 
-def latent_figure(
-    coords: np.ndarray,
-    actions: np.ndarray,
-    held_out: np.ndarray,
-    sequence_ids: Sequence[str],
-    class_names: Sequence[str],
-    current_index: int | None,
-    mix_xy: np.ndarray | None,
-    mix_text: str,
-    method: str,
-) -> dict:
-    """One trace per class (legend = class colors); held-out sequences as open circles; the current
-    sequence ringed in black; the current mix as a green star (green = synthesized, as in 3D)."""
-    data = _class_traces(coords, actions, held_out, sequence_ids, class_names)
-    if current_index is not None:  # None: an uploaded leader, which has no point of its own on the map
-        data.append(_point_trace("this sequence (match)", coords[current_index], int(current_index),
-                                 f"{sequence_ids[current_index]} with its own label<extra></extra>",
-                                 {"size": 15, "symbol": "circle-open", "color": "#111", "line": {"width": 2.5, "color": "#111"}}))
-    if mix_xy is not None:
-        data.append(_point_trace("current mix (synth)", mix_xy, -1 if current_index is None else int(current_index),
-                                 mix_text.replace("%", "%%") + "<extra>current mix</extra>",
-                                 {"size": 18, "symbol": "star", "color": SYNTHESIZED, "line": {"width": 1.5, "color": "#111"}}))
-    title = {"text": method.upper() if method == "umap" else "t-SNE", "x": 0, "y": 1, "xref": "paper", "yref": "paper",
-             "showarrow": False, "xanchor": "left", "font": {"size": 10, "color": "#777"}}
-    layout = {"margin": {"l": 8, "r": 8, "t": 8, "b": 8}, "font": FONT, "xaxis": {"visible": False}, "yaxis": {"visible": False},
-              "legend": {"orientation": "v", "x": 1.0, "xanchor": "left", "y": 1, "font": {"size": 10}},
-              "hovermode": "closest", "plot_bgcolor": "#ffffff", "paper_bgcolor": "rgba(0,0,0,0)", "annotations": [title],
-              "uirevision": method,  # keep the user's zoom while the star moves
-              "autosize": True}
-    return {"data": data, "layout": layout}
+def map_position(coords: np.ndarray, xy) -> list[float]:
+    """Where `xy` falls in the latent map's plot box, in percent from its left and top (y grows upwards)."""
+    low, high = coords.min(0), coords.max(0)
+    span = np.where(high > low, high - low, 1.0)
+    fx, fy = np.clip((np.asarray(xy, dtype=float) - low) / span, 0, 1)  # a star beyond the points stays at the edge
+    return [round(100 * float(fx), 2), round(100 * (1 - float(fy)), 2)]
 
 
-def _class_traces(coords, actions, held_out, sequence_ids, class_names) -> list[dict]:
-    traces = []
-    for c, name in enumerate(class_names):
-        idx = np.flatnonzero(actions == c)
-        if not len(idx):
-            continue
-        traces.append({
-            "type": "scatter", "mode": "markers", "name": display_name(name),
-            "x": np.round(coords[idx, 0], 3).tolist(), "y": np.round(coords[idx, 1], 3).tolist(),
-            "customdata": idx.tolist(),
-            "text": [sequence_ids[i] + (" (held out)" if held_out[i] else "") for i in idx],
-            "hovertemplate": "%{text}<extra>" + display_name(name) + "</extra>",
-            "marker": {"color": class_color(c), "size": 8, "symbol": ["circle-open" if held_out[i] else "circle" for i in idx],
-                       "line": {"width": 1.5, "color": class_color(c)}},
-        })  # fmt: skip
-    return traces
-
-
-def _point_trace(name: str, xy, customdata: int, hover: str, marker: dict) -> dict:
-    return {"type": "scatter", "mode": "markers", "name": name, "x": [float(xy[0])], "y": [float(xy[1])],
-            "customdata": [customdata], "hovertemplate": hover, "marker": marker}
+def latent_chart(coords: np.ndarray, actions: np.ndarray, held_out: np.ndarray, sequence_ids: Sequence[str],
+                 class_names: Sequence[str], method: str) -> str:
+    """Every sequence as a point in its class color (held out: an open circle), hover for its id; a click on a
+    point reads its `data-index`. The current sequence's ring and the current mix's star are overlays
+    (latent_marks)."""
+    points = []
+    for i, (xy, c) in enumerate(zip(coords, actions, strict=True)):
+        left, top = map_position(coords, xy)
+        color = class_color(int(c))
+        tip = escape(f"{sequence_ids[i]}{' (held out)' if held_out[i] else ''} · {display_name(class_names[int(c)])}")
+        fill = "transparent" if held_out[i] else color
+        points.append(f'<span class="imm-pt" data-index="{i}" data-tip="{tip}" style="left: {left}%; top: {top}%;'
+                      f' border-color: {color}; background: {fill}"></span>')
+    present = sorted(set(int(c) for c in actions))
+    legend = "".join(f'<span><i class="imm-dot" style="background: {class_color(c)}"></i>{escape(display_name(class_names[c]))}</span>'
+                     for c in present)
+    legend += ('<span><i class="imm-dot" style="border: 2px solid #111"></i>this sequence</span>'
+               f'<span style="color: {SYNTHESIZED}">★ <span style="color: #444">current mix</span></span>')
+    title = "UMAP" if method == "umap" else "t-SNE"
+    return (f'<div class="imm-chart"><div style="position: absolute; left: 6px; top: 0; color: #777; font-size: 10px">{title}</div>'
+            f'<div class="imm-plot" style="{LATENT_BOX}">{"".join(points)}</div>'
+            f'<div class="imm-legend vertical" style="right: 4px; top: 18px; width: 118px">{legend}</div></div>')

@@ -17,19 +17,26 @@ class LatentPanel:
     def __init__(self, studio, latent: LatentMap):
         self.studio = studio
         self.latent = latent
+        self._drawn = ""  # the method whose points the page holds
         studio.state.change("projection")(self.on_projection_change)
         studio.ctrl.pick_latent_point = studio.guarded(self.pick_point)
 
     def redraw(self) -> None:
-        """The map for the chosen method (nothing while that method is still being fitted)."""
+        """The map for the chosen method (nothing while that method is still being fitted). Its points are sent
+        when the method changes; after that only the current sequence's ring and the mix's star move."""
         s, ses, d = self.studio.state, self.studio.session, self.studio.session.data
         method = s.projection or "tsne"
         if not self.latent.has(method):
             return
-        s.latent_figure = charts.latent_figure(
-            self.latent.coords[method], d.actions, d.held_out, d.sequence_ids, ses.class_names,
-            None if ses.upload else ses.index, self.latent.place(ses.mix_latent(), method), ses.label_text(), method,
-        )  # fmt: skip
+        coords = self.latent.coords[method]
+        if self._drawn != method:
+            s.latent_chart = charts.latent_chart(coords, d.actions, d.held_out, d.sequence_ids, ses.class_names, method)
+            self._drawn = method
+        star = self.latent.place(ses.mix_latent(), method)
+        s.latent_marks = {
+            "ring": None if ses.upload else charts.map_position(coords, coords[ses.index]),  # an upload has no point
+            "star": None if star is None else charts.map_position(coords, star),
+        }
 
     def on_projection_change(self, projection, **_):
         if projection not in METHODS:

@@ -6,12 +6,13 @@ The Studio (app.py) owns state and controllers; this module only places widgets,
 from __future__ import annotations
 
 from trame.ui.vuetify3 import SinglePageWithDrawerLayout
-from trame.widgets import client, html, plotly
+from trame.widgets import client, html
 from trame.widgets import vtk as vtk_widgets
 from trame.widgets import vuetify3 as v3
 
+from explorer.charts import CHART_CSS, DISTANCE_BOX, LATENT_BOX
 from explorer.keys import KEY_HELP, LISTENER_JS
-from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED, WARNING, class_color, display_name
+from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED, SYNTHESIZED, WARNING, class_color, display_name
 from explorer.reads_as_panel import reads_as_panel
 from explorer.scene import CAMERA_PRESETS, CHARACTER_KEYS
 
@@ -310,12 +311,7 @@ def review_cards(studio) -> None:
                 v3.VSpacer()
                 html.Div("{{ afd_text }}", classes="text-caption", id="afd-text")
             html.Div("{{ contact_text }}", classes="text-caption px-2", style=f"color: {WARNING}", id="contact-text")
-            plotly.Figure(
-                state_variable_name="distance_figure",
-                display_mode_bar=False,
-                style="height: 200px",
-                responsive=True,
-            )
+            distance_chart()
         with v3.VCard(variant="outlined", style="flex: 1 1 50%", classes="pa-1"):
             with html.Div(classes="d-flex align-center px-2"):
                 html.Div("Latent map: click a point to load it", classes="text-caption font-weight-bold")
@@ -327,11 +323,33 @@ def review_cards(studio) -> None:
                 ):
                     v3.VBtn("t-SNE", value="tsne", size="x-small")
                     v3.VBtn("UMAP", value="umap", size="x-small", id="umap-button")
-            plotly.Figure(
-                state_variable_name="latent_figure",
-                display_mode_bar=False,
-                style="height: 215px",
-                responsive=True,
-                click=(studio.ctrl.pick_latent_point, "[$event.points[0].customdata]"),
-                id="latent-plot",
-            )
+            latent_map(studio)
+
+
+# A click on the chart moves to the frame under the mouse.
+SEEK_JS = ("frame = Math.max(0, Math.min(num_frames - 1, Math.round((num_frames - 1) * ($event.clientX -"
+           " $event.currentTarget.getBoundingClientRect().left) / $event.currentTarget.clientWidth)))")
+
+
+def distance_chart() -> None:
+    """explorer/charts.py's markup, with the frame cursor on top (it follows playback without a redraw)."""
+    client.Style(CHART_CSS)
+    with html.Div(style="position: relative; height: 200px", id="distance-chart"):
+        html.Div(v_html=("distance_chart",))
+        with html.Div(classes="imm-plot", style=f"{DISTANCE_BOX}; cursor: crosshair", click=SEEK_JS, id="distance-seek"):
+            html.Div(classes="imm-cursor", style=("{left: (100 * frame / Math.max(1, num_frames - 1)) + '%'}",))
+
+
+def latent_map(studio) -> None:
+    """explorer/charts.py's points; a click reads the point's data-index. The ring (this sequence) and the star
+    (the current mix) are overlays that move without resending the points."""
+    with html.Div(style="position: relative; height: 215px", id="latent-plot",
+                  click=(studio.ctrl.pick_latent_point, "[$event.target.dataset.index]")):
+        html.Div(v_html=("latent_chart",))
+        with html.Div(classes="imm-plot", style=f"{LATENT_BOX}; pointer-events: none"):
+            html.Div(v_if="latent_marks.ring", classes="imm-mark", id="latent-ring",
+                     style=("{left: latent_marks.ring[0] + '%', top: latent_marks.ring[1] + '%', width: '16px',"
+                            " height: '16px', borderRadius: '50%', border: '2.5px solid #111'}",))
+            html.Div("★", v_if="latent_marks.star", classes="imm-mark", id="latent-star",
+                     style=(f"{{left: latent_marks.star[0] + '%', top: latent_marks.star[1] + '%', fontSize: '22px',"
+                            f" color: '{SYNTHESIZED}', textShadow: '0 0 2px #111'}}",))

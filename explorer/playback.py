@@ -48,5 +48,3 @@ async def play(studio) -> None:
                     studio.state.playing = False
             shown = int(pos)
             studio.state.frame = shown
-    with studio.state:
-        studio.update_distance_chart(force=True)

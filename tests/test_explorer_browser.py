@@ -95,24 +95,33 @@ def test_class_slider_changes_follower(page):
 
 
 def test_latent_click_switches_sequence(page):
-    fig = probe.state(page, "latent_figure")
     current = probe.state(page, "sequence_index")
-    # Click the most isolated point of the first class (plotly picks the closest point to the mouse).
-    xy = np.array([[x, y] for tr in fig["data"] for x, y in zip(tr["x"], tr["y"], strict=True)])
-    first = fig["data"][0]
-    mine = np.c_[first["x"], first["y"]]
-    gaps = [np.sort(np.linalg.norm(xy - p, axis=1))[1] for p in mine]
-    order = [j for j in np.argsort(gaps)[::-1] if first["customdata"][j] != current]
-    k = int(order[0])
-    target = first["customdata"][k]
-    point = page.locator("#latent-plot .scatterlayer .trace").first.locator(".point").nth(k)
-    box = point.bounding_box()
-    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
-    page.mouse.click(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    points = page.locator("#latent-plot .imm-pt")
+    assert points.count() > 10
+    ring = page.locator("#latent-ring").bounding_box()  # the current sequence is ringed on the map
+    mine = page.locator(f'#latent-plot .imm-pt[data-index="{current}"]').bounding_box()
+    assert abs(ring["x"] + ring["width"] / 2 - (mine["x"] + mine["width"] / 2)) < 2
+    target = int(points.nth(7).get_attribute("data-index"))
+    if target == current:
+        target = int(points.nth(8).get_attribute("data-index"))
+    point = page.locator(f'#latent-plot .imm-pt[data-index="{target}"]')
+    point.hover()
+    point.click()
     page.wait_for_function(f"() => window.trame.state.get('sequence_index') !== {current}", timeout=10000)
     assert probe.state(page, "sequence_index") == target
     assert probe.state(page, "frame") == 0
     shot(page, "studio-picked")
+
+
+def test_distance_chart_click_seeks_and_cursor_follows(page):
+    """A click on the per-frame chart moves to that frame; the dotted cursor is drawn there."""
+    n = probe.state(page, "num_frames")
+    box = page.locator("#distance-seek").bounding_box()
+    page.mouse.click(box["x"] + box["width"] * 0.75, box["y"] + box["height"] / 2)
+    want = round((n - 1) * 0.75)
+    page.wait_for_function(f"() => Math.abs(window.trame.state.get('frame') - {want}) <= 1", timeout=10000)
+    cursor = page.locator("#distance-seek .imm-cursor").bounding_box()
+    assert abs(cursor["x"] - (box["x"] + box["width"] * 0.75)) < box["width"] / max(1, n - 1) + 2
 
 
 def test_play_advances_frames(page):
@@ -279,7 +288,7 @@ def test_pin_a_mix_then_compare_swap_and_clear(page):
     page.locator("#pin-mix").click()
     _wait_state(page, "!!s.get('pinned_text')")
     probe.set_state(page, f"w_{other}", 1.0)
-    pinned_line = "s.get('distance_figure').data.some(d => d.name.startsWith('pinned'))"
+    pinned_line = "s.get('distance_chart').includes('data-series=\"pinned\"')"
     _wait_state(page, f"s.get('ab_text').includes('mean') && {pinned_line}")
     time.sleep(0.5)
     assert probe.count_colors(probe.view_pixels(page), [PINNED])[0] > 300
@@ -300,8 +309,7 @@ def test_interpenetrating_limbs_are_marked(page):
     probe.set_state(page, "scene_layout", "overlay")
     _load_sequence(page, 5)
     _wait_state(page, "s.get('contact_text').includes('interpenetrate in')")
-    shapes = probe.state(page, "distance_figure")["layout"]["shapes"]
-    assert any(sh["type"] == "rect" for sh in shapes)
+    assert page.locator("#distance-chart rect.penetration").count() >= 1
     probe.set_state(page, "frame", 15)
     _wait_state(page, "s.get('frame') === 15")
     time.sleep(0.8)

@@ -204,7 +204,7 @@ def test_pin_a_mix_and_compare(session):
 
 
 def test_contact_marks_the_interpenetrating_frames_and_bones(session):
-    from explorer.charts import contact_text, distance_figure, penetration_ranges
+    from explorer.charts import contact_text, distance_chart, penetration_ranges
     from imm_model.evaluation.plausibility import PENETRATION_M, closest_distances
 
     assert penetration_ranges(np.array([0.1, 0.01, 0.02, 0.2, 0.04])) == [(1, 2), (4, 4)]
@@ -215,6 +215,17 @@ def test_contact_marks_the_interpenetrating_frames_and_bones(session):
     inside = closest < PENETRATION_M
     assert inside.any() and np.array_equal(inside, leader_bones.any(1)) and np.array_equal(inside, follower_bones.any(1))
     assert f"in {int(inside.sum())} of {len(closest)} frames" in contact_text(closest)
-    figure = distance_figure(session.distances_m(), 0, 15.0, closest=closest)
-    bands = [sh for sh in figure["layout"]["shapes"] if sh["type"] == "rect"]
-    assert len(bands) == len(penetration_ranges(closest)) and len(figure["data"]) == 2
+    chart = distance_chart(session.distances_m(), 15.0, closest=closest)
+    assert chart.count('class="penetration"') == len(penetration_ranges(closest)) and chart.count("<polyline") == 2
+
+
+def test_chart_ticks_and_markup():
+    from explorer.charts import latent_chart, map_position, nice_ticks
+
+    assert nice_ticks(0.83) == [0, 0.25, 0.5, 0.75] and nice_ticks(0.7) == [0, 0.2, 0.4, 0.6] and nice_ticks(95, 6) == [0, 20, 40, 60, 80]
+    assert nice_ticks(0.0) == [0.0]
+    coords = np.array([[0.0, 0.0], [2.0, 4.0], [1.0, 1.0]])
+    assert map_position(coords, [1.0, 1.0]) == [50.0, 75.0] and map_position(coords, [9.0, -9.0]) == [100.0, 100.0]
+    html = latent_chart(coords, np.array([0, 1, 1]), np.array([False, True, False]), ["a", "<b>&", "c"], ["x_y", "z"], "tsne")
+    assert html.count("imm-pt") == 3 and "&lt;b&gt;&amp; (held out) · z" in html and "<b>" not in html
+    assert "x y" in html  # class names as displayed
