@@ -9,8 +9,12 @@ the same for both methods and never moves the map under the user (docs/explorer.
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
+import fcntl
 import hashlib
 import os
+import sys
 import tempfile
 import threading
 from dataclasses import dataclass, field
@@ -102,44 +106,86 @@ class LatentMap:
 
     @classmethod
     def build(cls, model, data: InteractionDataset, cache_dir: Path | None, key: str | None, methods=("tsne",)) -> LatentMap:
-        """Load from `cache_dir/<key>.npz` or compute (embeddings + the requested projections) and save."""
+        """Load from `cache_dir/<key>.npz` or compute the embeddings and save them; then fit the requested
+        projections that the cache lacks (none: the studio fits them after it opens, see `fit_elsewhere`)."""
         path = Path(cache_dir) / f"latent-{key}.npz" if (cache_dir and key) else None
-        if path and path.exists():
-            try:
-                with np.load(path, allow_pickle=False) as z:
-                    lm = cls(z["latents"], {m: z[m] for m in METHODS if m in z.files}, path)
-                if len(lm.latents) == len(data):
-                    for m in methods:
-                        lm.ensure(m)
-                    return lm
-            except Exception:  # a corrupt cache file is recomputed, never fatal
-                pass
-        lm = cls(embed_all(model, data), {}, path)
+        lm = cls.load(path) if path else None
+        if lm is None or len(lm.latents) != len(data):
+            lm = cls(embed_all(model, data), {}, path)
+            lm.save()
         for m in methods:
             lm.ensure(m)
         return lm
 
+    @classmethod
+    def load(cls, path: Path) -> LatentMap | None:
+        """The cached map, or None when there is none or it cannot be read (a corrupt cache is recomputed)."""
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                return cls(z["latents"], {m: z[m] for m in METHODS if m in z.files}, path)
+        except Exception:
+            return None
+
     def has(self, method: str) -> bool:
         return method in self.coords
 
+    def reload(self) -> None:
+        """Take the projections another process saved for these latents."""
+        other = LatentMap.load(self.path) if self.path else None
+        if other is not None and np.array_equal(other.latents, self.latents):
+            for m, xy in other.coords.items():
+                self.coords.setdefault(m, xy)
+
     def ensure(self, method: str) -> np.ndarray:
+        """The method's map: from memory, from the cache file, or fitted here (once across threads and, through a
+        lock on the cache file, across the studio's processes)."""
         if method not in METHODS:
             raise ValueError(f"projection must be one of {METHODS}, not {method!r}")
-        with self._locks[method]:
+        with self._locks[method], self._file_lock():
+            if method not in self.coords:
+                self.reload()
             if method not in self.coords:
                 self.coords[method] = project(self.latents, method)
                 self.save()
         return self.coords[method]
+
+    @contextlib.contextmanager
+    def _file_lock(self):
+        if not self.path:
+            yield
+            return
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        with open(self.path.with_suffix(".lock"), "a") as f:  # flock: released even when a fitter is killed
+            fcntl.flock(f, fcntl.LOCK_EX)
+            yield
 
     def save(self) -> None:
         if not self.path:
             return
         self.path.parent.mkdir(parents=True, exist_ok=True)
         with self._save_lock:
+            self.reload()  # keep what other processes saved
             # a unique temporary name: threads of one process and other studio processes may save at once
             with tempfile.NamedTemporaryFile(dir=self.path.parent, prefix=self.path.name, suffix=".tmp", delete=False) as f:
                 np.savez(f, latents=self.latents, **dict(self.coords))
             Path(f.name).replace(self.path)  # atomic
+
+    async def fit_elsewhere(self, method: str) -> None:
+        """Fit in a separate process (`python -m explorer.latent`), then take its result: a fit holds the GIL for
+        seconds (sklearn's import alone is ~1.9 s here, UMAP's numba compilation 10-50 s), and in the studio's
+        own process that would stall the page it serves. Without a cache file, in a thread."""
+        if not self.path:
+            await asyncio.to_thread(self.ensure, method)
+            return
+        fitter = await asyncio.create_subprocess_exec(
+            sys.executable, "-m", "explorer.latent", str(self.path), method, stdout=asyncio.subprocess.DEVNULL,
+            stderr=asyncio.subprocess.PIPE,
+        )  # fmt: skip
+        _, err = await fitter.communicate()
+        self.reload()
+        if method not in self.coords:
+            lines = err.decode(errors="replace").strip().splitlines() or [f"exit code {fitter.returncode}"]
+            raise RuntimeError(lines[-1])
 
     def place(self, latent: np.ndarray, method: str, k: int = KNN) -> np.ndarray:
         """A new embedding -> 2D, as the inverse-distance-weighted mean of its k nearest neighbours'
@@ -152,3 +198,18 @@ class LatentMap:
         nn = np.argpartition(d, k - 1)[:k]
         w = 1.0 / (d[nn] + 1e-6)
         return (coords[nn] * w[:, None]).sum(0) / w.sum()
+
+
+def main(argv: list[str] | None = None) -> int:
+    """`python -m explorer.latent <cache file> <method>`: fit one projection of a cached map and save it."""
+    path, method = argv if argv is not None else sys.argv[1:]
+    latent_map = LatentMap.load(Path(path))
+    if latent_map is None:
+        print(f"latent map cache {path} cannot be read", file=sys.stderr)
+        return 2
+    latent_map.ensure(method)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,10 +1,9 @@
 """The latent map beside the 3D view: every sequence's latent as a point (t-SNE or UMAP), the current mix as a
-star, and a click on a point that opens that sequence. A method not fitted yet is fitted in a thread, so the
-page stays responsive (explorer/latent.py keeps one fit per method at a time)."""
+star, and a click on a point that opens that sequence. A method not fitted yet (UMAP until asked for; t-SNE too on
+a cold cache) is fitted in a separate process while the page works, with a progress message (explorer/latent.py
+keeps one fit per method at a time, across the studio's processes)."""
 
 from __future__ import annotations
-
-import asyncio
 
 from trame.app import asynchronous
 
@@ -18,8 +17,10 @@ class LatentPanel:
         self.studio = studio
         self.latent = latent
         self._drawn = ""  # the method whose points the page holds
+        self._fitting: set[str] = set()  # methods being fitted (explorer/latent.py fit_elsewhere)
         studio.state.change("projection")(self.on_projection_change)
         studio.ctrl.pick_latent_point = studio.guarded(self.pick_point)
+        studio.ctrl.on_server_ready.add(lambda **_: self.on_projection_change(studio.state.projection or "tsne"))
 
     def redraw(self) -> None:
         """The map for the chosen method (nothing while that method is still being fitted). Its points are sent
@@ -45,18 +46,22 @@ class LatentPanel:
             self.redraw()
             return
         self.studio.state.projection_busy = True
-        asynchronous.create_task(self._fit(projection))
+        if projection not in self._fitting:
+            self._fitting.add(projection)
+            asynchronous.create_task(self._fit(projection))
 
     async def _fit(self, method: str):
         state = self.studio.state
         try:
-            await asyncio.to_thread(self.latent.ensure, method)
+            await self.latent.fit_elsewhere(method)
         except Exception as err:
             with state:
                 state.error = f"{method} projection failed: {one_line(err)}"
                 state.projection = "tsne"
+        finally:
+            self._fitting.discard(method)
         with state:
-            state.projection_busy = False
+            state.projection_busy = bool(self._fitting)
             self.redraw()
 
     def pick_point(self, index) -> None:

@@ -346,6 +346,9 @@ def latent_map(studio) -> None:
     with html.Div(style="position: relative; height: 215px", id="latent-plot",
                   click=(studio.ctrl.pick_latent_point, "[$event.target.dataset.index]")):
         html.Div(v_html=("latent_chart",))
+        html.Div("fitting the {{ projection === 'umap' ? 'UMAP' : 't-SNE' }} map (a few seconds; UMAP's first fit up to a minute)...",
+                 v_if="projection_busy", classes="text-caption text-medium-emphasis", id="latent-busy",
+                 style="position: absolute; left: 50%; top: 45%; transform: translateX(-50%); background: rgba(255,255,255,.85)")
         with html.Div(classes="imm-plot", style=f"{LATENT_BOX}; pointer-events: none"):
             html.Div(v_if="latent_marks.ring", classes="imm-mark", id="latent-ring",
                      style=("{left: latent_marks.ring[0] + '%', top: latent_marks.ring[1] + '%', width: '16px',"

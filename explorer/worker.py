@@ -55,7 +55,7 @@ def parse_args(argv=None) -> argparse.Namespace:
 
 
 def load_everything(args: argparse.Namespace):
-    """Data, model and latent map; raises IMMError/OSError with one-line messages."""
+    """Data, model and latent embeddings; raises IMMError/OSError with one-line messages."""
     from explorer.latent import LatentMap, cache_key, default_cache_dir
     from explorer.session import load_model
     from imm_model.data.dataset import InteractionDataset
@@ -63,7 +63,8 @@ def load_everything(args: argparse.Namespace):
     data = InteractionDataset.load(args.data)
     model = load_model(args.checkpoint, data)
     cache_dir = args.cache_dir or default_cache_dir()
-    latent = LatentMap.build(model, data, cache_dir, cache_key(args.checkpoint, args.data))
+    # The studio fits a missing projection after the page opens (a cold cache's t-SNE costs ~3 s here)
+    latent = LatentMap.build(model, data, cache_dir, cache_key(args.checkpoint, args.data), methods=())
     return data, model, latent, load_reader(args.judge)
 
 

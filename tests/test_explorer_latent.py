@@ -106,4 +106,22 @@ def test_concurrent_requests_share_one_fit_per_method(tmp_path, monkeypatch):
     for t in threads:
         t.join()
     assert errors == [] and calls == ["umap"]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["latent-x.npz"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["latent-x.lock", "latent-x.npz"]  # no temporary file left
+
+
+def test_a_fit_in_another_process_is_taken_not_repeated(tmp_path, sample_data):
+    """What the studio does on a cold cache: the loader saves the embeddings only; a separate process
+    (`python -m explorer.latent`, as LatentMap.fit_elsewhere runs it) fits t-SNE; the studio takes that result, and so
+    does a later ensure() in any process, without fitting again."""
+    import asyncio
+
+    from explorer import latent
+
+    lm = latent.LatentMap.build(TinyModel(sample_data), sample_data, tmp_path, "k2", methods=())
+    assert not lm.has("tsne") and (tmp_path / "latent-k2.npz").exists()
+    asyncio.run(lm.fit_elsewhere("tsne"))
+    assert lm.coords["tsne"].shape == (len(sample_data), 2)
+    other = latent.LatentMap.build(TinyModel(sample_data), sample_data, tmp_path, "k2", methods=())
+    np.testing.assert_array_equal(other.coords["tsne"], lm.coords["tsne"])
+    with pytest.raises(RuntimeError, match="must be one of"):
+        asyncio.run(lm.fit_elsewhere("pca"))
