@@ -359,8 +359,8 @@ class Studio:
             self.state.url_query = view_query(current_view(self))
 
     def push_view(self, **_):
-        """Send a new picture. The web app only re-encodes a view whose render window is newer than
-        the last image, and moving points or toggling actors does not touch the window: mark it."""
+        """Send a new picture (moving points or toggling actors does not touch the render window, which the local
+        view's geometry export checks: mark it)."""
         self.scene.render_window.Modified()
         self._view.update()
 

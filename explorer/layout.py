@@ -15,6 +15,7 @@ from explorer.keys import KEY_HELP, LISTENER_JS
 from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED, SYNTHESIZED, WARNING, class_color, display_name
 from explorer.reads_as_panel import reads_as_panel
 from explorer.scene import CAMERA_PRESETS, CHARACTER_KEYS
+from explorer.view_stream import ViewStream
 
 SPEEDS = [0.25, 0.5, 1.0, 1.5, 2.0]
 
@@ -100,6 +101,7 @@ def toolbar(studio, tb) -> None:
             variant="text",
             prepend_icon="mdi-camera-retake" if preset == "default" else None,
             click=(studio.ctrl.set_camera, f"['{preset}']"),
+            id=f"camera-{preset}",
         )
     with v3.VMenu():
         with v3.Template(v_slot_activator="{ props }"):
@@ -254,10 +256,8 @@ def scene_view(studio) -> None:
     with html.Div(style="flex: 1 1 60%; min-height: 320px; position: relative; width: 100%", classes="rounded border"):
         if studio.render_mode == "local":  # vtk.js in the browser (see docs/explorer.md)
             view = vtk_widgets.VtkLocalView(studio.scene.render_window, ref="view")
-        else:
-            view = vtk_widgets.VtkRemoteView(
-                studio.scene.render_window, ref="view", interactive_ratio=1, interactive_quality=60, still_quality=80
-            )
+        else:  # rendered on the server, streamed as pictures (explorer/view_stream.py)
+            view = ViewStream(studio.server, studio.scene.render_window)
         studio._view = view
         studio.ctrl.view_update = studio.push_view
         with html.Div(style="position: absolute; left: 8px; top: 6px; pointer-events: none", classes="text-caption"):

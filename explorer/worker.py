@@ -96,10 +96,8 @@ def serve(data, model, latent, reader, args: argparse.Namespace, *, secret: str,
     from wslink.websocket import LinkProtocol
 
     from explorer.app import Studio
-    from explorer.remote import patch_image_delivery
     from explorer.session import Session
 
-    patch_image_delivery()
     server = get_server("imm-studio", client_type="vue3")
     server.cli.set_defaults(authKey=secret)  # wslink's default secret is public: every process gets its own
     session = Session(data, model, args.start, reader)

@@ -124,6 +124,32 @@ def test_distance_chart_click_seeks_and_cursor_follows(page):
     assert abs(cursor["x"] - (box["x"] + box["width"] * 0.75)) < box["width"] / max(1, n - 1) + 2
 
 
+def test_dragging_the_view_turns_the_camera_and_keys_stay_out_of_vtk(page):
+    """A drag on the 3D view reaches the server's interactor (a new picture from another angle); keys pressed with the
+    view focused do not (VTK's default 'w' would draw wireframes, 'r' would reset the camera)."""
+    probe.watch_view_images(page)
+    box = page.locator(probe.VIEW_IMG).bounding_box()
+    before = probe.view_pixels(page)
+    n = probe.images_seen(page)
+    x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    page.mouse.move(x, y)
+    page.mouse.down()
+    for step in range(1, 9):
+        page.mouse.move(x + 25 * step, y + 4 * step)
+    page.mouse.up()
+    probe.wait_for_new_image(page, n)
+    time.sleep(0.6)  # the sharper still picture that follows an interaction
+    turned = probe.view_pixels(page)
+    assert (np.abs(turned.astype(int) - before.astype(int)).max(-1) > 40).sum() > 500
+    n = probe.images_seen(page)
+    page.keyboard.press("w")
+    page.keyboard.press("3")
+    time.sleep(0.6)
+    assert probe.images_seen(page) == n  # no render was asked for
+    page.locator("#camera-default").click()  # back to the preset, for the tests after this one
+    probe.wait_for_new_image(page, n)
+
+
 def test_play_advances_frames(page):
     page.click("#play-button")
     try:
