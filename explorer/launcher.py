@@ -259,12 +259,12 @@ class Launcher:
         return hmac.compare_digest(given.encode(), self.config.token.encode())
 
     async def run(self, sock: socket.socket) -> int:
-        from aiohttp import web
-
         t0 = time.monotonic()
         try:
-            first = await self.spawn()
+            first = await self.spawn()  # the zygote starts loading now; the web server's imports go beside it
             self.spares.append(first)
+            from aiohttp import web
+
             await first.ready  # bad data/checkpoint fail here, before any URL is printed
         except LaunchError:
             await self.shutdown()
