@@ -76,15 +76,12 @@ def displayed_fps(page, seconds: float) -> tuple[float, int]:
     probe.set_state(page, "speed", 2.0)
     probe.set_state(page, "loop", True)
     time.sleep(0.3)
-    n0 = probe.images_seen(page)
-    f0 = probe.state(page, "frame")
     page.click("#play-button")
     time.sleep(0.5)  # warm-up
     n1, t1 = probe.images_seen(page), time.monotonic()
     time.sleep(seconds)
     n2, t2 = probe.images_seen(page), time.monotonic()
     page.click("#play-button")
-    del n0, f0
     time.sleep(0.5)
     return (n2 - n1) / (t2 - t1), n2 - n1
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from trame.widgets import rca
 
-TARGET_FPS = 30
+TARGET_FPS = 30  # renders per second at most (playback asks for fewer on a small machine: playback.py)
 INTERACTIVE_QUALITY = 70
 STILL_QUALITY = 85
 
