@@ -26,6 +26,9 @@ from pathlib import Path
 from explorer.worker import PREFIX
 
 TOKEN_COOKIE = "imm_studio_token"
+# A claimed spare is replaced this long after the claim (at once when another tab asks first): forking and starting a
+# studio process takes ~0.5 s of CPU, which on a small machine would compete with the new tab's page as it loads.
+SPARE_DELAY_S = 3.0
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
 
@@ -92,6 +95,7 @@ class Launcher:
         self.gone = ""  # why the zygote is no more, once it has exited
         self.spawned = 0
         self.url = ""
+        self.spare_wanted = asyncio.Event()  # a tab is waiting: a delayed spare starts now
 
     # ---- workers -------------------------------------------------------------------------
     async def spawn(self) -> Worker:
@@ -166,11 +170,16 @@ class Launcher:
 
     def _top_up(self) -> None:
         want = min(self.config.spares, self.config.max_clients - len(self.busy)) - len(self.spares)
+        self.spare_wanted.clear()
         for _ in range(max(0, want)):
             self.spares.append(None)  # type: ignore[arg-type]  # placeholder until spawn returns
             asyncio.get_running_loop().create_task(self._add_spare())
 
     async def _add_spare(self) -> None:
+        try:
+            await asyncio.wait_for(self.spare_wanted.wait(), SPARE_DELAY_S)
+        except TimeoutError:
+            pass
         try:
             w = await self.spawn()
         except LaunchError:
@@ -183,6 +192,7 @@ class Launcher:
 
     async def take(self) -> Worker:
         """A ready worker for a new client (waits for the spare when it is still loading)."""
+        self.spare_wanted.set()
         while None in self.spares:
             await asyncio.sleep(0.02)
         if not self.spares:

@@ -22,7 +22,8 @@ class ViewStream:
     def __init__(self, server, render_window, name: str = "view"):
         self.render_window = render_window
         self.handler = None  # created when the server runs: its render loop is an asyncio task
-        self.area = rca.RemoteControlledArea(name=name, display="image", style="width: 100%; height: 100%")
+        # the view's size goes to the server 16 ms after a change (trame-rca's default, 100 ms, delayed the first picture)
+        self.area = rca.RemoteControlledArea(name=name, display="image", style="width: 100%; height: 100%", resize_throttle_ms=16)
         server.controller.on_server_ready.add(self._start)
 
     def _start(self, **_) -> None:
