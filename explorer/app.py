@@ -299,7 +299,7 @@ class Studio:
         s.afd_text = ("uploaded leader: no ground truth to compare with, so no error chart" if afd is None
                       else f"AFD {afd:.3f} (SBU units) · mean {self._distances.mean():.2f} m")
         self._update_time()
-        self.state.distance_chart = charts.distance_chart(self._distances, FPS, self._ab_distances, self._closest)
+        s.distance_chart = charts.distance_chart(self._distances, FPS, self._ab_distances, self._closest)
         self.latent_panel.redraw()
         s.mix_count = (s.mix_count or 0) + 1
 

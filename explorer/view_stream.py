@@ -46,4 +46,3 @@ class ViewStream:
         """Render and send a new picture (nothing before the server runs: the page asks for one when it opens)."""
         if self.handler is not None:
             self.handler.update()
-
