@@ -121,7 +121,7 @@ def render_capability(frames: int = 60, size=(1052, 497)) -> float:
         jpeg.Write()
     wall_ms = (time.perf_counter() - t) / frames * 1000
     cpu_ms = (time.process_time() - c) / frames * 1000  # all of this process's threads (llvmpipe's too)
-    sc.plotter.close()
+    sc.close()
     return 1000.0 / wall_ms, 1000.0 / cpu_ms
 
 

@@ -43,7 +43,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run_explore)
 
 
-STUDIO_MODULES = ("trame", "trame_vuetify", "trame_vtk", "pyvista", "vtk", "aiohttp", "umap", "imageio", "threadpoolctl")
+STUDIO_MODULES = ("trame", "trame_vuetify", "trame_vtk", "trame_rca", "vtk", "aiohttp", "umap", "imageio", "threadpoolctl")
 
 
 def missing_studio_modules() -> list[str]:

@@ -1,8 +1,12 @@
-"""The PyVista scene: three stick figures (leader, ground truth, synthesized), a floor grid, captions.
+"""The 3D scene: three stick figures (leader, ground truth, synthesized), a floor grid, captions; plain VTK.
 
 Built once per process. A frame change only overwrites point coordinates of persistent meshes (the
 tube and sphere filters re-run on their inputs); a layout change only moves actors. Nothing is
 rebuilt while the user plays, scrubs or mixes labels.
+
+Plain VTK rather than PyVista: the scene needs a renderer, a few actors and a camera, and importing
+pyvista.plotting (which imports matplotlib) took 1.4 s of the studio's start here on top of the VTK modules
+used below (0.4-0.6 s).
 """
 
 from __future__ import annotations
@@ -14,11 +18,24 @@ import numpy as np
 # EGL (Mesa llvmpipe on CPU machines) renders off screen without an X server; set before VTK loads.
 os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 
-import pyvista as pv  # noqa: E402
-from vtkmodules.util.numpy_support import vtk_to_numpy  # noqa: E402
-from vtkmodules.vtkFiltersCore import vtkGlyph3D, vtkTubeFilter  # noqa: E402 - the modules used, not all of `vtk` (~1 s)
-from vtkmodules.vtkFiltersSources import vtkSphereSource  # noqa: E402
-from vtkmodules.vtkRenderingCore import vtkBillboardTextActor3D  # noqa: E402
+import vtkmodules.vtkRenderingFreeType  # noqa: E402, F401 - text (the captions)
+import vtkmodules.vtkRenderingOpenGL2  # noqa: E402, F401 - the OpenGL render window behind vtkRenderWindow
+from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray, vtk_to_numpy  # noqa: E402
+from vtkmodules.vtkCommonCore import vtkPoints  # noqa: E402
+from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData  # noqa: E402
+from vtkmodules.vtkFiltersCore import vtkGlyph3D, vtkTubeFilter  # noqa: E402
+from vtkmodules.vtkFiltersSources import vtkPlaneSource, vtkSphereSource  # noqa: E402
+from vtkmodules.vtkInteractionStyle import vtkInteractorStyleTrackballCamera  # noqa: E402
+from vtkmodules.vtkRenderingCore import (  # noqa: E402
+    vtkActor,
+    vtkBillboardTextActor3D,
+    vtkLight,
+    vtkPolyDataMapper,
+    vtkRenderer,
+    vtkRenderWindow,
+    vtkWindowToImageFilter,
+)
+from vtkmodules.vtkRenderingUI import vtkGenericRenderWindowInteractor  # noqa: E402
 
 from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED, WARNING, rgb  # noqa: E402
 from imm_model.skeleton import Skeleton  # noqa: E402
@@ -30,14 +47,57 @@ SIDE_SPACING = 1.5  # metres between figures in the side-by-side layout
 BACKGROUND = "#f4f5f7"
 
 
+def line_polydata(num_points: int) -> tuple[vtkPolyData, np.ndarray]:
+    """Polydata of `num_points` points (no lines yet) and a numpy view of its coordinates: writes go straight to VTK."""
+    poly = vtkPolyData()
+    points = vtkPoints()
+    points.SetData(numpy_to_vtk(np.zeros((num_points, 3), np.float32), deep=True))
+    poly.SetPoints(points)
+    poly.SetLines(vtkCellArray())
+    return poly, vtk_to_numpy(points.GetData())
+
+
+def set_lines(poly: vtkPolyData, segments) -> None:
+    """Line cells between point pairs [(a, b), ...]."""
+    cells = vtkCellArray()
+    if len(segments):
+        cells.SetData(numpy_to_vtkIdTypeArray(np.arange(0, 2 * len(segments) + 1, 2), deep=True),
+                      numpy_to_vtkIdTypeArray(np.asarray(segments, np.int64).ravel(), deep=True))  # fmt: skip
+    poly.SetLines(cells)
+    poly.Modified()
+
+
+def add_actor(renderer: vtkRenderer, source, color: str, *, ambient: float = 0.0, diffuse: float = 1.0,
+              specular: float = 0.0, smooth: bool = False, lit: bool = True, wireframe: bool = False) -> vtkActor:
+    """An actor for a VTK algorithm's output (filters re-run when their input changes) or for fixed polydata."""
+    mapper = vtkPolyDataMapper()
+    if isinstance(source, vtkPolyData):
+        mapper.SetInputData(source)
+    else:
+        mapper.SetInputConnection(source.GetOutputPort())
+    actor = vtkActor()
+    actor.SetMapper(mapper)
+    prop = actor.GetProperty()
+    prop.SetColor(*rgb(color))
+    prop.SetAmbient(ambient)
+    prop.SetDiffuse(diffuse)
+    prop.SetSpecular(specular)
+    prop.SetSpecularPower(100.0)
+    if smooth:
+        prop.SetInterpolationToPhong()
+    prop.SetLighting(lit)
+    if wireframe:
+        prop.SetRepresentationToWireframe()
+    renderer.AddActor(actor)
+    return actor
+
+
 class StickFigure:
     """Bones as tubes and joints as spheres around one persistent polydata of J points."""
 
-    def __init__(self, plotter: pv.Plotter, skeleton: Skeleton, color: str, bone_radius: float = 0.022, joint_radius: float = 0.034):
-        j = skeleton.num_joints
-        self.poly = pv.PolyData(np.zeros((j, 3), np.float32))
-        self.poly.lines = np.array([[2, p, c] for p, c in skeleton.bones]).ravel()
-        self._points = vtk_to_numpy(self.poly.GetPoints().GetData())  # a view: writes go straight to VTK
+    def __init__(self, renderer: vtkRenderer, skeleton: Skeleton, color: str, bone_radius: float = 0.022, joint_radius: float = 0.034):
+        self.poly, self._points = line_polydata(skeleton.num_joints)
+        set_lines(self.poly, skeleton.bones)
 
         tube = vtkTubeFilter()
         tube.SetInputData(self.poly)
@@ -53,8 +113,8 @@ class StickFigure:
         glyph.SetSourceConnection(sphere.GetOutputPort())
         glyph.ScalingOff()
         self.filters = (tube, glyph)
-        kw = dict(color=rgb(color), smooth_shading=True, ambient=0.3, diffuse=0.7, specular=0.25)
-        self.actors = [plotter.add_mesh(tube, **kw), plotter.add_mesh(glyph, **kw)]
+        kw = dict(ambient=0.3, diffuse=0.7, specular=0.25, smooth=True)
+        self.actors = [add_actor(renderer, tube, color, **kw), add_actor(renderer, glyph, color, **kw)]
 
     def set_pose(self, joints: np.ndarray) -> None:
         self._points[:] = joints
@@ -75,15 +135,14 @@ class ContactOverlay:
     """The bones of the leader and the synthesized follower that interpenetrate at the current frame, as thicker
     tubes in the warning colour over both figures (overlay layout only: side by side the bodies are apart)."""
 
-    def __init__(self, plotter: pv.Plotter, skeleton: Skeleton):
+    def __init__(self, renderer: vtkRenderer, skeleton: Skeleton):
         self.bones = np.array(skeleton.bones)
-        self.poly = pv.PolyData(np.zeros((2 * skeleton.num_joints, 3), np.float32))
-        self._points = vtk_to_numpy(self.poly.GetPoints().GetData())
+        self.poly, self._points = line_polydata(2 * skeleton.num_joints)
         self.tube = vtkTubeFilter()
         self.tube.SetInputData(self.poly)
         self.tube.SetRadius(0.032)
         self.tube.SetNumberOfSides(10)
-        self.actor = plotter.add_mesh(self.tube, color=rgb(WARNING), ambient=0.4, diffuse=0.6)
+        self.actor = add_actor(renderer, self.tube, WARNING, ambient=0.4, diffuse=0.6)
         self.flags: tuple[np.ndarray, np.ndarray] | None = None  # (T, K) bones of the leader and of the follower
         self.enabled = True
 
@@ -93,28 +152,39 @@ class ContactOverlay:
             return
         j = len(leader[frame])
         bad_a, bad_b = (f[min(frame, len(f) - 1)] for f in self.flags)
-        lines = [[2, p, c] for p, c in self.bones[bad_a]] + [[2, j + p, j + c] for p, c in self.bones[bad_b]]
-        self.actor.SetVisibility(bool(lines))
-        if lines:
+        segments = [(p, c) for p, c in self.bones[bad_a]] + [(j + p, j + c) for p, c in self.bones[bad_b]]
+        self.actor.SetVisibility(bool(segments))
+        if segments:
             self._points[:j], self._points[j:] = leader[frame], follower[min(frame, len(follower) - 1)]
             self.poly.GetPoints().Modified()
-            self.poly.lines = np.array(lines).ravel()
+            set_lines(self.poly, segments)
 
 
 class Scene:
     def __init__(self, skeleton: Skeleton, floor_y: float, window_size: tuple[int, int] = (1050, 500)):
-        pv.global_theme.multi_samples = 0  # MSAA costs ~3x per frame on llvmpipe (docs/explorer.md)
-        self.plotter = pv.Plotter(off_screen=True, window_size=list(window_size))
-        self.plotter.set_background(BACKGROUND)
+        self.renderer = vtkRenderer()
+        self.renderer.SetBackground(*rgb(BACKGROUND))
         # One camera-following light: a light kit (5 lights) doubled llvmpipe's per-frame cost.
-        self.plotter.remove_all_lights()
-        self.plotter.add_light(pv.Light(light_type="headlight", intensity=1.0))
+        self.renderer.AutomaticLightCreationOff()
+        light = vtkLight()
+        light.SetLightTypeToHeadlight()
+        self.renderer.AddLight(light)
+        self.render_window = vtkRenderWindow()
+        self.render_window.SetOffScreenRendering(True)
+        self.render_window.SetMultiSamples(0)  # MSAA costs ~3x per frame on llvmpipe (docs/explorer.md)
+        self.render_window.AddRenderer(self.renderer)
+        self.render_window.SetSize(*window_size)
+        # Mouse events from the page (explorer/view_stream.py) turn the camera through this interactor.
+        interactor = vtkGenericRenderWindowInteractor()
+        interactor.SetRenderWindow(self.render_window)
+        interactor.SetInteractorStyle(vtkInteractorStyleTrackballCamera())
+        interactor.Initialize()
         self.skeleton = skeleton
         self.floor_y = float(floor_y)
-        self.figures = {k: StickFigure(self.plotter, skeleton, CHARACTERS[k]) for k in CHARACTER_KEYS}
-        self.figures["pinned"] = StickFigure(self.plotter, skeleton, PINNED)  # A/B: shown only while a mix is pinned
+        self.figures = {k: StickFigure(self.renderer, skeleton, CHARACTERS[k]) for k in CHARACTER_KEYS}
+        self.figures["pinned"] = StickFigure(self.renderer, skeleton, PINNED)  # A/B: shown only while a mix is pinned
         self.figures["pinned"].set_visible(False)
-        self.contact = ContactOverlay(self.plotter, skeleton)
+        self.contact = ContactOverlay(self.renderer, skeleton)
         self.captions = {k: self._caption(CHARACTER_TITLES[k], CHARACTERS[k]) for k in CHARACTER_KEYS}
         self._floor_actors = self._floor()
         self.layout = "overlay"
@@ -125,11 +195,10 @@ class Scene:
         self.fitted_size: tuple[int, int] = (0, 0)
         # The browser sizes the view when it likes (first load, window resize); every render at a new size refits
         # the preset, so the same view in two tabs of the same size is the same picture.
-        self.plotter.renderer.AddObserver("StartEvent", lambda *_: self._refit_if_resized())
+        self.renderer.AddObserver("StartEvent", lambda *_: self._refit_if_resized())
 
-    @property
-    def render_window(self):
-        return self.plotter.ren_win
+    def close(self) -> None:
+        self.render_window.Finalize()
 
     # ---- building blocks ----------------------------------------------------------------
     def _caption(self, text: str, color: str):
@@ -141,17 +210,19 @@ class Scene:
         prop.SetColor(*rgb(color))
         prop.SetJustificationToCentered()
         actor.SetVisibility(False)
-        self.plotter.renderer.AddActor(actor)
+        self.renderer.AddActor(actor)
         return actor
 
     def _floor(self):
         size, n = 9.0, 18
-        plane = pv.Plane(center=(0, self.floor_y, 0.5), direction=(0, 1, 0), i_size=size, j_size=size, i_resolution=n, j_resolution=n)
-        # Unlit: the floor covers half the picture and per-pixel lighting there was ~10% of a frame.
-        solid = self.plotter.add_mesh(plane, color="#e6e9ee", lighting=False)
-        grid = self.plotter.add_mesh(
-            plane.translate((0, 0.002, 0), inplace=False), style="wireframe", color="#b9bec8", line_width=1, lighting=False
-        )
+        plane = vtkPlaneSource()  # horizontal, centred under the figures
+        plane.SetOrigin(-size / 2, self.floor_y, 0.5 - size / 2)
+        plane.SetPoint1(size / 2, self.floor_y, 0.5 - size / 2)
+        plane.SetPoint2(-size / 2, self.floor_y, 0.5 + size / 2)
+        plane.SetResolution(n, n)
+        solid = add_actor(self.renderer, plane, "#e6e9ee", lit=False)  # unlit: per-pixel lighting there was ~10% of a frame
+        grid = add_actor(self.renderer, plane, "#b9bec8", lit=False, wireframe=True)
+        grid.SetPosition(0.0, 0.002, 0.0)
         return [solid, grid]
 
     # ---- content ------------------------------------------------------------------------
@@ -289,12 +360,12 @@ class Scene:
         view_angle = 30.0
         t = np.tan(np.radians(view_angle / 2))
         dist = 1.08 * max(half_h / t, half_w / (t * aspect)) + depth
-        cam = self.plotter.camera
-        cam.focal_point = tuple(center)
-        cam.position = tuple(center + d * dist)
-        cam.up = tuple(up)
-        cam.view_angle = view_angle
-        self.plotter.renderer.ResetCameraClippingRange()
+        cam = self.renderer.GetActiveCamera()
+        cam.SetFocalPoint(*center)
+        cam.SetPosition(*(center + d * dist))
+        cam.SetViewUp(*up)
+        cam.SetViewAngle(view_angle)
+        self.renderer.ResetCameraClippingRange()
 
     # ---- output -------------------------------------------------------------------------
     def render(self) -> None:
@@ -303,7 +374,15 @@ class Scene:
     def screenshot(self) -> np.ndarray:
         """(H, W, 3) uint8 of the current view."""
         self.render()
-        return np.asarray(self.plotter.screenshot(return_img=True))[..., :3]
+        grab = vtkWindowToImageFilter()
+        grab.SetInput(self.render_window)
+        grab.ReadFrontBufferOff()
+        grab.ShouldRerenderOff()
+        grab.Update()
+        image = grab.GetOutput()
+        w, h, _ = image.GetDimensions()
+        pixels = vtk_to_numpy(image.GetPointData().GetScalars()).reshape(h, w, -1)
+        return np.ascontiguousarray(pixels[::-1, :, :3])  # VTK's rows go bottom to top
 
     def frames(self, start: int = 0) -> list[np.ndarray]:
         """Every frame of the current sequence as an image; restores the current frame afterwards."""

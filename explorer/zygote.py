@@ -29,12 +29,11 @@ from explorer.exports import one_line
 
 def preload() -> None:
     """Import what a studio process needs before the first fork, so that no child imports it again."""
-    import pyvista.plotting  # noqa: F401 - pyvista loads it (and matplotlib) lazily, at the first scene: ~1.4 s
     from trame.app import get_server  # noqa: F401
     from trame_rca.schedulers import image_scheduler  # noqa: F401
     from wslink.websocket import LinkProtocol  # noqa: F401
 
-    import explorer.app  # noqa: F401 - the page, the scene (VTK, PyVista), the charts, the view stream
+    import explorer.app  # noqa: F401 - the page, the scene (VTK), the charts, the view stream
 
 
 class ForkServer:
