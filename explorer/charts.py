@@ -91,7 +91,8 @@ def distance_chart(distances: np.ndarray, fps: float, ab: np.ndarray | None = No
     ) if v is not None and len(v)]  # fmt: skip
     n = max([len(v) for v, *_ in series], default=1)
     top = max([float(np.max(v)) for v, *_ in series] + [1e-3]) * 1.05
-    y_ticks, x_ticks = nice_ticks(top), nice_ticks(n - 1, 6) if n > 1 else [0]
+    y_ticks = nice_ticks(top)
+    x_ticks = [t for t in nice_ticks(n - 1, 6) if float(t).is_integer()]  # frames: whole numbers only
     width = 1000 / max(1, n - 1)  # one frame in viewBox units
 
     svg = [f'<rect class="penetration" x="{(a - 0.5) * width:.1f}" width="{(b - a + 1) * width:.1f}" y="0" height="1000"'

@@ -229,3 +229,7 @@ def test_chart_ticks_and_markup():
     html = latent_chart(coords, np.array([0, 1, 1]), np.array([False, True, False]), ["a", "<b>&", "c"], ["x_y", "z"], "tsne")
     assert html.count("imm-pt") == 3 and "&lt;b&gt;&amp; (held out) · z" in html and "<b>" not in html
     assert "x y" in html  # class names as displayed
+    from explorer.charts import distance_chart
+
+    assert distance_chart(np.array([0.1, 0.2]), 15.0).count("imm-tick-x") == 2  # frames 0 and 1, no 0.5
+    assert "<polyline" not in distance_chart(np.zeros(0), 15.0)  # an upload without ground truth or contact yet
