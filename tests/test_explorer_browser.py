@@ -124,6 +124,22 @@ def test_distance_chart_click_seeks_and_cursor_follows(page):
     assert abs(cursor["x"] - (box["x"] + box["width"] * 0.75)) < box["width"] / max(1, n - 1) + 2
 
 
+def test_umap_fits_while_the_page_keeps_working(page):
+    """The first UMAP fit runs in a separate process: the map says so, a slider still re-synthesizes meanwhile,
+    then the UMAP map replaces the t-SNE one."""
+    page.locator("#umap-button").click()
+    _wait_state(page, "s.get('projection_busy') === true")
+    assert page.locator("#latent-busy").is_visible()
+    n = probe.state(page, "mix_count")
+    probe.set_state(page, "w_1", 0.5 if probe.state(page, "w_1") != 0.5 else -0.5)
+    _wait_state(page, f"s.get('mix_count') > {n}")
+    assert probe.state(page, "projection_busy")  # the page answered while the fit ran (importing numba alone takes longer)
+    _wait_state(page, "s.get('projection_busy') === false && s.get('latent_chart').includes('UMAP')", timeout_ms=240000)
+    assert page.locator("#latent-plot .imm-pt").count() > 10 and page.locator("#latent-busy").count() == 0
+    page.get_by_role("button", name="t-SNE").click()
+    _wait_state(page, "s.get('latent_chart').includes('t-SNE')")
+
+
 def test_dragging_the_view_turns_the_camera_and_keys_stay_out_of_vtk(page):
     """A drag on the 3D view reaches the server's interactor (a new picture from another angle); keys pressed with the
     view focused do not (VTK's default 'w' would draw wireframes, 'r' would reset the camera)."""
