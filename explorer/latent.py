@@ -201,13 +201,17 @@ class LatentMap:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """`python -m explorer.latent <cache file> <method>`: fit one projection of a cached map and save it."""
-    path, method = argv if argv is not None else sys.argv[1:]
-    latent_map = LatentMap.load(Path(path))
-    if latent_map is None:
-        print(f"latent map cache {path} cannot be read", file=sys.stderr)
+    """`python -m explorer.latent <cache file> <method>`: fit one projection of a cached map and save it. Bad
+    arguments get one line on stderr and exit code 2 (the studio shows that line)."""
+    args = sys.argv[1:] if argv is None else argv
+    if len(args) != 2 or args[1] not in METHODS:
+        print(f"usage: python -m explorer.latent <cache file> <{'|'.join(METHODS)}>, not {' '.join(args)!r}", file=sys.stderr)
         return 2
-    latent_map.ensure(method)
+    latent_map = LatentMap.load(Path(args[0]))
+    if latent_map is None:
+        print(f"latent map cache {args[0]} cannot be read", file=sys.stderr)
+        return 2
+    latent_map.ensure(args[1])
     return 0
 
 

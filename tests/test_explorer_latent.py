@@ -123,5 +123,17 @@ def test_a_fit_in_another_process_is_taken_not_repeated(tmp_path, sample_data):
     assert lm.coords["tsne"].shape == (len(sample_data), 2)
     other = latent.LatentMap.build(TinyModel(sample_data), sample_data, tmp_path, "k2", methods=())
     np.testing.assert_array_equal(other.coords["tsne"], lm.coords["tsne"])
-    with pytest.raises(RuntimeError, match="must be one of"):
+    with pytest.raises(RuntimeError, match="usage: python -m explorer.latent"):
         asyncio.run(lm.fit_elsewhere("pca"))
+
+
+def test_the_fit_command_answers_bad_arguments_in_one_line(tmp_path):
+    import subprocess
+    import sys
+
+    (tmp_path / "bad.npz").write_bytes(b"not a zip")
+    for args, needle in (([], "usage"), ([str(tmp_path / "x.npz"), "pca"], "usage"),
+                         ([str(tmp_path / "bad.npz"), "tsne"], "cannot be read"),
+                         ([str(tmp_path / "missing.npz"), "umap"], "cannot be read")):  # fmt: skip
+        proc = subprocess.run([sys.executable, "-m", "explorer.latent", *args], capture_output=True, text=True, timeout=60)
+        assert proc.returncode == 2 and needle in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
