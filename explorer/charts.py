@@ -110,12 +110,17 @@ def distance_chart(distances: np.ndarray, fps: float, ab: np.ndarray | None = No
             f'<div class="imm-axis-x">frame ({fps:g} fps)</div><div class="imm-axis-y">distance (m)</div></div>')
 
 
-def map_position(coords: np.ndarray, xy) -> list[float]:
-    """Where `xy` falls in the latent map's plot box, in percent from its left and top (y grows upwards)."""
+def map_positions(coords: np.ndarray, xy) -> np.ndarray:
+    """Where points (..., 2) fall in the latent map's plot box: percent from its left and top (y grows upwards)."""
     low, high = coords.min(0), coords.max(0)
     span = np.where(high > low, high - low, 1.0)
-    fx, fy = np.clip((np.asarray(xy, dtype=float) - low) / span, 0, 1)  # a star beyond the points stays at the edge
-    return [round(100 * float(fx), 2), round(100 * (1 - float(fy)), 2)]
+    frac = np.clip((np.asarray(xy, dtype=float) - low) / span, 0, 1)  # a star beyond the points stays at the edge
+    return np.round(100 * np.stack([frac[..., 0], 1 - frac[..., 1]], -1), 2)
+
+
+def map_position(coords: np.ndarray, xy) -> list[float]:
+    """One point's place on the map, as [left, top] percent (what the page's overlays take)."""
+    return [float(v) for v in map_positions(coords, xy)]
 
 
 def latent_chart(coords: np.ndarray, actions: np.ndarray, held_out: np.ndarray, sequence_ids: Sequence[str],
@@ -124,8 +129,7 @@ def latent_chart(coords: np.ndarray, actions: np.ndarray, held_out: np.ndarray, 
     point reads its `data-index`. The current sequence's ring and the current mix's star are overlays
     (latent_marks)."""
     points = []
-    for i, (xy, c) in enumerate(zip(coords, actions, strict=True)):
-        left, top = map_position(coords, xy)
+    for i, ((left, top), c) in enumerate(zip(map_positions(coords, coords), actions, strict=True)):
         color = class_color(int(c))
         tip = escape(f"{sequence_ids[i]}{' (held out)' if held_out[i] else ''} · {display_name(class_names[int(c)])}")
         fill = "transparent" if held_out[i] else color

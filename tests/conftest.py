@@ -1,10 +1,13 @@
-"""Shared fixtures. Tests that need ../shared/datasets are marked `shared` and skip without it."""
+"""Shared fixtures. Tests that need ../shared/datasets are marked `shared` and skip without it; the studio's browser
+tests (`browser` marker) skip without /usr/bin/chromium or the bundled checkpoint."""
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
-from imm_model.paths import SAMPLE_DATA, k3hi_raw_root, sbu_raw_root
+from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA, k3hi_raw_root, sbu_raw_root
 
 
 @pytest.fixture(scope="session")
@@ -28,3 +31,40 @@ def k3hi_root():
     if not root.is_dir():
         pytest.skip(f"raw K3HI data not found at {root}")
     return root
+
+
+# ---- the studio in a browser (test_explorer_browser.py, test_explorer_serving.py): one studio and one page per module
+
+
+@pytest.fixture(scope="module")
+def browser():
+    if not os.path.exists("/usr/bin/chromium"):
+        pytest.skip("needs /usr/bin/chromium (apt-get install -y chromium)")
+    if not SAMPLE_CHECKPOINT.exists():
+        pytest.skip(f"bundled checkpoint missing: {SAMPLE_CHECKPOINT}")
+    sync_api = pytest.importorskip("playwright.sync_api")
+    from tests import studio_probe as probe
+
+    with sync_api.sync_playwright() as p:
+        b = probe.launch_chromium(p)
+        yield b
+        b.close()
+
+
+@pytest.fixture(scope="module")
+def studio(browser, tmp_path_factory):
+    from tests import studio_probe as probe
+
+    # closed tabs keep their process for a minute (--idle-exit): room for the tabs earlier tests opened and closed
+    with probe.StudioProcess("--max-clients", "12", cache_dir=tmp_path_factory.mktemp("studio-cache")) as s:
+        yield s
+
+
+@pytest.fixture(scope="module")
+def page(studio, browser):
+    from tests import studio_probe as probe
+
+    pg = probe.open_studio(browser, studio.url)
+    probe.watch_view_images(pg)
+    yield pg
+    pg.close()

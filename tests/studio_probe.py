@@ -17,12 +17,15 @@ from pathlib import Path
 
 import numpy as np
 
+from imm_model.paths import REPO_ROOT
+
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = [
     "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
     "--disable-background-networking", "--disable-component-update", "--disable-sync",
 ]  # fmt: skip
 URL_RE = re.compile(r"IMM Studio ready at (http://\S+)")
+ARTIFACTS = REPO_ROOT / "test-artifacts"  # the browser tests' screenshots
 VIEW_IMG = ".v-main .rounded.border img"
 
 
@@ -159,3 +162,23 @@ def press_slider(page, css: str, key: str) -> None:
     thumb = page.locator(f"{css} .v-slider-thumb")
     thumb.focus()
     page.keyboard.press(key)
+
+
+def press_key(page, key: str) -> None:
+    """A key typed on the page itself, not into a focused slider."""
+    page.bring_to_front()
+    page.evaluate("() => document.activeElement && document.activeElement.blur()")
+    page.keyboard.press(key)
+
+
+def wait_state(page, expression: str, timeout_ms: int = 15000) -> None:
+    """Wait until a JavaScript expression over the page's trame state `s` is true."""
+    page.wait_for_function(f"() => {{ const s = window.trame.state; return {expression}; }}", timeout=timeout_ms)
+
+
+def shot(page, name: str) -> Path:
+    """A screenshot of the whole page in test-artifacts/."""
+    ARTIFACTS.mkdir(exist_ok=True)
+    path = ARTIFACTS / f"{name}.png"
+    page.screenshot(path=str(path))
+    return path

@@ -1,0 +1,143 @@
+"""The studio in headless Chromium as people reach it: a link that reopens a view, one port through a relay (an SSH
+tunnel) or behind a path-prefix proxy, and five tabs at once (fixtures in tests/conftest.py)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from tests import studio_probe as probe
+from tests.relays import PrefixProxy, TcpRelay
+
+pytestmark = [pytest.mark.browser, pytest.mark.timeout(240)]
+
+
+def test_a_link_reopens_the_same_picture(studio, browser, page):
+    """The address bar follows the view; the copied link, opened in a new tab (a new studio process), shows the
+    same sequence, mix, frame, layout and camera: the two pictures match."""
+    probe.press_key(page, " ") if probe.state(page, "playing") else None
+    probe.set_state(page, "w_3", 0.5)
+    probe.set_state(page, "scene_layout", "side_by_side")
+    page.get_by_role("button", name="top").click()
+    probe.set_state(page, "frame", 7)
+    probe.wait_state(page, "s.get('url_query').includes('frame=7') && s.get('url_query').includes('camera=top')")
+    probe.wait_state(page, "s.get('url_query').includes('layout=side_by_side') && s.get('url_query').includes(':0.5')")
+    assert "frame=7" in page.url  # the address bar itself
+    page.locator("#copy-link").click()
+    probe.wait_state(page, "!!s.get('share_link')")
+    link = probe.state(page, "share_link")
+    assert link.startswith(studio.url) and "/s/" not in link, link
+    page.keyboard.press("Escape")  # close the link's card, which covers a corner of the view
+    query = probe.state(page, "url_query")
+    other = probe.open_studio(browser, link, timeout_ms=90000)
+    try:
+        probe.wait_state(other, f"s.get('url_query') === {query!r}", timeout_ms=30000)
+        time.sleep(1.0)  # the last picture of both views
+        a, b = probe.view_pixels(page).astype(float), probe.view_pixels(other).astype(float)
+        probe.shot(page, "studio-link-sender")
+        probe.shot(other, "studio-link-receiver")
+        assert a.shape == b.shape
+        assert np.abs(a - b).mean() < 2.0, np.abs(a - b).mean()
+    finally:
+        other.close()
+    probe.set_state(page, "scene_layout", "overlay")
+    page.get_by_role("button", name="reset").first.click()
+
+
+def test_a_bad_link_names_what_it_ignored(browser, studio):
+    other = probe.open_studio(browser, studio.url + "?seq=nope&scale=7&layout=overlay", timeout_ms=90000)
+    try:
+        probe.wait_state(other, "s.get('error').startsWith('link:')")
+        error = probe.state(other, "error")
+        assert "no sequence 'nope'" in error and "scale '7' is outside" in error
+    finally:
+        other.close()
+
+
+def test_single_port_through_a_forwarded_port(studio, browser, tmp_path):
+    """A browser that can reach only one forwarded port (as through `ssh -L 8080:127.0.0.1:8080 host`): the page
+    loads, a slider re-synthesizes, an export downloads."""
+    from urllib.parse import urlsplit
+
+    relay = TcpRelay(urlsplit(studio.url).port)
+    try:
+        pg = probe.open_studio(browser, f"http://127.0.0.1:{relay.port}/", timeout_ms=90000)
+        assert pg.url.startswith(f"http://127.0.0.1:{relay.port}/s/")
+        names = probe.state(pg, "class_names")
+        n_mix = probe.state(pg, "mix_count")
+        probe.press_slider(pg, f".slider-{names[2].replace(' ', '_')}", "End")
+        pg.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=15000)
+        pg.get_by_role("button", name="Export").click()
+        with pg.expect_download(timeout=20000) as download:
+            pg.locator(".export-bvh-follower").click()
+        download.value.save_as(tmp_path / "f.bvh")
+        assert (tmp_path / "f.bvh").read_text().startswith("HIERARCHY")
+        pg.close()
+    finally:
+        relay.close()
+
+
+def test_behind_a_reverse_proxy_with_a_path_prefix(browser, tmp_path):
+    """--base-url: the printed address is the proxy's; through /imm/ the page loads and a slider re-synthesizes."""
+    from urllib.parse import urlsplit
+
+    proxy = PrefixProxy()
+    base = f"http://127.0.0.1:{proxy.port}/imm/"
+    try:
+        with probe.StudioProcess("--base-url", base, cache_dir=tmp_path) as studio:
+            assert studio.url == base
+            served = [ln for ln in studio.lines if "served from" in ln][0]
+            proxy.target = urlsplit(served.split("served from ")[1].split()[0]).port
+            pg = probe.open_studio(browser, base, timeout_ms=90000)
+            assert pg.url.startswith(base + "s/"), pg.url
+            names = probe.state(pg, "class_names")
+            n_mix = probe.state(pg, "mix_count")
+            probe.press_slider(pg, f".slider-{names[2].replace(' ', '_')}", "End")
+            pg.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=15000)
+            pg.close()
+    finally:
+        proxy.close()
+
+
+def test_five_clients_are_independent(studio, browser):
+    pages = []
+    try:
+        for _ in range(5):
+            pg = probe.open_studio(browser, studio.url, width=1200, height=800, timeout_ms=90000)
+            probe.watch_view_images(pg)
+            pages.append(pg)
+        sessions = {pg.url.split("/s/")[1].split("/")[0] for pg in pages}
+        assert len(sessions) == 5, "each client must get its own studio process"
+        assert all(pg.url.startswith(studio.url) for pg in pages)  # all through the launcher's one port
+        texts = [probe.state(pg, "label_text") for pg in pages]
+        # Client 0 mixes in a class; the others must not move.
+        names = probe.state(pages[0], "class_names")
+        own = [i for i in range(len(names)) if probe.state(pages[0], f"w_{i}") == 1.0][0]
+        other = (own + 2) % len(names)
+        n_mix = probe.state(pages[0], "mix_count")
+        probe.press_slider(pages[0], f".slider-{names[other].replace(' ', '_')}", "End")
+        pages[0].wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=10000)
+        time.sleep(0.5)
+        assert probe.state(pages[0], "label_text") != texts[0]
+        for pg, text in zip(pages[1:], texts[1:], strict=True):
+            assert probe.state(pg, "label_text") == text
+            assert probe.state(pg, f"w_{other}") == 0
+        # Every client still answers a slider promptly while the others are open.
+        delays = []
+        for pg in pages:
+            n_img = probe.images_seen(pg)
+            t0 = time.monotonic()
+            probe.press_slider(pg, f".slider-{names[(own + 3) % len(names)].replace(' ', '_')}", "ArrowRight")
+            try:
+                probe.wait_for_new_image(pg, n_img, timeout_ms=10000)
+            except Exception:
+                print("no picture", probe.state(pg, "label_text"), probe.state(pg, "mix_count"), probe.images_seen(pg), n_img)
+                raise
+            delays.append(time.monotonic() - t0)
+        pages[-1].screenshot(path=str(probe.ARTIFACTS / "studio-client5.png"))
+        assert max(delays) < 3.0, f"slider -> picture per client: {np.round(delays, 2)} s"
+    finally:
+        for pg in pages:
+            pg.close()
