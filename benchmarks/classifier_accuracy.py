@@ -19,7 +19,8 @@ import torch
 
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_folds
-from imm_model.model.classifier import ClassifierConfig, classify, motion_inputs, train_classifier
+from imm_model.model.classifier import classify, motion_inputs, train_classifier
+from imm_model.model.classifier_config import ClassifierConfig
 from imm_model.paths import SAMPLE_DATA
 
 CANDIDATES = {

@@ -108,21 +108,24 @@ class ForkServer:
             worker.say_line("EXIT", wid, os.waitstatus_to_exitcode(status))
 
 
+def one_thread_for_torch() -> None:
+    """The bundled models run in numpy (imm_model/model/numpy_runtime.py); a model that needs torch (the paper's
+    frame-by-frame decoder) gets one intra-op thread: the per-request work is a few ms, several studio processes
+    share the cores (more threads made each synthesis 4x slower here), and a fork would not carry a thread pool over."""
+    if "torch" in sys.modules:
+        sys.modules["torch"].set_num_threads(1)
+
+
 def main(argv=None) -> int:
     args = worker.parse_args(argv)
     # Ctrl+C reaches the whole process group: the launcher handles it and closes our stdin, which ends everything.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    import torch
-
-    # One intra-op thread: the model's per-request work is a few ms, and several studio processes (plus
-    # rendering) share the cores; more threads made each synthesis 4x slower here. It also keeps this process
-    # free of thread pools, which a fork would not carry over.
-    torch.set_num_threads(1)
     gc.disable()  # nothing to collect while loading, and freeze below keeps what was loaded out of later collections
     try:
         loaded = worker.load_everything(args)
         args.start = worker.start_index(loaded[0], args.sequence)
         preload()
+        one_thread_for_torch()
     except Exception as err:
         worker.say_line("ERROR", "-", one_line(err))
         return 2

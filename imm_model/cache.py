@@ -23,7 +23,8 @@ from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold
 from imm_model.errors import CheckpointError
 from imm_model.model.classifier import VERSION as CLASSIFIER_VERSION
-from imm_model.model.classifier import ClassifierConfig, MotionClassifier, motion_inputs, train_classifier
+from imm_model.model.classifier import MotionClassifier, motion_inputs, train_classifier
+from imm_model.model.classifier_config import ClassifierConfig
 
 
 def cache_dir() -> Path:

@@ -11,11 +11,12 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any
-
-import torch
+from typing import TYPE_CHECKING, Any
 
 from imm_model.errors import CheckpointError
+
+if TYPE_CHECKING:
+    import torch
 
 FORMAT = "imm-checkpoint-1"
 
@@ -44,8 +45,9 @@ def save_checkpoint(path: Path | str, tensors: dict[str, torch.Tensor], meta: di
     os.chmod(path, 0o644)
 
 
-def load_checkpoint(path: Path | str) -> tuple[dict[str, torch.Tensor], dict[str, Any]]:
-    """-> (tensors, meta). Any problem -> CheckpointError with a one-line message."""
+def load_checkpoint(path: Path | str, framework: str = "pt") -> tuple[dict[str, Any], dict[str, Any]]:
+    """-> (tensors, meta): torch tensors, or numpy arrays with framework="np" (torch is not imported then). Any
+    problem -> CheckpointError with a one-line message."""
     from safetensors import safe_open
 
     path = Path(path)
@@ -53,7 +55,7 @@ def load_checkpoint(path: Path | str) -> tuple[dict[str, torch.Tensor], dict[str
         raise CheckpointError(f"{path}: checkpoint not found")
     try:
         tensors = {}
-        with safe_open(str(path), framework="pt") as f:
+        with safe_open(str(path), framework=framework) as f:
             header = f.metadata() or {}
             for k in f.keys():
                 tensors[k] = f.get_tensor(k)
@@ -79,23 +81,30 @@ def prefixed(tensors: dict[str, torch.Tensor], prefix: str) -> dict[str, torch.T
     return {k[n:]: v for k, v in tensors.items() if k.startswith(prefix + ".")}
 
 
-def load_module_state(module: torch.nn.Module, state: dict[str, torch.Tensor], what: str, path: Path | str) -> None:
-    """Strict load with a one-line CheckpointError naming the first missing/unexpected/mismatched key."""
-    own = module.state_dict()
-    missing = [k for k in own if k not in state]
-    unexpected = [k for k in state if k not in own]
+def check_state(state: dict[str, Any], expected: dict[str, tuple[int, ...]], what: str, path: Path | str) -> None:
+    """Weights (tensors or arrays) against the names and shapes a model expects: a one-line CheckpointError naming
+    the first missing, unexpected or mismatched key."""
+    missing = [k for k in expected if k not in state]
+    unexpected = [k for k in state if k not in expected]
     if missing:
         raise CheckpointError(f"{path}: {what} weights missing key {missing[0]!r} ({len(missing)} missing): different architecture?")
     if unexpected:
         raise CheckpointError(f"{path}: unexpected {what} key {unexpected[0]!r}: different architecture?")
-    for k, v in own.items():
-        if v.shape != state[k].shape:
-            raise CheckpointError(f"{path}: {what} key {k!r} has shape {tuple(state[k].shape)}, model expects {tuple(v.shape)}")
+    for k, shape in expected.items():
+        if tuple(state[k].shape) != tuple(shape):
+            raise CheckpointError(f"{path}: {what} key {k!r} has shape {tuple(state[k].shape)}, model expects {tuple(shape)}")
+
+
+def load_module_state(module: torch.nn.Module, state: dict[str, torch.Tensor], what: str, path: Path | str) -> None:
+    """Strict load with a one-line CheckpointError naming the first missing/unexpected/mismatched key."""
+    check_state(state, {k: tuple(v.shape) for k, v in module.state_dict().items()}, what, path)
     module.load_state_dict(state)
 
 
 # ---- optimizer state as tensors + JSON ---------------------------------------------------------
 def optimizer_to_tensors(opt: torch.optim.Optimizer, prefix: str) -> tuple[dict[str, torch.Tensor], dict]:
+    import torch
+
     sd = opt.state_dict()
     tensors, scalars = {}, {}
     for pid, st in sd["state"].items():

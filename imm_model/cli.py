@@ -81,7 +81,7 @@ def _cmd_build_judge(args: argparse.Namespace) -> int:
     from imm_model.cache import fold_classifier
     from imm_model.checkpoint import save_checkpoint
     from imm_model.data.dataset import InteractionDataset
-    from imm_model.model.classifier import FOLLOWER_JUDGE
+    from imm_model.model.classifier_config import FOLLOWER_JUDGE
     from imm_model.paths import SAMPLE_DATA, SAMPLE_JUDGE
 
     data = InteractionDataset.load(args.data or SAMPLE_DATA)

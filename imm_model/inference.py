@@ -26,19 +26,16 @@ MAX_LENGTH_FACTOR = 10  # inputs longer than this times the longest training seq
 class ReactionModel:
     """A trained generator with what is needed to use it: classes, skeleton, canonical mode."""
 
-    def __init__(self, generator, meta: dict[str, Any], path: Path | None = None, device: str = "cpu"):
-        import torch
-
-        from imm_model.model.fast import FastGenerator
+    def __init__(self, weights: dict[str, np.ndarray], config, meta: dict[str, Any], path: Path | None = None, device: str = "cpu"):
+        from imm_model.model.numpy_runtime import NumpyGenerator
         from imm_model.skeleton import Skeleton
 
-        self.device = torch.device(device)
-        # same numbers, ~4x faster for one unpadded sequence on a CPU; on a GPU (or with the paper's frame-by-frame
-        # attentive decoder, or without the stream FC layers it folds in) the batched generator serves all
-        fast_ok = self.device.type == "cpu" and generator.cfg.attention_query == "encoder" and generator.cfg.stream_fc
-        self.fast = FastGenerator(generator.eval()) if fast_ok else None
-        self.generator = generator.eval().to(self.device)
-        self.config = generator.cfg
+        self.weights = weights  # the generator's state dict, float32 arrays
+        self.config = config
+        self.device = str(device)
+        # One sequence on a CPU runs in numpy (model/numpy_runtime.py: the same numbers, as fast, and no `import torch`,
+        # which was most of the studio's start). Batches, GPUs and the paper's frame-by-frame decoder use torch.
+        self.fast = NumpyGenerator(weights, config) if self.device == "cpu" and NumpyGenerator.supports(config) else None
         self.info: dict[str, Any] = meta
         self.path = path
         self.class_names: tuple[str, ...] = tuple(meta["class_names"])
@@ -47,17 +44,30 @@ class ReactionModel:
         self.canonical_mode: str = meta.get("canonical_mode", "first_frame")
         self.max_length: int = MAX_LENGTH_FACTOR * int(meta.get("max_train_length", 46))
 
+    @functools.cached_property
+    def generator(self):
+        """The torch model.Generator with these weights, on `device` (built when first needed)."""
+        import torch
+
+        from imm_model.checkpoint import load_module_state
+        from imm_model.model.generator import Generator
+
+        generator = Generator(self.config)
+        load_module_state(generator, {k: torch.from_numpy(v) for k, v in self.weights.items()}, "generator", self.path)
+        return generator.eval().to(self.device)
+
     # ---- loading --------------------------------------------------------------------------
     @classmethod
     def load(cls, path: Path | str | None = None, device: str = "cpu") -> ReactionModel:
         """Load a checkpoint (default: the bundled one). Any problem -> CheckpointError (one line)."""
-        from imm_model.checkpoint import load_checkpoint, load_module_state, prefixed
-        from imm_model.model import Generator, ModelConfig
+        from imm_model.checkpoint import check_state, load_checkpoint, prefixed
+        from imm_model.model.config import ModelConfig
+        from imm_model.model.numpy_runtime import NumpyGenerator
         from imm_model.paths import SAMPLE_CHECKPOINT
         from imm_model.skeleton import Skeleton
 
         path = Path(path) if path is not None else SAMPLE_CHECKPOINT
-        tensors, meta = load_checkpoint(path)
+        arrays, meta = load_checkpoint(path, framework="np")
         try:
             cfg = ModelConfig.from_dict(meta["model_config"])
             skeleton = Skeleton.from_dict(meta["skeleton"])
@@ -66,13 +76,16 @@ class ReactionModel:
             raise CheckpointError(f"{path}: sidecar lacks a valid model description ({type(err).__name__}: {err})") from None
         if cfg.num_classes != len(classes) or cfg.num_joints != skeleton.num_joints:
             raise CheckpointError(f"{path}: model config disagrees with the class names or the skeleton")
-        weights = prefixed(tensors, "generator")
-        bad = sorted(k for k, v in weights.items() if not v.is_floating_point() or not v.isfinite().all())
+        weights = prefixed(arrays, "generator")
+        bad = sorted(k for k, v in weights.items() if v.dtype.kind != "f" or not np.isfinite(v).all())
         if bad:
             raise CheckpointError(f"{path}: weights that are not finite floats ({', '.join(bad[:3])}{', ...' if len(bad) > 3 else ''})")
-        generator = Generator(cfg)
-        load_module_state(generator, weights, "generator", path)
-        return cls(generator, meta, path, device)
+        if NumpyGenerator.supports(cfg):
+            check_state(weights, NumpyGenerator.expected_shapes(cfg), "generator", path)
+        model = cls({k: v.astype(np.float32) for k, v in weights.items()}, cfg, meta, path, device)
+        if model.fast is None:
+            model.generator  # noqa: B018 - torch's strict load checks the weights now, not at the first synthesis
+        return model
 
     # ---- labels and inputs ----------------------------------------------------------------
     def label_vector(self, label: Mapping[str, float] | Sequence[float] | np.ndarray, scale: float = 1.0) -> np.ndarray:
@@ -138,16 +151,11 @@ class ReactionModel:
 
     def synthesize_canonical(self, leader_canonical: np.ndarray, label_vector: np.ndarray) -> np.ndarray:
         """Leader (T, J, 3) canonical + (C,) label vector -> follower (T, J, 3) canonical, float32."""
-        import torch
-
         t = len(leader_canonical)
         if self.fast is None:
             return self.synthesize_batch_canonical([leader_canonical], np.asarray(label_vector).reshape(1, -1))[0]
-        with torch.inference_mode():
-            x = torch.as_tensor(np.asarray(leader_canonical, dtype=np.float32).reshape(1, t, -1))
-            lab = torch.as_tensor(np.asarray(label_vector, dtype=np.float32).reshape(1, -1))
-            out = self.fast(x, lab)
-        return out.numpy().reshape(t, -1, 3)
+        out = self.fast(np.asarray(leader_canonical, np.float32).reshape(t, -1), self._label_array(label_vector, 1)[0])
+        return out.astype(np.float32).reshape(t, -1, 3)
 
     def synthesize_batch_canonical(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> list[np.ndarray]:
         """N leaders (T_i, J, 3) canonical + (N, C) label vectors -> N followers (T_i, J, 3)."""
@@ -165,17 +173,25 @@ class ReactionModel:
 
     def latent_canonical_batch(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> np.ndarray:
         """N canonical leaders + (N, C) label vectors -> (N, D) embeddings."""
+        if self.fast is not None:
+            labels = self._label_array(label_vectors, len(leaders))
+            return np.stack([self.fast.encode(np.asarray(a, np.float32).reshape(len(a), -1), lab).mean(0)
+                             for a, lab in zip(leaders, labels, strict=True)])
         out, _ = self._run_batch(leaders, label_vectors, latent=True)
         return out
+
+    def _label_array(self, label_vectors: np.ndarray, n: int) -> np.ndarray:
+        labels = np.asarray(label_vectors, dtype=np.float32).reshape(n, -1)
+        if labels.shape[1] != len(self.class_names):
+            raise LabelError(f"label vectors have {labels.shape[1]} values; expected {len(self.class_names)}")
+        return labels
 
     def _run_batch(self, leaders: list[np.ndarray], label_vectors: np.ndarray, latent: bool) -> tuple[np.ndarray, np.ndarray]:
         import torch
 
         from imm_model.data.batching import pad_sequences
 
-        labels = np.asarray(label_vectors, dtype=np.float32).reshape(len(leaders), -1)
-        if labels.shape[1] != len(self.class_names):
-            raise LabelError(f"label vectors have {labels.shape[1]} values; expected {len(self.class_names)}")
+        labels = self._label_array(label_vectors, len(leaders))
         lengths = np.array([len(a) for a in leaders])
         x, mask = pad_sequences([np.asarray(a, dtype=np.float32).reshape(len(a), -1) for a in leaders])
         with torch.inference_mode():

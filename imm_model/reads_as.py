@@ -3,7 +3,8 @@
 The studio shows them beside the label sliders, so a user sees whether a mix reads as intended. The classifier
 is the evaluation's independent judge (model/classifier.py FOLLOWER_JUDGE: temporal conv, trained on real
 followers only, never a training critic), trained on the same subjects as the bundled model (fold s04 held out)
-and bundled as imm_model/sample_data/follower_judge.safetensors (`imm data build-judge`).
+and bundled as imm_model/sample_data/follower_judge.safetensors (`imm data build-judge`). A conv classifier runs
+in numpy (model/numpy_runtime.py: the studio never imports torch for it); a GRU one on torch.
 """
 
 from __future__ import annotations
@@ -17,33 +18,49 @@ from imm_model.errors import CheckpointError
 
 class ReadsAs:
     def __init__(self, classifier, class_names: tuple[str, ...], meta: dict):
-        self.classifier = classifier.eval()
+        self.classifier = classifier  # a NumpyConvClassifier, or a torch MotionClassifier in eval mode
         self.class_names = class_names
         self.meta = meta
 
     @classmethod
     def load(cls, path: Path | str) -> ReadsAs:
         """A classifier file written by `imm data build-judge` (or a cache entry); any problem -> CheckpointError."""
-        from imm_model.checkpoint import load_checkpoint, load_module_state
-        from imm_model.model.classifier import ClassifierConfig, MotionClassifier
+        from imm_model.checkpoint import check_state, load_checkpoint
+        from imm_model.model.classifier_config import ClassifierConfig
+        from imm_model.model.numpy_runtime import NumpyConvClassifier
 
-        tensors, meta = load_checkpoint(path)
+        arrays, meta = load_checkpoint(path, framework="np")
         try:
             cfg = ClassifierConfig.from_dict(meta["config"])
             names = tuple(str(n) for n in meta["class_names"])
-            pose_dim = int(tensors["mean"].shape[0]) // 2
+            pose_dim = int(arrays["mean"].shape[0]) // 2
         except (KeyError, TypeError, ValueError) as err:
             raise CheckpointError(f"{path}: not a reaction classifier ({type(err).__name__}: {err})") from None
         if cfg.inputs != "follower":
             raise CheckpointError(f"{path}: a {cfg.inputs} classifier; the studio needs a follower-only one")
-        model = MotionClassifier(cfg, pose_dim, len(names))
-        load_module_state(model, tensors, "classifier", path)
-        return cls(model, names, meta)
+        if cfg.arch == "conv":
+            check_state(arrays, NumpyConvClassifier.expected_shapes(cfg.hidden, cfg.features, pose_dim, len(names)), "classifier", path)
+            return cls(NumpyConvClassifier(arrays), names, meta)
+        return cls(_torch_classifier(cfg, arrays, pose_dim, len(names), path), names, meta)
 
     def probabilities(self, follower: np.ndarray) -> np.ndarray:
         """(T, J, 3) canonical metres -> (C,) class probabilities."""
+        x = np.asarray(follower, np.float32).reshape(len(follower), -1)
+        if hasattr(self.classifier, "probabilities"):
+            return self.classifier.probabilities(x)
         import torch
 
-        x = torch.as_tensor(np.asarray(follower, np.float32).reshape(1, len(follower), -1))
         with torch.inference_mode():
-            return torch.softmax(self.classifier(x, torch.tensor([len(follower)])), -1)[0].numpy().astype(np.float64)
+            logits = self.classifier(torch.from_numpy(x[None]), torch.tensor([len(x)]))
+        return torch.softmax(logits, -1)[0].numpy().astype(np.float64)
+
+
+def _torch_classifier(cfg, arrays: dict[str, np.ndarray], pose_dim: int, num_classes: int, path):
+    import torch
+
+    from imm_model.checkpoint import load_module_state
+    from imm_model.model.classifier import MotionClassifier
+
+    model = MotionClassifier(cfg, pose_dim, num_classes)
+    load_module_state(model, {k: torch.from_numpy(v) for k, v in arrays.items()}, "classifier", path)
+    return model.eval()

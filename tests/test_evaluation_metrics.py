@@ -12,6 +12,7 @@ from imm_model.data.splits import loso_fold
 from imm_model.evaluation import control, distribution, plausibility
 from imm_model.evaluation.baselines import knn_dtw_follower, template_follower
 from imm_model.model import classifier as classifiers
+from imm_model.model import classifier_config as classifier_configs
 
 QUICK = dict(epochs=2, hidden=16, features=8)
 
@@ -28,8 +29,8 @@ def test_classifier_result_does_not_depend_on_its_batch(sample_data):
     followers = [sample_data.canonical(int(i))[1] for i in fold.train]
     seqs = classifiers.motion_inputs([], followers, "follower")
     short = int(np.argmin(sample_data.lengths[fold.train]))
-    for arch in classifiers.ARCHITECTURES:
-        cfg = classifiers.ClassifierConfig(inputs="follower", arch=arch, **QUICK)
+    for arch in classifier_configs.ARCHITECTURES:
+        cfg = classifier_configs.ClassifierConfig(inputs="follower", arch=arch, **QUICK)
         model = classifiers.train_classifier(cfg, seqs, sample_data.actions[fold.train], 6)
         alone_p, alone_f = classifiers.classify(model, [seqs[short]])
         batch_p, batch_f = classifiers.classify(model, seqs)
@@ -41,13 +42,13 @@ def test_classifier_result_does_not_depend_on_its_batch(sample_data):
 
 def test_classifier_config_errors_name_the_field():
     with pytest.raises(ValueError, match="classifier config: arch must be one of"):
-        classifiers.ClassifierConfig(arch="transformer")
+        classifier_configs.ClassifierConfig(arch="transformer")
     with pytest.raises(ValueError, match="unknown classifier config keys"):
-        classifiers.ClassifierConfig.from_dict({"layers": 3})
+        classifier_configs.ClassifierConfig.from_dict({"layers": 3})
 
 
 def test_cache_reuses_and_rebuilds_a_corrupt_entry(sample_data, cache_dir, capsys):
-    cfg = classifiers.ClassifierConfig(inputs="follower", arch="conv", **QUICK)
+    cfg = classifier_configs.ClassifierConfig(inputs="follower", arch="conv", **QUICK)
     first = cache.fold_classifier(cfg, sample_data, "s04", progress=False)
     assert "trained the follower-only conv classifier for fold s04" in capsys.readouterr().err
     files = list((cache_dir / "classifiers").glob("*.safetensors"))

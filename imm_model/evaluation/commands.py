@@ -52,7 +52,7 @@ def normalize_fold(fold: str | None) -> str | None:
 def _options(args: argparse.Namespace):
     from imm_model.checkpoint import final_checkpoint
     from imm_model.evaluation.loso import EvalOptions
-    from imm_model.model import classifier as classifiers
+    from imm_model.model.classifier_config import FOLLOWER, FOLLOWER_JUDGE, INTERACTION, ClassifierConfig
 
     overrides = {}
     if args.classifier_config is not None:
@@ -63,8 +63,8 @@ def _options(args: argparse.Namespace):
         if not isinstance(overrides, dict):
             raise ValueError(f"{args.classifier_config}: a classifier config is a JSON object")
     configs = {}
-    for name, base in (("interaction", classifiers.INTERACTION), ("follower", classifiers.FOLLOWER), ("judge", classifiers.FOLLOWER_JUDGE)):
-        configs[name] = classifiers.ClassifierConfig.from_dict(base.to_dict() | overrides)
+    for name, base in (("interaction", INTERACTION), ("follower", FOLLOWER), ("judge", FOLLOWER_JUDGE)):
+        configs[name] = ClassifierConfig.from_dict(base.to_dict() | overrides)
     if args.men_run is not None and not args.men_run.is_dir():
         raise ValueError(f"--men-run {args.men_run}: run directory not found")
     men = (lambda s: final_checkpoint(args.men_run / f"fold-{s}")) if args.men_run else None

@@ -22,6 +22,7 @@ from imm_model.evaluation.baselines import HEURISTIC_BASELINES, baseline_predict
 from imm_model.evaluation.metrics import per_class_mean
 from imm_model.evaluation.plausibility import frame_rate, plausibility
 from imm_model.model import classifier as classifiers
+from imm_model.model import classifier_config as classifier_configs
 
 BASELINES = (*HEURISTIC_BASELINES, "men")
 DEV_FOLDS = ("s01", "s03", "s04")  # already used to choose recipes (docs/evaluation.md)
@@ -36,9 +37,9 @@ class EvalOptions:
     baselines: tuple[str, ...] = BASELINES
     # {subject} -> a trained label-free checkpoint; None: train `men` on the fold (cached)
     men_checkpoint: Callable[[str], Path] | None = None
-    interaction: classifiers.ClassifierConfig = classifiers.INTERACTION
-    follower: classifiers.ClassifierConfig = classifiers.FOLLOWER
-    judge: classifiers.ClassifierConfig = classifiers.FOLLOWER_JUDGE
+    interaction: classifier_configs.ClassifierConfig = classifier_configs.INTERACTION
+    follower: classifier_configs.ClassifierConfig = classifier_configs.FOLLOWER
+    judge: classifier_configs.ClassifierConfig = classifier_configs.FOLLOWER_JUDGE
     progress: bool = True
 
     def __post_init__(self) -> None:

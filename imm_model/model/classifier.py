@@ -18,64 +18,14 @@ the evaluation as judges and, optionally, by training as a frozen critic (traini
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
 
 import numpy as np
 import torch
 import torch.nn as nn
 
-from imm_model.typed_config import checked_kwargs
+from imm_model.model.classifier_config import ClassifierConfig
 
 VERSION = 2  # part of every cache key: bump when the architecture or training code changes its numbers
-INPUTS = ("interaction", "follower")
-ARCHITECTURES = ("gru", "conv")
-
-
-@dataclass(frozen=True)
-class ClassifierConfig:
-    inputs: str = "interaction"
-    arch: str = "gru"
-    hidden: int = 64
-    features: int = 64  # width of the penultimate layer (the FID embedding)
-    dropout: float = 0.3
-    epochs: int = 60
-    batch_size: int = 32
-    lr: float = 2e-3
-    weight_decay: float = 1e-2
-    label_smoothing: float = 0.1
-    rotate_deg: float = 15.0  # augmentation: yaw of the whole scene in [-rotate_deg, rotate_deg]
-    scale_jitter: float = 0.1  # ... body size U(1 - s, 1 + s)
-    noise_m: float = 0.01  # ... Gaussian positional noise (metres), about Kinect's jitter
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        checks = (
-            ("inputs", self.inputs in INPUTS, f"one of {INPUTS}"),
-            ("arch", self.arch in ARCHITECTURES, f"one of {ARCHITECTURES}"),
-            ("hidden", isinstance(self.hidden, int) and 1 <= self.hidden <= 1024, "an integer in 1..1024"),
-            ("features", isinstance(self.features, int) and 2 <= self.features <= 1024, "an integer in 2..1024"),
-            ("epochs", isinstance(self.epochs, int) and 1 <= self.epochs <= 10_000, "an integer in 1..10000"),
-            ("batch_size", isinstance(self.batch_size, int) and self.batch_size >= 1, "an integer >= 1"),
-            ("dropout", 0 <= self.dropout < 1, "in [0, 1)"),
-            ("lr", self.lr > 0, "> 0"),
-        )
-        for name, ok, expected in checks:
-            if not ok:
-                raise ValueError(f"classifier config: {name} must be {expected}, not {getattr(self, name)!r}")
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict) -> ClassifierConfig:
-        return cls(**checked_kwargs(cls, d, "classifier config"))
-
-
-# The classifiers `imm evaluate` uses: the interaction GRU (FID, recognition), the follower-only GRU (a
-# training critic may use this one) and the follower-only conv net with another seed (the independent judge).
-INTERACTION = ClassifierConfig(inputs="interaction", arch="gru")
-FOLLOWER = ClassifierConfig(inputs="follower", arch="gru")
-FOLLOWER_JUDGE = ClassifierConfig(inputs="follower", arch="conv", seed=1)
 
 
 class MotionClassifier(nn.Module):

@@ -45,7 +45,8 @@ def scores(checkpoints: dict[str, dict[str, str]], classifier_epochs: int | None
     from imm_model.evaluation.distribution import fid
     from imm_model.evaluation.loso import model_predictions
     from imm_model.inference import ReactionModel
-    from imm_model.model.classifier import INTERACTION, classify, motion_inputs, train_classifier
+    from imm_model.model.classifier import classify, motion_inputs, train_classifier
+    from imm_model.model.classifier_config import INTERACTION
 
     data, splits = shared_data()
     pairs = [data.canonical(i) for i in range(len(data))]

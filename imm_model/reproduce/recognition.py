@@ -49,7 +49,8 @@ def _per_class_accuracy(pred: np.ndarray, y: np.ndarray, C: int) -> list[float]:
 def _score(train: tuple[list, np.ndarray], test: tuple[list, np.ndarray], C: int, epochs: int | None, trained=None) -> dict:
     """Train the evaluation's interaction classifier on `train` (or take `trained(cfg)`, the same classifier already
     trained), test on `test` -> accuracies."""
-    from imm_model.model.classifier import INTERACTION, classify, train_classifier
+    from imm_model.model.classifier import classify, train_classifier
+    from imm_model.model.classifier_config import INTERACTION
 
     cfg = replace(INTERACTION, **({"epochs": epochs} if epochs else {}))
     clf = trained(cfg) if trained else train_classifier(cfg, train[0], train[1], C)

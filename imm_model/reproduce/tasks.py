@@ -93,7 +93,7 @@ class EvalJob:
 
     def key(self, runs: Path) -> str:
         """Changes when the run, the men run, the baselines or the classifiers change."""
-        from imm_model.model.classifier import INTERACTION
+        from imm_model.model.classifier_config import INTERACTION
 
         stamp = lambda job: json.loads((job.run_dir(runs) / "done.json").read_text())["key"]  # noqa: E731
         # the recognition study's classifier seed; a key without one is a half-split study over three seeds (older)
@@ -105,7 +105,7 @@ class EvalJob:
     def options(self, runs: Path):
         from imm_model.checkpoint import final_checkpoint
         from imm_model.evaluation.loso import EvalOptions
-        from imm_model.model.classifier import FOLLOWER, FOLLOWER_JUDGE, INTERACTION
+        from imm_model.model.classifier_config import FOLLOWER, FOLLOWER_JUDGE, INTERACTION
 
         defaults = {"interaction": INTERACTION, "follower": FOLLOWER, "judge": FOLLOWER_JUDGE}
         n = self.classifier_epochs

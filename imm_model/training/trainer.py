@@ -139,7 +139,7 @@ class Trainer:
         from dataclasses import replace
 
         from imm_model.cache import fold_classifier
-        from imm_model.model.classifier import FOLLOWER
+        from imm_model.model.classifier_config import FOLLOWER
         from imm_model.training.critic import LabelCritic
 
         clfs = [fold_classifier(replace(FOLLOWER, seed=s), self.data, self.subject).to(self.device) for s in self.cfg.critic_seeds]

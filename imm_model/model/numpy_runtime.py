@@ -1,0 +1,154 @@
+"""The trained networks run on one sequence with numpy alone: the generator and the conv reaction classifier.
+
+Why: the studio runs these two small networks on one sequence at a time, and `import torch` took 2.0-2.2 s of its
+3.7 s start here (python -X importtime); numpy was already loaded. Written by hand because the library that
+would fit, ONNX Runtime, needs an export step (and the onnx package) for every checkpoint and 27 MB more to
+install. The numbers are the torch modules' (tests/test_model.py compares them to 1e-5); training, batches, GPUs
+and the paper's frame-by-frame decoder (attention_query="decoder") stay on torch.
+
+Weights are the torch modules' state dicts as float32 numpy arrays, under the same names.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from imm_model.model.config import ModelConfig
+
+
+def lstm_runs(gate_inputs: np.ndarray, w_hh: np.ndarray) -> np.ndarray:
+    """N independent one-layer LSTMs stepped together: gate_inputs (N, T, 4H) = W_ih x_t + b_ih + b_hh for each,
+    w_hh (N, 4H, H) -> hidden states (N, T, H). Gates in torch's order: input, forget, cell, output."""
+    n, steps, four_h = gate_inputs.shape
+    hidden = four_h // 4
+    # sigmoid(x) = (1 + tanh(x / 2)) / 2: one tanh over all four gates per step, the sigmoid gates' inputs halved
+    half = np.full(four_h, 0.5, np.float32)
+    half[2 * hidden : 3 * hidden] = 1.0
+    w = np.ascontiguousarray(w_hh.transpose(0, 2, 1)) * half  # (N, H, 4H): h @ w is W_hh h, scaled
+    inputs = gate_inputs * half
+    h = np.zeros((n, 1, hidden), np.float32)
+    c = np.zeros((n, 1, hidden), np.float32)
+    out = np.empty((n, steps, hidden), np.float32)
+    for t in range(steps):
+        gates = np.tanh(inputs[:, t : t + 1] + h @ w)  # (N, 1, 4H)
+        ifo = 0.5 + 0.5 * gates
+        c = ifo[..., hidden : 2 * hidden] * c + ifo[..., :hidden] * gates[..., 2 * hidden : 3 * hidden]
+        h = ifo[..., 3 * hidden :] * np.tanh(c)
+        out[:, t] = h[:, 0]
+    return out
+
+
+def bilstm_gate_inputs(x: np.ndarray, weights: dict[str, np.ndarray], prefix: str) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """x (T, D) through a layers.BiLSTM's two directions -> ([forward, time-reversed backward] gate inputs (T, 4H),
+    [their W_hh])."""
+    runs, recurrent = [], []
+    for direction, frames in (("fwd", x), ("bwd", x[::-1])):
+        p = f"{prefix}.{direction}."
+        runs.append(frames @ weights[p + "weight_ih_l0"].T + weights[p + "bias_ih_l0"] + weights[p + "bias_hh_l0"])
+        recurrent.append(weights[p + "weight_hh_l0"])
+    return runs, recurrent
+
+
+def linear(x: np.ndarray, weights: dict[str, np.ndarray], prefix: str) -> np.ndarray:
+    y = x @ weights[prefix + ".weight"].T
+    return y + weights[prefix + ".bias"] if prefix + ".bias" in weights else y
+
+
+class NumpyGenerator:
+    """model.Generator for one unpadded sequence: leader (T, 3J) canonical metres + label (C,) -> follower (T, 3J)."""
+
+    def __init__(self, weights: dict[str, np.ndarray], cfg: ModelConfig):
+        if not self.supports(cfg):
+            raise ValueError("the frame-by-frame attentive decoder (attention_query='decoder') runs on torch only")
+        self.w = {k: np.asarray(v, np.float32) for k, v in weights.items()}
+        self.cfg = cfg
+        self.part_cols = [np.array([3 * j + c for j in joints for c in range(3)]) for joints in cfg.body_parts]
+
+    @staticmethod
+    def supports(cfg: ModelConfig) -> bool:
+        return cfg.attention_query == "encoder"
+
+    @staticmethod
+    def expected_shapes(cfg: ModelConfig) -> dict[str, tuple[int, ...]]:
+        """The shapes of model.Generator(cfg)'s state dict (attention_query="encoder"), to check a checkpoint with."""
+        d, E, H, A, Hd = cfg.pose_dim, cfg.stream_embed, cfg.encoder_hidden, cfg.attention_dim, cfg.decoder_hidden
+        shapes = {f"{name}_{stat}": (d,) for name in ("leader", "follower") for stat in ("mean", "std")}
+        inputs = [3 * len(p) for p in cfg.body_parts] + [d + cfg.num_classes if cfg.label_input else d]
+        for k, n in enumerate(inputs):
+            if cfg.stream_fc:
+                shapes |= {f"embed.{k}.weight": (E, n), f"embed.{k}.bias": (E,)}
+            shapes |= _lstm_shapes(f"encoders.{k}", E if cfg.stream_fc else n, H)
+        latent = cfg.latent_dim
+        shapes |= {"attention.query.weight": (A, latent), "attention.key.weight": (A, latent), "attention.key.bias": (A,),
+                   "attention.v.weight": (1, A), "out.weight": (d, 2 * Hd), "out.bias": (d,)}
+        return shapes | _lstm_shapes("decoder", cfg.decoder_input_dim, Hd)
+
+    def encode(self, leader: np.ndarray, label: np.ndarray) -> np.ndarray:
+        """-> the six streams' Bi-LSTM encodings (T, latent), [stream 0 forward, stream 0 backward, stream 1 ...]."""
+        w, cfg = self.w, self.cfg
+        x = (np.asarray(leader, np.float32) - w["leader_mean"]) / w["leader_std"]
+        label = np.asarray(label, np.float32).reshape(-1)
+        streams = [x[:, cols] for cols in self.part_cols]
+        streams.append(np.concatenate([x, np.broadcast_to(label, (len(x), len(label)))], 1) if cfg.label_input else x)
+        runs, recurrent = [], []
+        for k, s in enumerate(streams):
+            r, hh = bilstm_gate_inputs(linear(s, w, f"embed.{k}") if cfg.stream_fc else s, w, f"encoders.{k}")
+            runs += r
+            recurrent += hh
+        states = lstm_runs(np.stack(runs), np.stack(recurrent))  # (12, T, H): per stream, forward then backward
+        return np.concatenate([s if k % 2 == 0 else s[::-1] for k, s in enumerate(states)], axis=1)
+
+    def attention(self, h: np.ndarray) -> np.ndarray:
+        """layers.AdditiveAttention over all frames: (T, latent) -> contexts (T, latent)."""
+        q, k = linear(h, self.w, "attention.query"), linear(h, self.w, "attention.key")
+        scores = np.tanh(q[:, None, :] + k[None, :, :]) @ self.w["attention.v.weight"][0]  # (T, T)
+        scores = np.exp(scores - scores.max(1, keepdims=True))
+        return (scores / scores.sum(1, keepdims=True)) @ h
+
+    def __call__(self, leader: np.ndarray, label: np.ndarray) -> np.ndarray:
+        w, mode = self.w, self.cfg.decoder_input
+        h = self.encode(leader, label)
+        context = self.attention(h)
+        dec_in = np.concatenate([h, context], 1) if mode == "concat" else h + context if mode == "sum" else context
+        runs, recurrent = bilstm_gate_inputs(dec_in, w, "decoder")
+        fwd, bwd = lstm_runs(np.stack(runs), np.stack(recurrent))
+        dec = np.concatenate([fwd, bwd[::-1]], axis=1)
+        return linear(dec, w, "out") * w["follower_std"] + w["follower_mean"]
+
+
+def _lstm_shapes(prefix: str, inputs: int, hidden: int) -> dict[str, tuple[int, ...]]:
+    """A layers.BiLSTM's parameters."""
+    out = {}
+    for direction in ("fwd", "bwd"):
+        p = f"{prefix}.{direction}."
+        out |= {p + "weight_ih_l0": (4 * hidden, inputs), p + "weight_hh_l0": (4 * hidden, hidden),
+                p + "bias_ih_l0": (4 * hidden,), p + "bias_hh_l0": (4 * hidden,)}
+    return out
+
+
+class NumpyConvClassifier:
+    """model.classifier.MotionClassifier with arch="conv", for one sequence: (T, D) -> (C,) class probabilities."""
+
+    def __init__(self, weights: dict[str, np.ndarray]):
+        self.w = {k: np.asarray(v, np.float32) for k, v in weights.items()}
+
+    @staticmethod
+    def expected_shapes(hidden: int, features: int, pose_dim: int, num_classes: int) -> dict[str, tuple[int, ...]]:
+        """The shapes of MotionClassifier(arch="conv")'s state dict (kernel 5)."""
+        d = 2 * pose_dim
+        return {"mean": (d,), "std": (d,), "body.0.weight": (hidden, d, 5), "body.0.bias": (hidden,),
+                "body.1.weight": (hidden, hidden, 5), "body.1.bias": (hidden,), "embed.1.weight": (features, hidden),
+                "embed.1.bias": (features,), "head.weight": (num_classes, features), "head.bias": (num_classes,)}
+
+    def probabilities(self, x: np.ndarray) -> np.ndarray:
+        w = self.w
+        x = np.asarray(x, np.float32)
+        h = (np.concatenate([x, np.diff(x, axis=0, prepend=x[:1])], 1) - w["mean"]) / w["std"]
+        for layer in ("body.0", "body.1"):
+            kernel = w[layer + ".weight"]  # (out, in, K), zero padding K // 2 on both sides (as trained)
+            pad = kernel.shape[2] // 2
+            windows = np.lib.stride_tricks.sliding_window_view(np.pad(h, ((pad, pad), (0, 0))), kernel.shape[2], axis=0)
+            h = np.maximum(np.einsum("tik,oik->to", windows, kernel, optimize=True) + w[layer + ".bias"], 0.0)
+        logits = linear(np.maximum(linear(h.mean(0), w, "embed.1"), 0.0), w, "head")
+        p = np.exp(logits - logits.max())
+        return (p / p.sum()).astype(np.float64)
