@@ -96,12 +96,15 @@ def serve(data, model, latent, reader, args: argparse.Namespace, *, secret: str,
     from wslink.websocket import LinkProtocol
 
     from explorer.app import Studio
+    from explorer.latent import default_cache_dir
+    from explorer.page_shell import use_page_shell
     from explorer.session import Session
 
     server = get_server("imm-studio", client_type="vue3")
     server.cli.set_defaults(authKey=secret)  # wslink's default secret is public: every process gets its own
     session = Session(data, model, args.start, reader)
     Studio(server, session, latent, export_dir=args.export_dir, render=args.render)
+    use_page_shell(server, args.cache_dir or default_cache_dir())
 
     clients: set[str] = set()
     last_seen = [time.monotonic()]

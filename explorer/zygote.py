@@ -34,6 +34,7 @@ def preload() -> None:
     from wslink.websocket import LinkProtocol  # noqa: F401
 
     import explorer.app  # noqa: F401 - the page, the scene (VTK), the charts, the view stream
+    import explorer.page_shell  # noqa: F401
 
 
 class ForkServer:
