@@ -27,7 +27,8 @@ from explorer.scene import CHARACTER_KEYS, Scene, floor_height
 from explorer.session import FPS, Session
 from explorer.url_state import apply_view, current_view, view_query
 
-REVIEW_DELAY_S = 0.04  # after a new mix: distance chart, AFD and latent star follow the picture
+PICTURE_S = 0.04  # after a new mix, the time its picture takes to leave (the next mix waits for it)
+REVIEW_DELAY_S = 0.1  # ... and the time until the 'reads as' panel, distance chart, AFD and latent star follow it
 
 
 class Studio:
@@ -235,12 +236,6 @@ class Studio:
         for i, w in enumerate(self.session.weights):
             self.state[f"w_{i}"] = round(float(w), 3)
         self.state.scale = self.session.scale
-        self.state.label_text = self.session.label_text()
-        self._write_reads_as()
-
-    def _write_reads_as(self) -> None:
-        ses = self.session
-        self.state.reads_as = reads_as_rows(ses.reads_as(), ses.weights, ses.class_names)
 
     def on_mix_change(self, **_):
         """Coalesce slider messages: the latest mix wins, at most one synthesis in flight, no fixed
@@ -256,11 +251,14 @@ class Studio:
                 await asyncio.sleep(0)  # let already-queued slider messages land first
                 self._mix_pending = False
                 review_due = bool(self.apply_mix()) or review_due
-                # The picture's delivery (JPEG retries every 5 ms) goes before the review work.
-                await asyncio.sleep(REVIEW_DELAY_S)
+                await asyncio.sleep(PICTURE_S)  # the picture is rendered, encoded and sent before anything else
                 continue
-            review_due = False
-            self.update_review()
+            # The panels change once the page has shown the picture: their state messages, processed by the page
+            # while it decodes the picture, delayed it by ~30 ms at p95 (docs/explorer.md).
+            await asyncio.sleep(REVIEW_DELAY_S - PICTURE_S)
+            if not self._mix_pending:
+                review_due = False
+                self.update_review()
 
     @_guard
     def apply_mix(self) -> bool:
@@ -272,10 +270,7 @@ class Studio:
             return False
         ses.set_label(weights, scale)
         self.scene.set_synthesized(ses.synth)
-        self.ctrl.view_update()  # the picture first: it is what the user is watching
-        with s:
-            s.label_text = ses.label_text()
-            self._write_reads_as()
+        self.ctrl.view_update()  # the picture first: it is what the user is watching; the panels follow it (review)
         return True
 
     @_guard
@@ -289,6 +284,8 @@ class Studio:
     def _after_mix(self) -> None:
         """Review numbers, distance chart and latent star for the current synthesized follower."""
         s, ses = self.state, self.session
+        s.label_text = ses.label_text()
+        s.reads_as = reads_as_rows(ses.reads_as(), ses.weights, ses.class_names)
         self._distances = ses.distances_m()
         self._ab_distances = ses.ab_distances_m()
         s.ab_text = f"pinned ↔ current: mean {self._ab_distances.mean():.2f} m" if len(self._ab_distances) else ""
