@@ -1,6 +1,6 @@
 """`imm explore`: start the studio (registered through the `imm.commands` entry point).
 
-trame/VTK/torch are imported by the studio processes only, so `imm --help` stays fast.
+trame and VTK are imported by the studio processes only, so `imm --help` stays fast.
 """
 
 from __future__ import annotations

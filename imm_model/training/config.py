@@ -44,6 +44,9 @@ class TrainConfig:
     # Motion energy (training/energy.py): per-joint limb speed of the generated follower vs the real one (for a
     # drawn label, vs the label's mix of per-class profiles); weight follows the adversarial warm-up and ramp.
     lambda_energy: float = 0.0
+    # Relation curves (training/relation.py): for a drawn label, the follower's whole-body motion relative to the
+    # leader (root distance, root height) vs the label's mix of per-class curves; weight as the energy's. 0 = off.
+    lambda_relation: float = 0.0
     adv_warmup_epochs: int = 0  # adversarial weight 0 for these epochs (reconstruction warm-up) ...
     adv_ramp_epochs: int = 0  # ... then ramped linearly to lambda_adv over these epochs
     label_smoothing: float = 0.0  # on D's real-class targets
@@ -102,6 +105,8 @@ class TrainConfig:
             ("critic_seeds", len(self.critic_seeds) >= 1 and all(0 <= s < 2**31 for s in self.critic_seeds),
              "a non-empty list of seeds"),
             ("lambda_energy", self.lambda_energy >= 0, ">= 0 (0 = off)"),
+            ("lambda_relation", self.lambda_relation >= 0 and (self.lambda_relation == 0 or self.lambda_critic > 0),
+             ">= 0, and used with lambda_critic > 0 (it shapes the critic's drawn labels)"),
             ("l1_reduction", self.l1_reduction in ("mean", "sum"), "'mean' or 'sum'"),
             ("epochs", 1 <= self.epochs <= 100_000, "in 1..100000"),
             ("batch_size", 1 <= self.batch_size <= 4096, "in 1..4096"),

@@ -38,9 +38,10 @@ from imm_model.training.critic import drawn_labels
 from imm_model.training.curves import plot_curves
 from imm_model.training.data import Augmenter, PaddedData
 from imm_model.training.energy import class_profiles, energy_loss, limb_speeds, mixed_profile
+from imm_model.training.relation import class_relations, relation_loss
 
-LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", "l1", "bone", "cont", "adv", "critic", "energy", "d_loss", "d_real_acc", "d_fake_acc",
-              "val_afd_m", "val_l1", "seconds")
+LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", "l1", "bone", "cont", "adv", "critic", "energy", "relation", "d_loss", "d_real_acc",
+              "d_fake_acc", "val_afd_m", "val_l1", "seconds")
 
 
 def derive_seed(*parts: int) -> int:
@@ -124,6 +125,7 @@ class Trainer:
         self.bones = torch.tensor(data.skeleton.bones, dtype=torch.int64, device=self.device)
         self.critic = self._label_critic() if cfg.lambda_critic > 0 else None
         self.profiles = self._class_profiles() if cfg.lambda_energy > 0 else None
+        self.relations = self._class_relations() if cfg.lambda_relation > 0 else None
         self.state = FoldState()
 
     # ---- setup ----------------------------------------------------------------------------
@@ -149,6 +151,12 @@ class Trainer:
         followers = [self.data.follower[self.data.frames(i)] for i in self.train_idx]
         profiles = class_profiles(followers, self.data.actions[self.train_idx], len(self.data.class_names), self.data.skeleton.root)
         return profiles.to(self.device)
+
+    def _class_relations(self) -> torch.Tensor:
+        d = self.data
+        pairs = [(d.leader[d.frames(i)], d.follower[d.frames(i)]) for i in self.train_idx]
+        return class_relations([a for a, _ in pairs], [b for _, b in pairs], d.actions[self.train_idx], len(d.class_names),
+                               d.skeleton.root, d.skeleton.vertical_axis).to(self.device)
 
     def meta(self, kind: str) -> dict:
         d = self.data
@@ -232,7 +240,7 @@ class Trainer:
         for opt, lr in ((self.opt_g, cfg.lr_g), (self.opt_d, cfg.lr_d)):
             for group in opt.param_groups:
                 group["lr"] = lr * scale
-        sums = dict.fromkeys(("l1", "bone", "cont", "adv", "critic", "energy", "d_loss", "d_real_acc", "d_fake_acc"), 0.0)
+        sums = dict.fromkeys(("l1", "bone", "cont", "adv", "critic", "energy", "relation", "d_loss", "d_real_acc", "d_fake_acc"), 0.0)
         n = n_d = 0
         self.G.train()
         self.D.train()
@@ -300,6 +308,11 @@ class Trainer:
             terms["critic"] = float(critic.detach())
             if w_energy > 0:
                 g_loss = g_loss + w_energy * energy_loss(other, mixed_profile(labels, self.profiles), lengths, root)
+            if self.relations is not None and (w_relation := adversarial_weight(cfg, epoch, cfg.lambda_relation)) > 0:
+                target = mixed_profile(labels, self.relations)
+                relation = relation_loss(leader, other, target, lengths, root, self.data.skeleton.vertical_axis)
+                g_loss = g_loss + w_relation * relation
+                terms["relation"] = float(relation.detach())
         if cfg.lambda_adv > 0 and (w_adv := adversarial_weight(cfg, epoch)) > 0:
             self.D.requires_grad_(False)
             adv = losses.generator_adv_loss(self.D(fake, lengths), actions, cfg.discriminator)
