@@ -1,10 +1,6 @@
-"""The page's shell: trame's index.html with two additions, served by every studio process as its main web content.
-
-1. static/websocket_bytes.js runs before trame's client: binary websocket messages reach wslink as bytes instead of
-   Blobs that it reads back asynchronously (~20 ms between a picture's arrival and its display, measured in
-   docs/explorer.md).
-2. The scripts of the studio's trame modules (Vuetify, trame-rca; ~0.7 MB) are preloaded: trame's client asks
-   for them only once the first state message has arrived.
+"""The page's shell: trame's index.html with static/websocket_bytes.js run before trame's client, served by every
+studio process as its main web content. Binary websocket messages then reach wslink as bytes instead of Blobs that
+it reads back asynchronously (~20 ms between a picture's arrival and its display, measured in docs/explorer.md).
 
 The shell is written once per content into the studio's cache folder (a copy of trame's 0.3 MB client folder with
 the new index.html) and found there by every later studio process.
@@ -13,7 +9,6 @@ the new index.html) and found there by every later studio process.
 from __future__ import annotations
 
 import hashlib
-import html
 import os
 import shutil
 import tempfile
@@ -28,23 +23,22 @@ def use_page_shell(server, cache_dir: Path) -> None:
     from trame_client import module
 
     server.enable_module(module)  # trame's client, which the server would enable when it starts; its page is replaced
-    server.enable_module({"www": str(page_shell(cache_dir, list(server.state.trame__scripts)))})
+    server.enable_module({"www": str(page_shell(cache_dir))})
 
 
-def shell_index(trame_index: str, scripts: list[str]) -> str:
-    """trame's index.html -> the studio's: the websocket script inline and preload links, before trame's scripts."""
+def shell_index(trame_index: str) -> str:
+    """trame's index.html -> the studio's: the websocket script inline, before trame's scripts."""
     if ANCHOR not in trame_index:
         return trame_index  # another trame client layout: serve it unchanged rather than guess
-    preloads = "".join(f'<link rel="preload" as="script" href="{html.escape(s)}">' for s in scripts)
-    return trame_index.replace(ANCHOR, f"{preloads}<script>{BYTES_SCRIPT.read_text()}</script>{ANCHOR}", 1)
+    return trame_index.replace(ANCHOR, f"<script>{BYTES_SCRIPT.read_text()}</script>{ANCHOR}", 1)
 
 
-def page_shell(cache_dir: Path, scripts: list[str]) -> Path:
+def page_shell(cache_dir: Path) -> Path:
     """The folder to serve as the page (built on first use; concurrent studio processes build it once)."""
     from trame_client.module import vue3
 
     source = Path(vue3.www)
-    index = shell_index((source / "index.html").read_text(), scripts)
+    index = shell_index((source / "index.html").read_text())
     key = hashlib.sha256(index.encode() + str(source).encode()).hexdigest()[:16]
     shell = cache_dir / f"page-{key}"
     if (shell / "index.html").is_file():

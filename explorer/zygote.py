@@ -1,10 +1,10 @@
 """The parent of every studio process: loads the data, model, latent map and the heavy libraries once, then forks
 one studio process (explorer/worker.py `serve`) per browser tab.
 
-Why a fork server: a studio process that starts from scratch imports VTK and trame and loads everything
-itself (in session 5, with torch then: ~5-10 s before a tab could open and ~350 MB of private memory each). A process forked from this loaded
-parent is serving in well under a second and shares those pages (copy-on-write) with its siblings; `gc.freeze`
-keeps the collector from touching, and so copying, the inherited objects.
+Why a fork server: a studio process that starts from scratch imports VTK and trame and loads everything itself
+(in session 5, with torch then: ~5-10 s before a tab could open and ~350 MB of private memory each). A process
+forked from this loaded parent is serving in well under a second and shares those pages (copy-on-write) with its
+siblings; `gc.freeze` keeps the collector from touching, and so copying, the inherited objects.
 
 The launcher (launcher.py) talks to it with lines on its stdin and stdout:
   launcher -> zygote   "spawn <id> <secret>"   fork studio process <id> with its own wslink secret

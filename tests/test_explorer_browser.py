@@ -28,13 +28,9 @@ def test_page_shows_three_skeletons(page):
     assert probe.state(page, "label_text")  # the label in words
 
 
-def test_the_page_gets_websocket_bytes_and_preloads_its_module_scripts(page):
-    """explorer/page_shell.py: binary messages reach wslink as bytes, and Vuetify and trame-rca were fetched by the
-    shell's preload links (before the first state message asked for them)."""
+def test_the_page_hands_wslink_websocket_bytes(page):
+    """explorer/page_shell.py: the page's websocket is the shell's, which delivers binary messages as bytes."""
     assert page.evaluate("() => window.WebSocket.name") == "BytesWebSocket"
-    fetched = page.evaluate("""() => Object.fromEntries(performance.getEntriesByType('resource')
-        .filter(e => e.name.endsWith('.js')).map(e => [e.name.split('/').pop(), e.initiatorType]))""")
-    assert fetched.get("vuetify3.js") == "link" and fetched.get("trame-rca.umd.js") == "link", fetched
 
 
 def test_class_slider_changes_follower(page):
