@@ -270,7 +270,7 @@ class Studio:
             return False
         ses.set_label(weights, scale)
         self.scene.set_synthesized(ses.synth)
-        self.ctrl.view_update()  # the picture first: it is what the user is watching; the panels follow it (review)
+        self.ctrl.view_update(draft=True)  # the picture first: it is what the user is watching; the panels follow it
         return True
 
     @_guard
@@ -355,11 +355,11 @@ class Studio:
         if not self.state.playing:
             self.state.url_query = view_query(current_view(self))
 
-    def push_view(self, **_):
+    def push_view(self, draft: bool = False, **_):
         """Send a new picture (moving points or toggling actors does not touch the render window, which the local
-        view's geometry export checks: mark it)."""
+        view's geometry export checks: mark it); `draft`: a streamed view's first picture at reduced size."""
         self.scene.render_window.Modified()
-        self._view.update()
+        self._view.update(draft=True) if draft and self.render_mode == "remote" else self._view.update()
 
     # ---- layout --------------------------------------------------------------------------
     def _build_ui(self):

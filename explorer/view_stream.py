@@ -7,30 +7,59 @@ polled for the result. Measured in docs/explorer.md. `--render local` (vtk.js in
 
 Each render is sent at INTERACTIVE_QUALITY at once, then, when no new picture was asked for during five frame
 periods, again at STILL_QUALITY: a slider move or a drag shows at once, and what the user stops on is sharp.
+A label change's first picture (`update(draft=True)`) is also rendered at DRAFT_SCALE of the view's width and
+height, which the page stretches: on a CPU renderer that is ~5 ms less to render, encode and decode, and the full
+picture follows when the sliders rest (docs/explorer.md, session 10).
 """
 
 from __future__ import annotations
 
 from trame.widgets import rca
+from trame_rca.rca import window_wrapper
+from trame_rca.schedulers import RcaImageRenderScheduler
+from trame_rca.view_adapter import RcaViewAdapter
 
 TARGET_FPS = 30  # renders per second at most (playback asks for fewer on a small machine: playback.py)
 INTERACTIVE_QUALITY = 70
 STILL_QUALITY = 85
+DRAFT_SCALE = 0.5
+
+
+class DraftFirstScheduler(RcaImageRenderScheduler):
+    """trame-rca's picture scheduler (trame-rca 2.11), except that after `draft_next` is set the next interactive
+    picture is rendered at DRAFT_SCALE of the window's size; the still picture after it is full size."""
+
+    def __init__(self, window, render_window, **kwargs):
+        super().__init__(window, **kwargs)
+        self.render_window = render_window
+        self.draft_next = False
+
+    def _render_frame(self, quality):
+        if not (self.draft_next and quality == self._interactive_quality):
+            return super()._render_frame(quality)
+        self.draft_next = False
+        width, height = self.render_window.GetSize()
+        self.render_window.SetSize(max(10, round(width * DRAFT_SCALE)), max(10, round(height * DRAFT_SCALE)))
+        try:
+            return super()._render_frame(quality)  # renders and reads the pixels now; encoding goes on elsewhere
+        finally:
+            self.render_window.SetSize(width, height)
 
 
 class ViewStream:
     def __init__(self, server, render_window, name: str = "view"):
         self.render_window = render_window
-        self.handler = None  # created when the server runs: its render loop is an asyncio task
+        self.handler = self.scheduler = None  # created when the server runs: its render loop is an asyncio task
         # the view's size goes to the server 16 ms after a change (trame-rca's default, 100 ms, delayed the first picture)
         self.area = rca.RemoteControlledArea(name=name, display="image", style="width: 100%; height: 100%", resize_throttle_ms=16)
         server.controller.on_server_ready.add(self._start)
 
     def _start(self, **_) -> None:
-        self.handler = self.area.create_view_handler(
-            self.render_window, encoder="jpeg", target_fps=TARGET_FPS, interactive_quality=INTERACTIVE_QUALITY,
-            still_quality=STILL_QUALITY,
-        )  # fmt: skip
+        window = window_wrapper(self.render_window)  # as RemoteControlledArea.create_view_handler, with our scheduler
+        self.scheduler = DraftFirstScheduler(window, self.render_window, target_fps=TARGET_FPS, rca_encoder="jpeg",
+                                             interactive_quality=INTERACTIVE_QUALITY, still_quality=STILL_QUALITY)
+        self.handler = RcaViewAdapter(window, self.area.name, scheduler=self.scheduler)
+        self.area.add_view_handler(self.handler)
         forward = self.handler.on_interaction
 
         def mouse_and_touch_only(origin, event):
@@ -42,7 +71,9 @@ class ViewStream:
         self.handler.on_interaction = mouse_and_touch_only
         self.handler.update()
 
-    def update(self) -> None:
-        """Render and send a new picture (nothing before the server runs: the page asks for one when it opens)."""
+    def update(self, draft: bool = False) -> None:
+        """Render and send a new picture (nothing before the server runs: the page asks for one when it opens);
+        `draft`: its first picture at DRAFT_SCALE (a label change, where the time to the picture counts most)."""
         if self.handler is not None:
+            self.scheduler.draft_next = self.scheduler.draft_next or draft
             self.handler.update()

@@ -33,6 +33,23 @@ def test_the_page_hands_wslink_websocket_bytes(page):
     assert page.evaluate("() => window.WebSocket.name") == "BytesWebSocket"
 
 
+def test_a_label_changes_first_picture_is_a_stretched_draft_then_full_size(page):
+    """explorer/view_stream.py: the picture right after a slider move is rendered at half the view's width and
+    height and shown stretched over the whole view; the still picture that follows is full size."""
+    page.evaluate(f"""() => {{ window.__sizes = []; const i = document.querySelector('{probe.VIEW_IMG}');
+        i.addEventListener('load', () => window.__sizes.push([i.naturalWidth, i.clientWidth, i.clientHeight])); }}""")
+    names = probe.state(page, "class_names")
+    own = [i for i in range(len(names)) if probe.state(page, f"w_{i}") == 1.0][0]
+    probe.press_slider(page, f".slider-{names[(own + 2) % len(names)].replace(' ', '_')}", "End")
+    # the first picture smaller than the view, then a full one (an earlier still may land first)
+    page.wait_for_function("""() => { const s = window.__sizes, k = s.findIndex(([n, w]) => n < w);
+        return k >= 0 && s.slice(k + 1).some(([n, w]) => n === w); }""", timeout=10000)
+    sizes = page.evaluate("() => window.__sizes")
+    k = next(i for i, (n, w, _) in enumerate(sizes) if n < w)
+    (draft, shown_w, shown_h), (full, still_w, still_h) = sizes[k], sizes[k + 1]
+    assert abs(draft - full / 2) <= 1 and shown_w == still_w == full and abs(shown_h - still_h) <= 1, sizes
+
+
 def test_class_slider_changes_follower(page):
     from explorer.palette import SYNTHESIZED
     from tests.studio_probe import color_mask
