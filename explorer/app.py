@@ -359,7 +359,10 @@ class Studio:
         """Send a new picture (moving points or toggling actors does not touch the render window, which the local
         view's geometry export checks: mark it); `draft`: a streamed view's first picture at reduced size."""
         self.scene.render_window.Modified()
-        self._view.update(draft=True) if draft and self.render_mode == "remote" else self._view.update()
+        if draft and self.render_mode == "remote":
+            self._view.update(draft=True)
+        else:
+            self._view.update()
 
     # ---- layout --------------------------------------------------------------------------
     def _build_ui(self):
