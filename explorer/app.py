@@ -357,12 +357,10 @@ class Studio:
 
     def push_view(self, draft: bool = False, **_):
         """Send a new picture (moving points or toggling actors does not touch the render window, which the local
-        view's geometry export checks: mark it); `draft`: a streamed view's first picture at reduced size."""
+        view's geometry export checks: mark it); `draft`: a streamed view's first picture at reduced size (the local
+        view, vtk.js, ignores it)."""
         self.scene.render_window.Modified()
-        if draft and self.render_mode == "remote":
-            self._view.update(draft=True)
-        else:
-            self._view.update()
+        self._view.update(draft=draft)
 
     # ---- layout --------------------------------------------------------------------------
     def _build_ui(self):

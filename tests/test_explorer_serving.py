@@ -1,5 +1,5 @@
 """The studio in headless Chromium as people reach it: a link that reopens a view, one port through a relay (an SSH
-tunnel) or behind a path-prefix proxy, and five tabs at once (fixtures in tests/conftest.py)."""
+tunnel) or behind a path-prefix proxy, local (vtk.js) rendering, and five tabs at once (fixtures in tests/conftest.py)."""
 
 from __future__ import annotations
 
@@ -99,6 +99,22 @@ def test_behind_a_reverse_proxy_with_a_path_prefix(browser, tmp_path):
             pg.close()
     finally:
         proxy.close()
+
+
+def test_local_rendering_draws_in_the_page_and_follows_a_slider(browser, tmp_path):
+    """--render local (vtk.js in the browser, trame-vtk): the page draws the scene on a canvas and a slider move
+    re-synthesizes without an error (the streamed view's draft pictures do not apply to it)."""
+    with probe.StudioProcess("--render", "local", cache_dir=tmp_path) as studio:
+        pg = browser.new_page(viewport={"width": 1400, "height": 900})
+        pg.goto(studio.url, timeout=90000)
+        pg.wait_for_selector(".v-main canvas", timeout=60000)
+        names = probe.state(pg, "class_names")
+        n_mix = probe.state(pg, "mix_count")
+        probe.press_slider(pg, f".slider-{names[1].replace(' ', '_')}", "End")
+        pg.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=15000)
+        assert probe.state(pg, "error") == "" and names[1] in probe.state(pg, "label_text")
+        assert not [ln for ln in studio.lines if "Traceback" in ln]
+        pg.close()
 
 
 def test_five_clients_are_independent(studio, browser):
