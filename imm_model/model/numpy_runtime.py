@@ -16,16 +16,25 @@ import numpy as np
 from imm_model.model.config import ModelConfig
 
 
-def lstm_runs(gate_inputs: np.ndarray, w_hh: np.ndarray) -> np.ndarray:
+def _gate_scale(hidden: int) -> np.ndarray:
+    """sigmoid(x) = (1 + tanh(x / 2)) / 2: one tanh over all four gates per step, the sigmoid gates' inputs halved."""
+    scale = np.full(4 * hidden, 0.5, np.float32)
+    scale[2 * hidden : 3 * hidden] = 1.0
+    return scale
+
+
+def recurrence(w_hh: list[np.ndarray]) -> np.ndarray:
+    """N LSTMs' W_hh (4H, H) -> (N, H, 4H), transposed and gate-scaled for lstm_runs (prepared once per model)."""
+    w = np.stack(w_hh)
+    return np.ascontiguousarray(w.transpose(0, 2, 1)) * _gate_scale(w.shape[2])
+
+
+def lstm_runs(gate_inputs: np.ndarray, w: np.ndarray) -> np.ndarray:
     """N independent one-layer LSTMs stepped together: gate_inputs (N, T, 4H) = W_ih x_t + b_ih + b_hh for each,
-    w_hh (N, 4H, H) -> hidden states (N, T, H). Gates in torch's order: input, forget, cell, output."""
+    w from `recurrence` -> hidden states (N, T, H). Gates in torch's order: input, forget, cell, output."""
     n, steps, four_h = gate_inputs.shape
     hidden = four_h // 4
-    # sigmoid(x) = (1 + tanh(x / 2)) / 2: one tanh over all four gates per step, the sigmoid gates' inputs halved
-    half = np.full(four_h, 0.5, np.float32)
-    half[2 * hidden : 3 * hidden] = 1.0
-    w = np.ascontiguousarray(w_hh.transpose(0, 2, 1)) * half  # (N, H, 4H): h @ w is W_hh h, scaled
-    inputs = gate_inputs * half
+    inputs = gate_inputs * _gate_scale(hidden)
     h = np.zeros((n, 1, hidden), np.float32)
     c = np.zeros((n, 1, hidden), np.float32)
     out = np.empty((n, steps, hidden), np.float32)
@@ -38,15 +47,16 @@ def lstm_runs(gate_inputs: np.ndarray, w_hh: np.ndarray) -> np.ndarray:
     return out
 
 
-def bilstm_gate_inputs(x: np.ndarray, weights: dict[str, np.ndarray], prefix: str) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """x (T, D) through a layers.BiLSTM's two directions -> ([forward, time-reversed backward] gate inputs (T, 4H),
-    [their W_hh])."""
-    runs, recurrent = [], []
-    for direction, frames in (("fwd", x), ("bwd", x[::-1])):
+DIRECTIONS = ("fwd", "bwd")
+
+
+def bilstm_gate_inputs(x: np.ndarray, weights: dict[str, np.ndarray], prefix: str) -> list[np.ndarray]:
+    """x (T, D) through a layers.BiLSTM's two directions -> [forward, time-reversed backward] gate inputs (T, 4H)."""
+    runs = []
+    for direction, frames in zip(DIRECTIONS, (x, x[::-1]), strict=True):
         p = f"{prefix}.{direction}."
         runs.append(frames @ weights[p + "weight_ih_l0"].T + weights[p + "bias_ih_l0"] + weights[p + "bias_hh_l0"])
-        recurrent.append(weights[p + "weight_hh_l0"])
-    return runs, recurrent
+    return runs
 
 
 def linear(x: np.ndarray, weights: dict[str, np.ndarray], prefix: str) -> np.ndarray:
@@ -63,6 +73,9 @@ class NumpyGenerator:
         self.w = {k: np.asarray(v, np.float32) for k, v in weights.items()}
         self.cfg = cfg
         self.part_cols = [np.array([3 * j + c for j in joints for c in range(3)]) for joints in cfg.body_parts]
+        hh = [f"{d}.weight_hh_l0" for d in DIRECTIONS]
+        self.encoder_w = recurrence([self.w[f"encoders.{k}.{n}"] for k in range(cfg.num_streams) for n in hh])
+        self.decoder_w = recurrence([self.w[f"decoder.{n}"] for n in hh])
 
     @staticmethod
     def supports(cfg: ModelConfig) -> bool:
@@ -90,12 +103,9 @@ class NumpyGenerator:
         label = np.asarray(label, np.float32).reshape(-1)
         streams = [x[:, cols] for cols in self.part_cols]
         streams.append(np.concatenate([x, np.broadcast_to(label, (len(x), len(label)))], 1) if cfg.label_input else x)
-        runs, recurrent = [], []
-        for k, s in enumerate(streams):
-            r, hh = bilstm_gate_inputs(linear(s, w, f"embed.{k}") if cfg.stream_fc else s, w, f"encoders.{k}")
-            runs += r
-            recurrent += hh
-        states = lstm_runs(np.stack(runs), np.stack(recurrent))  # (12, T, H): per stream, forward then backward
+        runs = [r for k, s in enumerate(streams)
+                for r in bilstm_gate_inputs(linear(s, w, f"embed.{k}") if cfg.stream_fc else s, w, f"encoders.{k}")]
+        states = lstm_runs(np.stack(runs), self.encoder_w)  # (12, T, H): per stream, forward then backward
         return np.concatenate([s if k % 2 == 0 else s[::-1] for k, s in enumerate(states)], axis=1)
 
     def attention(self, h: np.ndarray) -> np.ndarray:
@@ -110,8 +120,7 @@ class NumpyGenerator:
         h = self.encode(leader, label)
         context = self.attention(h)
         dec_in = np.concatenate([h, context], 1) if mode == "concat" else h + context if mode == "sum" else context
-        runs, recurrent = bilstm_gate_inputs(dec_in, w, "decoder")
-        fwd, bwd = lstm_runs(np.stack(runs), np.stack(recurrent))
+        fwd, bwd = lstm_runs(np.stack(bilstm_gate_inputs(dec_in, w, "decoder")), self.decoder_w)
         dec = np.concatenate([fwd, bwd[::-1]], axis=1)
         return linear(dec, w, "out") * w["follower_std"] + w["follower_mean"]
 
@@ -119,7 +128,7 @@ class NumpyGenerator:
 def _lstm_shapes(prefix: str, inputs: int, hidden: int) -> dict[str, tuple[int, ...]]:
     """A layers.BiLSTM's parameters."""
     out = {}
-    for direction in ("fwd", "bwd"):
+    for direction in DIRECTIONS:
         p = f"{prefix}.{direction}."
         out |= {p + "weight_ih_l0": (4 * hidden, inputs), p + "weight_hh_l0": (4 * hidden, hidden),
                 p + "bias_ih_l0": (4 * hidden,), p + "bias_hh_l0": (4 * hidden,)}

@@ -153,10 +153,9 @@ class Trainer:
         return profiles.to(self.device)
 
     def _class_relations(self) -> torch.Tensor:
-        d = self.data
-        pairs = [(d.leader[d.frames(i)], d.follower[d.frames(i)]) for i in self.train_idx]
-        return class_relations([a for a, _ in pairs], [b for _, b in pairs], d.actions[self.train_idx], len(d.class_names),
-                               d.skeleton.root, d.skeleton.vertical_axis).to(self.device)
+        d, idx = self.data, self.train_idx
+        return class_relations([d.leader[d.frames(i)] for i in idx], [d.follower[d.frames(i)] for i in idx], d.actions[idx],
+                               len(d.class_names), d.skeleton.root, d.skeleton.vertical_axis).to(self.device)
 
     def meta(self, kind: str) -> dict:
         d = self.data
