@@ -26,9 +26,13 @@ from pathlib import Path
 from explorer.worker import PREFIX
 
 TOKEN_COOKIE = "imm_studio_token"
-# A claimed spare is replaced this long after the claim (at once when another tab asks first): forking and starting a
-# studio process takes ~0.5 s of CPU, which on a small machine would compete with the new tab's page as it loads.
+# A claimed spare is replaced once the tabs have been quiet (no websocket message through the proxy) for SPARE_QUIET_S,
+# and no sooner than SPARE_DELAY_S after the claim; at once when another tab asks first, and at the latest after
+# SPARE_LATEST_S (playback never goes quiet). Why: forking and starting a studio process takes ~0.5 s of CPU, which on
+# a small machine competes with the new tab's page as it loads and with its first slider moves (docs/explorer.md).
 SPARE_DELAY_S = 3.0
+SPARE_QUIET_S = 1.0
+SPARE_LATEST_S = 60.0
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
 
@@ -96,6 +100,7 @@ class Launcher:
         self.spawned = 0
         self.url = ""
         self.spare_wanted = asyncio.Event()  # a tab is waiting: a delayed spare starts now
+        self.last_traffic = 0.0  # time.monotonic() of the last websocket message through the proxy
 
     # ---- workers -------------------------------------------------------------------------
     async def spawn(self) -> Worker:
@@ -175,11 +180,23 @@ class Launcher:
             self.spares.append(None)  # type: ignore[arg-type]  # placeholder until spawn returns
             asyncio.get_running_loop().create_task(self._add_spare())
 
+    def note_traffic(self) -> None:
+        self.last_traffic = time.monotonic()
+
+    async def _spare_due(self) -> None:
+        """Returns when the next spare should start: the tabs are quiet, another tab is waiting, or it is late."""
+        claimed = time.monotonic()
+        while not self.spare_wanted.is_set():
+            due = min(max(claimed + SPARE_DELAY_S, self.last_traffic + SPARE_QUIET_S), claimed + SPARE_LATEST_S)
+            if time.monotonic() >= due:
+                return
+            try:
+                await asyncio.wait_for(self.spare_wanted.wait(), due - time.monotonic())
+            except TimeoutError:
+                pass
+
     async def _add_spare(self) -> None:
-        try:
-            await asyncio.wait_for(self.spare_wanted.wait(), SPARE_DELAY_S)
-        except TimeoutError:
-            pass
+        await self._spare_due()
         try:
             w = await self.spawn()
         except LaunchError:
@@ -249,7 +266,7 @@ class Launcher:
             raise web.HTTPFound("../../")  # an old or unknown link: back to the front page for a fresh studio
         tail = request.match_info["tail"]
         if request.headers.get("Upgrade", "").lower() == "websocket":
-            return await forward_websocket(request, w.port, tail, w.secret)
+            return await forward_websocket(request, w.port, tail, w.secret, on_message=self.note_traffic)
         return await forward_http(request, w.port, tail)
 
     def allowed_hosts(self) -> set[str]:

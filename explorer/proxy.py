@@ -11,6 +11,8 @@ port cannot log in to it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from aiohttp import ClientSession, WSMsgType, web
 
 MAX_MESSAGE_BYTES = 32 * 1024 * 1024  # an upload is at most 20 MB (explorer/session.py) plus framing
@@ -55,9 +57,10 @@ def with_secret(frame: bytes, secret: str) -> bytes:
     return frame[:4] + (0).to_bytes(4, "little") + len(body).to_bytes(4, "little") + body
 
 
-async def forward_websocket(request: web.Request, port: int, tail: str, secret: str | None = None) -> web.WebSocketResponse:
+async def forward_websocket(request: web.Request, port: int, tail: str, secret: str | None = None,
+                            on_message: Callable[[], None] = lambda: None) -> web.WebSocketResponse:
     """Relay a websocket between the browser and the studio process, both directions, text and binary; the
-    browser's hello carries the studio's secret."""
+    browser's hello carries the studio's secret; `on_message` is called for every message relayed."""
     import asyncio
 
     browser = web.WebSocketResponse(max_msg_size=MAX_MESSAGE_BYTES, autoping=True)
@@ -67,6 +70,7 @@ async def forward_websocket(request: web.Request, port: int, tail: str, secret: 
 
             async def pump(source, sink) -> None:
                 async for msg in source:
+                    on_message()
                     if msg.type == WSMsgType.TEXT:
                         await sink.send_str(msg.data)
                     elif msg.type == WSMsgType.BINARY:

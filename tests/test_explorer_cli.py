@@ -306,3 +306,34 @@ def test_explore_without_the_studio_extra_says_how_to_install_it(monkeypatch, ca
     assert main(["explore", "--no-browser"]) == 2
     err = capsys.readouterr().err
     assert "pip install 'imm-studio[studio]'" in err and "aiohttp" in err and len(err.strip().splitlines()) == 1
+
+
+def test_the_next_spare_waits_for_quiet_tabs(monkeypatch):
+    """A claimed spare is replaced once the websocket has been quiet, not in the middle of a user's slider moves;
+    another tab asking starts it at once, and constant traffic (playback) delays it only up to a limit."""
+    import asyncio
+
+    from explorer import launcher
+    from explorer.launcher import LaunchConfig, Launcher
+
+    monkeypatch.setattr(launcher, "SPARE_DELAY_S", 0.05)
+    monkeypatch.setattr(launcher, "SPARE_QUIET_S", 0.3)
+    monkeypatch.setattr(launcher, "SPARE_LATEST_S", 1.5)
+
+    async def time_until_due(traffic_s: float, wanted_after_s: float | None = None) -> float:
+        front = Launcher(LaunchConfig(data=SAMPLE_CHECKPOINT, checkpoint=SAMPLE_CHECKPOINT))
+        t0 = time.monotonic()
+        due = asyncio.ensure_future(front._spare_due())
+        while time.monotonic() - t0 < traffic_s and not due.done():
+            front.note_traffic()
+            if wanted_after_s is not None and time.monotonic() - t0 > wanted_after_s:
+                front.spare_wanted.set()
+            await asyncio.sleep(0.05)
+        await due
+        return time.monotonic() - t0
+
+    quiet, busy, asked, endless = (asyncio.run(time_until_due(*a)) for a in ((0,), (0.6,), (5, 0.2), (5,)))
+    assert quiet < 0.25  # no traffic: SPARE_DELAY_S after the claim
+    assert 0.85 < busy < 1.3  # 0.6 s of messages, then 0.3 s of quiet
+    assert asked < 0.45
+    assert 1.4 < endless < 1.9
