@@ -18,6 +18,13 @@ from explorer.scene import CAMERA_PRESETS, CHARACTER_KEYS
 from explorer.view_stream import ViewStream
 
 SPEEDS = [0.25, 0.5, 1.0, 1.5, 2.0]
+# Sliders jump to a new value at once, as Vuetify's already do while dragged (a key or a click glides for 0.3 s), and
+# the 'reads as' bars change without a 0.2 s glide: repainting those animations took the CPU that the new picture is
+# made with on a small machine (slider p95 71-77 -> 52-53 ms in one back-to-back run, docs/explorer.md, session 11).
+STILL_CONTROLS_CSS = """
+.v-slider .v-slider-thumb, .v-slider .v-slider-track__fill, .v-slider .v-slider-track__background { transition: none; }
+.reads-as-bar, .reads-as-bar .v-progress-linear__determinate { transition: none; }
+"""
 
 
 def build_layout(studio) -> VAppLayout:
@@ -44,6 +51,7 @@ def build_layout(studio) -> VAppLayout:
                 v3.VSnackbar("{{ notice }}", model_value=("!!notice",), timeout=4000, update_modelValue="notice = ''")
                 page_hooks()
                 keys_card()
+                client.Style(STILL_CONTROLS_CSS)
     return layout
 
 

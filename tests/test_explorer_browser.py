@@ -33,6 +33,15 @@ def test_the_page_hands_wslink_websocket_bytes(page):
     assert page.evaluate("() => window.WebSocket.name") == "BytesWebSocket"
 
 
+def test_sliders_and_reads_as_bars_do_not_glide(page):
+    """A key or click moves a slider's thumb at once (Vuetify would animate it for 0.3 s, repainting while the
+    server makes the picture), and the 'reads as' bars change without an animation."""
+    durations = page.evaluate("""() => ['.v-slider-thumb', '.v-slider-track__fill', '.reads-as-bar .v-progress-linear__determinate']
+        .flatMap(sel => [...document.querySelectorAll(sel)].map(el => getComputedStyle(el).transitionDuration))""")
+    assert len(durations) >= 2 * 8 + 6, durations  # thumbs and fills of 6 class sliders, scale and frame; 6 bars
+    assert {d for ds in durations for d in ds.replace(" ", "").split(",")} == {"0s"}, durations
+
+
 def test_a_label_changes_first_picture_is_a_stretched_draft_then_full_size(page):
     """explorer/view_stream.py: the picture right after a slider move is rendered at half the view's width and
     height and shown stretched over the whole view; the still picture that follows is full size."""
