@@ -22,7 +22,6 @@ os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 import vtkmodules.vtkRenderingFreeType  # noqa: E402, F401 - text (the captions)
 import vtkmodules.vtkRenderingOpenGL2  # noqa: E402, F401 - the OpenGL render window behind vtkRenderWindow
 from vtkmodules.util.numpy_support import vtk_to_numpy  # noqa: E402
-from vtkmodules.vtkFiltersSources import vtkPlaneSource  # noqa: E402
 from vtkmodules.vtkInteractionStyle import vtkInteractorStyleTrackballCamera  # noqa: E402
 from vtkmodules.vtkRenderingCore import (  # noqa: E402
     vtkBillboardTextActor3D,
@@ -70,7 +69,7 @@ class Scene:
         self.figures["pinned"].set_visible(False)
         self.contact = ContactOverlay(self.renderer, skeleton)
         self.captions = {k: self._caption(CHARACTER_TITLES[k], CHARACTERS[k]) for k in CHARACTER_KEYS}
-        self._floor_actors = self._floor()
+        self.floor = self._floor()
         self.layout = "overlay"
         self.visible = {k: True for k in CHARACTER_KEYS}
         self.sequences: dict[str, np.ndarray] = {}
@@ -98,22 +97,16 @@ class Scene:
         return actor
 
     def _floor(self):
+        """The floor as a grid of 2 (n + 1) lines on the background. Why no shaded plane under it: on llvmpipe that
+        one quad's pixels were ~3 ms of a full-size frame and ~1 ms of a draft (docs/explorer.md, session 11); an
+        n x n plane drawn again as wireframe had cost 2 ms more than these lines (session 10)."""
         size, n, y = 9.0, 18, self.floor_y
-        plane = vtkPlaneSource()  # horizontal, centred under the figures
-        plane.SetOrigin(-size / 2, y, 0.5 - size / 2)
-        plane.SetPoint1(size / 2, y, 0.5 - size / 2)
-        plane.SetPoint2(-size / 2, y, 0.5 + size / 2)
-        solid = add_actor(self.renderer, plane, "#e6e9ee", lit=False)  # unlit: per-pixel lighting there was ~10% of a frame
-        # The grid as 2 (n + 1) lines: drawing the n x n plane's quads as wireframe cost 2 ms more per full-size frame
-        # on llvmpipe (12.3 vs 10.3 ms render + read-back; the pictures differ in 153 of 548,000 pixels).
         ticks = np.linspace(-size / 2, size / 2, n + 1)
         poly, points = line_polydata(4 * (n + 1))
         points[:] = [p for u in ticks for p in ((u, y, 0.5 - size / 2), (u, y, 0.5 + size / 2),
                                                (-size / 2, y, 0.5 + u), (size / 2, y, 0.5 + u))]
         set_lines(poly, [(2 * k, 2 * k + 1) for k in range(2 * (n + 1))])
-        grid = add_actor(self.renderer, poly, "#b9bec8", lit=False)
-        grid.SetPosition(0.0, 0.002, 0.0)
-        return [solid, grid]
+        return add_actor(self.renderer, poly, "#b9bec8", lit=False)
 
     # ---- content ------------------------------------------------------------------------
     def set_sequence(self, leader: np.ndarray, ground_truth: np.ndarray | None, synthesized: np.ndarray, frame: int = 0) -> None:
