@@ -10,6 +10,7 @@ launcher goes away (its stdin closes).
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import sys
 import threading
@@ -140,6 +141,10 @@ def serve(data, model, latent, reader, args: argparse.Namespace, *, secret: str,
 
     threading.Thread(target=idle_watch, daemon=True).start()
     threading.Thread(target=stdin_watch, daemon=True).start()
-    server.controller.on_server_ready.add(lambda **_: say("READY", server.port))
+    def ready(**_) -> None:
+        gc.freeze()  # the page, scene and server objects built since the fork: out of every later full collection
+        say("READY", server.port)
+
+    server.controller.on_server_ready.add(ready)
     server.start(host=args.host, port=args.port, open_browser=False, show_connection_info=False, disable_logging=True)
     return 0
