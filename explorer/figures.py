@@ -68,11 +68,12 @@ class StickFigure:
         self.poly, self._points = line_polydata(skeleton.num_joints)
         set_lines(self.poly, skeleton.bones)
 
+        # 6-sided tubes and 8 x 6 spheres look the same at the view's scale as 10 sides and 12 x 10, and cost llvmpipe
+        # ~3 ms less per full-size frame with three figures (docs/explorer.md, session 11)
         tube = vtkTubeFilter()
         tube.SetInputData(self.poly)
         tube.SetRadius(bone_radius)
-        tube.SetNumberOfSides(6)  # 6 sides and 8 x 6 spheres look the same at the view's scale as 10 and 12 x 10,
-        # and cost llvmpipe ~3 ms less per full-size frame with three figures (docs/explorer.md, session 11)
+        tube.SetNumberOfSides(6)
         tube.CappingOn()
         sphere = vtkSphereSource()
         sphere.SetRadius(joint_radius)
