@@ -27,7 +27,6 @@ from imm_model.data.dataset import InteractionDataset
 METHODS = ("tsne", "umap")
 CACHE_VERSION = "1"  # bump when embeddings or projections are computed differently
 KNN = 8
-FIT_NICENESS = 10  # the fitting process's niceness: CPU goes to the studio and the browser first
 
 
 def default_cache_dir() -> Path:
@@ -174,9 +173,7 @@ class LatentMap:
     async def fit_elsewhere(self, method: str) -> None:
         """Fit in a separate process (`python -m explorer.latent`), then take its result: a fit holds the GIL for
         seconds (sklearn's import alone is ~1.9 s here, UMAP's numba compilation 10-50 s), and in the studio's
-        own process that would stall the page it serves. The fitter runs at a lower priority (FIT_NICENESS), so that
-        on a small machine its seconds of CPU go to the gaps the page and its picture leave. Without a cache file, in
-        a thread."""
+        own process that would stall the page it serves. Without a cache file, in a thread."""
         if not self.path:
             await asyncio.to_thread(self.ensure, method)
             return
@@ -210,7 +207,6 @@ def main(argv: list[str] | None = None) -> int:
     if len(args) != 2 or args[1] not in METHODS:
         print(f"usage: python -m explorer.latent <cache file> <{'|'.join(METHODS)}>, not {' '.join(args)!r}", file=sys.stderr)
         return 2
-    os.nice(FIT_NICENESS)
     latent_map = LatentMap.load(Path(args[0]))
     if latent_map is None:
         print(f"latent map cache {args[0]} cannot be read", file=sys.stderr)

@@ -137,15 +137,3 @@ def test_the_fit_command_answers_bad_arguments_in_one_line(tmp_path):
                          ([str(tmp_path / "missing.npz"), "umap"], "cannot be read")):  # fmt: skip
         proc = subprocess.run([sys.executable, "-m", "explorer.latent", *args], capture_output=True, text=True, timeout=60)
         assert proc.returncode == 2 and needle in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
-
-
-def test_the_fitting_process_runs_behind_the_studio(tmp_path, sample_data, monkeypatch):
-    """The fitter lowers its own priority before it fits, so its seconds of CPU do not slow the page and pictures."""
-    from explorer import latent
-
-    latent.LatentMap.build(TinyModel(sample_data), sample_data, tmp_path, "k3", methods=())
-    niceness: list[int] = []
-    monkeypatch.setattr(latent.os, "nice", niceness.append)
-    assert latent.main([str(tmp_path / "latent-k3.npz"), "tsne"]) == 0
-    assert niceness == [latent.FIT_NICENESS] and latent.FIT_NICENESS > 0
-    assert latent.LatentMap.load(tmp_path / "latent-k3.npz").has("tsne")
