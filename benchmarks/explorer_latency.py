@@ -162,7 +162,8 @@ def print_memory(memory: dict, tabs: int) -> None:
 
 
 def _p(lat: np.ndarray) -> dict:
-    return {"p50": float(np.percentile(lat, 50)), "p95": float(np.percentile(lat, 95)), "max": float(lat.max()), "n": len(lat)}
+    return {"p50": float(np.percentile(lat, 50)), "p95": float(np.percentile(lat, 95)), "max": float(lat.max()), "n": len(lat),
+            "ms": [round(float(x), 1) for x in lat]}  # every change, to pool several runs
 
 
 def _say(what: str, lat: np.ndarray, bar: str) -> None:
