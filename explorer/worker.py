@@ -141,6 +141,7 @@ def serve(data, model, latent, reader, args: argparse.Namespace, *, secret: str,
 
     threading.Thread(target=idle_watch, daemon=True).start()
     threading.Thread(target=stdin_watch, daemon=True).start()
+
     def ready(**_) -> None:
         gc.freeze()  # the page, scene and server objects built since the fork: out of every later full collection
         say("READY", server.port)
