@@ -317,13 +317,14 @@ def test_the_next_spare_waits_for_quiet_tabs(monkeypatch):
 
     from explorer import launcher
     from explorer.launcher import LaunchConfig, Launcher
+    from imm_model.paths import SAMPLE_DATA
 
     monkeypatch.setattr(launcher, "SPARE_DELAY_S", 0.05)
     monkeypatch.setattr(launcher, "SPARE_QUIET_S", 0.3)
     monkeypatch.setattr(launcher, "SPARE_LATEST_S", 1.5)
 
     async def time_until_due(traffic_s: float, wanted_after_s: float | None = None) -> float:
-        front = Launcher(LaunchConfig(data=SAMPLE_CHECKPOINT, checkpoint=SAMPLE_CHECKPOINT))
+        front = Launcher(LaunchConfig(data=SAMPLE_DATA, checkpoint=SAMPLE_CHECKPOINT))  # nothing is started
         t0 = time.monotonic()
         due = asyncio.ensure_future(front._spare_due())
         while time.monotonic() - t0 < traffic_s and not due.done():
