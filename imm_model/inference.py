@@ -43,6 +43,10 @@ class ReactionModel:
         self.held_out_subject: str | None = meta.get("held_out_subject")
         self.canonical_mode: str = meta.get("canonical_mode", "first_frame")
         self.max_length: int = MAX_LENGTH_FACTOR * int(meta.get("max_train_length", 46))
+        # The clean-up (cleanup.py) every synthesized follower goes through unless `raw`: rigid bones at the training
+        # followers' lengths (a checkpoint without them: each sequence's own median), bodies apart, feet planted.
+        self.raw = False
+        self.bone_lengths = _bone_lengths(meta.get("follower_bone_lengths"), self.skeleton, path)
 
     @functools.cached_property
     def generator(self):
@@ -155,12 +159,21 @@ class ReactionModel:
         if self.fast is None:
             return self.synthesize_batch_canonical([leader_canonical], np.asarray(label_vector).reshape(1, -1))[0]
         out = self.fast(np.asarray(leader_canonical, np.float32).reshape(t, -1), self._label_array(label_vector, 1)[0])
-        return out.astype(np.float32).reshape(t, -1, 3)
+        return self._clean(leader_canonical, out.reshape(t, -1, 3))
 
     def synthesize_batch_canonical(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> list[np.ndarray]:
         """N leaders (T_i, J, 3) canonical + (N, C) label vectors -> N followers (T_i, J, 3)."""
         out, lengths = self._run_batch(leaders, label_vectors, latent=False)
-        return [out[i, : lengths[i]].reshape(lengths[i], -1, 3).copy() for i in range(len(leaders))]
+        return [self._clean(a, out[i, : lengths[i]].reshape(lengths[i], -1, 3)) for i, a in enumerate(leaders)]
+
+    def _clean(self, leader: np.ndarray, follower: np.ndarray) -> np.ndarray:
+        """The network's follower (T, J, 3) -> float32, through the clean-up unless `raw`."""
+        if self.raw:
+            return follower.astype(np.float32)
+        from imm_model.cleanup import clean_follower
+
+        leader, follower = np.asarray(leader, np.float64), follower.astype(np.float64)
+        return clean_follower(leader, follower, self.skeleton, self.bone_lengths).astype(np.float32)
 
     def latent(self, leader_world: np.ndarray, label, scale: float = 1.0) -> np.ndarray:
         """Per-sequence embedding (D,): the hierarchical encoder outputs averaged over frames."""
@@ -218,6 +231,19 @@ def check_compatible(model, data, where: str = "checkpoint") -> None:
     model_mode, data_mode = getattr(model, "canonical_mode", None), getattr(data, "canonical_mode", None)
     if model_mode and data_mode and model_mode != data_mode:
         raise CheckpointError(f"{where}: trained on the {model_mode!r} canonical frame, the data uses {data_mode!r}")
+
+
+def _bone_lengths(values, skeleton, path) -> np.ndarray | None:
+    """A checkpoint's `follower_bone_lengths` -> (bones,) metres, None when absent; CheckpointError when malformed."""
+    if values is None:
+        return None
+    try:
+        lengths = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError):
+        lengths = np.zeros(0)
+    if lengths.shape != (len(skeleton.bones),) or not (np.isfinite(lengths).all() and (lengths > 0).all()):
+        raise CheckpointError(f"{path}: follower_bone_lengths must be {len(skeleton.bones)} positive lengths, one per bone")
+    return lengths
 
 
 def _as_float(v, name: str) -> float:

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from imm_model import cache
+from imm_model.contact import segment_distances
 from imm_model.data.splits import loso_fold
 from imm_model.evaluation import control, distribution, plausibility
 from imm_model.evaluation.baselines import knn_dtw_follower, template_follower
@@ -118,7 +119,7 @@ def test_segment_distance_matches_brute_force():
     for _ in range(100):
         p0, p1, q0, q1 = rng.normal(size=(4, 3))
         brute = np.linalg.norm((p0 + s * (p1 - p0))[:, None] - (q0 + s * (q1 - q0))[None], axis=-1).min()
-        assert plausibility._segment_distances(p0, p1, q0, q1) == pytest.approx(brute, abs=2e-2)
+        assert segment_distances(p0, p1, q0, q1) == pytest.approx(brute, abs=2e-2)
 
 
 def test_plausibility_of_real_motion_and_of_a_frozen_pose(sample_data):

@@ -34,6 +34,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--json", type=Path, default=None, help="write the whole summary as JSON")
     p.add_argument("--markdown", type=Path, default=None, help="write every table as Markdown")
     p.add_argument("--figures", type=Path, default=None, help="write PNG figures into this folder")
+    p.add_argument("--raw", action="store_true",
+                   help="score the networks' own followers, without the clean-up (rigid bones, bodies apart, feet planted)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--force", action="store_true", help="replace existing --json/--markdown files")
     p.set_defaults(func=_cmd_evaluate)
@@ -71,7 +73,7 @@ def _options(args: argparse.Namespace):
     baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
     if not baselines:
         raise ValueError("--baselines: name at least one of nn1, knn_dtw, template, men")
-    return EvalOptions(baselines=baselines, men_checkpoint=men, progress=not args.quiet, **configs)
+    return EvalOptions(baselines=baselines, men_checkpoint=men, progress=not args.quiet, raw=args.raw, **configs)
 
 
 def _jobs(args: argparse.Namespace, subjects: list[str]) -> list[tuple[Path, str]]:

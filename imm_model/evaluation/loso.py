@@ -41,6 +41,7 @@ class EvalOptions:
     follower: classifier_configs.ClassifierConfig = classifier_configs.FOLLOWER
     judge: classifier_configs.ClassifierConfig = classifier_configs.FOLLOWER_JUDGE
     progress: bool = True
+    raw: bool = False  # score the network's own followers, without the inference clean-up (cleanup.py)
 
     def __post_init__(self) -> None:
         unknown = [b for b in self.baselines if b not in BASELINES]
@@ -131,6 +132,17 @@ def label_control(model, data: InteractionDataset, judges: FoldJudges) -> dict:
     return out
 
 
+def prepare_cleanup(model, data: InteractionDataset, subject: str, raw: bool) -> None:
+    """Clean-up on (or off with `raw`); a checkpoint from before it stored no bone lengths gets those its training
+    would have stored (the fold's training followers'), so that every model is cleaned up alike."""
+    from imm_model.cleanup import follower_bone_lengths
+
+    model.raw = raw
+    if model.bone_lengths is None:
+        train = loso_fold(data.subject_pairs, subject).train
+        model.bone_lengths = np.asarray(follower_bone_lengths([data.canonical(int(i))[1] for i in train], data.skeleton))
+
+
 def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptions | None = None, latents: bool = True) -> dict:
     """Everything about `model` on LOSO fold `subject`: see docs/evaluation.md for each number. With `latents`,
     `_latent` holds every sequence's embedding under the model (and the label-free baseline) for the t-SNE figure."""
@@ -138,6 +150,7 @@ def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptio
 
     opts = opts or EvalOptions()
     check_compatible(model, data, str(model.path))
+    prepare_cleanup(model, data, subject, opts.raw)
     judges = FoldJudges(data, subject, opts)
     result = {"subject": subject, "group": fold_group(subject), "checkpoint": str(model.path),
               "classifier": {"real_accuracy": judges.real_accuracy},
@@ -152,6 +165,7 @@ def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptio
             path = opts.men_checkpoint(subject) if opts.men_checkpoint else cache.fold_baseline_model("men", data, subject, opts.progress)
             men = ReactionModel.load(path)
             check_compatible(men, data, str(men.path))
+            prepare_cleanup(men, data, subject, opts.raw)
             preds = model_predictions(men, data, judges.test)
             if latents:
                 result["_latent"]["men"] = _latents(men, data, all_idx)

@@ -116,12 +116,28 @@ def train_classifier(cfg: ClassifierConfig, sequences: list[np.ndarray], labels:
         for k in range(0, len(order), cfg.batch_size):
             idx = order[k:k + cfg.batch_size]
             t = int(lengths[idx].max())
-            logits = model(augment(x[idx, :t], cfg, gen), lengths[idx])
-            loss = nn.functional.cross_entropy(logits, y[idx], label_smoothing=cfg.label_smoothing)
+            inputs, target = x[idx, :t], y[idx]
+            if cfg.mixup:
+                inputs, target = _mixup(inputs, lengths[idx], nn.functional.one_hot(target, num_classes).float(), gen)
+            logits = model(augment(inputs, cfg, gen), lengths[idx])
+            loss = nn.functional.cross_entropy(logits, target, label_smoothing=cfg.label_smoothing)
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
     return model.eval()
+
+
+def _mixup(x: torch.Tensor, lengths: torch.Tensor, target: torch.Tensor, gen: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+    """Blend each sequence of a padded batch (B, T, D) with a random partner of the batch, resampled in time to its
+    length, at a weight U(0, 1) per sequence; targets (B, C) alike."""
+    partner = torch.randperm(len(x), generator=gen)
+    lam = torch.rand(len(x), generator=gen)
+    mixed = x.clone()
+    for i, j in enumerate(partner.tolist()):
+        n, m = int(lengths[i]), int(lengths[j])
+        resampled = nn.functional.interpolate(x[j, :m].T[None], size=n, mode="linear", align_corners=True)[0].T
+        mixed[i, :n] = lam[i] * x[i, :n] + (1 - lam[i]) * resampled
+    return mixed, lam[:, None] * target + (1 - lam[:, None]) * target[partner]
 
 
 @torch.inference_mode()

@@ -26,6 +26,10 @@ class ClassifierConfig:
     rotate_deg: float = 15.0  # augmentation: yaw of the whole scene in [-rotate_deg, rotate_deg]
     scale_jitter: float = 0.1  # ... body size U(1 - s, 1 + s)
     noise_m: float = 0.01  # ... Gaussian positional noise (metres), about Kinect's jitter
+    # mixup: each training sequence blended with another of its batch (time-resampled to its length) at a weight
+    # U(0, 1), the target blended alike, so the classifier's probabilities between classes follow real motion
+    # (a training critic for mixed labels; model/classifier.py)
+    mixup: bool = False
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -44,7 +48,10 @@ class ClassifierConfig:
                 raise ValueError(f"classifier config: {name} must be {expected}, not {getattr(self, name)!r}")
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        d = asdict(self)
+        if not self.mixup:  # absent when off, so that classifiers cached before the option keep their keys
+            del d["mixup"]
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> ClassifierConfig:

@@ -41,6 +41,11 @@ class TrainConfig:
     critic_mix_prob: float = 0.0
     critic_seeds: tuple[int, ...] = (0,)  # one frozen follower GRU per seed, their losses averaged
     critic_augment: bool = False  # the critic scores a randomly turned/scaled/jittered copy (training/critic.py)
+    # The critic also scores the follower for the true label. Off: only drawn labels meet it, and the true-label
+    # follower, which has a ground truth, is left to L1 and the other reconstruction terms.
+    critic_true_label: bool = True
+    critic_mixup: bool = False  # the critic is trained with mixup (model/classifier_config.py): a mix's 50/50 target
+    # then asks for motion between the two classes' real reactions, not for whatever one network finds ambiguous
     # Motion energy (training/energy.py): per-joint limb speed of the generated follower vs the real one (for a
     # drawn label, vs the label's mix of per-class profiles); weight follows the adversarial warm-up and ramp.
     lambda_energy: float = 0.0

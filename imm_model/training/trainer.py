@@ -27,6 +27,7 @@ from imm_model.checkpoint import (
     prefixed,
     save_checkpoint,
 )
+from imm_model.cleanup import follower_bone_lengths
 from imm_model.data.batching import LengthBucketSampler
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold, validation_split
@@ -144,7 +145,8 @@ class Trainer:
         from imm_model.model.classifier_config import FOLLOWER
         from imm_model.training.critic import LabelCritic
 
-        clfs = [fold_classifier(replace(FOLLOWER, seed=s), self.data, self.subject).to(self.device) for s in self.cfg.critic_seeds]
+        configs = [replace(FOLLOWER, seed=s, mixup=self.cfg.critic_mixup) for s in self.cfg.critic_seeds]
+        clfs = [fold_classifier(c, self.data, self.subject).to(self.device) for c in configs]
         return LabelCritic(clfs, augment=self.cfg.critic_augment)
 
     def _class_profiles(self) -> torch.Tensor:
@@ -171,6 +173,8 @@ class Trainer:
             "dataset": d.dataset,
             "held_out_subject": self.subject,
             "max_train_length": int(d.lengths[self.train_idx].max()),
+            # the skeleton the inference clean-up holds every synthesized follower to (cleanup.py)
+            "follower_bone_lengths": follower_bone_lengths([d.follower[d.frames(i)] for i in self.train_idx], d.skeleton),
             "training": {
                 "fold": f"loso-{self.subject}" if self.subject else "all",
                 "epoch": self.state.epoch,
@@ -301,8 +305,10 @@ class Trainer:
             c = len(self.data.class_names)
             labels, target = (x.to(self.device) for x in drawn_labels(actions.cpu(), c, cfg.critic_mix_prob, gen))
             other = self.G(leader, labels, lengths)
-            own = torch.nn.functional.one_hot(actions, c).float()
-            critic = self.critic.loss(fake, lengths, own, gen) + self.critic.loss(other, lengths, target, gen)
+            scored = [(other, target)]
+            if cfg.critic_true_label:  # first, as before the option existed: augmentation draws from gen in order
+                scored.insert(0, (fake, torch.nn.functional.one_hot(actions, c).float()))
+            critic = sum(self.critic.loss(x, lengths, t, gen) for x, t in scored)
             g_loss = g_loss + w_critic * critic
             terms["critic"] = float(critic.detach())
             if w_energy > 0:

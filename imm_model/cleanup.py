@@ -1,0 +1,135 @@
+"""Clean-up of a synthesized follower: one rigid skeleton, bodies kept apart, feet planted on the floor.
+
+The network predicts 15 free joint positions per frame, so nothing holds its bones to one length (4.6-5.1 cm of
+error, mostly a body size guessed anew for every sequence), keeps its limbs out of the leader's, or stops a foot
+on the floor from sliding. A studio user, and any rig the motion is exported to, needs all three. Three steps,
+each on canonical metres (T, J, 3), numpy only (the studio never imports torch):
+
+1. `rigid_bones`: every bone set to one length (the training followers' median, stored in the checkpoint; or
+   this sequence's own median), keeping each bone's direction, from the root outwards.
+2. `keep_apart`: where a bone axis of the follower comes closer than PENETRATION_M to one of the leader's, the whole
+   follower steps back horizontally, away from the leader's root, by as much as it takes (eased over frames).
+3. `plant_feet`: a foot within CONTACT_M of the sequence's lowest foot height is held where it stands, and the
+   leg reaches it by two-bone inverse kinematics (the knee stays in the plane it bent in).
+
+Measured effect on AFD, plausibility and the label metrics: docs/evaluation.md ("Clean-up").
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d, maximum_filter1d
+
+from imm_model.contact import CONTACT_M, PENETRATION_M, closest_distances
+from imm_model.skeleton import Skeleton
+
+EASE_FRAMES = 2
+SEPARATION_PASSES = 4
+
+
+def clean_follower(leader: np.ndarray, follower: np.ndarray, skeleton: Skeleton, bone_lengths: np.ndarray | None = None) -> np.ndarray:
+    """leader, follower (T, J, 3) canonical metres -> the follower, rigid, apart from the leader, feet planted."""
+    follower = rigid_bones(follower, skeleton, bone_lengths)
+    return plant_feet(keep_apart(leader, follower, skeleton), skeleton)
+
+
+def rigid_bones(motion: np.ndarray, skeleton: Skeleton, bone_lengths: np.ndarray | None = None) -> np.ndarray:
+    """Each bone (skeleton.bones order) at `bone_lengths` (default: its median over this motion), direction kept."""
+    lengths = np.median(skeleton.bone_lengths(motion), axis=0) if bone_lengths is None else np.asarray(bone_lengths)
+    out = motion.copy()
+    children: dict[int, list[tuple[int, int]]] = {}
+    for k, (parent, child) in enumerate(skeleton.bones):
+        children.setdefault(parent, []).append((child, k))
+    stack = [skeleton.root]
+    while stack:
+        parent = stack.pop()
+        for child, k in children.get(parent, []):
+            out[:, child] = out[:, parent] + lengths[k] * _unit(motion[:, child] - motion[:, parent])
+            stack.append(child)
+    return out
+
+
+def keep_apart(leader: np.ndarray, follower: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    """The follower moved back (horizontally, away from the leader's root) wherever their bone axes come within
+    PENETRATION_M; the displacement is widened and smoothed over a few frames so that the follower steps, not jumps."""
+    away = follower[:, skeleton.root] - leader[:, skeleton.root]
+    away[:, skeleton.vertical_axis] = 0.0
+    away = _unit(away)
+    push, out = np.zeros(len(follower)), follower
+    distance = closest_distances(leader, follower, skeleton)
+    gain = np.ones(len(follower))  # gap opened per metre moved, per frame: a secant estimate from the last pass
+    for _ in range(SEPARATION_PASSES):  # moving along `away` opens a gap by less than the distance moved: repeat
+        gap = np.maximum(PENETRATION_M - distance, 0.0)
+        if not gap.any():
+            break
+        push = push + gap / gain
+        eased = np.maximum(gaussian_filter1d(maximum_filter1d(push, 5), 1.5), push)
+        out = follower + eased[:, None, None] * away[:, None, :]
+        moved = eased > 0  # only the frames that moved need measuring again
+        before = distance.copy()
+        distance[moved] = closest_distances(leader[moved], out[moved], skeleton)
+        step = gap / gain
+        gain = np.where(step > 0, np.clip((distance - before) / np.maximum(step, 1e-9), 0.2, 1.0), gain)
+    return out
+
+
+def plant_feet(motion: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    """Feet on the floor held still: a foot moves only once lifted (the network's drag along the floor is skating)."""
+    names, up = skeleton.joint_names, skeleton.vertical_axis
+    feet = [names.index(n) for n in ("left_foot", "right_foot") if n in names]
+    if not feet or len(motion) < 2:
+        return motion
+    out = motion.copy()
+    floor = motion[:, feet, up].min()
+    for foot in feet:
+        knee = skeleton.parents[foot]
+        hip = skeleton.parents[knee]
+        if knee < 0 or hip < 0:
+            continue
+        target = _planted(motion[:, foot], motion[:, foot, up] < floor + CONTACT_M, up)
+        thigh = np.median(np.linalg.norm(motion[:, knee] - motion[:, hip], axis=-1))
+        shin = np.median(np.linalg.norm(motion[:, foot] - motion[:, knee], axis=-1))
+        out[:, knee], out[:, foot] = _two_bone_ik(motion[:, hip], motion[:, knee], target, thigh, shin)
+    return out
+
+
+def _planted(foot: np.ndarray, on_floor: np.ndarray, up: int) -> np.ndarray:
+    """Foot path (T, 3) with its horizontal position held at the mean of each stretch of floor contact, eased back to
+    the network's path over EASE_FRAMES frames on either side (a lifted foot leaves its spot, it does not jump)."""
+    target, horizontal = foot.copy(), [a for a in range(3) if a != up]
+    contact = np.flatnonzero(np.diff(np.r_[0, on_floor.astype(int), 0]))
+    for start, end in contact.reshape(-1, 2):
+        pin = foot[start:end, horizontal].mean(0)
+        target[start:end, horizontal] = pin
+        for k in range(1, EASE_FRAMES + 1):
+            weight = 1 - k / (EASE_FRAMES + 1)
+            for t in (start - k, end - 1 + k):
+                if 0 <= t < len(foot) and not on_floor[t]:
+                    target[t, horizontal] = weight * pin + (1 - weight) * foot[t, horizontal]
+    return target
+
+
+def _two_bone_ik(hip: np.ndarray, knee: np.ndarray, target: np.ndarray, thigh: float, shin: float) -> tuple[np.ndarray, np.ndarray]:
+    """Knee and foot (T, 3) with the given bone lengths, the foot at `target` (or as near as the leg reaches), the
+    knee on the side it was bent towards."""
+    to_target = target - hip
+    reach = np.linalg.norm(to_target, axis=-1, keepdims=True)
+    reach = np.clip(reach, abs(thigh - shin) + 1e-4, thigh + shin - 1e-4)
+    axis = _unit(to_target)
+    along = (thigh**2 - shin**2 + reach**2) / (2 * reach)  # the knee's distance from the hip along the axis
+    out_of_axis = np.sqrt(np.maximum(thigh**2 - along**2, 0.0))
+    bend = knee - hip
+    bend = bend - (bend * axis).sum(-1, keepdims=True) * axis
+    straight = np.linalg.norm(bend, axis=-1) < 1e-6  # a straight leg bends nowhere yet: any perpendicular will do
+    bend[straight] = np.cross(axis[straight], np.eye(3)[np.argmin(np.abs(axis[straight]), axis=-1)])
+    bend = _unit(bend)
+    return hip + along * axis + out_of_axis * bend, hip + reach * axis
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
+
+
+def follower_bone_lengths(followers: list[np.ndarray], skeleton: Skeleton) -> list[float]:
+    """Median length of each bone over every frame of `followers` (the training followers): the clean-up's skeleton."""
+    return np.median(np.concatenate([skeleton.bone_lengths(f) for f in followers]), axis=0).astype(float).tolist()

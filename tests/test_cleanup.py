@@ -1,0 +1,112 @@
+"""The inference clean-up (imm_model/cleanup.py): rigid bones, bodies kept apart, feet planted.
+
+Unit tests run on real SBU poses from the bundled sample, moved about by hand (the moves are synthetic and say
+so); the last tests go through the bundled checkpoint.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from imm_model.checkpoint import load_checkpoint, save_checkpoint
+from imm_model.cleanup import clean_follower, follower_bone_lengths, keep_apart, plant_feet, rigid_bones
+from imm_model.contact import CONTACT_M, PENETRATION_M, closest_distances
+from imm_model.errors import CheckpointError
+from imm_model.evaluation.plausibility import foot_skate_mps
+from imm_model.inference import ReactionModel
+from imm_model.paths import SAMPLE_CHECKPOINT
+
+
+def _feet(skeleton):
+    return [skeleton.joint_names.index(n) for n in ("left_foot", "right_foot")]
+
+
+def test_rigid_bones_sets_every_bone_and_keeps_its_direction(sample_data):
+    sk = sample_data.skeleton
+    follower = sample_data.canonical(3)[1].astype(np.float64)
+    wobbly = follower * (1 + 0.1 * np.sin(np.arange(len(follower)))[:, None, None])  # synthetic: bones breathe 10 %
+    lengths = np.linspace(0.1, 0.4, len(sk.bones))
+    out = rigid_bones(wobbly, sk, lengths)
+    np.testing.assert_allclose(sk.bone_lengths(out), np.broadcast_to(lengths, (len(out), len(lengths))), atol=1e-9)
+    np.testing.assert_allclose(out[:, sk.root], wobbly[:, sk.root])
+    for parent, child in sk.bones:
+        before, after = wobbly[:, child] - wobbly[:, parent], out[:, child] - out[:, parent]
+        cosine = (before * after).sum(-1) / np.linalg.norm(before, axis=-1) / np.linalg.norm(after, axis=-1)
+        assert cosine.min() > 1 - 1e-9
+    own = rigid_bones(wobbly, sk)  # no lengths given: each bone at its own median
+    assert np.ptp(sk.bone_lengths(own), axis=0).max() < 1e-9
+
+
+def test_keep_apart_resolves_overlap_and_leaves_apart_bodies_alone(sample_data):
+    sk = sample_data.skeleton
+    leader, follower = (x.astype(np.float64) for x in sample_data.canonical(10))
+    assert keep_apart(leader, follower + [3.0, 0, 0], sk) == pytest.approx(follower + [3.0, 0, 0])
+    # synthetic: the follower slid halfway into the leader
+    into = follower + (leader[:, sk.root] - follower[:, sk.root])[:, None] * np.array([0.8, 0, 0.8])
+    assert (closest_distances(leader, into, sk) < PENETRATION_M).mean() > 0.5
+    out = keep_apart(leader, into, sk)
+    assert (closest_distances(leader, out, sk) < PENETRATION_M - 1e-3).mean() < 0.05
+    moved = out - into
+    np.testing.assert_allclose(moved, np.broadcast_to(moved[:, :1], moved.shape), atol=1e-12)  # the whole body, rigidly
+    assert np.abs(moved[..., sk.vertical_axis]).max() == 0  # along the floor
+    assert np.abs(np.diff(moved[:, 0], axis=0)).max() < 0.25  # stepped back over frames, not in one jump
+
+
+def test_plant_feet_holds_a_foot_on_the_floor_and_keeps_the_leg(sample_data):
+    sk = sample_data.skeleton
+    follower = sample_data.canonical(20)[1].astype(np.float64)
+    t = np.arange(len(follower))
+    sliding = follower + np.stack([0.02 * t, 0 * t, 0 * t], -1)[:, None]  # synthetic: 0.3 m/s drift of the whole body
+    out = plant_feet(sliding, sk)
+    assert foot_skate_mps(out, sk, 15.0) < 0.5 * foot_skate_mps(sliding, sk, 15.0)
+    for foot in _feet(sk):
+        knee, hip = sk.parents[foot], sk.parents[sk.parents[foot]]
+        for a, b in ((hip, knee), (knee, foot)):
+            length = np.linalg.norm(out[:, a] - out[:, b], axis=-1)
+            assert np.abs(length - np.median(np.linalg.norm(sliding[:, a] - sliding[:, b], axis=-1))).max() < 1e-6
+    legs = {j for f in _feet(sk) for j in (f, sk.parents[f])}
+    untouched = [j for j in range(sk.num_joints) if j not in legs]
+    np.testing.assert_array_equal(out[:, untouched], sliding[:, untouched])
+    floor = sliding[:, _feet(sk), sk.vertical_axis].min()
+    airborne = sliding[:, _feet(sk), sk.vertical_axis] > floor + CONTACT_M + 0.05  # well off the floor
+    for k, foot in enumerate(_feet(sk)):
+        far = airborne[:, k] & np.convolve(airborne[:, k], np.ones(5), "same").astype(bool)
+        np.testing.assert_allclose(out[far, foot], sliding[far, foot], atol=0.05)
+
+
+def test_clean_follower_on_the_bundled_model(sample_data):
+    model = ReactionModel.load(SAMPLE_CHECKPOINT)
+    model.raw = True
+    sk = sample_data.skeleton
+    lengths = np.asarray(follower_bone_lengths([sample_data.canonical(i)[1] for i in range(40)], sk))
+    leader = sample_data.canonical(60)[0]
+    raw = model.synthesize_canonical(leader, np.eye(6, dtype=np.float32)[3]).astype(np.float64)  # a hug
+    clean = clean_follower(leader, raw, sk, lengths)
+    assert np.abs(sk.bone_lengths(clean) - lengths).max() < 1e-6
+    overlapping = (closest_distances(leader, raw, sk) < PENETRATION_M).mean()
+    assert overlapping > 0.3 and (closest_distances(leader, clean, sk) < PENETRATION_M - 1e-3).mean() < 0.1 * overlapping
+    own = np.eye(6, dtype=np.float32)[sample_data.actions[60]]  # the leader's own class: little to clean up
+    raw = model.synthesize_canonical(leader, own).astype(np.float64)
+    assert np.linalg.norm(clean_follower(leader, raw, sk, lengths) - raw, axis=-1).mean() < 0.1  # not a new motion
+
+
+def test_the_model_cleans_up_unless_raw_and_reads_its_bone_lengths(sample_data, tmp_path):
+    tensors, meta = load_checkpoint(SAMPLE_CHECKPOINT)
+    lengths = np.linspace(0.1, 0.4, len(sample_data.skeleton.bones))
+    path = tmp_path / "with_lengths.safetensors"
+    save_checkpoint(path, tensors, meta | {"follower_bone_lengths": lengths.tolist()})
+    model = ReactionModel.load(path)
+    leader, label = sample_data.canonical(5)[0], np.eye(6, dtype=np.float32)[1]
+    out = model.synthesize_canonical(leader, label)
+    np.testing.assert_allclose(model.skeleton.bone_lengths(out), np.broadcast_to(lengths, (len(out), len(lengths))), atol=1e-5)
+    np.testing.assert_allclose(model.synthesize_batch_canonical([leader], label[None])[0], out, atol=1e-4)
+    model.raw = True
+    assert np.abs(model.skeleton.bone_lengths(model.synthesize_canonical(leader, label)) - lengths).max() > 0.01
+    for bad in ([0.3] * 3, [float("nan")] * len(lengths), [-0.1] * len(lengths), "long"):
+        side = json.loads(path.with_suffix(".json").read_text()) | {"follower_bone_lengths": bad}
+        path.with_suffix(".json").write_text(json.dumps(side))
+        with pytest.raises(CheckpointError, match="follower_bone_lengths must be 14 positive lengths"):
+            ReactionModel.load(path)
