@@ -37,15 +37,8 @@ def rigid_bones(motion: np.ndarray, skeleton: Skeleton, bone_lengths: np.ndarray
     """Each bone (skeleton.bones order) at `bone_lengths` (default: its median over this motion), direction kept."""
     lengths = np.median(skeleton.bone_lengths(motion), axis=0) if bone_lengths is None else np.asarray(bone_lengths)
     out = motion.copy()
-    children: dict[int, list[tuple[int, int]]] = {}
-    for k, (parent, child) in enumerate(skeleton.bones):
-        children.setdefault(parent, []).append((child, k))
-    stack = [skeleton.root]
-    while stack:
-        parent = stack.pop()
-        for child, k in children.get(parent, []):
-            out[:, child] = out[:, parent] + lengths[k] * _unit(motion[:, child] - motion[:, parent])
-            stack.append(child)
+    for parent, child, k in skeleton.bones_from_root:
+        out[:, child] = out[:, parent] + lengths[k] * _unit(motion[:, child] - motion[:, parent])
     return out
 
 

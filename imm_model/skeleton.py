@@ -45,6 +45,21 @@ class Skeleton:
         """(parent, child) pairs, one per non-root joint."""
         return [(p, j) for j, p in enumerate(self.parents) if p >= 0]
 
+    @property
+    def bones_from_root(self) -> list[tuple[int, int, int]]:
+        """(parent, child, index into `bones`) with every parent placed before its children: the order in which a
+        skeleton is rebuilt from its root outwards."""
+        children: dict[int, list[tuple[int, int]]] = {}
+        for k, (parent, child) in enumerate(self.bones):
+            children.setdefault(parent, []).append((child, k))
+        order, stack = [], [self.root]
+        while stack:
+            parent = stack.pop()
+            for child, k in children.get(parent, []):
+                order.append((parent, child, k))
+                stack.append(child)
+        return order
+
     def bone_lengths(self, positions: np.ndarray) -> np.ndarray:
         """positions (..., J, 3) -> bone lengths (..., J-1) in the positions' units."""
         parents = np.array([p for p, _ in self.bones])

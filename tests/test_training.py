@@ -319,6 +319,38 @@ def test_label_critic_scores_the_true_and_a_drawn_label(sample_data, tmp_path, m
         replace(TINY, critic_mix_prob=2.0)
 
 
+def test_critic_options_and_rigid_output(sample_data, tmp_path, monkeypatch):
+    """critic_true_label False: only the drawn label meets the critic; critic_mixup: the critic is a mixup-trained
+    classifier; rigid_output: every follower a loss reads has the training followers' bone lengths."""
+    from imm_model import cache
+    from imm_model.model.classifier import train_classifier
+    from imm_model.model.classifier_config import ClassifierConfig
+    from imm_model.training.critic import LabelCritic
+
+    followers = [sample_data.canonical(i)[1].reshape(-1, 45) for i in range(40)]
+    quick = train_classifier(ClassifierConfig(inputs="follower", epochs=1, hidden=8, features=8, mixup=True), followers,
+                             sample_data.actions[:40], 6)
+    asked, scored = [], []
+    monkeypatch.setattr(cache, "fold_classifier", lambda cfg, *a, **k: asked.append(cfg) or quick)
+    real_loss = LabelCritic.loss
+    monkeypatch.setattr(LabelCritic, "loss", lambda self, x, *a: scored.append(len(x)) or real_loss(self, x, *a))
+    base = replace(TINY, lambda_critic=0.1, adv_warmup_epochs=0, adv_ramp_epochs=0)
+    for true_label, mixup, calls in ((True, False, 2), (False, True, 1)):
+        asked.clear(), scored.clear()
+        trainer = Trainer(replace(base, critic_true_label=true_label, critic_mixup=mixup), sample_data, "s04", tmp_path)
+        trainer.train_epoch(0)
+        assert [c.mixup for c in asked] == [mixup]
+        assert len(scored) == calls * -(-len(trainer.train_idx) // TINY.batch_size)  # per batch
+    trainer = Trainer(replace(TINY, rigid_output=True), sample_data, "s04", tmp_path)
+    leader, _, lengths, actions = trainer.padded.batch(torch.as_tensor(trainer.train_idx[:4]))
+    labels = torch.nn.functional.one_hot(actions, 6).float()
+    fake = trainer.generate(trainer.G, leader, labels, lengths).detach().numpy()
+    for row, n in zip(fake, lengths.tolist(), strict=True):
+        bones = sample_data.skeleton.bone_lengths(row[:n].reshape(n, -1, 3))
+        np.testing.assert_allclose(bones, np.broadcast_to(trainer.bone_lengths, bones.shape), atol=1e-5)
+    assert np.isfinite(trainer.train_epoch(0)["l1"])
+
+
 def test_label_critic_ensemble_and_augmentation(sample_data):
     """Several critics average their losses; with augment each scores a turned/scaled/jittered copy, and the
     gradient still reaches the generated follower."""

@@ -49,6 +49,9 @@ class TrainConfig:
     # Motion energy (training/energy.py): per-joint limb speed of the generated follower vs the real one (for a
     # drawn label, vs the label's mix of per-class profiles); weight follows the adversarial warm-up and ramp.
     lambda_energy: float = 0.0
+    # Every generated follower is given rigid bones (the training followers' median lengths) before any loss reads it,
+    # as the inference clean-up does to what the model ships (training/rigid.py).
+    rigid_output: bool = False
     # Relation curves (training/relation.py): for a drawn label, the follower's whole-body motion relative to the
     # leader (root distance, root height) vs the label's mix of per-class curves; weight as the energy's. 0 = off.
     lambda_relation: float = 0.0

@@ -40,6 +40,7 @@ from imm_model.training.curves import plot_curves
 from imm_model.training.data import Augmenter, PaddedData
 from imm_model.training.energy import class_profiles, energy_loss, limb_speeds, mixed_profile
 from imm_model.training.relation import class_relations, relation_loss
+from imm_model.training.rigid import RigidBones
 
 LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", "l1", "bone", "cont", "adv", "critic", "energy", "relation", "d_loss", "d_real_acc",
               "d_fake_acc", "val_afd_m", "val_l1", "seconds")
@@ -127,6 +128,8 @@ class Trainer:
         self.critic = self._label_critic() if cfg.lambda_critic > 0 else None
         self.profiles = self._class_profiles() if cfg.lambda_energy > 0 else None
         self.relations = self._class_relations() if cfg.lambda_relation > 0 else None
+        self.bone_lengths = follower_bone_lengths([data.follower[data.frames(i)] for i in self.train_idx], data.skeleton)
+        self.rigid = RigidBones(data.skeleton, self.bone_lengths, self.device) if cfg.rigid_output else None
         self.state = FoldState()
 
     # ---- setup ----------------------------------------------------------------------------
@@ -174,7 +177,7 @@ class Trainer:
             "held_out_subject": self.subject,
             "max_train_length": int(d.lengths[self.train_idx].max()),
             # the skeleton the inference clean-up holds every synthesized follower to (cleanup.py)
-            "follower_bone_lengths": follower_bone_lengths([d.follower[d.frames(i)] for i in self.train_idx], d.skeleton),
+            "follower_bone_lengths": self.bone_lengths,
             "training": {
                 "fold": f"loso-{self.subject}" if self.subject else "all",
                 "epoch": self.state.epoch,
@@ -253,7 +256,7 @@ class Trainer:
             leader, follower, lengths, actions = (x.to(self.device) for x in batch_cpu)
             mask = torch.arange(leader.shape[1], device=self.device)[None] < lengths[:, None]
             labels = torch.nn.functional.one_hot(actions, len(self.data.class_names)).float()
-            fake = self.G(leader, labels, lengths)
+            fake = self.generate(self.G, leader, labels, lengths)
             if use_d and k % cfg.d_every == 0:  # discriminator step(s): G's output detached, D alone is updated
                 self.D.requires_grad_(True)
                 for _ in range(cfg.d_steps):
@@ -280,6 +283,11 @@ class Trainer:
         d_keys = ("d_loss", "d_real_acc", "d_fake_acc")
         return {k: v / (max(n_d, 1) if k in d_keys else n) for k, v in sums.items()} | {"adv_weight": w_adv, "lr_scale": scale}
 
+    def generate(self, G, leader, labels, lengths) -> torch.Tensor:
+        """G's followers (B, T, 3J), given rigid bones when the recipe says so (what the clean-up ships)."""
+        fake = G(leader, labels, lengths)
+        return fake if self.rigid is None else self.rigid(fake)
+
     def _generator_loss(self, epoch, leader, follower, fake, lengths, actions, mask, gen) -> tuple[torch.Tensor, dict]:
         """The generator's loss for one batch -> (loss, {term: value} for the log)."""
         cfg = self.cfg
@@ -304,7 +312,7 @@ class Trainer:
             # a follower for a drawn label: no ground truth, so only the critic (and energy) terms apply to it
             c = len(self.data.class_names)
             labels, target = (x.to(self.device) for x in drawn_labels(actions.cpu(), c, cfg.critic_mix_prob, gen))
-            other = self.G(leader, labels, lengths)
+            other = self.generate(self.G, leader, labels, lengths)
             scored = [(other, target)]
             if cfg.critic_true_label:  # first, as before the option existed: augmentation draws from gen in order
                 scored.insert(0, (fake, torch.nn.functional.one_hot(actions, c).float()))
@@ -338,7 +346,7 @@ class Trainer:
         leader, follower, lengths, actions = (x.to(self.device) for x in self.padded.batch(idx))
         mask = torch.arange(leader.shape[1], device=self.device)[None] < lengths[:, None]
         labels = torch.nn.functional.one_hot(actions, len(self.data.class_names)).float()
-        pred = G(leader, labels, lengths)
+        pred = self.generate(G, leader, labels, lengths)
         return {"val_afd_m": float(losses.afd_metres(pred, follower, mask).mean()),
                 "val_l1": float(losses.masked_l1(pred, follower, mask))}
 
