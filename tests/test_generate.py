@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 
 from imm_model.cli import main
+from imm_model.paths import SAMPLE_CHECKPOINT
 
 BVH_FIXTURES = Path(__file__).parent / "fixtures" / "bvh"
 
@@ -25,6 +27,14 @@ def test_grid_over_sequences_writes_one_file_per_item(tmp_path, sample_data, cap
     assert main(["generate", "--sequence", ids[0], "--label", "hugging=1", "--out", str(single)]) == 0
     with np.load(single) as a, np.load(out / f"{ids[0].replace('/', '-')}_hugging+1.npz") as b:
         np.testing.assert_allclose(a["follower"], b["follower"], atol=1e-4)
+    # --raw: the network's follower, bones not held to the bundled model's lengths
+    raw = tmp_path / "raw.npz"
+    assert main(["generate", "--sequence", ids[0], "--label", "hugging=1", "--raw", "--out", str(raw)]) == 0
+    lengths = np.asarray(json.loads(SAMPLE_CHECKPOINT.with_suffix(".json").read_text())["follower_bone_lengths"])
+    with np.load(single) as a, np.load(raw) as r:
+        for follower, rigid in ((a["follower"], True), (r["follower"], False)):
+            error = np.abs(sample_data.skeleton.bone_lengths(follower) - lengths).max()
+            assert (error < 1e-4) if rigid else (error > 0.01)
 
 
 def test_folder_of_bvh_leaders_and_several_labels(tmp_path, capsys):
