@@ -96,6 +96,7 @@ class Studio:
                 "show_leader": True,
                 "show_ground_truth": True,
                 "show_synthesized": True,
+                "clean_up": self.session.cleaned_up,  # rigid bones, bodies apart, feet planted (imm_model/cleanup.py)
                 "projection": "tsne",
                 "projection_busy": False,
                 "afd_text": "",
@@ -131,6 +132,7 @@ class Studio:
         s.change("scene_layout")(self.on_layout_change)
         s.change("show_leader", "show_ground_truth", "show_synthesized")(self.on_visibility_change)
         s.change("playing")(self.on_playing_change)
+        s.change("clean_up")(self.on_cleanup_toggled)
         c.match_label = self.match_label
         c.reset_label = self.reset_label
         c.set_camera = self.set_camera
@@ -334,6 +336,18 @@ class Studio:
             if int(self.state.frame or 0) >= self.session.num_frames - 1:
                 self.state.frame = 0
             self._play_task = asynchronous.create_task(play(self))
+
+    @_guard
+    def on_cleanup_toggled(self, clean_up, **_):
+        """The clean-up switched on or off: the same mix, re-synthesized, and the panels that read it."""
+        if bool(clean_up) == self.session.cleaned_up:
+            return
+        self.session.set_cleanup(bool(clean_up))
+        self.scene.set_synthesized(self.session.synth)
+        self.scene.set_pinned(self.session.pinned)
+        with self.state:
+            self._after_mix()
+        self.ctrl.view_update()
 
     # ---- view ----------------------------------------------------------------------------
     def on_layout_change(self, scene_layout, **_):

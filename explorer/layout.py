@@ -235,6 +235,14 @@ def character_toggles(studio) -> None:
             base_color=CHARACTERS[key],
             style=f"color: {CHARACTERS[key]}",
         )
+    v3.VCheckbox(
+        v_model=("clean_up",),
+        label="Clean-up: rigid bones, no overlap, planted feet",
+        density="compact",
+        hide_details=True,
+        id="clean-up",
+        title="Off: the network's own follower, as it predicted the joints",
+    )
 
 
 def compare_row(studio) -> None:

@@ -61,6 +61,7 @@ class ReactionModelLike(Protocol):
 
     class_names: Sequence[str]
     skeleton: Any
+    raw: bool  # True: the network's own follower, without the clean-up (imm_model/cleanup.py)
 
     def label_vector(self, label: Any, scale: float = 1.0) -> np.ndarray: ...
     def synthesize_canonical(self, leader: np.ndarray, label_vector: np.ndarray) -> np.ndarray: ...
@@ -223,6 +224,17 @@ class Session:
             raise ValueError(f"model returned shape {out.shape}, expected {self.leader.shape}")
         self.synth = out
         return out
+
+    @property
+    def cleaned_up(self) -> bool:
+        return not self.model.raw
+
+    def set_cleanup(self, on: bool) -> None:
+        """Clean-up on (rigid bones, bodies apart, feet planted) or off (the network's own follower); both followers
+        re-synthesized."""
+        self.model.raw = not on
+        self.synthesize()
+        self._synthesize_pinned()
 
     # ---- A/B: a pinned mix beside the current one ---------------------------------------------
     def pin(self) -> None:
