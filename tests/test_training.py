@@ -351,6 +351,30 @@ def test_critic_options_and_rigid_output(sample_data, tmp_path, monkeypatch):
     assert np.isfinite(trainer.train_epoch(0)["l1"])
 
 
+def test_penetration_loss_measures_overlap_like_the_evaluation(sample_data):
+    """training/penetration.py: the measure's segment geometry in torch; zero for bodies apart, and its gradient
+    moves an overlapping follower out of the leader."""
+    from imm_model.contact import bone_pair_distances
+    from imm_model.training.penetration import penetration_loss, segment_distances
+
+    sk = sample_data.skeleton
+    leader, follower = (x.astype(np.float64) for x in sample_data.canonical(10))
+    into = follower + (leader[:, sk.root] - follower[:, sk.root])[:, None] * np.array([0.8, 0, 0.8])  # synthetic overlap
+    bones = np.array(sk.bones)
+    a, b = torch.tensor(leader), torch.tensor(into)
+    pairs = segment_distances(a[:, bones[:, 0], None], a[:, bones[:, 1], None], b[:, None, bones[:, 0]], b[:, None, bones[:, 1]])
+    np.testing.assert_allclose(pairs.numpy(), bone_pair_distances(leader, into, sk), atol=1e-6)
+    flat = lambda x: torch.tensor(x.reshape(1, len(x), -1), dtype=torch.float32)  # noqa: E731
+    mask, idx = torch.ones(1, len(leader)), torch.tensor(bones)
+    assert float(penetration_loss(flat(leader), flat(follower + [3.0, 0, 0]), mask, idx)) == 0.0
+    moving = flat(into).requires_grad_(True)
+    loss = penetration_loss(flat(leader), moving, mask, idx)
+    loss.backward()
+    assert float(loss) > 0
+    stepped = (moving - 0.05 * moving.grad / moving.grad.abs().max()).detach()
+    assert float(penetration_loss(flat(leader), stepped, mask, idx)) < float(loss)
+
+
 def test_label_critic_ensemble_and_augmentation(sample_data):
     """Several critics average their losses; with augment each scores a turned/scaled/jittered copy, and the
     gradient still reaches the generated follower."""

@@ -52,6 +52,9 @@ class TrainConfig:
     # Every generated follower is given rigid bones (the training followers' median lengths) before any loss reads it,
     # as the inference clean-up does to what the model ships (training/rigid.py).
     rigid_output: bool = False
+    # Interpenetration (training/penetration.py): how deep the follower's bone axes come within 5 cm of the leader's,
+    # for the true-label follower and (with the critic) the drawn-label one; weight follows the adversarial ramp.
+    lambda_penetration: float = 0.0
     # Relation curves (training/relation.py): for a drawn label, the follower's whole-body motion relative to the
     # leader (root distance, root height) vs the label's mix of per-class curves; weight as the energy's. 0 = off.
     lambda_relation: float = 0.0
@@ -113,6 +116,7 @@ class TrainConfig:
             ("critic_seeds", len(self.critic_seeds) >= 1 and all(0 <= s < 2**31 for s in self.critic_seeds),
              "a non-empty list of seeds"),
             ("lambda_energy", self.lambda_energy >= 0, ">= 0 (0 = off)"),
+            ("lambda_penetration", self.lambda_penetration >= 0, ">= 0 (0 = off)"),
             ("lambda_relation", self.lambda_relation >= 0 and (self.lambda_relation == 0 or self.lambda_critic > 0),
              ">= 0, and used with lambda_critic > 0 (it shapes the critic's drawn labels)"),
             ("l1_reduction", self.l1_reduction in ("mean", "sum"), "'mean' or 'sum'"),

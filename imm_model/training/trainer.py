@@ -39,11 +39,12 @@ from imm_model.training.critic import drawn_labels
 from imm_model.training.curves import plot_curves
 from imm_model.training.data import Augmenter, PaddedData
 from imm_model.training.energy import class_profiles, energy_loss, limb_speeds, mixed_profile
+from imm_model.training.penetration import penetration_loss
 from imm_model.training.relation import class_relations, relation_loss
 from imm_model.training.rigid import RigidBones
 
-LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", "l1", "bone", "cont", "adv", "critic", "energy", "relation", "d_loss", "d_real_acc",
-              "d_fake_acc", "val_afd_m", "val_l1", "seconds")
+LOSS_TERMS = ("l1", "bone", "cont", "adv", "critic", "energy", "relation", "penetration")
+LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", *LOSS_TERMS, "d_loss", "d_real_acc", "d_fake_acc", "val_afd_m", "val_l1", "seconds")
 
 
 def derive_seed(*parts: int) -> int:
@@ -246,7 +247,7 @@ class Trainer:
         for opt, lr in ((self.opt_g, cfg.lr_g), (self.opt_d, cfg.lr_d)):
             for group in opt.param_groups:
                 group["lr"] = lr * scale
-        sums = dict.fromkeys(("l1", "bone", "cont", "adv", "critic", "energy", "relation", "d_loss", "d_real_acc", "d_fake_acc"), 0.0)
+        sums = dict.fromkeys((*LOSS_TERMS, "d_loss", "d_real_acc", "d_fake_acc"), 0.0)
         n = n_d = 0
         self.G.train()
         self.D.train()
@@ -308,6 +309,11 @@ class Trainer:
             energy = energy_loss(fake, target, lengths, root)
             g_loss = g_loss + w_energy * energy
             terms["energy"] = float(energy.detach())
+        w_penetration = adversarial_weight(cfg, epoch, cfg.lambda_penetration)
+        if w_penetration > 0:
+            penetration = penetration_loss(leader, fake, mask, self.bones)
+            g_loss = g_loss + w_penetration * penetration
+            terms["penetration"] = float(penetration.detach())
         if self.critic is not None and w_critic > 0:
             # a follower for a drawn label: no ground truth, so only the critic (and energy) terms apply to it
             c = len(self.data.class_names)
@@ -321,6 +327,8 @@ class Trainer:
             terms["critic"] = float(critic.detach())
             if w_energy > 0:
                 g_loss = g_loss + w_energy * energy_loss(other, mixed_profile(labels, self.profiles), lengths, root)
+            if w_penetration > 0:
+                g_loss = g_loss + w_penetration * penetration_loss(leader, other, mask, self.bones)
             if self.relations is not None and (w_relation := adversarial_weight(cfg, epoch, cfg.lambda_relation)) > 0:
                 target = mixed_profile(labels, self.relations)
                 relation = relation_loss(leader, other, target, lengths, root, self.data.skeleton.vertical_axis)
