@@ -96,7 +96,7 @@ class Studio:
                 "show_leader": True,
                 "show_ground_truth": True,
                 "show_synthesized": True,
-                "clean_up": self.session.cleaned_up,  # rigid bones, bodies apart, feet planted (imm_model/cleanup.py)
+                "clean_up": self.session.cleaned_up,  # rigid bones, planted feet (imm_model/cleanup.py)
                 "projection": "tsne",
                 "projection_busy": False,
                 "afd_text": "",

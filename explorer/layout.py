@@ -237,7 +237,7 @@ def character_toggles(studio) -> None:
         )
     v3.VCheckbox(
         v_model=("clean_up",),
-        label="Clean-up: rigid bones, no overlap, planted feet",
+        label="Clean-up: rigid bones, planted feet",
         density="compact",
         hide_details=True,
         id="clean-up",

@@ -230,7 +230,7 @@ class Session:
         return not self.model.raw
 
     def set_cleanup(self, on: bool) -> None:
-        """Clean-up on (rigid bones, bodies apart, feet planted) or off (the network's own follower); both followers
+        """Clean-up on (rigid bones, planted feet) or off (the network's own follower); both followers
         re-synthesized."""
         self.model.raw = not on
         self.synthesize()

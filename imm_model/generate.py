@@ -32,7 +32,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--data", type=Path, default=None, help="dataset for --sequence(s) (default: the bundled sample)")
     p.add_argument("--bvh-map", type=Path, default=None, help="JSON {kinect joint: BVH joint name} for a skeleton the name table misses")
     p.add_argument("--raw", action="store_true",
-                   help="the network's own follower, without the clean-up (rigid bones, bodies apart, feet planted)")
+                   help="the network's own follower, without the clean-up (rigid bones, planted feet)")
     p.add_argument("--force", action="store_true", help="replace outputs that exist")
     add_device_argument(p)
     p.set_defaults(func=_cmd_generate)

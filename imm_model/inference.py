@@ -44,7 +44,7 @@ class ReactionModel:
         self.canonical_mode: str = meta.get("canonical_mode", "first_frame")
         self.max_length: int = MAX_LENGTH_FACTOR * int(meta.get("max_train_length", 46))
         # The clean-up (cleanup.py) every synthesized follower goes through unless `raw`: rigid bones at the training
-        # followers' lengths (a checkpoint without them: each sequence's own median), bodies apart, feet planted.
+        # followers' lengths (a checkpoint without them: each sequence's own median), feet planted.
         self.raw = False
         self.bone_lengths = _bone_lengths(meta.get("follower_bone_lengths"), self.skeleton, path)
 
@@ -159,21 +159,20 @@ class ReactionModel:
         if self.fast is None:
             return self.synthesize_batch_canonical([leader_canonical], np.asarray(label_vector).reshape(1, -1))[0]
         out = self.fast(np.asarray(leader_canonical, np.float32).reshape(t, -1), self._label_array(label_vector, 1)[0])
-        return self._clean(leader_canonical, out.reshape(t, -1, 3))
+        return self._clean(out.reshape(t, -1, 3))
 
     def synthesize_batch_canonical(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> list[np.ndarray]:
         """N leaders (T_i, J, 3) canonical + (N, C) label vectors -> N followers (T_i, J, 3)."""
         out, lengths = self._run_batch(leaders, label_vectors, latent=False)
-        return [self._clean(a, out[i, : lengths[i]].reshape(lengths[i], -1, 3)) for i, a in enumerate(leaders)]
+        return [self._clean(out[i, : lengths[i]].reshape(lengths[i], -1, 3)) for i in range(len(leaders))]
 
-    def _clean(self, leader: np.ndarray, follower: np.ndarray) -> np.ndarray:
+    def _clean(self, follower: np.ndarray) -> np.ndarray:
         """The network's follower (T, J, 3) -> float32, through the clean-up unless `raw`."""
         if self.raw:
             return follower.astype(np.float32)
         from imm_model.cleanup import clean_follower
 
-        leader, follower = np.asarray(leader, np.float64), follower.astype(np.float64)
-        return clean_follower(leader, follower, self.skeleton, self.bone_lengths).astype(np.float32)
+        return clean_follower(follower.astype(np.float64), self.skeleton, self.bone_lengths).astype(np.float32)
 
     def latent(self, leader_world: np.ndarray, label, scale: float = 1.0) -> np.ndarray:
         """Per-sequence embedding (D,): the hierarchical encoder outputs averaged over frames."""

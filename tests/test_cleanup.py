@@ -1,4 +1,4 @@
-"""The inference clean-up (imm_model/cleanup.py): rigid bones, bodies kept apart, feet planted.
+"""The inference clean-up (imm_model/cleanup.py): rigid bones, planted feet.
 
 Unit tests run on real SBU poses from the bundled sample, moved about by hand (the moves are synthetic and say
 so); the last tests go through the bundled checkpoint.
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from imm_model.checkpoint import load_checkpoint, save_checkpoint
-from imm_model.cleanup import clean_follower, follower_bone_lengths, keep_apart, plant_feet, rigid_bones
-from imm_model.contact import CONTACT_M, PENETRATION_M, closest_distances
+from imm_model.cleanup import clean_follower, follower_bone_lengths, plant_feet, rigid_bones
+from imm_model.contact import CONTACT_M
 from imm_model.errors import CheckpointError
 from imm_model.evaluation.plausibility import foot_skate_mps
 from imm_model.inference import ReactionModel
@@ -40,21 +40,6 @@ def test_rigid_bones_sets_every_bone_and_keeps_its_direction(sample_data):
     assert np.ptp(sk.bone_lengths(own), axis=0).max() < 1e-9
 
 
-def test_keep_apart_resolves_overlap_and_leaves_apart_bodies_alone(sample_data):
-    sk = sample_data.skeleton
-    leader, follower = (x.astype(np.float64) for x in sample_data.canonical(10))
-    assert keep_apart(leader, follower + [3.0, 0, 0], sk) == pytest.approx(follower + [3.0, 0, 0])
-    # synthetic: the follower slid halfway into the leader
-    into = follower + (leader[:, sk.root] - follower[:, sk.root])[:, None] * np.array([0.8, 0, 0.8])
-    assert (closest_distances(leader, into, sk) < PENETRATION_M).mean() > 0.5
-    out = keep_apart(leader, into, sk)
-    assert (closest_distances(leader, out, sk) < PENETRATION_M - 1e-3).mean() < 0.05
-    moved = out - into
-    np.testing.assert_allclose(moved, np.broadcast_to(moved[:, :1], moved.shape), atol=1e-12)  # the whole body, rigidly
-    assert np.abs(moved[..., sk.vertical_axis]).max() == 0  # along the floor
-    assert np.abs(np.diff(moved[:, 0], axis=0)).max() < 0.25  # stepped back over frames, not in one jump
-
-
 def test_plant_feet_holds_a_foot_on_the_floor_and_keeps_the_leg(sample_data):
     sk = sample_data.skeleton
     follower = sample_data.canonical(20)[1].astype(np.float64)
@@ -78,19 +63,18 @@ def test_plant_feet_holds_a_foot_on_the_floor_and_keeps_the_leg(sample_data):
 
 
 def test_clean_follower_on_the_bundled_model(sample_data):
+    """On the network's hug for a kicking leader: rigid bones at the given lengths, feet slide less, and the
+    motion is cleaned up, not replaced."""
     model = ReactionModel.load(SAMPLE_CHECKPOINT)
     model.raw = True
     sk = sample_data.skeleton
     lengths = np.asarray(follower_bone_lengths([sample_data.canonical(i)[1] for i in range(40)], sk))
-    leader = sample_data.canonical(60)[0]
-    raw = model.synthesize_canonical(leader, np.eye(6, dtype=np.float32)[3]).astype(np.float64)  # a hug
-    clean = clean_follower(leader, raw, sk, lengths)
-    assert np.abs(sk.bone_lengths(clean) - lengths).max() < 1e-6
-    overlapping = (closest_distances(leader, raw, sk) < PENETRATION_M).mean()
-    assert overlapping > 0.3 and (closest_distances(leader, clean, sk) < PENETRATION_M - 1e-3).mean() < 0.1 * overlapping
-    own = np.eye(6, dtype=np.float32)[sample_data.actions[60]]  # the leader's own class: little to clean up
-    raw = model.synthesize_canonical(leader, own).astype(np.float64)
-    assert np.linalg.norm(clean_follower(leader, raw, sk, lengths) - raw, axis=-1).mean() < 0.1  # not a new motion
+    for i in (60, 100, 150):
+        raw = model.synthesize_canonical(sample_data.canonical(i)[0], np.eye(6, dtype=np.float32)[3]).astype(np.float64)
+        clean = clean_follower(raw, sk, lengths)
+        assert np.abs(sk.bone_lengths(clean) - lengths).max() < 1e-6
+        assert foot_skate_mps(clean, sk, 15.0) <= foot_skate_mps(raw, sk, 15.0)
+        assert np.linalg.norm(clean - raw, axis=-1).mean() < 0.1  # metres: a clean-up, not a new motion
 
 
 def test_the_model_cleans_up_unless_raw_and_reads_its_bone_lengths(sample_data, tmp_path):

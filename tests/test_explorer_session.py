@@ -209,11 +209,11 @@ def test_contact_marks_the_interpenetrating_frames_and_bones(session):
 
     assert penetration_ranges(np.array([0.1, 0.01, 0.02, 0.2, 0.04])) == [(1, 2), (4, 4)]
     assert penetration_ranges(np.array([0.3, 0.2])) == [] and "no interpenetration" in contact_text(np.array([0.3, 0.2]))
-    session.select(5)  # a hug the bundled model pushes into the leader (found by scanning the sample) ...
-    cleaned = session.contact()[0]
-    session.set_cleanup(False)  # ... as the network predicts it: the clean-up keeps the bodies apart
+    session.select(5)  # a hug the bundled model pushes into the leader (found by scanning the sample)
+    cleaned = session.synth.copy()
+    session.set_cleanup(False)  # the network's own follower (the clean-up only makes its bones rigid, feet planted)
+    assert not np.allclose(session.synth, cleaned)
     closest, leader_bones, follower_bones = session.contact()
-    assert (cleaned < PENETRATION_M).sum() < (closest < PENETRATION_M).sum()
     np.testing.assert_allclose(closest, closest_distances(session.leader, session.synth, session.data.skeleton))
     inside = closest < PENETRATION_M
     assert inside.any() and np.array_equal(inside, leader_bones.any(1)) and np.array_equal(inside, follower_bones.any(1))
@@ -221,7 +221,7 @@ def test_contact_marks_the_interpenetrating_frames_and_bones(session):
     chart = distance_chart(session.distances_m(), 15.0, closest=closest)
     assert chart.count('class="penetration"') == len(penetration_ranges(closest)) and chart.count("<polyline") == 2
     session.set_cleanup(True)
-    np.testing.assert_allclose(session.contact()[0], cleaned)
+    np.testing.assert_allclose(session.synth, cleaned)
 
 
 def test_chart_ticks_and_markup():

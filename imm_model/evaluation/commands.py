@@ -35,7 +35,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--markdown", type=Path, default=None, help="write every table as Markdown")
     p.add_argument("--figures", type=Path, default=None, help="write PNG figures into this folder")
     p.add_argument("--raw", action="store_true",
-                   help="score the networks' own followers, without the clean-up (rigid bones, bodies apart, feet planted)")
+                   help="score the networks' own followers, without the clean-up (rigid bones, planted feet)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--force", action="store_true", help="replace existing --json/--markdown files")
     p.set_defaults(func=_cmd_evaluate)
