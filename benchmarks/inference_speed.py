@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/inference_speed.py [--checkpoint CK] [--threads 2] [--repeats 200]
 
 Prints the thread count, the median/p90 latency of `ReactionModel.synthesize_canonical` for a
-46-frame leader, and the time and peak resident-memory increase of `synthesize_batch_canonical`
+46-frame leader with and without the clean-up (rigid bones, planted feet), and the time and peak resident-memory increase of `synthesize_batch_canonical`
 (and of `latent_canonical_batch`) over the whole bundled dataset.
 """
 
@@ -40,16 +40,19 @@ def main() -> None:
     i = int(np.argmax(data.lengths))
     leader = data.canonical(i)[0]
     label = np.eye(len(data.class_names), dtype=np.float32)[data.actions[i]]
-    for _ in range(10):
-        model.synthesize_canonical(leader, label)
-    lat = []
-    for _ in range(args.repeats):
-        t0 = time.perf_counter()
-        model.synthesize_canonical(leader, label)
-        lat.append((time.perf_counter() - t0) * 1000)
-    lat.sort()
-    print(f"one {len(leader)}-frame reaction, batch 1: median {statistics.median(lat):.2f} ms, "
-          f"p90 {lat[int(0.9 * len(lat))]:.2f} ms ({args.repeats} runs)")
+    for raw in (False, True, False, True):  # interleaved, so drift on a shared machine hits both alike
+        model.raw = raw
+        for _ in range(10):
+            model.synthesize_canonical(leader, label)
+        lat = []
+        for _ in range(args.repeats):
+            t0 = time.perf_counter()
+            model.synthesize_canonical(leader, label)
+            lat.append((time.perf_counter() - t0) * 1000)
+        lat.sort()
+        print(f"one {len(leader)}-frame reaction, batch 1, {'raw' if raw else 'with the clean-up'}: median "
+              f"{statistics.median(lat):.2f} ms, p90 {lat[int(0.9 * len(lat))]:.2f} ms ({args.repeats} runs)")
+    model.raw = False
 
     leaders = [data.canonical(k)[0] for k in range(len(data))]
     labels = np.eye(len(data.class_names), dtype=np.float32)[data.actions]
