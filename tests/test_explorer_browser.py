@@ -87,14 +87,22 @@ def test_class_slider_changes_follower(page):
 
 def test_latent_click_switches_sequence(page):
     current = probe.state(page, "sequence_index")
+    page.wait_for_selector("#latent-plot .imm-pt", timeout=30000)
     points = page.locator("#latent-plot .imm-pt")
     assert points.count() > 10
     ring = page.locator("#latent-ring").bounding_box()  # the current sequence is ringed on the map
     mine = page.locator(f'#latent-plot .imm-pt[data-index="{current}"]').bounding_box()
     assert abs(ring["x"] + ring["width"] / 2 - (mine["x"] + mine["width"] / 2)) < 2
-    target = int(points.nth(7).get_attribute("data-index"))
-    if target == current:
-        target = int(points.nth(8).get_attribute("data-index"))
+    # a point no other point covers (which ones overlap depends on the model's embedding)
+    target = page.evaluate("""(current) => {
+        for (const p of document.querySelectorAll('#latent-plot .imm-pt')) {
+            const r = p.getBoundingClientRect();
+            const hit = document.elementFromPoint(r.x + r.width / 2, r.y + r.height / 2);
+            if (hit === p && Number(p.dataset.index) !== current) return Number(p.dataset.index);
+        }
+        return null;
+    }""", current)
+    assert target is not None
     point = page.locator(f'#latent-plot .imm-pt[data-index="{target}"]')
     point.hover()
     point.click()

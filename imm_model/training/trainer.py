@@ -129,7 +129,9 @@ class Trainer:
         self.critic = self._label_critic() if cfg.lambda_critic > 0 else None
         self.profiles = self._class_profiles() if cfg.lambda_energy > 0 else None
         self.relations = self._class_relations() if cfg.lambda_relation > 0 else None
-        self.bone_lengths = follower_bone_lengths([data.follower[data.frames(i)] for i in self.train_idx], data.skeleton)
+        # the fold's training subjects, validation sequences included: the selection run and its refit ship one skeleton
+        fold_train = np.concatenate([self.train_idx, self.val_idx])
+        self.bone_lengths = follower_bone_lengths([data.follower[data.frames(i)] for i in fold_train], data.skeleton)
         self.rigid = RigidBones(data.skeleton, self.bone_lengths, self.device) if cfg.rigid_output else None
         self.state = FoldState()
 
