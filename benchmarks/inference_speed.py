@@ -3,8 +3,9 @@
     .venv/bin/python benchmarks/inference_speed.py [--checkpoint CK] [--threads 2] [--repeats 200]
 
 Prints the thread count, the median/p90 latency of `ReactionModel.synthesize_canonical` for a
-46-frame leader with and without the clean-up (rigid bones, planted feet), and the time and peak resident-memory increase of `synthesize_batch_canonical`
-(and of `latent_canonical_batch`) over the whole bundled dataset.
+46-frame leader with and without the clean-up (rigid bones, planted feet), and the time and peak
+resident-memory increase of `synthesize_batch_canonical` (and of `latent_canonical_batch`) over the
+whole bundled dataset.
 """
 
 from __future__ import annotations

@@ -290,10 +290,18 @@ def test_pin_a_mix_then_compare_swap_and_clear(page):
     assert probe.count_colors(probe.view_pixels(page), [PINNED])[0] < 50
 
 
-def test_interpenetrating_limbs_are_marked(page):
+def test_interpenetrating_limbs_are_marked(page, sample_data):
     """A sequence whose synthesized hug goes into the leader: the count in words, shaded frames on the chart, and
     orange limbs in the view at such a frame."""
     from explorer.palette import WARNING
+    from imm_model.evaluation.plausibility import closest_distances
+    from imm_model.inference import ReactionModel
+
+    model = ReactionModel.load()  # the frame where the network's own hug goes deepest into the leader
+    model.raw = True
+    leader = sample_data.canonical(5)[0]
+    follower = model.synthesize_canonical(leader, np.eye(6, dtype=np.float32)[sample_data.actions[5]])
+    deepest = int(np.argmin(closest_distances(leader, follower, sample_data.skeleton)))
 
     probe.set_state(page, "scene_layout", "overlay")
     _load_sequence(page, 5)
@@ -303,8 +311,8 @@ def test_interpenetrating_limbs_are_marked(page):
     probe.wait_state(page, f"s.get('clean_up') === false && s.get('mix_count') > {count}")
     assert probe.state(page, "contact_text").startswith("bodies interpenetrate in")
     assert page.locator("#distance-chart rect.penetration").count() >= 1
-    probe.set_state(page, "frame", 15)
-    probe.wait_state(page, "s.get('frame') === 15")
+    probe.set_state(page, "frame", deepest)
+    probe.wait_state(page, f"s.get('frame') === {deepest}")
     time.sleep(0.8)
     assert probe.count_colors(probe.view_pixels(page), [WARNING])[0] > 100
     probe.shot(page, "studio-contact")

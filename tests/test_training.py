@@ -370,9 +370,9 @@ def test_penetration_loss_measures_overlap_like_the_evaluation(sample_data):
     moving = flat(into).requires_grad_(True)
     loss = penetration_loss(flat(leader), moving, mask, idx)
     loss.backward()
-    assert float(loss) > 0
+    assert float(loss.detach()) > 0
     stepped = (moving - 0.05 * moving.grad / moving.grad.abs().max()).detach()
-    assert float(penetration_loss(flat(leader), stepped, mask, idx)) < float(loss)
+    assert float(penetration_loss(flat(leader), stepped, mask, idx)) < float(loss.detach())
 
 
 def test_label_critic_ensemble_and_augmentation(sample_data):
