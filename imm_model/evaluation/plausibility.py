@@ -3,8 +3,9 @@
 - bone_error_cm: mean over frames and bones of |bone length - the real follower's median length of that
   bone in the sequence| (a rigid skeleton keeps its bones; Kinect's real followers score a few cm too).
 - interpenetration: share of frames in which some limb or trunk segment of A and of B have axes closer
-  than PENETRATION_M. Limbs are at least ~8-10 cm thick, so two axes within 5 cm means the volumes overlap
-  by half a limb or more; skin contact (hugging, a handshake) keeps axes ~8-20 cm apart and is not counted.
+  than PENETRATION_M (contact.py). Limbs are at least ~8-10 cm thick, so two axes within 5 cm means the volumes
+  overlap by half a limb or more, but real followers come that close in a quarter of handshake and half of hug
+  frames: in those classes it counts contact too.
 - foot_skate_mps: mean horizontal speed of feet in ground contact (within CONTACT_M of the sequence's
   lowest foot height).
 - speed_ratio: mean joint speed of the generated followers over that of the real ones, and limb_speed_ratio

@@ -1,7 +1,7 @@
 """Interpenetration as a training loss: the follower's bone axes kept PENETRATION_M from the leader's.
 
-The same closest-distance geometry as the measure (contact.py), in torch, so that the network learns to keep its
-limbs out of the leader's body rather than leaving it to the clean-up, which can only step the whole follower back.
+The same closest-distance geometry as the measure (contact.py), in torch, so that the network learns where to keep
+its limbs; stepping the whole follower back after synthesis cost AFD (docs/evaluation.md, "Clean-up").
 """
 
 from __future__ import annotations

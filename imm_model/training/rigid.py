@@ -1,7 +1,8 @@
 """The clean-up's rigid bones (cleanup.py) as a differentiable step, so that training scores what inference ships.
 
 Without it the generator is free to stretch and shrink bones, and a label critic can be satisfied by body
-proportions that the clean-up then takes away (docs/training.md, "Rigid bones in training").
+proportions that the clean-up then takes away. Tried and not adopted: the limbs nearly stopped (docs/training.md,
+"Session 12: three more training variants").
 """
 
 from __future__ import annotations
