@@ -1,5 +1,6 @@
 """The view in the URL's query string, so a link reopens what its sender saw:
-`?seq=s01s02/03/001&mix=kicking:1,hugging:0.5&scale=1&frame=12&layout=overlay&camera=front&map=tsne`.
+`?seq=s01s02/03/001&mix=kicking:1,hugging:0.5&scale=1&frame=12&layout=overlay&camera=front&map=tsne`, and `&raw=1`
+when the clean-up is off.
 
 Everything read from a URL is validated here (it comes from whoever wrote the link): unknown keys are ignored,
 bad values are named in one line and left out, the rest still applies.
@@ -16,13 +17,13 @@ MAPS = ("tsne", "umap")
 
 
 def view_query(view: dict) -> str:
-    """{seq, weights: {class: w}, scale, frame, layout, camera, map} -> "?..." (None values are left out)."""
+    """{seq, weights: {class: w}, scale, frame, layout, camera, map, raw} -> "?..." (None values are left out)."""
     parts = {}
     if view.get("seq"):
         parts["seq"] = view["seq"]
     mix = ",".join(f"{name}:{w:g}" for name, w in view.get("weights", {}).items() if w)
     parts["mix"] = mix or "none"
-    for key in ("scale", "frame", "layout", "camera", "map"):
+    for key in ("scale", "frame", "layout", "camera", "map", "raw"):
         if view.get(key) is not None:
             parts[key] = f"{view[key]:g}" if isinstance(view[key], float) else str(view[key])
     return "?" + urlencode(parts, safe=":,/", quote_via=quote)
@@ -64,6 +65,7 @@ def parse_view(query: str, class_names, sequence_ids, cameras) -> tuple[dict, li
         "layout": lambda v: v if v in LAYOUTS else _fail(f"layout {v!r} is not one of {', '.join(LAYOUTS)}"),
         "camera": lambda v: v if v in cameras else _fail(f"camera {v!r} is not one of {', '.join(cameras)}"),
         "map": lambda v: v if v in MAPS else _fail(f"map {v!r} is not one of {', '.join(MAPS)}"),
+        "raw": lambda v: {"1": True, "0": False}[v] if v in ("0", "1") else _fail(f"raw {v!r} is not 0 or 1"),
     }
     view, problems = {}, []
     for key, parse in parsers.items():
@@ -90,6 +92,7 @@ def current_view(studio) -> dict:
         "layout": s.scene_layout,
         "camera": studio.scene.camera_preset,
         "map": s.projection,
+        "raw": None if ses.cleaned_up else 1,  # left out of the link while the clean-up is on, as by default
     }
 
 
@@ -111,6 +114,8 @@ def apply_view(studio, query: str) -> None:
             s.scene_layout = view["layout"]
         if "map" in view:
             s.projection = view["map"]
+        if "raw" in view:
+            s.clean_up = not view["raw"]
         if problems:
             s.error = "link: " + "; ".join(problems)
     if "camera" in view:

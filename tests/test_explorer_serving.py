@@ -21,8 +21,10 @@ def test_a_link_reopens_the_same_picture(studio, browser, page):
     probe.set_state(page, "w_3", 0.5)
     probe.set_state(page, "scene_layout", "side_by_side")
     page.get_by_role("button", name="top").click()
+    page.locator("#clean-up").click()  # the network's own follower: the link carries it as raw=1
     probe.set_state(page, "frame", 7)
     probe.wait_state(page, "s.get('url_query').includes('frame=7') && s.get('url_query').includes('camera=top')")
+    probe.wait_state(page, "s.get('url_query').includes('raw=1')")
     probe.wait_state(page, "s.get('url_query').includes('layout=side_by_side') && s.get('url_query').includes(':0.5')")
     assert "frame=7" in page.url  # the address bar itself
     page.locator("#copy-link").click()
@@ -34,6 +36,7 @@ def test_a_link_reopens_the_same_picture(studio, browser, page):
     other = probe.open_studio(browser, link, timeout_ms=90000)
     try:
         probe.wait_state(other, f"s.get('url_query') === {query!r}", timeout_ms=30000)
+        assert probe.state(other, "clean_up") is False
         time.sleep(1.0)  # the last picture of both views
         a, b = probe.view_pixels(page).astype(float), probe.view_pixels(other).astype(float)
         probe.shot(page, "studio-link-sender")
@@ -43,15 +46,17 @@ def test_a_link_reopens_the_same_picture(studio, browser, page):
     finally:
         other.close()
     probe.set_state(page, "scene_layout", "overlay")
+    page.locator("#clean-up").click()
+    probe.wait_state(page, "s.get('clean_up') === true && !s.get('url_query').includes('raw=')")
     page.get_by_role("button", name="reset").first.click()
 
 
 def test_a_bad_link_names_what_it_ignored(browser, studio):
-    other = probe.open_studio(browser, studio.url + "?seq=nope&scale=7&layout=overlay", timeout_ms=90000)
+    other = probe.open_studio(browser, studio.url + "?seq=nope&scale=7&layout=overlay&raw=yes", timeout_ms=90000)
     try:
         probe.wait_state(other, "s.get('error').startsWith('link:')")
         error = probe.state(other, "error")
-        assert "no sequence 'nope'" in error and "scale '7' is outside" in error
+        assert "no sequence 'nope'" in error and "scale '7' is outside" in error and "raw 'yes' is not 0 or 1" in error
     finally:
         other.close()
 
