@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from imm_model.cleanup import clean_follower
 from imm_model.errors import CheckpointError, DataFormatError, LabelError
 
 MAX_LENGTH_FACTOR = 10  # inputs longer than this times the longest training sequence are refused
@@ -170,8 +171,6 @@ class ReactionModel:
         """The network's follower (T, J, 3) -> float32, through the clean-up unless `raw`."""
         if self.raw:
             return follower.astype(np.float32)
-        from imm_model.cleanup import clean_follower
-
         return clean_follower(follower.astype(np.float64), self.skeleton, self.bone_lengths).astype(np.float32)
 
     def latent(self, leader_world: np.ndarray, label, scale: float = 1.0) -> np.ndarray:

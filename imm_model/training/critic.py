@@ -26,6 +26,18 @@ class LabelCritic:
         self.classifiers = [c.eval().requires_grad_(False) for c in classifiers]
         self.augment = augment
 
+    @classmethod
+    def for_fold(cls, cfg, data, subject: str | None, device) -> LabelCritic:
+        """The critic a training config asks for: one follower GRU per `critic_seeds` (mixup-trained with
+        `critic_mixup`), trained on fold `subject`'s real training followers and cached."""
+        from dataclasses import replace
+
+        from imm_model import cache
+        from imm_model.model.classifier_config import FOLLOWER
+
+        configs = [replace(FOLLOWER, seed=s, mixup=cfg.critic_mixup) for s in cfg.critic_seeds]
+        return cls([cache.fold_classifier(c, data, subject).to(device) for c in configs], augment=cfg.critic_augment)
+
     def loss(self, follower: torch.Tensor, lengths: torch.Tensor, target: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
         """follower (B, T, 3J) canonical metres, target (B, C) class probabilities -> soft cross-entropy (mean)."""
         total = follower.new_zeros(())

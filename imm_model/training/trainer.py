@@ -35,7 +35,7 @@ from imm_model.errors import CheckpointError
 from imm_model.model import Discriminator, Generator, model_config_for
 from imm_model.training import losses
 from imm_model.training.config import TrainConfig
-from imm_model.training.critic import drawn_labels
+from imm_model.training.critic import LabelCritic, drawn_labels
 from imm_model.training.curves import plot_curves
 from imm_model.training.data import Augmenter, PaddedData
 from imm_model.training.energy import class_profiles, energy_loss, limb_speeds, mixed_profile
@@ -126,7 +126,7 @@ class Trainer:
         self.augment = Augmenter(data.skeleton, cfg.mirror_prob, cfg.rotate_deg, cfg.role_swap_prob, swap, cfg.time_warp,
                                  cfg.scale_jitter, mirror)
         self.bones = torch.tensor(data.skeleton.bones, dtype=torch.int64, device=self.device)
-        self.critic = self._label_critic() if cfg.lambda_critic > 0 else None
+        self.critic = LabelCritic.for_fold(cfg, data, subject, self.device) if cfg.lambda_critic > 0 else None
         self.profiles = self._class_profiles() if cfg.lambda_energy > 0 else None
         self.relations = self._class_relations() if cfg.lambda_relation > 0 else None
         # the fold's training subjects, validation sequences included: the selection run and its refit ship one skeleton
@@ -143,17 +143,6 @@ class Trainer:
         self.G.set_normalization(a.mean(0), np.maximum(a.std(0), 1e-2), b.mean(0), np.maximum(b.std(0), 1e-2))
         self.D.follower_mean.copy_(self.G.follower_mean)
         self.D.follower_std.copy_(self.G.follower_std)
-
-    def _label_critic(self):
-        from dataclasses import replace
-
-        from imm_model.cache import fold_classifier
-        from imm_model.model.classifier_config import FOLLOWER
-        from imm_model.training.critic import LabelCritic
-
-        configs = [replace(FOLLOWER, seed=s, mixup=self.cfg.critic_mixup) for s in self.cfg.critic_seeds]
-        clfs = [fold_classifier(c, self.data, self.subject).to(self.device) for c in configs]
-        return LabelCritic(clfs, augment=self.cfg.critic_augment)
 
     def _class_profiles(self) -> torch.Tensor:
         followers = [self.data.follower[self.data.frames(i)] for i in self.train_idx]
