@@ -1,6 +1,6 @@
 """Inference speed: one 46-frame reaction at batch 1, and all 197 SBU sequences in one batch.
 
-    .venv/bin/python benchmarks/inference_speed.py [--checkpoint CK] [--threads 2] [--repeats 200]
+    .venv/bin/python benchmarks/inference_speed.py [--checkpoint CK] [--threads 2] [--repeats 200] [--device cpu|cuda]
 
 Prints the thread count, the median/p90 latency of `ReactionModel.synthesize_canonical` for a
 46-frame leader with and without the clean-up (rigid bones, planted feet), and the time and peak
@@ -19,6 +19,7 @@ import numpy as np
 import torch
 
 from imm_model.data.dataset import InteractionDataset
+from imm_model.device import add_device_argument, resolve_device
 from imm_model.inference import ReactionModel
 from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA
 
@@ -32,11 +33,14 @@ def main() -> None:
     ap.add_argument("--checkpoint", default=str(SAMPLE_CHECKPOINT))
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--repeats", type=int, default=200)
+    ap.set_defaults(device="cpu")  # the studio synthesizes on the CPU (NumPy runtime)
+    add_device_argument(ap)
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
+    device = resolve_device(args.device)
     data = InteractionDataset.load(SAMPLE_DATA)
-    model = ReactionModel.load(args.checkpoint)
-    print(f"checkpoint {args.checkpoint}; torch threads {torch.get_num_threads()}")
+    model = ReactionModel.load(args.checkpoint, device=str(device))
+    print(f"checkpoint {args.checkpoint}; torch threads {torch.get_num_threads()}; device {device}")
 
     i = int(np.argmax(data.lengths))
     leader = data.canonical(i)[0]

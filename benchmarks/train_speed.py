@@ -1,11 +1,13 @@
 """Training speed: seconds per epoch on one LOSO fold's full training set (G and D steps, validation).
 
     .venv/bin/python benchmarks/train_speed.py [--config imm] [--config paper|FILE ...] [--fold s04] [--threads 2] [--epochs 6]
+        [--device auto|cpu|cuda]
 
 Prints the thread count and per-epoch times. With several --config, their epochs are interleaved
 (A, B, A, B, ...) in one process, so a change in the machine's speed hits all of them alike, and
 each is reported as a ratio to the first. The first epoch of each (allocator/oneDNN warm-up) is
-excluded. The adversarial weight is forced on from epoch 0 so every epoch pays for the full G + D step.
+excluded. With --device cuda the batches are still drawn and augmented on the CPU (as in `imm train`).
+The adversarial weight is forced on from epoch 0 so every epoch pays for the full G + D step.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from dataclasses import replace
 import torch
 
 from imm_model.data.dataset import InteractionDataset
+from imm_model.device import add_device_argument, resolve_device
 from imm_model.paths import SAMPLE_DATA
 from imm_model.training.config import load_config
 from imm_model.training.trainer import Trainer
@@ -30,14 +33,16 @@ def main() -> None:
     ap.add_argument("--fold", default="s04")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--epochs", type=int, default=6)
+    add_device_argument(ap)
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
+    device = resolve_device(args.device)
     data = InteractionDataset.load(SAMPLE_DATA)
     trainers = {}
     for name in args.config or ["imm"]:
         cfg = load_config(name)
         cfg = replace(cfg, adv_warmup_epochs=0, adv_ramp_epochs=0, lambda_adv=max(cfg.lambda_adv, 0.1))
-        trainers[name] = Trainer(cfg, data, args.fold, "/tmp/imm-train-speed")
+        trainers[name] = Trainer(cfg, data, args.fold, "/tmp/imm-train-speed", device)
     times: dict[str, list[float]] = {name: [] for name in trainers}
     for epoch in range(args.epochs + 1):
         for name, trainer in trainers.items():
@@ -45,7 +50,8 @@ def main() -> None:
             trainer.train_epoch(epoch)
             trainer.validate()
             times[name].append(time.perf_counter() - t0)
-    print(f"machine: {os.cpu_count()} CPUs; torch threads {torch.get_num_threads()}; fold {args.fold}")
+    gpu = f"; GPU {torch.cuda.get_device_name(device)}" if device.type == "cuda" else ""
+    print(f"machine: {os.cpu_count()} CPUs; torch threads {torch.get_num_threads()}; device {device}{gpu}; fold {args.fold}")
     first = None
     for name, trainer in trainers.items():
         cfg, t = trainer.cfg, times[name]

@@ -41,9 +41,12 @@ class LabelCritic:
     def loss(self, follower: torch.Tensor, lengths: torch.Tensor, target: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
         """follower (B, T, 3J) canonical metres, target (B, C) class probabilities -> soft cross-entropy (mean)."""
         total = follower.new_zeros(())
-        for clf in self.classifiers:
-            x = augment(follower, clf.cfg, gen) if self.augment else follower
-            total = total + F.cross_entropy(clf(x, lengths), target)
+        # cuDNN refuses to backpropagate through an RNN in eval mode, and the frozen critic must stay in eval
+        # mode (no dropout); PyTorch's own RNN kernels compute the same function on the GPU.
+        with torch.backends.cudnn.flags(enabled=False):
+            for clf in self.classifiers:
+                x = augment(follower, clf.cfg, gen) if self.augment else follower
+                total = total + F.cross_entropy(clf(x, lengths), target)
         return total / len(self.classifiers)
 
 

@@ -1,0 +1,48 @@
+"""Training and inference on a CUDA device. CI has no GPU, so these skip there; they run wherever torch sees
+one (`pytest tests/test_cuda.py`). They were written after a CUDA-only failure: cuDNN refuses to backpropagate
+through a recurrent network in eval mode, which the frozen label critic is."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+
+from imm_model.inference import ReactionModel
+from imm_model.paths import SAMPLE_CHECKPOINT
+from imm_model.training.trainer import Trainer
+from tests.test_training import TINY
+
+pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
+
+# every generator term on: adversarial and class heads, label critic, motion energy, penetration, rigid output
+EVERY_TERM = replace(TINY, lambda_critic=0.1, critic_mix_prob=0.5, lambda_energy=0.5, lambda_penetration=0.5,
+                     adv_warmup_epochs=0, adv_ramp_epochs=0, model=TINY.model | {"dropout_per_sequence": True})
+
+
+@pytest.mark.parametrize("cfg", [EVERY_TERM, replace(EVERY_TERM, rigid_output=True),
+                                 replace(TINY, model=TINY.model | {"label_input": False}, discriminator="binary+class")],
+                         ids=["every-term", "rigid-output", "label-free"])
+def test_a_training_epoch_runs_on_cuda(cfg, sample_data, tmp_path, monkeypatch):
+    from imm_model import cache
+    from imm_model.model.classifier import train_classifier
+    from imm_model.model.classifier_config import ClassifierConfig
+
+    followers = [sample_data.canonical(i)[1].reshape(-1, 45) for i in range(40)]
+    quick = train_classifier(ClassifierConfig(inputs="follower", epochs=1, hidden=8, features=8), followers, sample_data.actions[:40], 6)
+    monkeypatch.setattr(cache, "fold_classifier", lambda *a, **k: quick)
+    trainer = Trainer(cfg, sample_data, "s04", tmp_path, "cuda")
+    row = trainer.train_epoch(0)
+    assert all(np.isfinite(v) for v in row.values() if isinstance(v, float))
+    assert np.isfinite(trainer.validate()["val_afd_m"])
+    assert next(trainer.G.parameters()).device.type == "cuda"
+
+
+def test_inference_on_cuda_matches_the_cpu(sample_data):
+    leader = sample_data.canonical(0)[0]
+    label = np.eye(6, dtype=np.float32)[[1, 3]].sum(0)
+    cpu = ReactionModel.load(SAMPLE_CHECKPOINT).synthesize_canonical(leader, label)
+    gpu = ReactionModel.load(SAMPLE_CHECKPOINT, device="cuda").synthesize_canonical(leader, label)
+    assert np.abs(cpu - gpu).max() < 1e-3  # metres; TF32 and cuDNN kernels round differently from the CPU
