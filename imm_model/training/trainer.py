@@ -19,14 +19,7 @@ import numpy as np
 import torch
 
 import imm_model
-from imm_model.checkpoint import (
-    load_checkpoint,
-    load_module_state,
-    optimizer_from_tensors,
-    optimizer_to_tensors,
-    prefixed,
-    save_checkpoint,
-)
+from imm_model.checkpoint import load_checkpoint, load_module_state, optimizer_from_tensors, optimizer_to_tensors, prefixed, save_checkpoint
 from imm_model.cleanup import follower_bone_lengths
 from imm_model.data.batching import LengthBucketSampler
 from imm_model.data.dataset import InteractionDataset
