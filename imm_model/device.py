@@ -24,5 +24,5 @@ def resolve_device(name: str) -> torch.device:
     return torch.device(name)
 
 
-def add_device_argument(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--device", default="auto", help="auto (CUDA if available, else CPU), cpu or cuda")
+def add_device_argument(parser: argparse.ArgumentParser, default: str = "auto") -> None:
+    parser.add_argument("--device", default=default, help=f"auto (CUDA if available, else CPU), cpu or cuda (default {default})")

@@ -14,6 +14,7 @@ from imm_model.inference import ReactionModel
 from imm_model.paths import SAMPLE_CHECKPOINT
 from imm_model.training.trainer import Trainer
 from tests.test_training import TINY
+from tests.test_training_terms import quick_follower_classifier
 
 pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
 
@@ -27,11 +28,8 @@ EVERY_TERM = replace(TINY, lambda_critic=0.1, critic_mix_prob=0.5, lambda_energy
                          ids=["every-term", "rigid-output", "label-free"])
 def test_a_training_epoch_runs_on_cuda(cfg, sample_data, tmp_path, monkeypatch):
     from imm_model import cache
-    from imm_model.model.classifier import train_classifier
-    from imm_model.model.classifier_config import ClassifierConfig
 
-    followers = [sample_data.canonical(i)[1].reshape(-1, 45) for i in range(40)]
-    quick = train_classifier(ClassifierConfig(inputs="follower", epochs=1, hidden=8, features=8), followers, sample_data.actions[:40], 6)
+    quick = quick_follower_classifier(sample_data)
     monkeypatch.setattr(cache, "fold_classifier", lambda *a, **k: quick)
     trainer = Trainer(cfg, sample_data, "s04", tmp_path, "cuda")
     row = trainer.train_epoch(0)

@@ -13,11 +13,19 @@ from imm_model.training.trainer import Trainer
 from tests.test_training import TINY
 
 
+def quick_follower_classifier(sample_data, **overrides):
+    """A follower classifier trained for one epoch on 40 sequences: a critic for tests, in seconds."""
+    from imm_model.model.classifier import train_classifier
+    from imm_model.model.classifier_config import ClassifierConfig
+
+    followers = [sample_data.canonical(i)[1].reshape(-1, 45) for i in range(40)]
+    cfg = ClassifierConfig(inputs="follower", epochs=1, hidden=8, features=8, **overrides)
+    return train_classifier(cfg, followers, sample_data.actions[:40], 6)
+
+
 def test_label_critic_scores_the_true_and_a_drawn_label(sample_data, tmp_path, monkeypatch):
     """lambda_critic > 0: a frozen follower classifier scores G's output for the true and a drawn other label."""
     from imm_model import cache
-    from imm_model.model.classifier import train_classifier
-    from imm_model.model.classifier_config import ClassifierConfig
     from imm_model.training.critic import drawn_labels
 
     gen = torch.Generator().manual_seed(0)
@@ -30,8 +38,7 @@ def test_label_critic_scores_the_true_and_a_drawn_label(sample_data, tmp_path, m
     assert set(labels.sum(1).tolist()) == {1.0, 2.0} and torch.allclose(target.sum(1), torch.ones(300))
     assert labels.max() == 1.0  # two different members
 
-    followers = [sample_data.canonical(i)[1].reshape(-1, 45) for i in range(40)]
-    quick = train_classifier(ClassifierConfig(inputs="follower", epochs=1, hidden=8, features=8), followers, sample_data.actions[:40], 6)
+    quick = quick_follower_classifier(sample_data)
     monkeypatch.setattr(cache, "fold_classifier", lambda *a, **k: quick)
     trainer = Trainer(replace(TINY, lambda_critic=0.1, critic_mix_prob=0.5, adv_warmup_epochs=0, adv_ramp_epochs=0),
                       sample_data, "s04", tmp_path)
@@ -46,13 +53,9 @@ def test_critic_options_and_rigid_output(sample_data, tmp_path, monkeypatch):
     """critic_true_label False: only the drawn label meets the critic; critic_mixup: the critic is a mixup-trained
     classifier; rigid_output: every follower a loss reads has the training followers' bone lengths."""
     from imm_model import cache
-    from imm_model.model.classifier import train_classifier
-    from imm_model.model.classifier_config import ClassifierConfig
     from imm_model.training.critic import LabelCritic
 
-    followers = [sample_data.canonical(i)[1].reshape(-1, 45) for i in range(40)]
-    quick = train_classifier(ClassifierConfig(inputs="follower", epochs=1, hidden=8, features=8, mixup=True), followers,
-                             sample_data.actions[:40], 6)
+    quick = quick_follower_classifier(sample_data, mixup=True)
     asked, scored = [], []
     monkeypatch.setattr(cache, "fold_classifier", lambda cfg, *a, **k: asked.append(cfg) or quick)
     real_loss = LabelCritic.loss
