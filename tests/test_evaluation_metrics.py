@@ -6,6 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import torch
 
 from imm_model import cache
 from imm_model.contact import segment_distances
@@ -41,11 +42,29 @@ def test_classifier_result_does_not_depend_on_its_batch(sample_data):
         np.testing.assert_allclose(batch_p.sum(1), 1.0, atol=1e-6)
 
 
+def test_a_start_centred_classifier_reads_motion_not_where_the_body_starts(sample_data):
+    """start_centred: a follower shifted sideways or forwards reads the same; raised off the floor, it does not."""
+    from imm_model.model.classifier import MotionClassifier
+
+    torch.manual_seed(0)
+    x = torch.as_tensor(sample_data.canonical(0)[1].reshape(1, -1, 45))
+    lengths = torch.tensor([x.shape[1]])
+    shifted = lambda d: (x.unflatten(-1, (-1, 3)) + torch.tensor(d)).flatten(-2)  # noqa: E731
+    for centred in (True, False):
+        model = MotionClassifier(classifier_configs.ClassifierConfig(inputs="follower", start_centred=centred), 45, 6).eval()
+        same = torch.allclose(model(x, lengths), model(shifted([0.4, 0.0, -0.3]), lengths), atol=1e-5)
+        assert same == centred
+        assert not torch.allclose(model(x, lengths), model(shifted([0.0, 0.3, 0.0]), lengths), atol=1e-5)
+    assert "start_centred" not in classifier_configs.ClassifierConfig().to_dict()  # off: older cache keys hold
+
+
 def test_classifier_config_errors_name_the_field():
     with pytest.raises(ValueError, match="classifier config: arch must be one of"):
         classifier_configs.ClassifierConfig(arch="transformer")
     with pytest.raises(ValueError, match="unknown classifier config keys"):
         classifier_configs.ClassifierConfig.from_dict({"layers": 3})
+    with pytest.raises(ValueError, match="start_centred must be false for interaction inputs"):
+        classifier_configs.ClassifierConfig(inputs="interaction", start_centred=True)
 
 
 def test_cache_reuses_and_rebuilds_a_corrupt_entry(sample_data, cache_dir, capsys):
@@ -137,13 +156,29 @@ def test_plausibility_of_real_motion_and_of_a_frozen_pose(sample_data):
     assert plausibility.plausibility(list(leaders), far, list(reals), sk, 15.0)["interpenetration"] == 0.0
 
 
+def test_afd_parts_split_where_the_follower_stands_from_how_its_limbs_move(sample_data):
+    from imm_model.evaluation.metrics import afd_parts
+
+    real = sample_data.canonical(0)[1]
+    root = sample_data.skeleton.root
+    assert afd_parts(real, real, root) == {"start_root_m": 0.0, "root_m": 0.0, "limb_m": 0.0}
+    stepped_aside = afd_parts(real + np.array([0.3, 0.0, 0.4]), real, root)  # the same motion, 0.5 m away
+    assert stepped_aside["start_root_m"] == pytest.approx(0.5) and stepped_aside["root_m"] == pytest.approx(0.5)
+    assert stepped_aside["limb_m"] == pytest.approx(0.0, abs=1e-9)
+    frozen = afd_parts(np.repeat(real[:1], len(real), 0), real, root)  # right start, then no motion at all
+    assert frozen["start_root_m"] == 0.0 and frozen["limb_m"] > 0.0
+    with pytest.raises(ValueError, match="shape"):
+        afd_parts(real[:-1], real, root)
+
+
 PLAUSIBLE = {"limb_speed_ratio": 0.5, "smooth_limb_speed_ratio": 0.4, "bone_error_cm": 1.0, "interpenetration": 0.0, "foot_skate_mps": 0.1,
              "real_bone_error_cm": 0.5, "real_interpenetration": 0.0, "real_foot_skate_mps": 0.2}
 
 
 def _fake_scores(x: float) -> dict:
     classes = {c: {"afd": x, "afd_squared": x * x, "fid": 10 * x, "accuracy": 0.5} for c in ("a", "b")}
-    return {"classes": classes, "fid": 10 * x, "accuracy": 0.5, "diversity": 1.0, "plausibility": PLAUSIBLE | {"speed_ratio": x}}
+    return {"classes": classes, "fid": 10 * x, "accuracy": 0.5, "diversity": 1.0, "plausibility": PLAUSIBLE | {"speed_ratio": x},
+            "afd_parts": {"start_root_m": x / 2, "root_m": x / 2, "limb_m": x / 4}}
 
 
 def _fake_fold_result(subject: str, group: str, seed: int, afd: float) -> dict:
@@ -175,5 +210,7 @@ def test_report_groups_folds_and_seeds():
     assert s["classes"]["a"]["ratio_nn1"] == pytest.approx(0.4)
     assert all("_latent" not in r for r in s["per_fold"])
     assert s["mix_pairs_ok"] == 1 and s["mix_pairs_ok_judge"] == 0  # 0.2 < 0.25 on the second member
+    assert s["model_overall"]["afd_parts"]["limb_m"] == pytest.approx(0.2)
     text = markdown_report(s)
     assert "## dev folds" in text and "## test folds" in text and "0.800 ± 0.141" in text
+    assert "| model | 0.400 | 0.400 | 0.200 |" in text  # where the AFD comes from, all folds and seeds

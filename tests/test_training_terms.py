@@ -50,8 +50,8 @@ def test_label_critic_scores_the_true_and_a_drawn_label(sample_data, tmp_path, m
 
 
 def test_critic_options_and_rigid_output(sample_data, tmp_path, monkeypatch):
-    """critic_true_label False: only the drawn label meets the critic; critic_mixup: the critic is a mixup-trained
-    classifier; rigid_output: every follower a loss reads has the training followers' bone lengths."""
+    """critic_true_label False: only the drawn label meets the critic; critic_mixup / critic_start_centred: the critic
+    is a mixup-trained / start-centred classifier; rigid_output: every follower a loss reads has the training followers' bone lengths."""
     from imm_model import cache
     from imm_model.training.critic import LabelCritic
 
@@ -63,9 +63,10 @@ def test_critic_options_and_rigid_output(sample_data, tmp_path, monkeypatch):
     base = replace(TINY, lambda_critic=0.1, adv_warmup_epochs=0, adv_ramp_epochs=0)
     for true_label, mixup, calls in ((True, False, 2), (False, True, 1)):
         asked.clear(), scored.clear()
-        trainer = Trainer(replace(base, critic_true_label=true_label, critic_mixup=mixup), sample_data, "s04", tmp_path)
+        trainer = Trainer(replace(base, critic_true_label=true_label, critic_mixup=mixup, critic_start_centred=mixup),
+                          sample_data, "s04", tmp_path)
         trainer.train_epoch(0)
-        assert [c.mixup for c in asked] == [mixup]
+        assert [(c.mixup, c.start_centred) for c in asked] == [(mixup, mixup)]
         assert len(scored) == calls * -(-len(trainer.train_idx) // TINY.batch_size)  # per batch
     trainer = Trainer(replace(TINY, rigid_output=True), sample_data, "s04", tmp_path)
     leader, _, lengths, actions = trainer.padded.batch(torch.as_tensor(trainer.train_idx[:4]))

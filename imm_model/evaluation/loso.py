@@ -19,7 +19,7 @@ from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold
 from imm_model.evaluation import control, distribution
 from imm_model.evaluation.baselines import HEURISTIC_BASELINES, baseline_predictions, evaluate_predictions
-from imm_model.evaluation.metrics import per_class_mean
+from imm_model.evaluation.metrics import afd_parts, per_class_mean
 from imm_model.evaluation.plausibility import frame_rate, plausibility
 from imm_model.model import classifier as classifiers
 from imm_model.model import classifier_config as classifier_configs
@@ -102,8 +102,10 @@ def method_scores(data: InteractionDataset, judges: FoldJudges, predictions: dic
         members = y == data.class_names.index(c)
         per_class[c]["fid"] = distribution.fid(judges.real_features[members], feats[members])
     reals = [data.canonical(int(i))[1] for i in test]
+    parts = [afd_parts(f, r, data.skeleton.root) for f, r in zip(followers, reals, strict=True)]
     return {"classes": per_class, "fid": distribution.fid(judges.real_features, feats),
             "accuracy": distribution.accuracy(probs, y), "diversity": distribution.diversity(feats),
+            "afd_parts": {k: float(np.mean([p[k] for p in parts])) for k in parts[0]},
             "plausibility": plausibility(judges.leaders, followers, reals, data.skeleton, frame_rate(data.dataset))}
 
 

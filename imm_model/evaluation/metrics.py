@@ -8,6 +8,10 @@ this is exact. Per class = mean over that class's test sequences.
 
 AFD squared: the same mean over frames of the *squared* norm, which is what the authors' public code
 computes (named apart so that nobody compares it with the paper's table by mistake).
+
+AFD parts (`afd_parts`, metres): where a follower's distance from the real one comes from. The root's offset on
+the first frame (where the follower stands when the interaction starts: the leader's motion alone does not say),
+the root's mean offset over the sequence, and the joints' mean offset relative to their own root (the limbs).
 """
 
 from __future__ import annotations
@@ -47,6 +51,17 @@ def afd(
     pred = metres_to_normalized(frame.to_world(np.asarray(pred_canonical, np.float64), skeleton))
     gt = metres_to_normalized(frame.to_world(np.asarray(gt_canonical, np.float64), skeleton))
     return float((frame_distances(pred, gt) ** power).mean())
+
+
+def afd_parts(pred_canonical: np.ndarray, gt_canonical: np.ndarray, root: int) -> dict[str, float]:
+    """(T, J, 3) canonical metres, both -> {start_root_m, root_m, limb_m} (module docstring)."""
+    pred, gt = np.asarray(pred_canonical, np.float64), np.asarray(gt_canonical, np.float64)
+    if pred.shape != gt.shape:
+        raise ValueError(f"prediction shape {pred.shape} differs from ground truth {gt.shape}")
+    root_offset = np.linalg.norm(pred[:, root] - gt[:, root], axis=-1)  # (T,)
+    limbs = (pred - pred[:, root:root + 1]) - (gt - gt[:, root:root + 1])
+    return {"start_root_m": float(root_offset[0]), "root_m": float(root_offset.mean()),
+            "limb_m": float(np.linalg.norm(limbs, axis=-1).mean())}
 
 
 def per_class_mean(values: Mapping[int, float], actions: np.ndarray, class_names: Sequence[str]) -> dict[str, float]:

@@ -40,7 +40,9 @@ def _overall(results: list[dict], get) -> dict:
     out: dict = {}
     for key in ("fid", "accuracy", "diversity"):
         _with_std(out, key, [get(r)[key] for r in results])
-    out["plausibility"] = {k: _stat([get(r)["plausibility"][k] for r in results])[0] for k in get(results[0])["plausibility"]}
+    for part in ("plausibility", "afd_parts"):
+        if all(part in get(r) for r in results):  # results saved before AFD parts were measured have none
+            out[part] = {k: _stat([get(r)[part][k] for r in results])[0] for k in get(results[0])[part]}
     return out
 
 

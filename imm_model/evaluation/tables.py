@@ -77,6 +77,19 @@ def plausibility_table(group: dict) -> str:
     return "\n".join(lines)
 
 
+def afd_parts_table(group: dict) -> str:
+    """Where the AFD comes from (metrics.afd_parts), model beside each baseline; empty without the numbers."""
+    rows = [("model", group["model_overall"])] + [(BASELINE_TITLES.get(b, b), v) for b, v in group["baselines_overall"].items()]
+    if not all("afd_parts" in o for _, o in rows):
+        return ""
+    lines = ["| method | root offset, first frame (m) | root offset, mean (m) | joints relative to the root (m) |",
+             "|---|---:|---:|---:|"]
+    for name, o in rows:
+        p = o["afd_parts"]
+        lines.append(f"| {name} | {p['start_root_m']:.3f} | {p['root_m']:.3f} | {p['limb_m']:.3f} |")
+    return "\n".join(lines)
+
+
 def overall_table(group: dict) -> str:
     lines = ["| method | FID (all classes) | recognition accuracy | diversity (real: {:.2f}) |".format(group["real_diversity"]),
              "|---|---:|---:|---:|"]
@@ -102,11 +115,16 @@ def headline(summary: dict) -> str:
     return "\n".join(lines)
 
 
+def _section(title: str, table: str) -> list[str]:
+    return [f"### {title}", "", table, ""] if table else []
+
+
 def markdown_report(summary: dict) -> str:
     parts = ["# Evaluation", "", headline(summary).replace("\n", "\n\n"), ""]
     groups = summary["groups"] if len(summary["groups"]) > 2 else {"all": summary["groups"]["all"]}  # all == its one group
     for g, s in groups.items():
         parts += [f"## {g} folds", "", "### AFD (normalized SBU units, lower is better)", "", metric_table(s, "afd"), "",
+                  *_section("Where the AFD comes from (canonical metres, per joint and frame)", afd_parts_table(s)),
                   "### AFD squared (the authors' code's variant)", "", metric_table(s, "afd_squared"), "",
                   "### FID per class (interaction-classifier features)", "", metric_table(s, "fid", 2), "",
                   "### All classes", "", overall_table(s), "",

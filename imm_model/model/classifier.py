@@ -49,9 +49,18 @@ class MotionClassifier(nn.Module):
         """(B, T, D) positions -> (B, T, 2D) positions and per-frame velocities (0 at the first frame)."""
         return torch.cat([x, torch.diff(x, dim=1, prepend=x[:, :1])], dim=-1)
 
+    def positions(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, T, D) canonical metres -> the positions the network reads: with cfg.start_centred, relative to the
+        horizontal centroid of the body's joints on the first frame (Y is up, so heights are kept)."""
+        if not self.cfg.start_centred:
+            return x
+        p = x.unflatten(-1, (-1, 3))
+        origin = p[:, :1].mean(2, keepdim=True) * torch.tensor([1.0, 0.0, 1.0], device=x.device)
+        return (p - origin).flatten(-2)
+
     def features(self, x: torch.Tensor, lengths: torch.Tensor) -> torch.Tensor:
         """x (B, T, D) canonical metres (padded), lengths (B,) -> (B, features): the FID embedding."""
-        z = (self.frame_inputs(x) - self.mean) / self.std
+        z = (self.frame_inputs(self.positions(x)) - self.mean) / self.std
         mask = (torch.arange(x.shape[1], device=x.device)[None] < lengths[:, None]).float()[..., None]
         if self.cfg.arch == "gru":  # packed, so neither direction reads padding: a batch never changes a result
             packed = nn.utils.rnn.pack_padded_sequence(z, lengths.cpu(), batch_first=True, enforce_sorted=False)
@@ -106,7 +115,7 @@ def train_classifier(cfg: ClassifierConfig, sequences: list[np.ndarray], labels:
     x, lengths = _pad(sequences)
     y = torch.as_tensor(np.asarray(labels), dtype=torch.int64)
     model = MotionClassifier(cfg, x.shape[-1], num_classes)
-    frames = MotionClassifier.frame_inputs(x)[torch.arange(x.shape[1])[None] < lengths[:, None]]
+    frames = MotionClassifier.frame_inputs(model.positions(x))[torch.arange(x.shape[1])[None] < lengths[:, None]]
     model.mean.copy_(frames.mean(0))
     model.std.copy_(frames.std(0).clamp(min=1e-2))
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)

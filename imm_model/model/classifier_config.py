@@ -30,6 +30,10 @@ class ClassifierConfig:
     # U(0, 1), the target blended alike, so the classifier's probabilities between classes follow real motion
     # (a training critic for mixed labels; model/classifier.py)
     mixup: bool = False
+    # positions taken relative to where the body stood on the first frame (horizontally; heights kept), so the
+    # classifier reads how the follower moves, not where it starts: a training critic then cannot pull a
+    # generated follower's starting spot towards its class's typical distance (docs/training.md, session 14)
+    start_centred: bool = False
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -42,6 +46,7 @@ class ClassifierConfig:
             ("batch_size", isinstance(self.batch_size, int) and self.batch_size >= 1, "an integer >= 1"),
             ("dropout", 0 <= self.dropout < 1, "in [0, 1)"),
             ("lr", self.lr > 0, "> 0"),
+            ("start_centred", not self.start_centred or self.inputs == "follower", "false for interaction inputs"),
         )
         for name, ok, expected in checks:
             if not ok:
@@ -49,8 +54,9 @@ class ClassifierConfig:
 
     def to_dict(self) -> dict:
         d = asdict(self)
-        if not self.mixup:  # absent when off, so that classifiers cached before the option keep their keys
-            del d["mixup"]
+        for option in ("mixup", "start_centred"):  # absent when off, so classifiers cached before it keep their keys
+            if not d[option]:
+                del d[option]
         return d
 
     @classmethod

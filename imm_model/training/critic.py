@@ -29,13 +29,15 @@ class LabelCritic:
     @classmethod
     def for_fold(cls, cfg, data, subject: str | None, device) -> LabelCritic:
         """The critic a training config asks for: one follower GRU per `critic_seeds` (mixup-trained with
-        `critic_mixup`), trained on fold `subject`'s real training followers and cached."""
+        `critic_mixup`, reading motion from the first frame's spot with `critic_start_centred`), trained on fold
+        `subject`'s real training followers and cached."""
         from dataclasses import replace
 
         from imm_model import cache
         from imm_model.model.classifier_config import FOLLOWER
 
-        configs = [replace(FOLLOWER, seed=s, mixup=cfg.critic_mixup) for s in cfg.critic_seeds]
+        configs = [replace(FOLLOWER, seed=s, mixup=cfg.critic_mixup, start_centred=cfg.critic_start_centred)
+                   for s in cfg.critic_seeds]
         return cls([cache.fold_classifier(c, data, subject).to(device) for c in configs], augment=cfg.critic_augment)
 
     def loss(self, follower: torch.Tensor, lengths: torch.Tensor, target: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
