@@ -38,7 +38,7 @@ class ReadsAs:
             raise CheckpointError(f"{path}: not a reaction classifier ({type(err).__name__}: {err})") from None
         if cfg.inputs != "follower":
             raise CheckpointError(f"{path}: a {cfg.inputs} classifier; the studio needs a follower-only one")
-        if cfg.arch == "conv":
+        if cfg.arch == "conv" and not cfg.start_centred:  # the numpy runtime reads positions as they come
             check_state(arrays, NumpyConvClassifier.expected_shapes(cfg.hidden, cfg.features, pose_dim, len(names)), "classifier", path)
             return cls(NumpyConvClassifier(arrays), names, meta)
         return cls(_torch_classifier(cfg, arrays, pose_dim, len(names), path), names, meta)
