@@ -155,6 +155,24 @@ def test_reads_as_refuses_other_classes_and_files(sample_data, model, tmp_path):
         ReadsAs.load(SAMPLE_CHECKPOINT)
 
 
+def test_reads_as_centres_a_start_centred_conv_classifier(sample_data, tmp_path):
+    """A start-centred conv classifier file runs on torch (which centres it), not on the numpy runtime (which would not):
+    a follower shifted sideways reads the same."""
+    from imm_model.checkpoint import save_checkpoint
+    from imm_model.model.classifier import MotionClassifier
+    from imm_model.model.classifier_config import ClassifierConfig
+    from imm_model.reads_as import ReadsAs
+
+    cfg = ClassifierConfig(inputs="follower", arch="conv", start_centred=True)
+    path = tmp_path / "centred.safetensors"
+    save_checkpoint(path, MotionClassifier(cfg, 45, 6).state_dict(),
+                    {"kind": "classifier", "config": cfg.to_dict(), "class_names": list(sample_data.class_names)})
+    reader = ReadsAs.load(path)
+    follower = sample_data.canonical(0)[1]
+    np.testing.assert_allclose(reader.probabilities(follower + np.array([0.5, 0.0, -0.2], np.float32)),
+                               reader.probabilities(follower), atol=1e-5)
+
+
 def test_playback_speed_from_the_page_is_clamped():
     from explorer.playback import playback_speed
 
