@@ -31,8 +31,9 @@ class ClassifierConfig:
     # (a training critic for mixed labels; model/classifier.py)
     mixup: bool = False
     # positions taken relative to where the body stood on the first frame (horizontally; heights kept), so the
-    # classifier reads how the follower moves, not where it starts: a training critic then cannot pull a
-    # generated follower's starting spot towards its class's typical distance (docs/training.md, session 14)
+    # classifier reads how the follower moves, not where it starts. As a training critic it was meant to stop pulling
+    # a follower's starting spot towards its class's typical distance; measured, it did not move the start and cost
+    # adherence and mixes (docs/training.md, "Session 14")
     start_centred: bool = False
     seed: int = 0
 

@@ -44,7 +44,8 @@ class TrainConfig:
     # The critic also scores the follower for the true label. Off: only drawn labels meet it, and the true-label
     # follower, which has a ground truth, is left to L1 and the other reconstruction terms.
     critic_true_label: bool = True
-    # the critic reads the follower relative to where it stood on the first frame (model/classifier_config.py)
+    # the critic reads the follower relative to where it stood on the first frame (model/classifier_config.py; tried
+    # in session 14, not adopted)
     critic_start_centred: bool = False
     critic_mixup: bool = False  # the critic is trained with mixup (model/classifier_config.py): a mix's 50/50 target
     # then asks for motion between the two classes' real reactions, not for whatever one network finds ambiguous
