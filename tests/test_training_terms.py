@@ -50,7 +50,8 @@ def test_label_critic_scores_the_true_and_a_drawn_label(sample_data, tmp_path, m
 
 
 def test_critic_options_and_rigid_output(sample_data, tmp_path, monkeypatch):
-    """critic_true_label False: only the drawn label meets the critic; critic_mixup / critic_start_centred: the critic
+    """critic_true_label False: only the drawn label meets the critic (critic_true_confidence: the true label's
+    alone); critic_mixup / critic_start_centred: the critic
     is a mixup-trained / start-centred classifier; rigid_output: every follower a loss reads has the training followers' bone lengths."""
     from imm_model import cache
     from imm_model.training.critic import LabelCritic
@@ -59,15 +60,16 @@ def test_critic_options_and_rigid_output(sample_data, tmp_path, monkeypatch):
     asked, scored = [], []
     monkeypatch.setattr(cache, "fold_classifier", lambda cfg, *a, **k: asked.append(cfg) or quick)
     real_loss = LabelCritic.loss
-    monkeypatch.setattr(LabelCritic, "loss", lambda self, x, *a: scored.append(len(x)) or real_loss(self, x, *a))
+    monkeypatch.setattr(LabelCritic, "loss", lambda self, x, *a: scored.append(a[3]) or real_loss(self, x, *a))
     base = replace(TINY, lambda_critic=0.1, adv_warmup_epochs=0, adv_ramp_epochs=0)
     for true_label, mixup, calls in ((True, False, 2), (False, True, 1)):
         asked.clear(), scored.clear()
-        trainer = Trainer(replace(base, critic_true_label=true_label, critic_mixup=mixup, critic_start_centred=mixup),
-                          sample_data, "s04", tmp_path)
+        trainer = Trainer(replace(base, critic_true_label=true_label, critic_mixup=mixup, critic_start_centred=mixup,
+                                  critic_true_confidence=0.6), sample_data, "s04", tmp_path)
         trainer.train_epoch(0)
         assert [(c.mixup, c.start_centred) for c in asked] == [(mixup, mixup)]
         assert len(scored) == calls * -(-len(trainer.train_idx) // TINY.batch_size)  # per batch
+        assert scored[:calls] == [0.6, 1.0][2 - calls:]  # the floor is the true label's alone
     trainer = Trainer(replace(TINY, rigid_output=True), sample_data, "s04", tmp_path)
     leader, _, lengths, actions = trainer.padded.batch(torch.as_tensor(trainer.train_idx[:4]))
     labels = torch.nn.functional.one_hot(actions, 6).float()
@@ -122,3 +124,28 @@ def test_label_critic_ensemble_and_augmentation(sample_data):
     assert x.grad is not None and x.grad.abs().sum() > 0
     with pytest.raises(ValueError, match="critic_seeds must be"):
         replace(TINY, critic_seeds=())
+
+
+def test_true_label_confidence_stops_the_pull_on_a_readable_follower(sample_data):
+    """critic_true_confidence < 1: a follower the critic reads as its class with at least that probability adds no
+    loss and no gradient; one read below it keeps the plain cross-entropy, less the floor."""
+    from imm_model.model.classifier import MotionClassifier
+    from imm_model.model.classifier_config import ClassifierConfig
+    from imm_model.training.critic import LabelCritic
+
+    torch.manual_seed(0)
+    clf = MotionClassifier(ClassifierConfig(inputs="follower", hidden=8, features=8), 45, 6)
+    x = torch.as_tensor(sample_data.canonical(0)[1].reshape(1, -1, 45)).repeat(2, 1, 1).requires_grad_(True)
+    lengths, gen = torch.tensor([x.shape[1]] * 2), torch.Generator().manual_seed(0)
+    probs = clf(x, lengths).softmax(-1).detach()
+    likely, unlikely = int(probs[0].argmax()), int(probs[0].argmin())
+    critic = LabelCritic([clf])
+    read = float(probs[0, likely])
+    above = critic.loss(x[:1], lengths[:1], torch.eye(6)[[likely]], gen, confidence=read * 0.99)
+    above.backward()
+    assert float(above) == 0.0 and x.grad.abs().sum() == 0
+    plain = critic.loss(x[1:], lengths[1:], torch.eye(6)[[unlikely]], gen)
+    floored = critic.loss(x[1:], lengths[1:], torch.eye(6)[[unlikely]], gen, confidence=0.9)
+    torch.testing.assert_close(floored, plain + np.log(0.9), rtol=1e-5, atol=1e-6)
+    with pytest.raises(ValueError, match="critic_true_confidence must be in"):
+        replace(TINY, critic_true_confidence=0.0)

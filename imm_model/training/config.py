@@ -44,6 +44,9 @@ class TrainConfig:
     # The critic also scores the follower for the true label. Off: only drawn labels meet it, and the true-label
     # follower, which has a ground truth, is left to L1 and the other reconstruction terms.
     critic_true_label: bool = True
+    # ... and only until it reads as its class with this probability (1: always, a plain cross-entropy). Below 1 the
+    # critic stops pulling a recognisable true-label follower towards its class's most typical reaction.
+    critic_true_confidence: float = 1.0
     # the critic reads the follower relative to where it stood on the first frame (model/classifier_config.py; tried
     # in session 14, not adopted)
     critic_start_centred: bool = False
@@ -116,6 +119,7 @@ class TrainConfig:
             ("discriminator", self.discriminator in DISCRIMINATORS, f"one of {DISCRIMINATORS}"),
             ("lambda_critic", self.lambda_critic >= 0, ">= 0 (0 = off)"),
             ("critic_mix_prob", 0 <= self.critic_mix_prob <= 1, "in [0, 1]"),
+            ("critic_true_confidence", 0 < self.critic_true_confidence <= 1, "in (0, 1]"),
             ("critic_seeds", len(self.critic_seeds) >= 1 and all(0 <= s < 2**31 for s in self.critic_seeds),
              "a non-empty list of seeds"),
             ("lambda_energy", self.lambda_energy >= 0, ">= 0 (0 = off)"),

@@ -11,6 +11,8 @@ have no ground truth. The evaluation judges adherence with a different classifie
 
 from __future__ import annotations
 
+import math
+
 import torch
 import torch.nn.functional as F
 
@@ -40,15 +42,21 @@ class LabelCritic:
                    for s in cfg.critic_seeds]
         return cls([cache.fold_classifier(c, data, subject).to(device) for c in configs], augment=cfg.critic_augment)
 
-    def loss(self, follower: torch.Tensor, lengths: torch.Tensor, target: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
-        """follower (B, T, 3J) canonical metres, target (B, C) class probabilities -> soft cross-entropy (mean)."""
+    def loss(self, follower: torch.Tensor, lengths: torch.Tensor, target: torch.Tensor, gen: torch.Generator,
+             confidence: float = 1.0) -> torch.Tensor:
+        """follower (B, T, 3J) canonical metres, target (B, C) class probabilities -> soft cross-entropy (mean).
+
+        With `confidence` < 1 (one-hot targets), a follower the critic already reads as its class with at least that
+        probability adds nothing: the term asks for a readable reaction, not for the most prototypical one."""
+        floor = -math.log(confidence)
         total = follower.new_zeros(())
         # cuDNN refuses to backpropagate through an RNN in eval mode, and the frozen critic must stay in eval
         # mode (no dropout); PyTorch's own RNN kernels compute the same function on the GPU.
         with torch.backends.cudnn.flags(enabled=False):
             for clf in self.classifiers:
                 x = augment(follower, clf.cfg, gen) if self.augment else follower
-                total = total + F.cross_entropy(clf(x, lengths), target)
+                per_row = F.cross_entropy(clf(x, lengths), target, reduction="none")
+                total = total + (per_row - floor).clamp(min=0).mean()
         return total / len(self.classifiers)
 
 

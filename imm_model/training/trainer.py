@@ -303,10 +303,10 @@ class Trainer:
             c = len(self.data.class_names)
             labels, target = (x.to(self.device) for x in drawn_labels(actions.cpu(), c, cfg.critic_mix_prob, gen))
             other = self.generate(self.G, leader, labels, lengths)
-            scored = [(other, target)]
+            scored = [(other, target, 1.0)]
             if cfg.critic_true_label:  # first, as before the option existed: augmentation draws from gen in order
-                scored.insert(0, (fake, torch.nn.functional.one_hot(actions, c).float()))
-            critic = sum(self.critic.loss(x, lengths, t, gen) for x, t in scored)
+                scored.insert(0, (fake, torch.nn.functional.one_hot(actions, c).float(), cfg.critic_true_confidence))
+            critic = sum(self.critic.loss(x, lengths, t, gen, confidence) for x, t, confidence in scored)
             g_loss = g_loss + w_critic * critic
             terms["critic"] = float(critic.detach())
             if w_energy > 0:
