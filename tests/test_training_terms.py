@@ -149,3 +149,21 @@ def test_true_label_confidence_stops_the_pull_on_a_readable_follower(sample_data
     torch.testing.assert_close(floored, plain + np.log(0.9), rtol=1e-5, atol=1e-6)
     with pytest.raises(ValueError, match="critic_true_confidence must be in"):
         replace(TINY, critic_true_confidence=0.0)
+
+
+def test_root_term_is_the_root_joints_own_l1(sample_data, tmp_path):
+    """lambda_root > 0: the log's "root" is the root joint's L1 alone, below the whole pose's when the follower is
+    placed well, and it adds to the generator's loss; a negative weight is refused by name."""
+    trainer = Trainer(replace(TINY, lambda_root=1.0), sample_data, "s04", tmp_path)
+    leader, follower, lengths, actions = trainer.padded.batch(torch.as_tensor(trainer.train_idx[:4]))
+    mask = torch.arange(follower.shape[1])[None] < lengths[:, None]
+    root = sample_data.skeleton.root
+    fake = follower.clone()
+    fake[..., 3 * root:3 * root + 3] += 0.5  # only the root joint misplaced
+    with_root, terms = trainer._generator_loss(0, leader, follower, fake, lengths, actions, mask, torch.Generator())
+    assert terms["root"] == pytest.approx(0.5, rel=1e-5) and terms["l1"] == pytest.approx(0.5 / 15, rel=1e-5)
+    trainer.cfg = replace(trainer.cfg, lambda_root=0.0)
+    without_root, terms = trainer._generator_loss(0, leader, follower, fake, lengths, actions, mask, torch.Generator())
+    assert "root" not in terms and float(with_root - without_root) == pytest.approx(0.5, rel=1e-4)
+    with pytest.raises(ValueError, match="lambda_root must be >= 0"):
+        replace(TINY, lambda_root=-1.0)

@@ -33,6 +33,9 @@ class TrainConfig:
     # "mean": L1 averaged over valid frames and coordinates; "sum": summed over batch x valid frames x coordinates,
     # as the authors' released code does, which makes every other term (adversarial weight 1) ~1e-4 as strong.
     l1_reduction: str = "mean"
+    # The root joint's own L1, on top of its share of lambda_l1: where the follower stands is most of the AFD
+    # (docs/evaluation.md, "Where the AFD comes from") and the critic and energy terms compete with it. 0 = off.
+    lambda_root: float = 0.0
     lambda_afd: float = 0.0  # direct per-frame pose-vector distance (the AFD itself, metres); 0 in the paper
     # Label critic (training/critic.py): a frozen follower-only classifier trained on the fold's real training
     # followers scores the generated follower for the true label and for a drawn other label (with probability
@@ -107,7 +110,7 @@ class TrainConfig:
     def __post_init__(self) -> None:
         # checked here so a bad JSON recipe fails at load time with the field's name, not mid-epoch
         ModelConfig.from_dict(dict(self.model))  # model sizes: types and ranges checked now, not when training starts
-        for name in ("lambda_adv", "lambda_l1", "lambda_bone", "lambda_cont", "lambda_afd"):
+        for name in ("lambda_adv", "lambda_l1", "lambda_root", "lambda_bone", "lambda_cont", "lambda_afd"):
             if getattr(self, name) < 0:
                 raise ValueError(f"training config: {name} must be >= 0, not {getattr(self, name)!r}")
         checks = (

@@ -36,7 +36,7 @@ from imm_model.training.penetration import penetration_loss
 from imm_model.training.relation import class_relations, relation_loss
 from imm_model.training.rigid import RigidBones
 
-LOSS_TERMS = ("l1", "bone", "cont", "adv", "critic", "energy", "relation", "penetration")
+LOSS_TERMS = ("l1", "root", "bone", "cont", "adv", "critic", "energy", "relation", "penetration")
 LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", *LOSS_TERMS, "d_loss", "d_real_acc", "d_fake_acc", "val_afd_m", "val_l1", "seconds")
 
 
@@ -282,6 +282,11 @@ class Trainer:
         l1_term = l1 * (mask.sum() * fake.shape[-1]) if cfg.l1_reduction == "sum" else l1
         g_loss = cfg.lambda_l1 * l1_term + cfg.lambda_bone * bone + cfg.lambda_cont * cont
         terms = {"l1": float(l1.detach()), "bone": float(bone.detach()), "cont": float(cont.detach())}
+        if cfg.lambda_root > 0:
+            root_coords = slice(3 * self.data.skeleton.root, 3 * self.data.skeleton.root + 3)
+            root_l1 = losses.masked_l1(fake[..., root_coords], follower[..., root_coords], mask)
+            g_loss = g_loss + cfg.lambda_root * root_l1
+            terms["root"] = float(root_l1.detach())
         if cfg.lambda_afd > 0:
             g_loss = g_loss + cfg.lambda_afd * losses.afd_metres(fake, follower, mask).mean()
         w_critic = adversarial_weight(cfg, epoch, cfg.lambda_critic)
@@ -299,31 +304,38 @@ class Trainer:
             g_loss = g_loss + w_penetration * penetration
             terms["penetration"] = float(penetration.detach())
         if self.critic is not None and w_critic > 0:
-            # a follower for a drawn label: no ground truth, so only the critic (and energy) terms apply to it
-            c = len(self.data.class_names)
-            labels, target = (x.to(self.device) for x in drawn_labels(actions.cpu(), c, cfg.critic_mix_prob, gen))
-            other = self.generate(self.G, leader, labels, lengths)
-            scored = [(other, target, 1.0)]
-            if cfg.critic_true_label:  # first, as before the option existed: augmentation draws from gen in order
-                scored.insert(0, (fake, torch.nn.functional.one_hot(actions, c).float(), cfg.critic_true_confidence))
-            critic = sum(self.critic.loss(x, lengths, t, gen, confidence) for x, t, confidence in scored)
-            g_loss = g_loss + w_critic * critic
-            terms["critic"] = float(critic.detach())
-            if w_energy > 0:
-                g_loss = g_loss + w_energy * energy_loss(other, mixed_profile(labels, self.profiles), lengths, root)
-            if w_penetration > 0:
-                g_loss = g_loss + w_penetration * penetration_loss(leader, other, mask, self.bones)
-            if self.relations is not None and (w_relation := adversarial_weight(cfg, epoch, cfg.lambda_relation)) > 0:
-                target = mixed_profile(labels, self.relations)
-                relation = relation_loss(leader, other, target, lengths, root, self.data.skeleton.vertical_axis)
-                g_loss = g_loss + w_relation * relation
-                terms["relation"] = float(relation.detach())
+            critic_loss, critic_terms = self._critic_loss(epoch, leader, fake, lengths, actions, mask, gen, w_critic)
+            g_loss = g_loss + critic_loss
+            terms |= critic_terms
         if cfg.lambda_adv > 0 and (w_adv := adversarial_weight(cfg, epoch)) > 0:
             self.D.requires_grad_(False)
             adv = losses.generator_adv_loss(self.D(fake, lengths), actions, cfg.discriminator)
             g_loss = g_loss + w_adv * adv
             terms["adv"] = float(adv.detach())
         return g_loss, terms
+
+    def _critic_loss(self, epoch, leader, fake, lengths, actions, mask, gen, w_critic) -> tuple[torch.Tensor, dict]:
+        """The label critic's terms: the true-label follower and one for a drawn label; the drawn one has no ground
+        truth, so only the critic (and energy, interpenetration and relation) terms apply to it."""
+        cfg, root = self.cfg, self.data.skeleton.root
+        c = len(self.data.class_names)
+        labels, target = (x.to(self.device) for x in drawn_labels(actions.cpu(), c, cfg.critic_mix_prob, gen))
+        other = self.generate(self.G, leader, labels, lengths)
+        scored = [(other, target, 1.0)]
+        if cfg.critic_true_label:  # first, as before the option existed: augmentation draws from gen in order
+            scored.insert(0, (fake, torch.nn.functional.one_hot(actions, c).float(), cfg.critic_true_confidence))
+        critic = sum(self.critic.loss(x, lengths, t, gen, confidence) for x, t, confidence in scored)
+        loss, terms = w_critic * critic, {"critic": float(critic.detach())}
+        if (w_energy := adversarial_weight(cfg, epoch, cfg.lambda_energy)) > 0:
+            loss = loss + w_energy * energy_loss(other, mixed_profile(labels, self.profiles), lengths, root)
+        if (w_penetration := adversarial_weight(cfg, epoch, cfg.lambda_penetration)) > 0:
+            loss = loss + w_penetration * penetration_loss(leader, other, mask, self.bones)
+        if self.relations is not None and (w_relation := adversarial_weight(cfg, epoch, cfg.lambda_relation)) > 0:
+            relation = relation_loss(leader, other, mixed_profile(labels, self.relations), lengths, root,
+                                     self.data.skeleton.vertical_axis)
+            loss = loss + w_relation * relation
+            terms["relation"] = float(relation.detach())
+        return loss, terms
 
     @torch.no_grad()
     def _update_ema(self, step: int) -> None:
