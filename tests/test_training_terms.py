@@ -167,3 +167,25 @@ def test_root_term_is_the_root_joints_own_l1(sample_data, tmp_path):
     assert "root" not in terms and float(with_root - without_root) == pytest.approx(0.5, rel=1e-4)
     with pytest.raises(ValueError, match="lambda_root must be >= 0"):
         replace(TINY, lambda_root=-1.0)
+
+
+def test_start_term_ties_the_drawn_labels_first_frame_root_to_the_true_ones(sample_data, tmp_path, monkeypatch):
+    """lambda_start > 0: the drawn label's follower is pulled to where the true label's starts on the first frame, and
+    the true one is not pulled back (it is held fixed); without the critic the option is refused by name."""
+    from imm_model import cache
+
+    monkeypatch.setattr(cache, "fold_classifier", lambda *a, **k: quick_follower_classifier(sample_data))
+    cfg = replace(TINY, lambda_critic=0.1, critic_true_label=False, lambda_start=1.0, adv_warmup_epochs=0,
+                  adv_ramp_epochs=0)
+    trainer = Trainer(cfg, sample_data, "s04", tmp_path)
+    leader, _, lengths, actions = trainer.padded.batch(torch.as_tensor(trainer.train_idx[:4]))
+    mask = torch.arange(leader.shape[1])[None] < lengths[:, None]
+    fake = trainer.generate(trainer.G, leader, torch.nn.functional.one_hot(actions, 6).float(), lengths).detach()
+    fake = (fake + 0.3).requires_grad_(True)  # the true-label follower stands elsewhere
+    loss, terms = trainer._critic_loss(0, leader, fake, lengths, actions, mask, torch.Generator().manual_seed(0), 0.0)
+    assert terms["start"] > 0.25  # mostly the 0.3 m moved; the drawn label's own offset is small for an untrained G
+    loss.backward()
+    assert fake.grad is None or fake.grad.abs().sum() == 0
+    assert any(p.grad is not None and p.grad.abs().sum() > 0 for p in trainer.G.parameters())
+    with pytest.raises(ValueError, match="lambda_start must be"):
+        replace(TINY, lambda_start=1.0)

@@ -50,6 +50,10 @@ class TrainConfig:
     # ... and only until it reads as its class with this probability (1: always, a plain cross-entropy). Below 1 the
     # critic stops pulling a recognisable true-label follower towards its class's most typical reaction.
     critic_true_confidence: float = 1.0
+    # The drawn label's follower starts where the true label's stands (L1 between their first-frame roots, the true
+    # one held fixed): the label changes the reaction, not where the follower stands before it (as in the studio,
+    # where a slider should not move the follower's starting spot). Weight follows the adversarial ramp. 0 = off.
+    lambda_start: float = 0.0
     # the critic reads the follower relative to where it stood on the first frame (model/classifier_config.py; tried
     # in session 14, not adopted)
     critic_start_centred: bool = False
@@ -123,6 +127,8 @@ class TrainConfig:
             ("lambda_critic", self.lambda_critic >= 0, ">= 0 (0 = off)"),
             ("critic_mix_prob", 0 <= self.critic_mix_prob <= 1, "in [0, 1]"),
             ("critic_true_confidence", 0 < self.critic_true_confidence <= 1, "in (0, 1]"),
+            ("lambda_start", self.lambda_start >= 0 and (self.lambda_start == 0 or self.lambda_critic > 0),
+             ">= 0, and used with lambda_critic > 0 (it ties the critic's drawn labels to the true one)"),
             ("critic_seeds", len(self.critic_seeds) >= 1 and all(0 <= s < 2**31 for s in self.critic_seeds),
              "a non-empty list of seeds"),
             ("lambda_energy", self.lambda_energy >= 0, ">= 0 (0 = off)"),

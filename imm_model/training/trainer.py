@@ -36,7 +36,7 @@ from imm_model.training.penetration import penetration_loss
 from imm_model.training.relation import class_relations, relation_loss
 from imm_model.training.rigid import RigidBones
 
-LOSS_TERMS = ("l1", "root", "bone", "cont", "adv", "critic", "energy", "relation", "penetration")
+LOSS_TERMS = ("l1", "root", "bone", "cont", "adv", "critic", "start", "energy", "relation", "penetration")
 LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", *LOSS_TERMS, "d_loss", "d_real_acc", "d_fake_acc", "val_afd_m", "val_l1", "seconds")
 
 
@@ -326,6 +326,11 @@ class Trainer:
             scored.insert(0, (fake, torch.nn.functional.one_hot(actions, c).float(), cfg.critic_true_confidence))
         critic = sum(self.critic.loss(x, lengths, t, gen, confidence) for x, t, confidence in scored)
         loss, terms = w_critic * critic, {"critic": float(critic.detach())}
+        if (w_start := adversarial_weight(cfg, epoch, cfg.lambda_start)) > 0:
+            coords = slice(3 * root, 3 * root + 3)
+            start = (other[:, 0, coords] - fake[:, 0, coords].detach()).abs().mean()
+            loss = loss + w_start * start
+            terms["start"] = float(start.detach())
         if (w_energy := adversarial_weight(cfg, epoch, cfg.lambda_energy)) > 0:
             loss = loss + w_energy * energy_loss(other, mixed_profile(labels, self.profiles), lengths, root)
         if (w_penetration := adversarial_weight(cfg, epoch, cfg.lambda_penetration)) > 0:
