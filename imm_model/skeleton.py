@@ -41,6 +41,12 @@ class Skeleton:
         return self.parents.index(-1)
 
     @property
+    def root_neighbours(self) -> list[int]:
+        """The joints attached to the root (Kinect: neck and hips): their centre is a body frame that the root joint's
+        own sway does not move."""
+        return [j for j, p in enumerate(self.parents) if p == self.root]
+
+    @property
     def bones(self) -> list[tuple[int, int]]:
         """(parent, child) pairs, one per non-root joint."""
         return [(p, j) for j, p in enumerate(self.parents) if p >= 0]

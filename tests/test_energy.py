@@ -33,6 +33,18 @@ def test_limb_speed_is_relative_to_the_root_and_ignores_padding():
     assert torch.allclose(limb_speeds(padded, torch.tensor([30]), ROOT), s, atol=1e-6)
 
 
+def test_limb_speed_from_the_body_centre_ignores_a_swaying_root():
+    """energy_reference "body": speeds relative to the centre of several joints, so the reference joint swinging
+    alone moves only itself there, where from the root it moves every other joint."""
+    t = torch.arange(30, dtype=torch.float32)
+    p = torch.zeros(30, 4, 3)
+    p[:, ROOT, 0] = 0.05 * torch.sin(0.5 * t)  # the root swings; joints 1-3 stand still
+    pose = p.reshape(1, 30, 12)
+    from_root = limb_speeds(pose, torch.tensor([30]), ROOT)
+    from_body = limb_speeds(pose, torch.tensor([30]), [1, 2])
+    assert from_root[0, 1:].min() > 0.01 and from_body[0, 1:].abs().max() < 1e-6 and from_body[0, ROOT] > 0.01
+
+
 def test_limb_speed_matches_the_evaluation_on_smoothed_motion():
     """The training target is what the evaluation measures: mean speed of the Savitzky-Golay smoothed motion."""
     rng = np.random.default_rng(0)
@@ -78,6 +90,11 @@ def test_trainer_logs_the_energy_term(sample_data, tmp_path):
     assert trainer.train_epoch(0)["energy"] > 0
     with pytest.raises(ValueError, match="lambda_energy must be"):
         replace(TINY, lambda_energy=-1.0)
+    body = Trainer(replace(TINY, lambda_energy=1.0, energy_reference="body"), sample_data, "s04", tmp_path)
+    assert body.energy_reference == sample_data.skeleton.root_neighbours
+    assert not torch.allclose(body.profiles, trainer.profiles)  # the real followers' speeds from another frame
+    with pytest.raises(ValueError, match="energy_reference must be 'root' or 'body'"):
+        replace(TINY, energy_reference="pelvis")
 
 
 def test_device_choice():

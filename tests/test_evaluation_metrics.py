@@ -156,6 +156,26 @@ def test_plausibility_of_real_motion_and_of_a_frozen_pose(sample_data):
     assert plausibility.plausibility(list(leaders), far, list(reals), sk, 15.0)["interpenetration"] == 0.0
 
 
+def test_a_swaying_root_counts_as_limb_motion_from_the_root_only(sample_data):
+    """A frozen pose whose root joint alone swings back and forth inside the body: every joint moves relative to the
+    root (limb_speed_ratio > 0), none relative to the centre of the root's neighbours (body_limb_speed_ratio is the
+    root's own share alone), and root_sway_mps is the swing's speed."""
+    sk = sample_data.skeleton
+    assert [sk.joint_names[j] for j in sk.root_neighbours] == ["neck", "left_hip", "right_hip"]
+    leaders, reals = zip(*(sample_data.canonical(i) for i in range(10)), strict=True)
+    swaying = []
+    for r in reals:
+        still = np.repeat(r[:1].astype(np.float64), len(r), 0)
+        still[:, sk.root, 0] += 0.05 * np.sin(np.arange(len(r)) * 0.5)  # synthetic: 5 cm swing at 15 fps
+        swaying.append(still)
+    p = plausibility.plausibility(list(leaders), swaying, list(reals), sk, 15.0)
+    assert p["limb_speed_ratio"] > 0.5  # the swing moves 14 of 15 joints relative to the root
+    assert p["body_limb_speed_ratio"] < p["limb_speed_ratio"] / 10  # only the root itself moves in the body frame
+    # 5 cm x 0.5 rad/frame x 15 fps x mean |cos| (2 / pi), against the real followers' own (smoothed) sway
+    assert p["root_sway_mps"] == pytest.approx(0.05 * 0.5 * 15 * 2 / np.pi, rel=0.05)
+    assert p["root_sway_mps"] > 3 * p["real_root_sway_mps"]
+
+
 def test_afd_parts_split_where_the_follower_stands_from_how_its_limbs_move(sample_data):
     from imm_model.evaluation.metrics import afd_parts
 

@@ -12,6 +12,10 @@
   the same for joints relative to the follower's own root. Real motion is first smoothed with a
   Savitzky-Golay filter (window 7, order 2) so that Kinect jitter does not count as motion; smooth_limb_speed_ratio
   smooths the generated motion too, so a model cannot reach the real speed by jittering.
+- body_limb_speed_ratio: the same for joints relative to the centre of the root's neighbours (Kinect: neck and hips),
+  and root_sway_mps the root's own speed relative to that centre. A root joint that sways inside the body moves
+  every joint relative to it, so limb_speed_ratio counts that sway as limb motion and this ratio does not
+  (docs/evaluation.md, "Root sway").
 """
 
 from __future__ import annotations
@@ -66,10 +70,12 @@ def foot_skate_mps(follower: np.ndarray, skeleton: Skeleton, fps: float) -> floa
     return float(speed[contact].mean()) if contact.any() else 0.0
 
 
-def mean_speed(motion: np.ndarray, fps: float, root: int | None = None) -> float:
-    """Mean joint speed (m/s) of (T, J, 3); relative to joint `root` when given."""
-    if root is not None:
-        motion = motion - motion[:, root:root + 1]
+def mean_speed(motion: np.ndarray, fps: float, reference: int | list[int] | None = None,
+               joints: int | list[int] | slice = slice(None)) -> float:
+    """Mean speed (m/s) of `joints` of (T, J, 3); relative to joint `reference` (or the centre of several) when given."""
+    if reference is not None:
+        motion = motion - motion[:, np.atleast_1d(reference)].mean(1, keepdims=True)
+    motion = motion[:, joints]
     return float(np.linalg.norm(np.diff(motion, axis=0), axis=-1).mean() * fps) if len(motion) > 1 else 0.0
 
 
@@ -86,7 +92,7 @@ def plausibility(leaders: list[np.ndarray], followers: list[np.ndarray], reals: 
         }
 
     real_smooth = [smooth(np.asarray(r, np.float64)) for r in reals]
-    speed = lambda ms, rt=None: float(np.mean([mean_speed(m, fps, rt) for m in ms]))  # noqa: E731
+    speed = lambda ms, *where: float(np.mean([mean_speed(m, fps, *where) for m in ms]))  # noqa: E731
     gen, real = stats(followers), stats(reals)
     out = gen | {f"real_{k}": v for k, v in real.items()}
     out["speed_mps"], out["real_speed_mps"] = speed(followers), speed(real_smooth)
@@ -95,4 +101,7 @@ def plausibility(leaders: list[np.ndarray], followers: list[np.ndarray], reals: 
     out["limb_speed_ratio"] = out["limb_speed_mps"] / out["real_limb_speed_mps"]
     # the same with the generated motion smoothed too: motion that is only jitter scores far lower here
     out["smooth_limb_speed_ratio"] = speed([smooth(np.asarray(b, np.float64)) for b in followers], root) / out["real_limb_speed_mps"]
+    body = skeleton.root_neighbours
+    out["body_limb_speed_ratio"] = speed(followers, body) / speed(real_smooth, body)
+    out["root_sway_mps"], out["real_root_sway_mps"] = speed(followers, body, root), speed(real_smooth, body, root)
     return out

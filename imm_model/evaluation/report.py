@@ -12,8 +12,6 @@ import numpy as np
 
 PER_CLASS_METRICS = ("afd", "afd_squared", "fid", "accuracy")
 MIX_SHARE = 0.25  # a two-class mix reads as mixed when each member gets at least this share of the probability
-PLAUSIBILITY_KEYS = ("bone_error_cm", "interpenetration", "foot_skate_mps", "speed_ratio", "limb_speed_ratio",
-                     "smooth_limb_speed_ratio")
 
 
 def _stat(values: list[float]) -> tuple[float, float]:
@@ -42,7 +40,8 @@ def _overall(results: list[dict], get) -> dict:
         _with_std(out, key, [get(r)[key] for r in results])
     for part in ("plausibility", "afd_parts"):
         if all(part in get(r) for r in results):  # results saved before AFD parts were measured have none
-            out[part] = {k: _stat([get(r)[part][k] for r in results])[0] for k in get(results[0])[part]}
+            keys = [k for k in get(results[0])[part] if all(k in get(r)[part] for r in results)]  # measures added later
+            out[part] = {k: _stat([get(r)[part][k] for r in results])[0] for k in keys}
     return out
 
 

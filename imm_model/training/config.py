@@ -62,6 +62,9 @@ class TrainConfig:
     # Motion energy (training/energy.py): per-joint limb speed of the generated follower vs the real one (for a
     # drawn label, vs the label's mix of per-class profiles); weight follows the adversarial warm-up and ramp.
     lambda_energy: float = 0.0
+    # what limb speed is measured from: "root" (the root joint) or "body" (the centre of the root's neighbours: a root
+    # joint that sways inside the body then earns nothing; docs/evaluation.md, "Root sway")
+    energy_reference: str = "root"
     # Every generated follower is given rigid bones (the training followers' median lengths) before any loss reads it,
     # as the inference clean-up does to what the model ships (training/rigid.py).
     rigid_output: bool = False
@@ -132,6 +135,7 @@ class TrainConfig:
             ("critic_seeds", len(self.critic_seeds) >= 1 and all(0 <= s < 2**31 for s in self.critic_seeds),
              "a non-empty list of seeds"),
             ("lambda_energy", self.lambda_energy >= 0, ">= 0 (0 = off)"),
+            ("energy_reference", self.energy_reference in ("root", "body"), "'root' or 'body'"),
             ("lambda_penetration", self.lambda_penetration >= 0, ">= 0 (0 = off)"),
             ("lambda_relation", self.lambda_relation >= 0 and (self.lambda_relation == 0 or self.lambda_critic > 0),
              ">= 0, and used with lambda_critic > 0 (it shapes the critic's drawn labels)"),

@@ -2,7 +2,9 @@
 
 An L1-dominated generator answers an uncertain future with the average of its plausible futures, a near-frozen
 pose (docs/evaluation.md: limbs at ~0.13 of real speed). This term compares, per sequence and joint, the mean
-speed of the joint relative to the follower's root, of the generated and of the real follower. It constrains
+speed of the joint relative to the follower's root (or, with `energy_reference` "body", to the centre of the
+root's neighbours, so that the root joint swaying inside the body earns nothing), of the generated and of the real
+follower. It constrains
 how much a limb moves, not where, so it does not pull towards an average. Both motions are smoothed with the
 evaluation's Savitzky-Golay filter (window 7, order 2) first: jitter earns nothing, and Kinect's jitter in the
 real followers does not set the target.
@@ -21,12 +23,13 @@ WINDOW = 7  # must match evaluation/plausibility.py SMOOTH_WINDOW, so that the t
 _KERNEL = torch.tensor(savgol_coeffs(WINDOW, 2), dtype=torch.float32).view(1, 1, WINDOW)
 
 
-def limb_speeds(pose: torch.Tensor, lengths: torch.Tensor, root: int) -> torch.Tensor:
-    """pose (B, T, 3J) metres, lengths (B,) -> (B, J) mean speed per joint relative to `root` (metres/frame)
-    of the smoothed motion, over the frames whose whole smoothing window lies in the sequence."""
+def limb_speeds(pose: torch.Tensor, lengths: torch.Tensor, reference: int | list[int]) -> torch.Tensor:
+    """pose (B, T, 3J) metres, lengths (B,) -> (B, J) mean speed per joint relative to joint `reference` (or the
+    centre of several) (metres/frame) of the smoothed motion, over the frames whose whole smoothing window lies in
+    the sequence."""
     B, T, D = pose.shape
     p = pose.unflatten(-1, (-1, 3))
-    rel = (p - p[:, :, root:root + 1]).flatten(2)  # (B, T, 3J)
+    rel = (p - p[:, :, torch.atleast_1d(torch.as_tensor(reference))].mean(2, keepdim=True)).flatten(2)  # (B, T, 3J)
     if T <= WINDOW:
         return torch.zeros(B, D // 3, dtype=pose.dtype, device=pose.device)
     x = rel.transpose(1, 2).reshape(B * D, 1, T)
@@ -36,20 +39,20 @@ def limb_speeds(pose: torch.Tensor, lengths: torch.Tensor, root: int) -> torch.T
     return (speed * valid[..., None]).sum(1) / valid.sum(1).clamp(min=1)[:, None]
 
 
-def energy_loss(fake: torch.Tensor, target_speeds: torch.Tensor, lengths: torch.Tensor, root: int) -> torch.Tensor:
+def energy_loss(fake: torch.Tensor, target_speeds: torch.Tensor, lengths: torch.Tensor, reference: int | list[int]) -> torch.Tensor:
     """Mean |limb speed(fake) - target| over sequences long enough to measure and joints (metres/frame)."""
     has = (lengths > WINDOW).to(fake.dtype)[:, None]
-    diff = (limb_speeds(fake, lengths, root) - target_speeds).abs() * has
+    diff = (limb_speeds(fake, lengths, reference) - target_speeds).abs() * has
     return diff.sum() / (has.sum() * diff.shape[1]).clamp(min=1)
 
 
-def class_profiles(followers: list[np.ndarray], classes: np.ndarray, num_classes: int, root: int) -> torch.Tensor:
+def class_profiles(followers: list[np.ndarray], classes: np.ndarray, num_classes: int, reference: int | list[int]) -> torch.Tensor:
     """(C, J) mean limb speed per class and joint over real followers (each (T, J, 3) metres)."""
     profiles = torch.zeros(num_classes, followers[0].shape[1])
     for c in range(num_classes):
         rows = [torch.as_tensor(f, dtype=torch.float32).flatten(1)[None] for f, k in zip(followers, classes, strict=True) if k == c]
         if rows:
-            profiles[c] = torch.cat([limb_speeds(r, torch.tensor([r.shape[1]]), root) for r in rows]).mean(0)
+            profiles[c] = torch.cat([limb_speeds(r, torch.tensor([r.shape[1]]), reference) for r in rows]).mean(0)
     return profiles
 
 

@@ -120,6 +120,8 @@ class Trainer:
                                  cfg.scale_jitter, mirror)
         self.bones = torch.tensor(data.skeleton.bones, dtype=torch.int64, device=self.device)
         self.critic = LabelCritic.for_fold(cfg, data, subject, self.device) if cfg.lambda_critic > 0 else None
+        skeleton = data.skeleton
+        self.energy_reference = skeleton.root_neighbours if cfg.energy_reference == "body" else skeleton.root
         self.profiles = self._class_profiles() if cfg.lambda_energy > 0 else None
         self.relations = self._class_relations() if cfg.lambda_relation > 0 else None
         # the fold's training subjects, validation sequences included: the selection run and its refit ship one skeleton
@@ -139,7 +141,7 @@ class Trainer:
 
     def _class_profiles(self) -> torch.Tensor:
         followers = [self.data.follower[self.data.frames(i)] for i in self.train_idx]
-        profiles = class_profiles(followers, self.data.actions[self.train_idx], len(self.data.class_names), self.data.skeleton.root)
+        profiles = class_profiles(followers, self.data.actions[self.train_idx], len(self.data.class_names), self.energy_reference)
         return profiles.to(self.device)
 
     def _class_relations(self) -> torch.Tensor:
@@ -291,11 +293,10 @@ class Trainer:
             g_loss = g_loss + cfg.lambda_afd * losses.afd_metres(fake, follower, mask).mean()
         w_critic = adversarial_weight(cfg, epoch, cfg.lambda_critic)
         w_energy = adversarial_weight(cfg, epoch, cfg.lambda_energy)
-        root = self.data.skeleton.root
         if w_energy > 0:
             with torch.no_grad():
-                target = limb_speeds(follower, lengths, root)
-            energy = energy_loss(fake, target, lengths, root)
+                target = limb_speeds(follower, lengths, self.energy_reference)
+            energy = energy_loss(fake, target, lengths, self.energy_reference)
             g_loss = g_loss + w_energy * energy
             terms["energy"] = float(energy.detach())
         w_penetration = adversarial_weight(cfg, epoch, cfg.lambda_penetration)
@@ -332,7 +333,7 @@ class Trainer:
             loss = loss + w_start * start
             terms["start"] = float(start.detach())
         if (w_energy := adversarial_weight(cfg, epoch, cfg.lambda_energy)) > 0:
-            loss = loss + w_energy * energy_loss(other, mixed_profile(labels, self.profiles), lengths, root)
+            loss = loss + w_energy * energy_loss(other, mixed_profile(labels, self.profiles), lengths, self.energy_reference)
         if (w_penetration := adversarial_weight(cfg, epoch, cfg.lambda_penetration)) > 0:
             loss = loss + w_penetration * penetration_loss(leader, other, mask, self.bones)
         if self.relations is not None and (w_relation := adversarial_weight(cfg, epoch, cfg.lambda_relation)) > 0:
