@@ -65,6 +65,10 @@ class TrainConfig:
     # what limb speed is measured from: "root" (the root joint) or "body" (the centre of the root's neighbours: a root
     # joint that sways inside the body then earns nothing; docs/evaluation.md, "Root sway")
     energy_reference: str = "root"
+    # compare the limb speed frame by frame (the real follower's, or for a drawn label the mix of class means, at
+    # every frame) instead of its mean over the sequence, so that motion bunched into the first and last frames
+    # cannot pay for stillness in between (docs/evaluation.md, "Root sway and edge motion")
+    energy_per_frame: bool = False
     # Every generated follower is given rigid bones (the training followers' median lengths) before any loss reads it,
     # as the inference clean-up does to what the model ships (training/rigid.py).
     rigid_output: bool = False

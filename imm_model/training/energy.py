@@ -23,27 +23,43 @@ WINDOW = 7  # must match evaluation/plausibility.py SMOOTH_WINDOW, so that the t
 _KERNEL = torch.tensor(savgol_coeffs(WINDOW, 2), dtype=torch.float32).view(1, 1, WINDOW)
 
 
-def limb_speeds(pose: torch.Tensor, lengths: torch.Tensor, reference: int | list[int]) -> torch.Tensor:
-    """pose (B, T, 3J) metres, lengths (B,) -> (B, J) mean speed per joint relative to joint `reference` (or the
-    centre of several) (metres/frame) of the smoothed motion, over the frames whose whole smoothing window lies in
-    the sequence."""
+def frame_speeds(pose: torch.Tensor, lengths: torch.Tensor, reference: int | list[int]) -> tuple[torch.Tensor, torch.Tensor]:
+    """pose (B, T, 3J) metres, lengths (B,) -> speed per frame and joint relative to joint `reference` (or the centre
+    of several) of the smoothed motion (B, T - WINDOW, J) (metres/frame), and which of those frames are valid
+    (B, T - WINDOW): those whose whole smoothing window lies in the sequence."""
     B, T, D = pose.shape
+    if T <= WINDOW:
+        return pose.new_zeros(B, 0, D // 3), pose.new_zeros(B, 0)
     p = pose.unflatten(-1, (-1, 3))
     rel = (p - p[:, :, torch.atleast_1d(torch.as_tensor(reference))].mean(2, keepdim=True)).flatten(2)  # (B, T, 3J)
-    if T <= WINDOW:
-        return torch.zeros(B, D // 3, dtype=pose.dtype, device=pose.device)
     x = rel.transpose(1, 2).reshape(B * D, 1, T)
     smooth = torch.nn.functional.conv1d(x, _KERNEL.to(pose)).view(B, D, T - WINDOW + 1).transpose(1, 2)
     speed = (smooth[:, 1:] - smooth[:, :-1]).unflatten(-1, (-1, 3)).norm(dim=-1)  # (B, T - WINDOW, J)
     valid = (torch.arange(WINDOW, T, device=pose.device)[None] < lengths[:, None]).to(pose.dtype)  # last window frame is valid
+    return speed, valid
+
+
+def limb_speeds(pose: torch.Tensor, lengths: torch.Tensor, reference: int | list[int]) -> torch.Tensor:
+    """-> (B, J): `frame_speeds` averaged over each sequence's valid frames."""
+    speed, valid = frame_speeds(pose, lengths, reference)
     return (speed * valid[..., None]).sum(1) / valid.sum(1).clamp(min=1)[:, None]
 
 
-def energy_loss(fake: torch.Tensor, target_speeds: torch.Tensor, lengths: torch.Tensor, reference: int | list[int]) -> torch.Tensor:
-    """Mean |limb speed(fake) - target| over sequences long enough to measure and joints (metres/frame)."""
-    has = (lengths > WINDOW).to(fake.dtype)[:, None]
-    diff = (limb_speeds(fake, lengths, reference) - target_speeds).abs() * has
-    return diff.sum() / (has.sum() * diff.shape[1]).clamp(min=1)
+def energy_loss(fake: torch.Tensor, target_speeds: torch.Tensor, lengths: torch.Tensor, reference: int | list[int],
+                per_frame: bool = False) -> torch.Tensor:
+    """Mean |limb speed(fake) - target| over sequences long enough to measure and joints (metres/frame).
+
+    target_speeds (B, J): per sequence (the default compares means over the sequence; with `per_frame`, every valid
+    frame's speed with it), or (B, T - WINDOW, J) per frame (`per_frame` only). Per frame, a burst of motion in a few
+    frames cannot pay for stillness in the rest (docs/evaluation.md, "Root sway and edge motion")."""
+    if not per_frame:
+        has = (lengths > WINDOW).to(fake.dtype)[:, None]
+        diff = (limb_speeds(fake, lengths, reference) - target_speeds).abs() * has
+        return diff.sum() / (has.sum() * diff.shape[1]).clamp(min=1)
+    speed, valid = frame_speeds(fake, lengths, reference)
+    target = target_speeds[:, None] if target_speeds.dim() == 2 else target_speeds
+    diff = (speed - target).abs() * valid[..., None]
+    return diff.sum() / (valid.sum() * speed.shape[-1]).clamp(min=1)
 
 
 def class_profiles(followers: list[np.ndarray], classes: np.ndarray, num_classes: int, reference: int | list[int]) -> torch.Tensor:

@@ -31,7 +31,7 @@ from imm_model.training.config import TrainConfig
 from imm_model.training.critic import LabelCritic, drawn_labels
 from imm_model.training.curves import plot_curves
 from imm_model.training.data import Augmenter, PaddedData
-from imm_model.training.energy import class_profiles, energy_loss, limb_speeds, mixed_profile
+from imm_model.training.energy import class_profiles, energy_loss, frame_speeds, limb_speeds, mixed_profile
 from imm_model.training.penetration import penetration_loss
 from imm_model.training.relation import class_relations, relation_loss
 from imm_model.training.rigid import RigidBones
@@ -295,8 +295,9 @@ class Trainer:
         w_energy = adversarial_weight(cfg, epoch, cfg.lambda_energy)
         if w_energy > 0:
             with torch.no_grad():
-                target = limb_speeds(follower, lengths, self.energy_reference)
-            energy = energy_loss(fake, target, lengths, self.energy_reference)
+                ref = self.energy_reference
+                target = frame_speeds(follower, lengths, ref)[0] if cfg.energy_per_frame else limb_speeds(follower, lengths, ref)
+            energy = energy_loss(fake, target, lengths, self.energy_reference, cfg.energy_per_frame)
             g_loss = g_loss + w_energy * energy
             terms["energy"] = float(energy.detach())
         w_penetration = adversarial_weight(cfg, epoch, cfg.lambda_penetration)
@@ -333,7 +334,8 @@ class Trainer:
             loss = loss + w_start * start
             terms["start"] = float(start.detach())
         if (w_energy := adversarial_weight(cfg, epoch, cfg.lambda_energy)) > 0:
-            loss = loss + w_energy * energy_loss(other, mixed_profile(labels, self.profiles), lengths, self.energy_reference)
+            loss = loss + w_energy * energy_loss(other, mixed_profile(labels, self.profiles), lengths, self.energy_reference,
+                                                 cfg.energy_per_frame)
         if (w_penetration := adversarial_weight(cfg, epoch, cfg.lambda_penetration)) > 0:
             loss = loss + w_penetration * penetration_loss(leader, other, mask, self.bones)
         if self.relations is not None and (w_relation := adversarial_weight(cfg, epoch, cfg.lambda_relation)) > 0:
