@@ -176,6 +176,24 @@ def test_a_swaying_root_counts_as_limb_motion_from_the_root_only(sample_data):
     assert p["root_sway_mps"] > 3 * p["real_root_sway_mps"]
 
 
+def test_interior_limb_speed_leaves_out_motion_in_the_first_and_last_frames(sample_data):
+    """A follower that moves like the real one only in its first and last three frames and stands still in between:
+    its limb speed over all frames is a good part of the real one's, over the interior frames nothing."""
+    sk = sample_data.skeleton
+    leaders, reals = zip(*(sample_data.canonical(i) for i in range(10)), strict=True)
+    edges_only = []
+    for r in reals:
+        x = np.asarray(r, np.float64).copy()
+        x[3:-3] = x[3]  # synthetic: the interior frozen
+        x[-3:] += x[3] - x[-4]  # the last frames continue from the frozen pose, with their own real motion
+        edges_only.append(x)
+    p = plausibility.plausibility(list(leaders), edges_only, list(reals), sk, 15.0)
+    assert p["body_limb_speed_ratio"] > 0.1 and p["interior_limb_speed_ratio"] == 0.0
+    real = plausibility.plausibility(list(leaders), list(reals), list(reals), sk, 15.0)
+    assert 0.8 < real["interior_limb_speed_ratio"] < 1.6  # unsmoothed real against smoothed real
+    assert np.isnan(plausibility.mean_speed(reals[0][:5], 15.0, edge=3))  # no interior frames at all
+
+
 def test_afd_parts_split_where_the_follower_stands_from_how_its_limbs_move(sample_data):
     from imm_model.evaluation.metrics import afd_parts
 

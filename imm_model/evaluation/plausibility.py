@@ -15,7 +15,8 @@
 - body_limb_speed_ratio: the same for joints relative to the centre of the root's neighbours (Kinect: neck and hips),
   and root_sway_mps the root's own speed relative to that centre. A root joint that sways inside the body moves
   every joint relative to it, so limb_speed_ratio counts that sway as limb motion and this ratio does not
-  (docs/evaluation.md, "Root sway").
+  (docs/evaluation.md, "Root sway and edge motion"). interior_limb_speed_ratio: the same over the frames at least
+  EDGE_FRAMES from either end, because a sequence-to-sequence network moves most in its first and last frames.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from imm_model.skeleton import Skeleton
 
 FRAME_RATE = {"sbu": 15.0}  # K3HI's rate is not documented (its PROVENANCE.md); SBU's is used for it
 SMOOTH_WINDOW = 7
+EDGE_FRAMES = 3  # interior_limb_speed_ratio leaves out this many frames at either end, where networks move most
 
 
 def frame_rate(dataset: str) -> float:
@@ -71,12 +73,15 @@ def foot_skate_mps(follower: np.ndarray, skeleton: Skeleton, fps: float) -> floa
 
 
 def mean_speed(motion: np.ndarray, fps: float, reference: int | list[int] | None = None,
-               joints: int | list[int] | slice = slice(None)) -> float:
-    """Mean speed (m/s) of `joints` of (T, J, 3); relative to joint `reference` (or the centre of several) when given."""
+               joints: int | list[int] | slice = slice(None), edge: int = 0) -> float:
+    """Mean speed (m/s) of `joints` of (T, J, 3); relative to joint `reference` (or the centre of several) when given;
+    with `edge`, over the frames at least that far from either end only (nan when there are none)."""
     if reference is not None:
         motion = motion - motion[:, np.atleast_1d(reference)].mean(1, keepdims=True)
-    motion = motion[:, joints]
-    return float(np.linalg.norm(np.diff(motion, axis=0), axis=-1).mean() * fps) if len(motion) > 1 else 0.0
+    speeds = np.linalg.norm(np.diff(motion[:, joints], axis=0), axis=-1)[edge:len(motion) - 1 - edge]
+    if len(motion) < 2:
+        return 0.0
+    return float(speeds.mean() * fps) if len(speeds) else float("nan")
 
 
 def plausibility(leaders: list[np.ndarray], followers: list[np.ndarray], reals: list[np.ndarray],
@@ -92,7 +97,7 @@ def plausibility(leaders: list[np.ndarray], followers: list[np.ndarray], reals: 
         }
 
     real_smooth = [smooth(np.asarray(r, np.float64)) for r in reals]
-    speed = lambda ms, *where: float(np.mean([mean_speed(m, fps, *where) for m in ms]))  # noqa: E731
+    speed = lambda ms, *where, **kw: float(np.nanmean([mean_speed(m, fps, *where, **kw) for m in ms]))  # noqa: E731
     gen, real = stats(followers), stats(reals)
     out = gen | {f"real_{k}": v for k, v in real.items()}
     out["speed_mps"], out["real_speed_mps"] = speed(followers), speed(real_smooth)
@@ -104,4 +109,6 @@ def plausibility(leaders: list[np.ndarray], followers: list[np.ndarray], reals: 
     body = skeleton.root_neighbours
     out["body_limb_speed_ratio"] = speed(followers, body) / speed(real_smooth, body)
     out["root_sway_mps"], out["real_root_sway_mps"] = speed(followers, body, root), speed(real_smooth, body, root)
+    interior = {"edge": EDGE_FRAMES}
+    out["interior_limb_speed_ratio"] = speed(followers, body, **interior) / speed(real_smooth, body, **interior)
     return out

@@ -63,7 +63,7 @@ class TrainConfig:
     # drawn label, vs the label's mix of per-class profiles); weight follows the adversarial warm-up and ramp.
     lambda_energy: float = 0.0
     # what limb speed is measured from: "root" (the root joint) or "body" (the centre of the root's neighbours: a root
-    # joint that sways inside the body then earns nothing; docs/evaluation.md, "Root sway")
+    # joint that sways inside the body then earns nothing; docs/evaluation.md, "Root sway and edge motion")
     energy_reference: str = "root"
     # compare the limb speed frame by frame (the real follower's, or for a drawn label the mix of class means, at
     # every frame) instead of its mean over the sequence, so that motion bunched into the first and last frames
