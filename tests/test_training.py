@@ -15,7 +15,8 @@ from imm_model.errors import CheckpointError
 from imm_model.inference import ReactionModel
 from imm_model.training.config import IMM, PAPER, TrainConfig, load_config
 from imm_model.training.refit import refit
-from imm_model.training.trainer import Trainer, adversarial_weight, lr_scale
+from imm_model.training.schedule import adversarial_weight, lr_scale
+from imm_model.training.trainer import Trainer
 
 TINY = replace(
     IMM,

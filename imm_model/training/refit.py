@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from imm_model.checkpoint import save_checkpoint
-from imm_model.training.trainer import FoldState, Trainer, lr_scale
+from imm_model.training.schedule import lr_scale
+from imm_model.training.trainer import FoldState, Trainer
 
 
 def refit(selection: Trainer, progress: bool = True) -> Path:

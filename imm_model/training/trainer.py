@@ -35,6 +35,7 @@ from imm_model.training.energy import class_profiles, energy_loss, frame_speeds,
 from imm_model.training.penetration import penetration_loss
 from imm_model.training.relation import class_relations, relation_loss
 from imm_model.training.rigid import RigidBones
+from imm_model.training.schedule import adversarial_weight, lr_scale
 
 LOSS_TERMS = ("l1", "root", "bone", "cont", "adv", "critic", "start", "energy", "relation", "penetration")
 LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", *LOSS_TERMS, "d_loss", "d_real_acc", "d_fake_acc", "val_afd_m", "val_l1", "seconds")
@@ -42,34 +43,6 @@ LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", *LOSS_TERMS, "d_loss", "d_real_
 
 def derive_seed(*parts: int) -> int:
     return int(np.random.SeedSequence([int(p) for p in parts]).generate_state(1)[0])
-
-
-def adversarial_weight(cfg: TrainConfig, epoch: int, weight: float | None = None) -> float:
-    """0 during warm-up, then a linear ramp to `weight` (default lambda_adv; epochs count from 0)."""
-    weight = cfg.lambda_adv if weight is None else weight
-    if epoch < cfg.adv_warmup_epochs:
-        return 0.0
-    if cfg.adv_ramp_epochs <= 0:
-        return weight
-    return weight * min(1.0, (epoch - cfg.adv_warmup_epochs + 1) / cfg.adv_ramp_epochs)
-
-
-def lr_scale(cfg: TrainConfig, history: list[dict], select_from: int) -> float:
-    """Learning-rate multiplier for the next epoch, from the validation history alone (so a resumed run
-    decays exactly as an uninterrupted one): lr_decay_factor ** (plateaus of lr_decay_patience epochs)."""
-    if cfg.lr_decay_patience <= 0:
-        return 1.0
-    best, since, decays = math.inf, 0, 0
-    for row in history:
-        if row["epoch"] < select_from:
-            continue
-        if row["val_afd_m"] < best:
-            best, since = row["val_afd_m"], 0
-        else:
-            since += 1
-            if since >= cfg.lr_decay_patience:
-                decays, since = decays + 1, 0
-    return cfg.lr_decay_factor ** decays
 
 
 def build_models(cfg: TrainConfig, data: InteractionDataset, seed: int) -> tuple[Generator, Discriminator]:
