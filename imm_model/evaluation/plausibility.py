@@ -76,11 +76,11 @@ def mean_speed(motion: np.ndarray, fps: float, reference: int | list[int] | None
                joints: int | list[int] | slice = slice(None), edge: int = 0) -> float:
     """Mean speed (m/s) of `joints` of (T, J, 3); relative to joint `reference` (or the centre of several) when given;
     with `edge`, over the frames at least that far from either end only (nan when there are none)."""
+    if len(motion) < 2:
+        return 0.0
     if reference is not None:
         motion = motion - motion[:, np.atleast_1d(reference)].mean(1, keepdims=True)
     speeds = np.linalg.norm(np.diff(motion[:, joints], axis=0), axis=-1)[edge:len(motion) - 1 - edge]
-    if len(motion) < 2:
-        return 0.0
     return float(speeds.mean() * fps) if len(speeds) else float("nan")
 
 

@@ -34,7 +34,8 @@ class TrainConfig:
     # as the authors' released code does, which makes every other term (adversarial weight 1) ~1e-4 as strong.
     l1_reduction: str = "mean"
     # The root joint's own L1, on top of its share of lambda_l1: where the follower stands is most of the AFD
-    # (docs/evaluation.md, "Where the AFD comes from") and the critic and energy terms compete with it. 0 = off.
+    # (docs/evaluation.md, "Where the AFD comes from") and the critic and energy terms compete with it. 0 = off (tried
+    # in session 15, not adopted: limbs slowed, because much of their speed had been the root's sway).
     lambda_root: float = 0.0
     lambda_afd: float = 0.0  # direct per-frame pose-vector distance (the AFD itself, metres); 0 in the paper
     # Label critic (training/critic.py): a frozen follower-only classifier trained on the fold's real training
@@ -48,11 +49,13 @@ class TrainConfig:
     # follower, which has a ground truth, is left to L1 and the other reconstruction terms.
     critic_true_label: bool = True
     # ... and only until it reads as its class with this probability (1: always, a plain cross-entropy). Below 1 the
-    # critic stops pulling a recognisable true-label follower towards its class's most typical reaction.
+    # critic stops pulling a recognisable true-label follower towards its class's most typical reaction (0.7 tried in
+    # session 15, not adopted: within the seed spread).
     critic_true_confidence: float = 1.0
     # The drawn label's follower starts where the true label's stands (L1 between their first-frame roots, the true
     # one held fixed): the label changes the reaction, not where the follower stands before it (as in the studio,
-    # where a slider should not move the follower's starting spot). Weight follows the adversarial ramp. 0 = off.
+    # where a slider should not move the follower's starting spot). Weight follows the adversarial ramp. 0 = off (tried
+    # in session 15, not adopted: the label's say in where the follower stands is real information).
     lambda_start: float = 0.0
     # the critic reads the follower relative to where it stood on the first frame (model/classifier_config.py; tried
     # in session 14, not adopted)
@@ -67,7 +70,8 @@ class TrainConfig:
     energy_reference: str = "root"
     # compare the limb speed frame by frame (the real follower's, or for a drawn label the mix of class means, at
     # every frame) instead of its mean over the sequence, so that motion bunched into the first and last frames
-    # cannot pay for stillness in between (docs/evaluation.md, "Root sway and edge motion")
+    # cannot pay for stillness in between (docs/evaluation.md, "Root sway and edge motion"; tried in session 15 on the
+    # dev folds, seed 0, not adopted yet: docs/training.md)
     energy_per_frame: bool = False
     # Every generated follower is given rigid bones (the training followers' median lengths) before any loss reads it,
     # as the inference clean-up does to what the model ships (training/rigid.py).

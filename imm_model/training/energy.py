@@ -4,8 +4,7 @@ An L1-dominated generator answers an uncertain future with the average of its pl
 pose (docs/evaluation.md: limbs at ~0.13 of real speed). This term compares, per sequence and joint, the mean
 speed of the joint relative to the follower's root (or, with `energy_reference` "body", to the centre of the
 root's neighbours, so that the root joint swaying inside the body earns nothing), of the generated and of the real
-follower. It constrains
-how much a limb moves, not where, so it does not pull towards an average. Both motions are smoothed with the
+follower. It constrains how much a limb moves, not where, so it does not pull towards an average. Both motions are smoothed with the
 evaluation's Savitzky-Golay filter (window 7, order 2) first: jitter earns nothing, and Kinect's jitter in the
 real followers does not set the target.
 
