@@ -95,6 +95,7 @@ class Trainer:
         self.critic = LabelCritic.for_fold(cfg, data, subject, self.device) if cfg.lambda_critic > 0 else None
         skeleton = data.skeleton
         self.energy_reference = skeleton.root_neighbours if cfg.energy_reference == "body" else skeleton.root
+        self.root_coords = slice(3 * skeleton.root, 3 * skeleton.root + 3)  # the root joint in a (B, T, 3J) pose
         self.profiles = self._class_profiles() if cfg.lambda_energy > 0 else None
         self.relations = self._class_relations() if cfg.lambda_relation > 0 else None
         # the fold's training subjects, validation sequences included: the selection run and its refit ship one skeleton
@@ -258,8 +259,7 @@ class Trainer:
         g_loss = cfg.lambda_l1 * l1_term + cfg.lambda_bone * bone + cfg.lambda_cont * cont
         terms = {"l1": float(l1.detach()), "bone": float(bone.detach()), "cont": float(cont.detach())}
         if cfg.lambda_root > 0:
-            root_coords = slice(3 * self.data.skeleton.root, 3 * self.data.skeleton.root + 3)
-            root_l1 = losses.masked_l1(fake[..., root_coords], follower[..., root_coords], mask)
+            root_l1 = losses.masked_l1(fake[..., self.root_coords], follower[..., self.root_coords], mask)
             g_loss = g_loss + cfg.lambda_root * root_l1
             terms["root"] = float(root_l1.detach())
         if cfg.lambda_afd > 0:
@@ -267,10 +267,10 @@ class Trainer:
         w_critic = adversarial_weight(cfg, epoch, cfg.lambda_critic)
         w_energy = adversarial_weight(cfg, epoch, cfg.lambda_energy)
         if w_energy > 0:
+            ref = self.energy_reference
             with torch.no_grad():
-                ref = self.energy_reference
                 target = frame_speeds(follower, lengths, ref)[0] if cfg.energy_per_frame else limb_speeds(follower, lengths, ref)
-            energy = energy_loss(fake, target, lengths, self.energy_reference, cfg.energy_per_frame)
+            energy = energy_loss(fake, target, lengths, ref, cfg.energy_per_frame)
             g_loss = g_loss + w_energy * energy
             terms["energy"] = float(energy.detach())
         w_penetration = adversarial_weight(cfg, epoch, cfg.lambda_penetration)
@@ -302,8 +302,7 @@ class Trainer:
         critic = sum(self.critic.loss(x, lengths, t, gen, confidence) for x, t, confidence in scored)
         loss, terms = w_critic * critic, {"critic": float(critic.detach())}
         if (w_start := adversarial_weight(cfg, epoch, cfg.lambda_start)) > 0:
-            coords = slice(3 * root, 3 * root + 3)
-            start = (other[:, 0, coords] - fake[:, 0, coords].detach()).abs().mean()
+            start = (other[:, 0, self.root_coords] - fake[:, 0, self.root_coords].detach()).abs().mean()
             loss = loss + w_start * start
             terms["start"] = float(start.detach())
         if (w_energy := adversarial_weight(cfg, epoch, cfg.lambda_energy)) > 0:
