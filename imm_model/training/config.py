@@ -82,6 +82,10 @@ class TrainConfig:
     # Relation curves (training/relation.py): for a drawn label, the follower's whole-body motion relative to the
     # leader (root distance, root height) vs the label's mix of per-class curves; weight as the energy's. 0 = off.
     lambda_relation: float = 0.0
+    # Posture (training/posture.py): for a drawn label, how the follower holds its body (each joint's mean offset from
+    # the body centre along its facing and the vertical) vs the label's mix of per-class mean postures, so that the
+    # critic cannot buy a reading with a caricatured lean; weight as the energy's. 0 = off.
+    lambda_posture: float = 0.0
     adv_warmup_epochs: int = 0  # adversarial weight 0 for these epochs (reconstruction warm-up) ...
     adv_ramp_epochs: int = 0  # ... then ramped linearly to lambda_adv over these epochs
     label_smoothing: float = 0.0  # on D's real-class targets
@@ -146,6 +150,8 @@ class TrainConfig:
             ("energy_reference", self.energy_reference in ("root", "body"), "'root' or 'body'"),
             ("lambda_penetration", self.lambda_penetration >= 0, ">= 0 (0 = off)"),
             ("lambda_relation", self.lambda_relation >= 0 and (self.lambda_relation == 0 or self.lambda_critic > 0),
+             ">= 0, and used with lambda_critic > 0 (it shapes the critic's drawn labels)"),
+            ("lambda_posture", self.lambda_posture >= 0 and (self.lambda_posture == 0 or self.lambda_critic > 0),
              ">= 0, and used with lambda_critic > 0 (it shapes the critic's drawn labels)"),
             ("l1_reduction", self.l1_reduction in ("mean", "sum"), "'mean' or 'sum'"),
             ("epochs", 1 <= self.epochs <= 100_000, "in 1..100000"),

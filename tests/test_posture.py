@@ -1,0 +1,86 @@
+"""Posture profiles (training/posture.py): how a follower holds its body, the target of a drawn label. Real SBU
+followers, moved, turned, mirrored and tilted here by hand."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+from scipy.spatial.transform import Rotation
+
+from imm_model.skeleton import KINECT15
+from imm_model.training.data import mirror_permutation
+from imm_model.training.posture import class_postures, posture_loss, postures
+
+HEAD, FORWARD, UP = 0, 0, 1  # joint 0; the two columns of a joint's posture
+
+
+def as_batch(motion: np.ndarray, pad: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
+    """(T, J, 3) -> (1, T + pad, 3J) with `pad` frames of garbage after the sequence, and its length."""
+    x = torch.as_tensor(motion, dtype=torch.float32).flatten(1)
+    x = torch.cat([x, torch.full((pad, x.shape[1]), 7.0)])
+    return x[None], torch.tensor([len(motion)])
+
+
+def tilted_back(motion: np.ndarray, degrees: float) -> np.ndarray:
+    """The whole body turned back about its own left-right axis through the body centre, frame by frame."""
+    centre = motion[:, KINECT15.root_neighbours].mean(1, keepdims=True)
+    across = motion[:, 9] - motion[:, 12] + motion[:, 3] - motion[:, 6]
+    axis = across.mean(0) * np.array([1, 0, 1])
+    rot = Rotation.from_rotvec(np.radians(degrees) * axis / np.linalg.norm(axis))
+    forward_before = postures(*as_batch(motion), KINECT15)[0].view(-1, 2)[HEAD, FORWARD]
+    out = rot.apply((motion - centre).reshape(-1, 3)).reshape(motion.shape) + centre
+    if postures(*as_batch(out), KINECT15)[0].view(-1, 2)[HEAD, FORWARD] > forward_before:
+        out = rot.inv().apply((motion - centre).reshape(-1, 3)).reshape(motion.shape) + centre  # the other way is back
+    return out
+
+
+def test_posture_ignores_where_the_follower_stands_which_way_it_faces_mirroring_and_padding(sample_data):
+    follower = sample_data.canonical(0)[1].astype(np.float64)
+    base = postures(*as_batch(follower), KINECT15)[0]
+    assert base.shape == (2 * KINECT15.num_joints,)
+    assert base.view(-1, 2)[HEAD, UP] > 0.3  # the head is well above the body centre
+    turned = Rotation.from_euler("y", 70, degrees=True).apply(follower.reshape(-1, 3)).reshape(follower.shape)
+    moved = turned + np.array([0.8, 0.0, -1.5])
+    mirrored = follower[:, mirror_permutation(KINECT15)] * np.array([-1.0, 1.0, 1.0])
+    for other in (moved, mirrored):
+        assert torch.allclose(postures(*as_batch(other), KINECT15)[0], base, atol=1e-4)
+    assert torch.allclose(postures(*as_batch(follower, pad=9), KINECT15)[0], base, atol=1e-5)
+
+
+def test_a_follower_that_leans_back_has_its_head_behind_the_body_centre(sample_data):
+    follower = sample_data.canonical(0)[1].astype(np.float64)
+    head = [postures(*as_batch(tilted_back(follower, deg)), KINECT15)[0].view(-1, 2)[HEAD] for deg in (0, 10, 20)]
+    assert head[0][FORWARD] > head[1][FORWARD] + 0.05 > head[2][FORWARD] + 0.1  # ~0.5 m above: ~9 cm per 10 degrees
+    assert head[2][UP] < head[0][UP]
+
+
+def test_the_loss_pulls_towards_the_classes_posture(sample_data):
+    upright = sample_data.canonical(0)[1]
+    leaning = tilted_back(upright.astype(np.float64), 20).astype(np.float32)
+    profiles = class_postures([upright, leaning], np.array([0, 1]), 2, KINECT15)
+    assert profiles.shape == (2, 2 * KINECT15.num_joints)
+    x, lengths = as_batch(leaning)
+    assert posture_loss(x, profiles[1:], lengths, KINECT15) < 1e-5
+    x.requires_grad_(True)
+    loss = posture_loss(x, profiles[:1], lengths, KINECT15)
+    loss.backward()
+    assert loss > 0.01
+    # moving the head towards its facing (where it stood upright) lowers the loss
+    head_step = (x.detach() + 0).view(1, len(upright), -1, 3)
+    facing = torch.as_tensor(upright[:, HEAD] - leaning[:, HEAD]).mean(0)
+    assert float((x.grad.view_as(head_step)[0, :, HEAD] * facing).sum()) < 0
+
+
+def test_trainer_logs_the_posture_term(sample_data, tmp_path):
+    from imm_model.training.trainer import Trainer
+    from tests.test_training import TINY
+
+    cfg = replace(TINY, lambda_critic=0.05, lambda_posture=1.0, adv_warmup_epochs=0, adv_ramp_epochs=0)
+    trainer = Trainer(cfg, sample_data, "s04", tmp_path)
+    assert trainer.postures.shape == (6, 2 * KINECT15.num_joints)
+    assert trainer.train_epoch(0)["posture"] > 0
+    with pytest.raises(ValueError, match="lambda_posture must be"):
+        replace(TINY, lambda_posture=1.0)  # without the critic there are no drawn labels to shape
