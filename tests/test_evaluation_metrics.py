@@ -252,3 +252,23 @@ def test_report_groups_folds_and_seeds():
     text = markdown_report(s)
     assert "## dev folds" in text and "## test folds" in text and "0.800 ± 0.141" in text
     assert "| model | 0.400 | 0.400 | 0.200 |" in text  # where the AFD comes from, all folds and seeds
+
+
+def test_lean_error_counts_a_follower_thrown_further_back_than_the_real_one(sample_data):
+    """The real followers tilted back by 15 degrees about their own left-right axis (hand-made): their lean error is
+    about 15 degrees, the real followers' own is 0, and a yaw turn of the whole scene changes neither."""
+    from scipy.spatial.transform import Rotation
+
+    from tests.test_posture import tilted_back
+
+    idx = [int(i) for i in np.flatnonzero(sample_data.held_out)[:6]]
+    leaders, reals = zip(*(sample_data.canonical(i) for i in idx), strict=True)
+    tilted = [tilted_back(r.astype(np.float64), 15.0) for r in reals]
+    p = plausibility.plausibility(list(leaders), tilted, list(reals), sample_data.skeleton, 15.0)
+    assert 12.0 < p["lean_error_deg"] < 16.0
+    assert plausibility.plausibility(list(leaders), list(reals), list(reals), sample_data.skeleton, 15.0)["lean_error_deg"] == 0.0
+    yaw = Rotation.from_euler("y", 50, degrees=True)
+    turned = [yaw.apply(t.reshape(-1, 3)).reshape(t.shape) for t in tilted]
+    lean = plausibility.torso_lean_deg
+    assert lean(turned[0], sample_data.skeleton) == pytest.approx(lean(tilted[0], sample_data.skeleton), abs=1e-6)
+    assert lean(tilted[0], sample_data.skeleton) < lean(reals[0], sample_data.skeleton) - 12.0

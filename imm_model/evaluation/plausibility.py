@@ -17,6 +17,9 @@
   every joint relative to it, so limb_speed_ratio counts that sway as limb motion and this ratio does not
   (docs/evaluation.md, "Root sway and edge motion"). interior_limb_speed_ratio: the same over the frames at least
   EDGE_FRAMES from either end, because a sequence-to-sequence network moves most in its first and last frames.
+- lean_error_deg: mean over sequences of |the follower's torso lean - the real follower's| (degrees; the lean is the
+  angle of hips-centre-to-neck from the vertical, + towards the follower's own facing, averaged over the sequence). A
+  model that caricatures its class (a punched follower thrown far back) scores high here; AFD hides it among limbs.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from imm_model.contact import CONTACT_M, PENETRATION_M, bone_pair_distances, closest_distances
+from imm_model.data.canonical import facing_direction
 from imm_model.skeleton import Skeleton
 
 FRAME_RATE = {"sbu": 15.0}  # K3HI's rate is not documented (its PROVENANCE.md); SBU's is used for it
@@ -84,6 +88,19 @@ def mean_speed(motion: np.ndarray, fps: float, reference: int | list[int] | None
     return float(speeds.mean() * fps) if len(speeds) else float("nan")
 
 
+def torso_lean_deg(motion: np.ndarray, skeleton: Skeleton) -> float:
+    """(T, J, 3) -> the mean over frames of the torso's angle from the vertical (degrees, + = towards its own facing):
+    the vector from the hips' centre (the root's neighbours other than the top one) to the highest neighbour (the neck)."""
+    up = skeleton.vertical_axis
+    neighbours = skeleton.root_neighbours
+    if len(neighbours) < 2:
+        return float("nan")
+    top = max(neighbours, key=lambda j: motion[:, j, up].mean())
+    torso = motion[:, top] - motion[:, [j for j in neighbours if j != top]].mean(1)
+    forward = (torso * facing_direction(motion, skeleton)).sum(-1)
+    return float(np.degrees(np.arctan2(forward, torso[:, up])).mean())
+
+
 def plausibility(leaders: list[np.ndarray], followers: list[np.ndarray], reals: list[np.ndarray],
                  skeleton: Skeleton, fps: float) -> dict[str, float]:
     """Means over sequences for generated followers, with the real followers' values as `real_*`."""
@@ -111,4 +128,6 @@ def plausibility(leaders: list[np.ndarray], followers: list[np.ndarray], reals: 
     out["root_sway_mps"], out["real_root_sway_mps"] = speed(followers, body, root), speed(real_smooth, body, root)
     interior = {"edge": EDGE_FRAMES}
     out["interior_limb_speed_ratio"] = speed(followers, body, **interior) / speed(real_smooth, body, **interior)
+    out["lean_error_deg"] = float(np.nanmean([abs(torso_lean_deg(b, skeleton) - torso_lean_deg(r, skeleton))
+                                           for b, r in zip(followers, reals, strict=True)]))
     return out

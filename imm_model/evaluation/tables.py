@@ -64,17 +64,17 @@ def mix_table(group: dict) -> str:
 
 def plausibility_table(group: dict) -> str:
     cols = ("bone_error_cm", "interpenetration", "foot_skate_mps", "speed_ratio", "limb_speed_ratio", "smooth_limb_speed_ratio",
-            "body_limb_speed_ratio", "interior_limb_speed_ratio", "root_sway_mps")
+            "body_limb_speed_ratio", "interior_limb_speed_ratio", "root_sway_mps", "lean_error_deg")
     lines = ["| method | bone error (cm) | interpenetrating frames | foot skate (m/s) | speed / real | limb speed / real "
              "| limb speed, both smoothed / real | limb speed from the body centre / real | the same, interior frames "
-             "| root sway (m/s) |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "| root sway (m/s) | torso lean error (deg) |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     rows = [("model", group["model_overall"]["plausibility"])]
     rows += [(BASELINE_TITLES.get(b, b), v["plausibility"]) for b, v in group["baselines_overall"].items()]
     real = group["model_overall"]["plausibility"]
     rows.append(("real followers", {"bone_error_cm": real["real_bone_error_cm"], "interpenetration": real["real_interpenetration"],
                                     "foot_skate_mps": real["real_foot_skate_mps"], "speed_ratio": 1.0, "limb_speed_ratio": 1.0,
                                     "smooth_limb_speed_ratio": 1.0, "body_limb_speed_ratio": 1.0, "interior_limb_speed_ratio": 1.0,
-                                    "root_sway_mps": real.get("real_root_sway_mps", float("nan"))}))
+                                    "root_sway_mps": real.get("real_root_sway_mps", float("nan")), "lean_error_deg": 0.0}))
     for name, p in rows:
         lines.append(f"| {name} | " + " | ".join(f"{p.get(k, float('nan')):.3f}" for k in cols) + " |")
     return "\n".join(lines)
