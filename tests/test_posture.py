@@ -84,3 +84,16 @@ def test_trainer_logs_the_posture_term(sample_data, tmp_path):
     assert trainer.train_epoch(0)["posture"] > 0
     with pytest.raises(ValueError, match="lambda_posture must be"):
         replace(TINY, lambda_posture=1.0)  # without the critic there are no drawn labels to shape
+
+
+def test_the_loss_can_leave_out_rows(sample_data):
+    """Rows left out (a two-class mix with posture_on_mixes off) cost nothing, and leaving out every row gives 0, not
+    a division by zero."""
+    upright = sample_data.canonical(0)[1]
+    leaning = tilted_back(upright.astype(np.float64), 20).astype(np.float32)
+    target = class_postures([upright], np.array([0]), 1, KINECT15).expand(2, -1)
+    x = torch.cat([as_batch(upright)[0], as_batch(leaning)[0]])
+    lengths = torch.tensor([len(upright)] * 2)
+    assert posture_loss(x, target, lengths, KINECT15, torch.tensor([True, False])) < 1e-5
+    assert posture_loss(x, target, lengths, KINECT15, torch.tensor([False, True])) > 0.01
+    assert posture_loss(x, target, lengths, KINECT15, torch.tensor([False, False])) == 0

@@ -86,6 +86,7 @@ class TrainConfig:
     # the body centre along its facing and the vertical) vs the label's mix of per-class mean postures, so that the
     # critic cannot buy a reading with a caricatured lean; weight as the energy's. 0 = off.
     lambda_posture: float = 0.0
+    posture_on_mixes: bool = True  # False: only one-class drawn labels get a posture target, a two-class mix none
     adv_warmup_epochs: int = 0  # adversarial weight 0 for these epochs (reconstruction warm-up) ...
     adv_ramp_epochs: int = 0  # ... then ramped linearly to lambda_adv over these epochs
     label_smoothing: float = 0.0  # on D's real-class targets

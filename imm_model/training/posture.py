@@ -40,9 +40,13 @@ def postures(pose: torch.Tensor, lengths: torch.Tensor, skeleton: Skeleton) -> t
     return ((both + both[:, twins]) / 2).flatten(1)
 
 
-def posture_loss(fake: torch.Tensor, target: torch.Tensor, lengths: torch.Tensor, skeleton: Skeleton) -> torch.Tensor:
-    """Mean |posture(fake) - target (B, 2J)| over sequences, joints and both directions (metres)."""
-    return (postures(fake, lengths, skeleton) - target).abs().mean()
+def posture_loss(fake: torch.Tensor, target: torch.Tensor, lengths: torch.Tensor, skeleton: Skeleton,
+                 rows: torch.Tensor | None = None) -> torch.Tensor:
+    """Mean |posture(fake) - target (B, 2J)| over sequences (those where `rows` (B,) is true, when given), joints and
+    both directions (metres); 0 when no row is chosen."""
+    error = (postures(fake, lengths, skeleton) - target).abs().mean(-1)  # (B,)
+    weight = torch.ones_like(error) if rows is None else rows.to(error.dtype)
+    return (error * weight).sum() / weight.sum().clamp(min=1)
 
 
 def class_postures(followers: list[np.ndarray], classes: np.ndarray, num_classes: int, skeleton: Skeleton) -> torch.Tensor:

@@ -322,7 +322,8 @@ class Trainer:
             loss = loss + w_relation * relation
             terms["relation"] = float(relation.detach())
         if self.postures is not None and (w_posture := adversarial_weight(cfg, epoch, cfg.lambda_posture)) > 0:
-            posture = posture_loss(other, mixed_profile(labels, self.postures), lengths, self.data.skeleton)
+            rows = None if cfg.posture_on_mixes else labels.sum(-1) == 1  # one-class drawn labels only
+            posture = posture_loss(other, mixed_profile(labels, self.postures), lengths, self.data.skeleton, rows)
             loss = loss + w_posture * posture
             terms["posture"] = float(posture.detach())
         return loss, terms
