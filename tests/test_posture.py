@@ -82,6 +82,8 @@ def test_trainer_logs_the_posture_term(sample_data, tmp_path):
     trainer = Trainer(cfg, sample_data, "s04", tmp_path)
     assert trainer.postures.shape == (6, 2 * KINECT15.num_joints)
     assert trainer.train_epoch(0)["posture"] > 0
+    one_class = Trainer(replace(cfg, posture_on_mixes=False, critic_mix_prob=1.0), sample_data, "s04", tmp_path / "mixes")
+    assert one_class.train_epoch(0)["posture"] == 0  # every drawn label a mix: no posture target
     with pytest.raises(ValueError, match="lambda_posture must be"):
         replace(TINY, lambda_posture=1.0)  # without the critic there are no drawn labels to shape
 
