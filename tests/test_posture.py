@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 
 from imm_model.skeleton import KINECT15
 from imm_model.training.data import mirror_permutation
-from imm_model.training.posture import class_postures, posture_loss, postures
+from imm_model.training.posture import PostureTarget, class_postures, posture_loss, postures
 
 HEAD, FORWARD, UP = 0, 0, 1  # joint 0; the two columns of a joint's posture
 
@@ -60,8 +60,8 @@ def test_a_follower_that_leans_back_has_its_head_behind_the_body_centre(sample_d
 def test_the_loss_pulls_towards_the_classes_posture(sample_data):
     upright = sample_data.canonical(0)[1]
     leaning = tilted_back(upright.astype(np.float64), 20).astype(np.float32)
-    profiles = class_postures([upright, leaning], np.array([0, 1]), 2, KINECT15)
-    assert profiles.shape == (2, 2 * KINECT15.num_joints)
+    profiles, spreads = class_postures([upright, leaning], np.array([0, 1]), 2, KINECT15)
+    assert profiles.shape == spreads.shape == (2, 2 * KINECT15.num_joints) and spreads.abs().max() == 0  # one each
     x, lengths = as_batch(leaning)
     assert posture_loss(x, profiles[1:], lengths, KINECT15) < 1e-5
     x.requires_grad_(True)
@@ -80,7 +80,7 @@ def test_trainer_logs_the_posture_term(sample_data, tmp_path):
 
     cfg = replace(TINY, lambda_critic=0.05, lambda_posture=1.0, adv_warmup_epochs=0, adv_ramp_epochs=0)
     trainer = Trainer(cfg, sample_data, "s04", tmp_path)
-    assert trainer.postures.shape == (6, 2 * KINECT15.num_joints)
+    assert trainer.posture.means.shape == trainer.posture.spreads.shape == (6, 2 * KINECT15.num_joints)
     assert trainer.train_epoch(0)["posture"] > 0
     one_class = Trainer(replace(cfg, posture_on_mixes=False, critic_mix_prob=1.0), sample_data, "s04", tmp_path / "mixes")
     assert one_class.train_epoch(0)["posture"] == 0  # every drawn label a mix: no posture target
@@ -93,9 +93,22 @@ def test_the_loss_can_leave_out_rows(sample_data):
     a division by zero."""
     upright = sample_data.canonical(0)[1]
     leaning = tilted_back(upright.astype(np.float64), 20).astype(np.float32)
-    target = class_postures([upright], np.array([0]), 1, KINECT15).expand(2, -1)
+    target = class_postures([upright], np.array([0]), 1, KINECT15)[0].expand(2, -1)
     x = torch.cat([as_batch(upright)[0], as_batch(leaning)[0]])
     lengths = torch.tensor([len(upright)] * 2)
     assert posture_loss(x, target, lengths, KINECT15, torch.tensor([True, False])) < 1e-5
     assert posture_loss(x, target, lengths, KINECT15, torch.tensor([False, True])) > 0.01
     assert posture_loss(x, target, lengths, KINECT15, torch.tensor([False, False])) == 0
+
+
+def test_a_tolerance_frees_postures_within_the_classes_spread(sample_data):
+    """A class of an upright and a 20-degree-leaning follower: its mean leans 10 degrees. Held to the mean, the
+    upright follower costs; with a tolerance of one spread it does not, and a 40-degree lean still does."""
+    upright = sample_data.canonical(0)[1].astype(np.float64)
+    leaning, far = (tilted_back(upright, deg).astype(np.float32) for deg in (20, 40))
+    means, spreads = class_postures([upright.astype(np.float32), leaning], np.array([0, 0]), 1, KINECT15)
+    label, lengths = torch.tensor([[1.0]]), torch.tensor([len(upright)])
+    strict, loose = PostureTarget(means, spreads, KINECT15), PostureTarget(means, spreads, KINECT15, tolerance=1.0)
+    assert strict.loss(as_batch(upright.astype(np.float32))[0], label, lengths) > 0.005
+    assert loose.loss(as_batch(upright.astype(np.float32))[0], label, lengths) < 1e-4
+    assert loose.loss(as_batch(far)[0], label, lengths) > 0.005

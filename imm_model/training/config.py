@@ -87,6 +87,7 @@ class TrainConfig:
     # critic cannot buy a reading with a caricatured lean; weight as the energy's. 0 = off.
     lambda_posture: float = 0.0
     posture_on_mixes: bool = True  # False: only one-class drawn labels get a posture target, a two-class mix none
+    posture_tolerance: float = 0.0  # deviations within this many of the classes' standard deviations cost nothing
     adv_warmup_epochs: int = 0  # adversarial weight 0 for these epochs (reconstruction warm-up) ...
     adv_ramp_epochs: int = 0  # ... then ramped linearly to lambda_adv over these epochs
     label_smoothing: float = 0.0  # on D's real-class targets
@@ -152,6 +153,7 @@ class TrainConfig:
             ("lambda_penetration", self.lambda_penetration >= 0, ">= 0 (0 = off)"),
             ("lambda_relation", self.lambda_relation >= 0 and (self.lambda_relation == 0 or self.lambda_critic > 0),
              ">= 0, and used with lambda_critic > 0 (it shapes the critic's drawn labels)"),
+            ("posture_tolerance", self.posture_tolerance >= 0, ">= 0 (class standard deviations)"),
             ("lambda_posture", self.lambda_posture >= 0 and (self.lambda_posture == 0 or self.lambda_critic > 0),
              ">= 0, and used with lambda_critic > 0 (it shapes the critic's drawn labels)"),
             ("l1_reduction", self.l1_reduction in ("mean", "sum"), "'mean' or 'sum'"),

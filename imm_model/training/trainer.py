@@ -33,7 +33,7 @@ from imm_model.training.curves import plot_curves
 from imm_model.training.data import Augmenter, PaddedData
 from imm_model.training.energy import class_profiles, energy_loss, frame_speeds, limb_speeds, mixed_profile
 from imm_model.training.penetration import penetration_loss
-from imm_model.training.posture import class_postures, posture_loss
+from imm_model.training.posture import PostureTarget, class_postures
 from imm_model.training.relation import class_relations, relation_loss
 from imm_model.training.rigid import RigidBones
 from imm_model.training.schedule import adversarial_weight, lr_scale
@@ -99,7 +99,7 @@ class Trainer:
         self.root_coords = slice(3 * skeleton.root, 3 * skeleton.root + 3)  # the root joint in a (B, T, 3J) pose
         self.profiles = self._class_profiles() if cfg.lambda_energy > 0 else None
         self.relations = self._class_relations() if cfg.lambda_relation > 0 else None
-        self.postures = self._class_postures() if cfg.lambda_posture > 0 else None
+        self.posture = self._posture_target() if cfg.lambda_posture > 0 else None
         # the fold's training subjects, validation sequences included: the selection run and its refit ship one skeleton
         fold_train = np.concatenate([self.train_idx, self.val_idx])
         self.bone_lengths = follower_bone_lengths([data.follower[data.frames(i)] for i in fold_train], data.skeleton)
@@ -125,9 +125,10 @@ class Trainer:
         return class_relations([d.leader[d.frames(i)] for i in idx], [d.follower[d.frames(i)] for i in idx], d.actions[idx],
                                len(d.class_names), d.skeleton.root, d.skeleton.vertical_axis).to(self.device)
 
-    def _class_postures(self) -> torch.Tensor:
-        d, idx = self.data, self.train_idx
-        return class_postures([d.follower[d.frames(i)] for i in idx], d.actions[idx], len(d.class_names), d.skeleton).to(self.device)
+    def _posture_target(self) -> PostureTarget:
+        d, idx, cfg = self.data, self.train_idx, self.cfg
+        means, spreads = class_postures([d.follower[d.frames(i)] for i in idx], d.actions[idx], len(d.class_names), d.skeleton)
+        return PostureTarget(means.to(self.device), spreads.to(self.device), d.skeleton, cfg.posture_tolerance, cfg.posture_on_mixes)
 
     def meta(self, kind: str) -> dict:
         d = self.data
@@ -321,9 +322,8 @@ class Trainer:
                                      self.data.skeleton.vertical_axis)
             loss = loss + w_relation * relation
             terms["relation"] = float(relation.detach())
-        if self.postures is not None and (w_posture := adversarial_weight(cfg, epoch, cfg.lambda_posture)) > 0:
-            rows = None if cfg.posture_on_mixes else labels.sum(-1) == 1  # one-class drawn labels only
-            posture = posture_loss(other, mixed_profile(labels, self.postures), lengths, self.data.skeleton, rows)
+        if self.posture is not None and (w_posture := adversarial_weight(cfg, epoch, cfg.lambda_posture)) > 0:
+            posture = self.posture.loss(other, labels, lengths)
             loss = loss + w_posture * posture
             terms["posture"] = float(posture.detach())
         return loss, terms
