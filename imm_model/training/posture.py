@@ -2,13 +2,13 @@
 
 The label critic rewards whatever makes a follower read as its class, and a classifier reads a posture held further
 than real followers hold it as more typical still: `imm-steer`'s punched followers lean back 14.6 degrees on average
-where the real ones lean 4.5 (docs/evaluation.md, "Torso lean"). For a drawn label nothing held that back. This
-term gives it a target: per sequence, each joint's mean position relative to the body centre (the centre of the
-root's neighbours), along the follower's own mean facing and along the vertical, with each left and right joint
-averaged with its mirror twin. The augmentation's yaw turns and mirroring leave it unchanged, and so
-does where the follower stands. For a drawn label the target is the label's mix of per-class mean postures
-(`energy.mixed_profile`); with a tolerance, a posture within that many of the classes' standard deviations of it costs
-nothing, so that only a caricature is pulled back, not every pose that is a little more typical than the mean.
+where the real ones lean 4.5 (docs/evaluation.md, "Torso lean"). For a drawn label nothing held that back. This term
+gives it a target: per sequence, each joint's mean position relative to the body centre (the centre of the root's
+neighbours), along the follower's own mean facing and along the vertical, with each left and right joint averaged with
+its mirror twin. The augmentation's yaw turns and mirroring leave it unchanged, and so does where the follower stands.
+For a drawn label the target is the label's mix of per-class mean postures (`energy.mixed_profile`); with a tolerance,
+a posture within that many of the classes' standard deviations of it costs nothing, so that only a caricature is
+pulled back, not every pose that is a little more typical than the mean.
 """
 
 from __future__ import annotations
