@@ -68,7 +68,7 @@ def test_the_loss_pulls_towards_the_classes_posture(sample_data):
     loss = posture_loss(x, profiles[:1], lengths, KINECT15)
     loss.backward()
     assert loss > 0.01
-    # moving the head towards its facing (where it stood upright) lowers the loss
+    # moving the leaning head back to where it was upright lowers the loss
     towards_upright = torch.as_tensor(upright[:, HEAD] - leaning[:, HEAD]).mean(0)
     head_grad = x.grad.view(len(upright), -1, 3)[:, HEAD]
     assert float((head_grad * towards_upright).sum()) < 0
