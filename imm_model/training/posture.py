@@ -32,10 +32,11 @@ def postures(pose: torch.Tensor, lengths: torch.Tensor, skeleton: Skeleton) -> t
     valid = (torch.arange(T, device=pose.device)[None] < lengths[:, None]).to(pose.dtype)[..., None]  # (B, T, 1)
     up = torch.zeros(3, dtype=pose.dtype, device=pose.device)
     up[skeleton.vertical_axis] = 1.0
+    # data.canonical.facing_direction's rule (across x up, horizontal by construction), over the whole sequence and
+    # in torch so that the gradient reaches the facing too
     lhip, rhip, lsh, rsh = skeleton.facing_joints
     across = ((p[:, :, lhip] - p[:, :, rhip] + p[:, :, lsh] - p[:, :, rsh]) * valid).sum(1)  # (B, 3)
     forward = torch.linalg.cross(across, up.expand_as(across))
-    forward = forward - (forward @ up)[:, None] * up  # horizontal
     forward = forward / forward.norm(dim=-1, keepdim=True).clamp(min=1e-9)
     offset = p - p[:, :, skeleton.root_neighbours].mean(2, keepdim=True)  # (B, T, J, 3)
     mean = (offset * valid[..., None]).sum(1) / valid.sum(1)[..., None].clamp(min=1)  # (B, J, 3)
