@@ -3,7 +3,8 @@
     .venv/bin/python benchmarks/inference_speed.py [--checkpoint CK] [--threads 2] [--repeats 200] [--device cpu|cuda]
 
 Prints the thread count, the median/p90 latency of `ReactionModel.synthesize_canonical` for a
-46-frame leader with and without the clean-up (rigid bones, planted feet), and the time and peak
+46-frame leader with and without the clean-up (rigid bones, planted feet) and with the averaged placement (a second
+network pass on the leader's mirror image), and the time and peak
 resident-memory increase of `synthesize_batch_canonical` (and of `latent_canonical_batch`) over the
 whole bundled dataset.
 """
@@ -44,8 +45,9 @@ def main() -> None:
     i = int(np.argmax(data.lengths))
     leader = data.canonical(i)[0]
     label = np.eye(len(data.class_names), dtype=np.float32)[data.actions[i]]
-    for raw in (False, True, False, True):  # interleaved, so drift on a shared machine hits both alike
-        model.raw = raw
+    modes = {"with the clean-up": (False, False), "raw": (True, False), "clean-up + averaged placement": (False, True)}
+    for name in [*modes, *modes]:  # interleaved, so drift on a shared machine hits every mode alike
+        model.raw, model.average_placement = modes[name]
         for _ in range(10):
             model.synthesize_canonical(leader, label)
         lat = []
@@ -54,9 +56,9 @@ def main() -> None:
             model.synthesize_canonical(leader, label)
             lat.append((time.perf_counter() - t0) * 1000)
         lat.sort()
-        print(f"one {len(leader)}-frame reaction, batch 1, {'raw' if raw else 'with the clean-up'}: median "
+        print(f"one {len(leader)}-frame reaction, batch 1, {name}: median "
               f"{statistics.median(lat):.2f} ms, p90 {lat[int(0.9 * len(lat))]:.2f} ms ({args.repeats} runs)")
-    model.raw = False
+    model.raw, model.average_placement = False, False
 
     leaders = [data.canonical(k)[0] for k in range(len(data))]
     labels = np.eye(len(data.class_names), dtype=np.float32)[data.actions]

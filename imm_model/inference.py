@@ -48,6 +48,12 @@ class ReactionModel:
         # followers' lengths (a checkpoint without them: each sequence's own median), feet planted.
         self.raw = False
         self.bone_lengths = _bone_lengths(meta.get("follower_bone_lengths"), self.skeleton, path)
+        # Placement averaged with the leader's mirror image (`_average_placement`): off unless asked for. Labels that
+        # name a class the training never mirrored (SBU's right-handed handshakes) keep their own placement: their
+        # mirror image is a reaction the model never saw.
+        self.average_placement = False
+        handed = (meta.get("train_config") or {}).get("mirror_exclude_classes", [])
+        self.handed = np.array([c in handed for c in self.class_names])
 
     @functools.cached_property
     def generator(self):
@@ -156,16 +162,37 @@ class ReactionModel:
 
     def synthesize_canonical(self, leader_canonical: np.ndarray, label_vector: np.ndarray) -> np.ndarray:
         """Leader (T, J, 3) canonical + (C,) label vector -> follower (T, J, 3) canonical, float32."""
-        t = len(leader_canonical)
-        if self.fast is None:
-            return self.synthesize_batch_canonical([leader_canonical], np.asarray(label_vector).reshape(1, -1))[0]
-        out = self.fast(np.asarray(leader_canonical, np.float32).reshape(t, -1), self._label_array(label_vector, 1)[0])
-        return self._clean(out.reshape(t, -1, 3))
+        return self.synthesize_batch_canonical([leader_canonical], np.asarray(label_vector).reshape(1, -1))[0]
 
     def synthesize_batch_canonical(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> list[np.ndarray]:
         """N leaders (T_i, J, 3) canonical + (N, C) label vectors -> N followers (T_i, J, 3)."""
-        out, lengths = self._run_batch(leaders, label_vectors, latent=False)
-        return [self._clean(out[i, : lengths[i]].reshape(lengths[i], -1, 3)) for i in range(len(leaders))]
+        labels = self._label_array(label_vectors, len(leaders))
+        out = self._network(leaders, labels)
+        if self.average_placement:
+            self._average_placement(leaders, labels, out)
+        return [self._clean(f) for f in out]
+
+    def _average_placement(self, leaders: list[np.ndarray], labels: np.ndarray, followers: list[np.ndarray]) -> None:
+        """Move each follower (in place, by one offset for the whole sequence) to the mean of where it stands and where
+        the network places it for the leader's mirror image, mirrored back. Where the follower stands is the least
+        certain part of a reaction (docs/evaluation.md, "Where the AFD comes from"), and the two answers differ by
+        more than their motion does; the motion itself is left exactly as it was."""
+        rows = [i for i in range(len(leaders)) if not (labels[i] != 0)[self.handed].any()]
+        if not rows:
+            return
+        twins = self._network([self.skeleton.mirrored(np.asarray(leaders[i])) for i in rows], labels[rows])
+        body = self.skeleton.root_neighbours
+        for i, twin in zip(rows, twins, strict=True):
+            offset = self.skeleton.mirrored(twin)[:, body].mean((0, 1)) - followers[i][:, body].mean((0, 1))
+            followers[i] = followers[i] + 0.5 * offset
+
+    def _network(self, leaders: list[np.ndarray], labels: np.ndarray) -> list[np.ndarray]:
+        """The generator's own followers (T_i, J, 3): numpy for one sequence on a CPU, else one torch batch."""
+        if self.fast is not None and len(leaders) == 1:
+            t = len(leaders[0])
+            return [self.fast(np.asarray(leaders[0], np.float32).reshape(t, -1), labels[0]).reshape(t, -1, 3)]
+        out, lengths = self._run_batch(leaders, labels, latent=False)
+        return [out[i, : lengths[i]].reshape(lengths[i], -1, 3) for i in range(len(leaders))]
 
     def _clean(self, follower: np.ndarray) -> np.ndarray:
         """The network's follower (T, J, 3) -> float32, through the clean-up unless `raw`."""

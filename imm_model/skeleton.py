@@ -66,6 +66,27 @@ class Skeleton:
                 stack.append(child)
         return order
 
+    @property
+    def lateral_axis(self) -> int:
+        """The horizontal axis across a body facing +forward: up x forward (X for Y-up, +Z forward)."""
+        return (self.vertical_axis + 2) % 3
+
+    @property
+    def mirror_permutation(self) -> list[int]:
+        """Joint permutation that swaps left_* and right_* joints (identity for the others)."""
+        names = list(self.joint_names)
+        perm = []
+        for n in names:
+            other = n.replace("left_", "\0").replace("right_", "left_").replace("\0", "right_")
+            perm.append(names.index(other) if other in names else names.index(n))
+        return perm
+
+    def mirrored(self, positions: np.ndarray) -> np.ndarray:
+        """positions (..., J, 3) -> their mirror image across the lateral axis, left and right joints swapped."""
+        out = positions[..., self.mirror_permutation, :].copy()
+        out[..., self.lateral_axis] *= -1
+        return out
+
     def bone_lengths(self, positions: np.ndarray) -> np.ndarray:
         """positions (..., J, 3) -> bone lengths (..., J-1) in the positions' units."""
         parents = np.array([p for p, _ in self.bones])

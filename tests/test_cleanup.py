@@ -118,18 +118,18 @@ def test_evaluation_cleans_up_every_model_alike(sample_data, tmp_path):
     """`imm evaluate` scores cleaned followers (or raw ones with --raw); a checkpoint from before the clean-up gets
     the bone lengths its training would have stored: the fold's training followers'."""
     from imm_model.data.splits import loso_fold
-    from imm_model.evaluation.loso import prepare_cleanup
+    from imm_model.evaluation.loso import EvalOptions, prepare_model
 
     tensors, meta = load_checkpoint(SAMPLE_CHECKPOINT)
     old = tmp_path / "old.safetensors"
     save_checkpoint(old, tensors, {k: v for k, v in meta.items() if k != "follower_bone_lengths"})
     model = ReactionModel.load(old)
     assert model.bone_lengths is None
-    prepare_cleanup(model, sample_data, "s04", raw=False)
+    prepare_model(model, sample_data, "s04", EvalOptions())
     train = loso_fold(sample_data.subject_pairs, "s04").train
     expected = follower_bone_lengths([sample_data.canonical(int(i))[1] for i in train], sample_data.skeleton)
     np.testing.assert_allclose(model.bone_lengths, expected)
     np.testing.assert_allclose(model.bone_lengths, ReactionModel.load(SAMPLE_CHECKPOINT).bone_lengths)  # the bundle's own
     assert not model.raw
-    prepare_cleanup(model, sample_data, "s04", raw=True)
-    assert model.raw
+    prepare_model(model, sample_data, "s04", EvalOptions(raw=True, average_placement=True))
+    assert model.raw and model.average_placement

@@ -35,6 +35,7 @@ def test_evaluate_bundled_checkpoint_against_every_baseline(tmp_path, quick_clas
     assert "ratio to the strongest baseline" in out and "| **mean** |" in out
     r = json.loads(js.read_text())
     assert r["folds"] == ["s04"] and set(r["groups"]) == {"all", "dev"}
+    assert r["followers"] == {"clean_up": True, "average_placement": False}
     for c in CLASSES:
         e = r["classes"][c]
         for key in ("afd", "afd_squared", "fid", "accuracy", "adherence"):

@@ -81,6 +81,26 @@ def test_batch_equals_single_and_latent(model, sample_data):
     assert not np.allclose(model.latent(world, {"kicking": 1}), z[1])  # the label enters the encoding
 
 
+def test_average_placement_moves_the_follower_and_keeps_its_motion(sample_data):
+    """Averaged placement shifts the whole follower by one offset (its motion is the network's own), makes the
+    placement mirror-consistent, and leaves a handed label (handshakes are never mirrored in training) alone."""
+    model, skeleton = ReactionModel.load(SAMPLE_CHECKPOINT), sample_data.skeleton
+    leaders = [sample_data.canonical(i)[0] for i in (0, 7)]
+    labels = np.eye(6, dtype=np.float32)[[0, 2]]  # kicking; shaking hands (handed)
+    model.raw = True
+    single = model.synthesize_batch_canonical(leaders, labels)
+    model.average_placement = True
+    placed = model.synthesize_batch_canonical(leaders, labels)
+    shift = placed[0] - single[0]
+    np.testing.assert_allclose(shift, np.broadcast_to(shift[0, 0], shift.shape), atol=1e-5)
+    assert np.linalg.norm(shift[0, 0]) > 1e-3  # the network's two answers disagree on where the follower stands
+    np.testing.assert_array_equal(placed[1], single[1])
+    twin = model.synthesize_canonical(skeleton.mirrored(leaders[0]), labels[0])
+    centre = [f[:, skeleton.root_neighbours].mean((0, 1)) for f in (placed[0], skeleton.mirrored(twin))]
+    np.testing.assert_allclose(centre[0], centre[1], atol=1e-5)
+    np.testing.assert_allclose(skeleton.mirrored(skeleton.mirrored(twin)), twin)
+
+
 def test_bundled_model_beats_a_trivial_baseline_on_its_held_out_subject(model, sample_data):
     """Plausible reactions: lower AFD than the training set's mean follower pose per class, bones kept."""
     fold = loso_fold(sample_data.subject_pairs, model.held_out_subject)

@@ -11,7 +11,6 @@ import torch
 from scipy.spatial.transform import Rotation
 
 from imm_model.skeleton import KINECT15
-from imm_model.training.data import mirror_permutation
 from imm_model.training.posture import PostureTarget, class_postures, posture_loss, postures
 
 HEAD, FORWARD, UP = 0, 0, 1  # joint 0; the two columns of a joint's posture
@@ -44,7 +43,7 @@ def test_posture_ignores_where_the_follower_stands_which_way_it_faces_mirroring_
     assert base.view(-1, 2)[HEAD, UP] > 0.3  # the head is well above the body centre
     turned = Rotation.from_euler("y", 70, degrees=True).apply(follower.reshape(-1, 3)).reshape(follower.shape)
     moved = turned + np.array([0.8, 0.0, -1.5])
-    mirrored = follower[:, mirror_permutation(KINECT15)] * np.array([-1.0, 1.0, 1.0])
+    mirrored = KINECT15.mirrored(follower)
     for other in (moved, mirrored):
         assert torch.allclose(postures(*as_batch(other), KINECT15)[0], base, atol=1e-4)
     assert torch.allclose(postures(*as_batch(follower, pad=9), KINECT15)[0], base, atol=1e-5)

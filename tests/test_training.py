@@ -244,9 +244,9 @@ def test_cli_train_never_loses_work(tmp_path, capsys):
 
 
 def test_augmentation_keeps_skeletons_valid(sample_data):
-    from imm_model.training.data import Augmenter, PaddedData, mirror_permutation
+    from imm_model.training.data import Augmenter, PaddedData
 
-    perm = mirror_permutation(sample_data.skeleton)
+    perm = sample_data.skeleton.mirror_permutation
     assert [perm[perm[j]] for j in range(15)] == list(range(15)) and perm != list(range(15))
     padded = PaddedData.from_dataset(sample_data.subset(range(12)))
     idx = torch.arange(12)

@@ -36,6 +36,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--figures", type=Path, default=None, help="write PNG figures into this folder")
     p.add_argument("--raw", action="store_true",
                    help="score the networks' own followers, without the clean-up (rigid bones, planted feet)")
+    p.add_argument("--average-placement", action="store_true",
+                   help="place each model follower at the mean of where the model places it for the leader and, mirrored "
+                        "back, for the leader's mirror image (its motion unchanged)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--force", action="store_true", help="replace existing --json/--markdown files")
     p.set_defaults(func=_cmd_evaluate)
@@ -73,7 +76,8 @@ def _options(args: argparse.Namespace):
     baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
     if not baselines:
         raise ValueError("--baselines: name at least one of nn1, knn_dtw, template, men")
-    return EvalOptions(baselines=baselines, men_checkpoint=men, progress=not args.quiet, raw=args.raw, **configs)
+    return EvalOptions(baselines=baselines, men_checkpoint=men, progress=not args.quiet, raw=args.raw,
+                       average_placement=args.average_placement, **configs)
 
 
 def _jobs(args: argparse.Namespace, subjects: list[str]) -> list[tuple[Path, str]]:
@@ -137,6 +141,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
               f"{sum(v['afd'] for v in result['model']['classes'].values()) / len(result['model']['classes']):.3f} "
               f"({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
     summary = summarize(results, data.class_names)
+    summary["followers"] = {"clean_up": not opts.raw, "average_placement": opts.average_placement}  # how they were made
     check_finite(summary["mean"]["afd"], "the model's mean AFD (a checkpoint with NaN weights?)")
     print(headline(summary))
     print(metric_table(summary, "afd"))

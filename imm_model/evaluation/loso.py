@@ -42,6 +42,7 @@ class EvalOptions:
     judge: classifier_configs.ClassifierConfig = classifier_configs.FOLLOWER_JUDGE
     progress: bool = True
     raw: bool = False  # score the network's own followers, without the inference clean-up (cleanup.py)
+    average_placement: bool = False  # place the models' followers as inference.ReactionModel.average_placement does
 
     def __post_init__(self) -> None:
         unknown = [b for b in self.baselines if b not in BASELINES]
@@ -134,12 +135,13 @@ def label_control(model, data: InteractionDataset, judges: FoldJudges) -> dict:
     return out
 
 
-def prepare_cleanup(model, data: InteractionDataset, subject: str, raw: bool) -> None:
-    """Clean-up on (or off with `raw`); a checkpoint from before it stored no bone lengths gets those its training
-    would have stored (the fold's training followers'), so that every model is cleaned up alike."""
+def prepare_model(model, data: InteractionDataset, subject: str, opts: EvalOptions) -> None:
+    """Clean-up on (or off with `raw`) and placement averaging as asked; a checkpoint from before the clean-up stored no
+    bone lengths gets those its training would have stored (the fold's training followers'), so that every model is
+    cleaned up alike."""
     from imm_model.cleanup import follower_bone_lengths
 
-    model.raw = raw
+    model.raw, model.average_placement = opts.raw, opts.average_placement
     if model.bone_lengths is None:
         train = loso_fold(data.subject_pairs, subject).train
         model.bone_lengths = np.asarray(follower_bone_lengths([data.canonical(int(i))[1] for i in train], data.skeleton))
@@ -152,7 +154,7 @@ def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptio
 
     opts = opts or EvalOptions()
     check_compatible(model, data, str(model.path))
-    prepare_cleanup(model, data, subject, opts.raw)
+    prepare_model(model, data, subject, opts)
     judges = FoldJudges(data, subject, opts)
     result = {"subject": subject, "group": fold_group(subject), "checkpoint": str(model.path),
               "classifier": {"real_accuracy": judges.real_accuracy},
@@ -167,7 +169,7 @@ def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptio
             path = opts.men_checkpoint(subject) if opts.men_checkpoint else cache.fold_baseline_model("men", data, subject, opts.progress)
             men = ReactionModel.load(path)
             check_compatible(men, data, str(men.path))
-            prepare_cleanup(men, data, subject, opts.raw)
+            prepare_model(men, data, subject, opts)
             preds = model_predictions(men, data, judges.test)
             if latents:
                 result["_latent"]["men"] = _latents(men, data, all_idx)

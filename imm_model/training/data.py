@@ -14,16 +14,6 @@ from imm_model.data.dataset import InteractionDataset
 from imm_model.skeleton import Skeleton
 
 
-def mirror_permutation(skeleton: Skeleton) -> list[int]:
-    """Joint permutation that swaps left_* and right_* joints (identity for the others)."""
-    names = list(skeleton.joint_names)
-    perm = []
-    for n in names:
-        other = n.replace("left_", "\0").replace("right_", "left_").replace("\0", "right_")
-        perm.append(names.index(other) if other in names else names.index(n))
-    return perm
-
-
 @dataclass
 class PaddedData:
     leader: torch.Tensor  # (N, T_max, 3J) canonical metres, zero-padded
@@ -60,9 +50,9 @@ class Augmenter:
     def __init__(self, skeleton: Skeleton, mirror_prob: float, rotate_deg: float, role_swap_prob: float,
                  swap_class_mask: torch.Tensor, time_warp: float = 0.0, scale_jitter: float = 0.0,
                  mirror_class_mask: torch.Tensor | None = None):
-        self.perm = torch.tensor(mirror_permutation(skeleton))
+        self.perm = torch.tensor(skeleton.mirror_permutation)
         self.vertical = skeleton.vertical_axis
-        self.lateral = (skeleton.vertical_axis + 2) % 3  # up x forward (X for Y-up, +Z forward)
+        self.lateral = skeleton.lateral_axis
         self.forward = (skeleton.vertical_axis + 1) % 3
         self.mirror_prob, self.rotate_deg, self.role_swap_prob = mirror_prob, rotate_deg, role_swap_prob
         self.swap_class_mask = swap_class_mask  # (C,) bool

@@ -19,7 +19,6 @@ import numpy as np
 import torch
 
 from imm_model.skeleton import Skeleton
-from imm_model.training.data import mirror_permutation
 from imm_model.training.energy import mixed_profile
 
 
@@ -41,7 +40,7 @@ def postures(pose: torch.Tensor, lengths: torch.Tensor, skeleton: Skeleton) -> t
     offset = p - p[:, :, skeleton.root_neighbours].mean(2, keepdim=True)  # (B, T, J, 3)
     mean = (offset * valid[..., None]).sum(1) / valid.sum(1)[..., None].clamp(min=1)  # (B, J, 3)
     both = torch.stack([mean @ forward[:, :, None], mean @ up[:, None]], -1).squeeze(-2)  # (B, J, 2)
-    twins = torch.as_tensor(mirror_permutation(skeleton), device=pose.device)
+    twins = torch.as_tensor(skeleton.mirror_permutation, device=pose.device)
     return ((both + both[:, twins]) / 2).flatten(1)
 
 
