@@ -33,6 +33,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--bvh-map", type=Path, default=None, help="JSON {kinect joint: BVH joint name} for a skeleton the name table misses")
     p.add_argument("--raw", action="store_true",
                    help="the network's own follower, without the clean-up (rigid bones, planted feet)")
+    p.add_argument("--average-placement", action="store_true",
+                   help="place the follower at the mean of where the model places it for the leader and, mirrored back, for "
+                        "the leader's mirror image (its motion unchanged; docs/evaluation.md)")
     p.add_argument("--force", action="store_true", help="replace outputs that exist")
     add_device_argument(p)
     p.set_defaults(func=_cmd_generate)
@@ -99,7 +102,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         check_output(args.out, args.force, inputs=(*(args.leader or []), args.checkpoint, args.data))
     torch.set_num_threads(2)
     model = ReactionModel.load(args.checkpoint, resolve_device(args.device))
-    model.raw = args.raw
+    model.raw, model.average_placement = args.raw, args.average_placement
     leaders, labels = _leaders(args, model), label_vectors(args, model)
     if single:
         return _generate_one(args, model, leaders[0], labels[0])

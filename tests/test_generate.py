@@ -35,6 +35,12 @@ def test_grid_over_sequences_writes_one_file_per_item(tmp_path, sample_data, cap
         for follower, rigid in ((a["follower"], True), (r["follower"], False)):
             error = np.abs(sample_data.skeleton.bone_lengths(follower) - lengths).max()
             assert (error < 1e-4) if rigid else (error > 0.01)
+    # --average-placement: the same motion, the whole follower moved by one offset
+    placed = tmp_path / "placed.npz"
+    assert main(["generate", "--sequence", ids[0], "--label", "hugging=1", "--average-placement", "--out", str(placed)]) == 0
+    with np.load(single) as a, np.load(placed) as p:
+        shift = p["follower"] - a["follower"]
+        assert np.abs(shift - shift[0, 0]).max() < 1e-4 and np.linalg.norm(shift[0, 0]) > 1e-3
 
 
 def test_folder_of_bvh_leaders_and_several_labels(tmp_path, capsys):
