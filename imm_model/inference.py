@@ -49,11 +49,12 @@ class ReactionModel:
         self.raw = False
         self.bone_lengths = _bone_lengths(meta.get("follower_bone_lengths"), self.skeleton, path)
         # Placement averaged with the leader's mirror image (`_average_placement`): off unless asked for. Labels that
-        # name a class the training never mirrored (SBU's right-handed handshakes) keep their own placement: their
-        # mirror image is a reaction the model never saw.
+        # name a class the training never mirrored (SBU's right-handed handshakes; every class if it mirrored nothing)
+        # keep their own placement: their mirror image is a reaction the model never saw.
         self.average_placement = False
-        handed = (meta.get("train_config") or {}).get("mirror_exclude_classes", [])
-        self.handed = np.array([c in handed for c in self.class_names])
+        training = meta.get("train_config") or {}
+        unmirrored = training.get("mirror_exclude_classes", []) if training.get("mirror_prob", 0) > 0 else self.class_names
+        self.handed = np.array([c in unmirrored for c in self.class_names])  # (C,) classes the training never mirrored
 
     @functools.cached_property
     def generator(self):
@@ -175,8 +176,8 @@ class ReactionModel:
     def _average_placement(self, leaders: list[np.ndarray], labels: np.ndarray, followers: list[np.ndarray]) -> None:
         """Move each follower (in place, by one offset for the whole sequence) to the mean of where it stands and where
         the network places it for the leader's mirror image, mirrored back. Where the follower stands is the least
-        certain part of a reaction (docs/evaluation.md, "Where the AFD comes from"), and the two answers differ by
-        more than their motion does; the motion itself is left exactly as it was."""
+        certain part of a reaction; the steered models' two answers disagree about it, and their mean is nearer the
+        real placement (docs/evaluation.md, "Placement averaged with the mirror image"). The motion is left as it was."""
         rows = [i for i in range(len(leaders)) if not (labels[i] != 0)[self.handed].any()]
         if not rows:
             return

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import imm_model
+from imm_model.checkpoint import load_checkpoint, save_checkpoint
 from imm_model.cli import main
 from imm_model.data.canonical import yaw_rotation
 from imm_model.data.splits import loso_fold
@@ -99,6 +100,17 @@ def test_average_placement_moves_the_follower_and_keeps_its_motion(sample_data):
     centre = [f[:, skeleton.root_neighbours].mean((0, 1)) for f in (placed[0], skeleton.mirrored(twin))]
     np.testing.assert_allclose(centre[0], centre[1], atol=1e-5)
     np.testing.assert_allclose(skeleton.mirrored(skeleton.mirrored(twin)), twin)
+
+
+def test_average_placement_leaves_a_model_trained_without_mirroring_alone(tmp_path, sample_data):
+    tensors, meta = load_checkpoint(SAMPLE_CHECKPOINT)
+    unmirrored = tmp_path / "unmirrored.safetensors"
+    save_checkpoint(unmirrored, tensors, meta | {"train_config": meta["train_config"] | {"mirror_prob": 0.0}})
+    model = ReactionModel.load(unmirrored)
+    leader, label = sample_data.canonical(0)[0], np.eye(6, dtype=np.float32)[0]
+    single = model.synthesize_canonical(leader, label)
+    model.average_placement = True
+    np.testing.assert_array_equal(model.synthesize_canonical(leader, label), single)
 
 
 def test_bundled_model_beats_a_trivial_baseline_on_its_held_out_subject(model, sample_data):
