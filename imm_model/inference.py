@@ -176,8 +176,9 @@ class ReactionModel:
     def _average_placement(self, leaders: list[np.ndarray], labels: np.ndarray, followers: list[np.ndarray]) -> None:
         """Move each follower (in place, by one offset for the whole sequence) to the mean of where it stands and where
         the network places it for the leader's mirror image, mirrored back. Where the follower stands is the least
-        certain part of a reaction; the steered models' two answers disagree about it, and their mean is nearer the
-        real placement (docs/evaluation.md, "Placement averaged with the mirror image"). The motion is left as it was."""
+        certain part of a reaction; the network's two answers disagree about it, and for the steered models their mean is
+        nearer the real placement (docs/evaluation.md, "Placement averaged with the mirror image"). The motion is left
+        as it was."""
         rows = [i for i in range(len(leaders)) if not (labels[i] != 0)[self.handed].any()]
         if not rows:
             return
