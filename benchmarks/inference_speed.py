@@ -45,8 +45,8 @@ def main() -> None:
     i = int(np.argmax(data.lengths))
     leader = data.canonical(i)[0]
     # its own class, unless that is one the training never mirrored: then the averaged placement would skip its second pass
-    label = np.eye(len(data.class_names), dtype=np.float32)[data.actions[i] if not model.handed[data.actions[i]] else
-                                                            int(np.argmin(model.handed))]
+    c = int(data.actions[i]) if not model.handed[data.actions[i]] else int(np.argmin(model.handed))
+    label = np.eye(len(data.class_names), dtype=np.float32)[c]
     modes = {"with the clean-up": (False, False), "raw": (True, False), "clean-up + averaged placement": (False, True)}
     for name in [*modes, *modes]:  # interleaved, so drift on a shared machine hits every mode alike
         model.raw, model.average_placement = modes[name]
