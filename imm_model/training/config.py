@@ -37,9 +37,6 @@ class TrainConfig:
     # (docs/evaluation.md, "Where the AFD comes from") and the critic and energy terms compete with it. 0 = off (tried
     # in session 15, not adopted: limbs slowed, because much of their speed had been the root's sway).
     lambda_root: float = 0.0
-    # Where the follower stands over the whole sequence (the mean of its neck-and-hips centre), an L1 on top of the
-    # pose's: the placement part of the AFD without the root's per-frame path, so sway inside the body stays free.
-    lambda_placement: float = 0.0
     lambda_afd: float = 0.0  # direct per-frame pose-vector distance (the AFD itself, metres); 0 in the paper
     # Label critic (training/critic.py): a frozen follower-only classifier trained on the fold's real training
     # followers scores the generated follower for the true label and for a drawn other label (with probability
@@ -135,7 +132,7 @@ class TrainConfig:
     def __post_init__(self) -> None:
         # checked here so a bad JSON recipe fails at load time with the field's name, not mid-epoch
         ModelConfig.from_dict(dict(self.model))  # model sizes: types and ranges checked now, not when training starts
-        for name in ("lambda_adv", "lambda_l1", "lambda_root", "lambda_placement", "lambda_bone", "lambda_cont", "lambda_afd"):
+        for name in ("lambda_adv", "lambda_l1", "lambda_root", "lambda_bone", "lambda_cont", "lambda_afd"):
             if getattr(self, name) < 0:
                 raise ValueError(f"training config: {name} must be >= 0, not {getattr(self, name)!r}")
         checks = (

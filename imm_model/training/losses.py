@@ -15,17 +15,6 @@ def masked_l1(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor) -> t
     return ((pred - target).abs() * m).sum() / (m.sum() * pred.shape[-1])
 
 
-def placement_l1(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor, joints: list[int]) -> torch.Tensor:
-    """Mean |difference| between where two followers stand: each sequence's mean over valid frames of the centre of
-    `joints` (B, 3), compared coordinate by coordinate."""
-    m = mask[..., None].float()
-
-    def placement(pose: torch.Tensor) -> torch.Tensor:
-        return (pose.unflatten(-1, (-1, 3))[:, :, joints].mean(2) * m).sum(1) / m.sum(1)
-
-    return (placement(pred) - placement(target)).abs().mean()
-
-
 def bone_lengths(pose: torch.Tensor, bones: torch.Tensor) -> torch.Tensor:
     """(B, T, 3J), bones (K, 2) parent/child -> (B, T, K)."""
     p = pose.unflatten(-1, (-1, 3))

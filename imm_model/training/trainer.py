@@ -38,7 +38,7 @@ from imm_model.training.relation import class_relations, relation_loss
 from imm_model.training.rigid import RigidBones
 from imm_model.training.schedule import adversarial_weight, lr_scale
 
-LOSS_TERMS = ("l1", "root", "placement", "bone", "cont", "adv", "critic", "start", "energy", "relation", "posture", "penetration")
+LOSS_TERMS = ("l1", "root", "bone", "cont", "adv", "critic", "start", "energy", "relation", "posture", "penetration")
 LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", *LOSS_TERMS, "d_loss", "d_real_acc", "d_fake_acc", "val_afd_m", "val_l1", "seconds")
 
 
@@ -269,10 +269,6 @@ class Trainer:
             root_l1 = losses.masked_l1(fake[..., self.root_coords], follower[..., self.root_coords], mask)
             g_loss = g_loss + cfg.lambda_root * root_l1
             terms["root"] = float(root_l1.detach())
-        if cfg.lambda_placement > 0:
-            placement = losses.placement_l1(fake, follower, mask, self.data.skeleton.root_neighbours)
-            g_loss = g_loss + cfg.lambda_placement * placement
-            terms["placement"] = float(placement.detach())
         if cfg.lambda_afd > 0:
             g_loss = g_loss + cfg.lambda_afd * losses.afd_metres(fake, follower, mask).mean()
         w_critic = adversarial_weight(cfg, epoch, cfg.lambda_critic)
