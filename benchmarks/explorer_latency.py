@@ -1,6 +1,8 @@
 """IMM Studio latency benchmark (headless Chromium through Playwright, remote rendering).
 
-    .venv/bin/python benchmarks/explorer_latency.py [--trials 40] [--play-seconds 5] [--json out.json]
+    .venv/bin/python benchmarks/explorer_latency.py [--trials 40] [--play-seconds 5] [--json out.json] [--checkpoint CK]
+
+Every studio it starts serves the bundled model, or CK (a generator checkpoint, e.g. a wider recipe's).
 
 Measures, and prints with the machine's thread count and load:
   1. start-to-interactive of `imm explore`: process start -> first 3D picture in the page, cold
@@ -36,12 +38,12 @@ from tests import studio_probe as probe  # noqa: E402
 VIEW_SIZE = (1400, 900)
 
 
-def start_to_interactive(browser, cache_dir: Path) -> tuple[float, float, float, probe.StudioProcess]:
+def start_to_interactive(browser, cache_dir: Path, model: tuple[str, ...]) -> tuple[float, float, float, probe.StudioProcess]:
     """-> (address printed, first picture, latent map shown) in seconds after start, and the studio. On a cold cache
     the map is fitted after the page opens; waiting for it also leaves the cache full for the next start."""
     page = browser.new_page(viewport=dict(zip(("width", "height"), VIEW_SIZE, strict=True)))  # open before the start, as a user's
     t0 = time.monotonic()
-    studio = probe.StudioProcess(cache_dir=cache_dir, timeout=120)
+    studio = probe.StudioProcess(*model, cache_dir=cache_dir, timeout=120)
     page.goto(studio.url, timeout=120000)
     probe.wait_for_view(page, 120000)
     interactive = time.monotonic() - t0
@@ -171,9 +173,9 @@ def _say(what: str, lat: np.ndarray, bar: str) -> None:
           f"max {lat.max():.0f} ms   [bar {bar}]")
 
 
-def measure_start(browser, cache: Path, res: dict) -> probe.StudioProcess:
+def measure_start(browser, cache: Path, res: dict, model: tuple[str, ...]) -> probe.StudioProcess:
     for kind, bar in (("cold", 6), ("warm", 4)):
-        ready, inter, mapped, studio = start_to_interactive(browser, cache)
+        ready, inter, mapped, studio = start_to_interactive(browser, cache, model)
         res[f"{kind}_ready_s"], res[f"{kind}_interactive_s"], res[f"{kind}_map_s"] = ready, inter, mapped
         print(f"start-to-interactive, {kind} latent cache: {inter:.1f} s (URL printed after {ready:.1f} s, latent map shown "
               f"after {mapped:.1f} s)   [bar <= {bar} s]")
@@ -182,7 +184,7 @@ def measure_start(browser, cache: Path, res: dict) -> probe.StudioProcess:
     return studio
 
 
-def measure_sliders(browser, studio: probe.StudioProcess, cache: Path, trials: int, res: dict):
+def measure_sliders(browser, studio: probe.StudioProcess, cache: Path, trials: int, res: dict, model: tuple[str, ...]):
     """Slider latency with the 'reads as' panel, then with a mix pinned, then in a studio without the panel."""
     page = probe.open_studio(browser, studio.url, *VIEW_SIZE)
     probe.watch_view_images(page)
@@ -194,7 +196,7 @@ def measure_sliders(browser, studio: probe.StudioProcess, cache: Path, trials: i
     _say("  ... with a mix pinned (A/B)", lat, "p95 <= 100 ms")
     page.locator("#clear-pin").click()
     # the same without the 'reads as' panel, in the same run (its cost is the difference; the machine is noisy)
-    bare = probe.StudioProcess("--judge", "none", cache_dir=cache, timeout=120)
+    bare = probe.StudioProcess(*model, "--judge", "none", cache_dir=cache, timeout=120)
     try:
         bare_page = probe.open_studio(browser, bare.url, *VIEW_SIZE)
         probe.watch_view_images(bare_page)
@@ -231,25 +233,28 @@ def main() -> int:
     ap.add_argument("--play-seconds", type=float, default=5.0)
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--memory-only", action="store_true", help="only the memory of 5 tabs (CPU load does not skew it)")
+    ap.add_argument("--checkpoint", type=Path, default=None, help="the model every studio serves (default: the bundled one)")
     args = ap.parse_args()
+    model = ("--checkpoint", str(args.checkpoint)) if args.checkpoint else ()
     from playwright.sync_api import sync_playwright
 
-    res: dict = {"threads": os.cpu_count(), "load_before": os.getloadavg()}
+    res: dict = {"threads": os.cpu_count(), "load_before": os.getloadavg(), "checkpoint": str(args.checkpoint or "bundled")}
+    print(f"model: {res['checkpoint']}")
     print(f"machine: {os.cpu_count()} hardware threads, load average {os.getloadavg()[0]:.2f} (other work on the cores skews all numbers)")
     with tempfile.TemporaryDirectory() as tmp, sync_playwright() as p:
         browser = probe.launch_chromium(p)
         cache = Path(tmp) / "cache"
         if args.memory_only:
-            studio = probe.StudioProcess(cache_dir=cache, timeout=120)
+            studio = probe.StudioProcess(*model, cache_dir=cache, timeout=120)
             try:
                 measure_tabs(browser, studio, 0, res)
             finally:
                 studio.stop()
                 browser.close()
             return 0
-        studio = measure_start(browser, cache, res)
+        studio = measure_start(browser, cache, res, model)
         try:
-            page = measure_sliders(browser, studio, cache, args.trials, res)
+            page = measure_sliders(browser, studio, cache, args.trials, res, model)
             fps, n = displayed_fps(page, args.play_seconds)
             res["displayed_fps"] = fps
             print(f"playback at 2x (30 fps target): page displayed {fps:.1f} pictures/s ({n} in {args.play_seconds:g} s)")
