@@ -235,6 +235,8 @@ def main() -> int:
     ap.add_argument("--memory-only", action="store_true", help="only the memory of 5 tabs (CPU load does not skew it)")
     ap.add_argument("--checkpoint", type=Path, default=None, help="the model every studio serves (default: the bundled one)")
     args = ap.parse_args()
+    if args.checkpoint and not args.checkpoint.is_file():
+        ap.error(f"checkpoint not found: {args.checkpoint}")  # one line, before any studio or browser starts
     model = ("--checkpoint", str(args.checkpoint)) if args.checkpoint else ()
     from playwright.sync_api import sync_playwright
 
