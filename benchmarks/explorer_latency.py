@@ -288,4 +288,7 @@ def measure_render(res: dict) -> None:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    try:
+        raise SystemExit(main())
+    except RuntimeError as err:  # a studio that would not start (e.g. a corrupt checkpoint) says why in one line
+        raise SystemExit(f"explorer_latency: {err}") from None
