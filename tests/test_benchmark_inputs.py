@@ -1,0 +1,38 @@
+"""Bad input to the studio benchmark's --checkpoint: one line naming the problem, never a traceback."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCHMARK = Path(__file__).resolve().parents[1] / "benchmarks" / "explorer_latency.py"
+
+
+def run_benchmark(checkpoint: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(BENCHMARK), "--checkpoint", str(checkpoint), "--trials", "1"],
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_a_missing_checkpoint_is_one_line_before_anything_starts(tmp_path):
+    out = run_benchmark(tmp_path / "nowhere.safetensors")
+    assert out.returncode != 0
+    assert "Traceback" not in out.stderr
+    assert out.stderr.strip().splitlines()[-1].endswith(f"checkpoint not found: {tmp_path / 'nowhere.safetensors'}")
+    assert "model:" not in out.stdout  # refused before any studio or browser started
+
+
+def test_a_corrupt_checkpoint_ends_the_run_in_one_line(tmp_path):
+    if not os.path.exists("/usr/bin/chromium"):
+        pytest.skip("needs /usr/bin/chromium (apt-get install -y chromium)")
+    pytest.importorskip("playwright.sync_api")
+    corrupt = tmp_path / "corrupt.safetensors"
+    corrupt.write_bytes(b"\xff" * 2000)  # not a safetensors header
+    out = run_benchmark(corrupt)
+    assert out.returncode == 1
+    assert "Traceback" not in out.stderr
+    last = out.stderr.strip().splitlines()[-1]
+    assert last.startswith("explorer_latency: studio did not start:") and "not a readable safetensors checkpoint" in last
