@@ -156,6 +156,22 @@ def test_plausibility_of_real_motion_and_of_a_frozen_pose(sample_data):
     assert plausibility.plausibility(list(leaders), far, list(reals), sk, 15.0)["interpenetration"] == 0.0
 
 
+def test_foot_skate_counts_a_foot_sliding_on_the_floor_not_one_stepping_off_it(sample_data):
+    """Synthetic feet on a real follower's frame: a foot that slides along the floor skates; one that lifts off while
+    it moves forward does not (the lift-off step has the foot on the floor at one end only)."""
+    sk = sample_data.skeleton
+    up, feet = sk.vertical_axis, [sk.joint_names.index(n) for n in ("left_foot", "right_foot")]
+    body = np.repeat(sample_data.canonical(0)[1][:1].astype(np.float64), 10, 0)
+    body[:, feet, up] = 0.0
+    sliding, stepping = body.copy(), body.copy()
+    forward = [a for a in range(3) if a != up][0]
+    sliding[:, feet[0], forward] += 0.02 * np.arange(10)  # 0.3 m/s along the floor, every step
+    stepping[5:, feet[0], up] = 0.2  # lifted on frame 5, having moved forward on the same step
+    stepping[5:, feet[0], forward] += 0.1
+    assert plausibility.foot_skate_mps(sliding, sk, 15.0) == pytest.approx(0.15)  # one foot of two slides
+    assert plausibility.foot_skate_mps(stepping, sk, 15.0) == 0.0
+
+
 def test_a_swaying_root_counts_as_limb_motion_from_the_root_only(sample_data):
     """A frozen pose whose root joint alone swings back and forth inside the body: every joint moves relative to the
     root (limb_speed_ratio > 0), none relative to the centre of the root's neighbours (body_limb_speed_ratio is the

@@ -7,7 +7,8 @@
   overlap by half a limb or more, but real followers come that close in a quarter of handshake and half of hug
   frames: in those classes it counts contact too.
 - foot_skate_mps: mean horizontal speed of feet in ground contact (within CONTACT_M of the sequence's
-  lowest foot height).
+  lowest foot height at both ends of a frame step, as in GMD's skating measure, Karunratanakul et al. 2023: the step
+  on which a foot lifts off is the foot leaving the floor, not sliding on it).
 - speed_ratio: mean joint speed of the generated followers over that of the real ones, and limb_speed_ratio
   the same for joints relative to the follower's own root. Real motion is first smoothed with a
   Savitzky-Golay filter (window 7, order 2) so that Kinect jitter does not count as motion; smooth_limb_speed_ratio
@@ -70,7 +71,8 @@ def foot_skate_mps(follower: np.ndarray, skeleton: Skeleton, fps: float) -> floa
         return float("nan")
     up = skeleton.vertical_axis
     pos = follower[:, feet]  # (T, 2, 3)
-    contact = pos[:-1, :, up] < pos[..., up].min() + CONTACT_M
+    on_floor = pos[..., up] < pos[..., up].min() + CONTACT_M
+    contact = on_floor[:-1] & on_floor[1:]
     horizontal = np.delete(np.diff(pos, axis=0), up, axis=-1)
     speed = np.linalg.norm(horizontal, axis=-1) * fps
     return float(speed[contact].mean()) if contact.any() else 0.0
