@@ -22,7 +22,7 @@ from explorer.latent_panel import LatentPanel
 from explorer.layout import build_layout
 from explorer.palette import class_color, display_name
 from explorer.playback import play
-from explorer.reads_as_panel import reads_as_rows
+from explorer.reads_as_panel import reads_as_rows, unread_note
 from explorer.scene import CHARACTER_KEYS, Scene, floor_height
 from explorer.session import FPS, Session
 from explorer.url_state import apply_view, current_view, view_query
@@ -92,6 +92,7 @@ class Studio:
                 "scale": 1.0,
                 "label_text": "",
                 "reads_as": [],  # explorer/reads_as_panel.py
+                "reads_as_note": "",
                 "scene_layout": "overlay",
                 "show_leader": True,
                 "show_ground_truth": True,
@@ -288,6 +289,7 @@ class Studio:
         s, ses = self.state, self.session
         s.label_text = ses.label_text()
         s.reads_as = reads_as_rows(ses.reads_as(), ses.weights, ses.class_names)
+        s.reads_as_note = unread_note(s.reads_as)
         self._distances = ses.distances_m()
         self._ab_distances = ses.ab_distances_m()
         s.ab_text = f"pinned ↔ current: mean {self._ab_distances.mean():.2f} m" if len(self._ab_distances) else ""

@@ -1,6 +1,7 @@
 """The "reads as" panel: which interaction the synthesized reaction on screen reads as, per the follower-only
 classifier (imm_model/reads_as.py), one bar per class, the asked-for classes marked. Updated with every slider
-move, so a user sees whether a mix reads as intended."""
+move, so a user sees whether a mix reads as intended; an asked-for class the classifier barely sees is named under
+the bars (the mixes that fail issue 9's bar show this way, docs/explorer.md "Mixes that do not read")."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from trame.widgets import html
 from trame.widgets import vuetify3 as v3
 
 from explorer.palette import class_color, display_name
+from imm_model.reads_as import MIX_SHARE
 
 
 def reads_as_rows(probabilities: np.ndarray | None, weights: Sequence[float], class_names: Sequence[str]) -> list[dict]:
@@ -20,6 +22,17 @@ def reads_as_rows(probabilities: np.ndarray | None, weights: Sequence[float], cl
     return [{"name": display_name(n), "p": round(float(p), 3), "color": class_color(i),
              "asked": "+" if w > 1e-6 else "-" if w < -1e-6 else ""}
             for i, (n, p, w) in enumerate(zip(class_names, probabilities, weights, strict=True))]
+
+
+def unread_note(rows: Sequence[dict]) -> str:
+    """'' when every asked-for class reads; else which ones get under MIX_SHARE of the probability, in one line."""
+    asked = [r for r in rows if r["asked"] == "+"]
+    unread = [r for r in asked if r["p"] < MIX_SHARE]
+    if not unread:
+        return ""
+    listed = ", ".join(f"{r['name']} {r['p'] * 100:.0f}%" for r in unread)
+    what = "this mix" if len(asked) > 1 else "asked"
+    return f"Does not read as {what}: {listed} (under {MIX_SHARE * 100:.0f}%)"
 
 
 def reads_as_panel() -> None:
@@ -37,3 +50,4 @@ def reads_as_panel() -> None:
                                bg_color="grey-lighten-2", classes="reads-as-bar", style="flex: 1 1 auto")
             html.Div("{{ (row.asked ? row.asked + ' ' : '') + (row.p * 100).toFixed(0) + '%' }}", classes="text-caption ml-1",
                      style="flex: 0 0 48px; text-align: right; white-space: nowrap")
+        html.Div("{{ reads_as_note }}", v_if="reads_as_note", id="reads-as-note", classes="text-caption text-warning mt-1")

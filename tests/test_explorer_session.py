@@ -141,6 +141,18 @@ def test_reads_as_follows_the_label(sample_data, model):
     assert Session(sample_data, model, index=0).reads_as() is None  # no classifier, no panel
 
 
+def test_the_panel_names_asked_classes_that_do_not_read():
+    from explorer.reads_as_panel import reads_as_rows, unread_note
+
+    names = ("kicking", "pushing", "hugging")
+    mixed = reads_as_rows(np.array([0.05, 0.15, 0.80]), [1, 0, 1], names)
+    assert unread_note(mixed) == "Does not read as this mix: kicking 5% (under 25%)"
+    alone = reads_as_rows(np.array([0.20, 0.60, 0.20]), [1, 0, 0], names)
+    assert unread_note(alone) == "Does not read as asked: kicking 20% (under 25%)"
+    assert unread_note(reads_as_rows(np.array([0.30, 0.05, 0.65]), [1, -1, 1], names)) == ""  # both read; avoided is not asked
+    assert unread_note([]) == ""
+
+
 def test_reads_as_refuses_other_classes_and_files(sample_data, model, tmp_path):
     from explorer.session import Session
     from imm_model.reads_as import ReadsAs

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from imm_model.reads_as import MIX_SHARE
+
 PER_CLASS_METRICS = ("afd", "afd_squared", "fid", "accuracy")
-MIX_SHARE = 0.25  # a two-class mix reads as mixed when each member gets at least this share of the probability
 
 
 def _stat(values: list[float]) -> tuple[float, float]:
