@@ -128,6 +128,10 @@ def test_label_control_with_known_judges():
     blend = lambda labels: np.maximum(labels, 0) / np.maximum(labels, 0).sum(-1, keepdims=True).clip(1e-9) * 0.8 + 0.05  # noqa: E731
     rows = control.mix_table(blend, 5, ("a", "b", "c", "d"))
     assert len(rows) == 6 and all(r["mass"] == pytest.approx(0.9) and r["both_top2"] == 1.0 for r in rows)
+    assert all(r["both_read"] == 1.0 for r in rows)  # 0.45 on each member for every leader
+    one_side = lambda labels: np.eye(4)[np.argmax(labels, -1) + np.arange(len(labels)) % 2]  # noqa: E731  one member per leader
+    ab = control.mix_table(one_side, 4, ("a", "b", "c", "d"))[0]
+    assert ab["first"] == ab["second"] == 0.5 and ab["both_read"] == 0.0  # the means pass, no leader's reaction reads as both
     avoid = control.avoid_effect(lambda labels: np.full((len(labels), 4), 0.25) - labels * 0.2, leader_classes, 4)
     assert avoid["change"] == pytest.approx(0.2)  # this judge raises the avoided class: "avoid" failed, and it shows
 

@@ -3,7 +3,8 @@
 - adherence: every test leader x every one-hot target label; matrix[leader class, target class] = share of
   generated followers the judge assigns to the target. The diagonal is the true label; the off-diagonal
   mean is what "mix and match" needs: a reaction the data never paired with that leader.
-- mix: every pair of classes at +1 each; mean probability on the pair and on each member.
+- mix: every pair of classes at +1 each; mean probability on the pair and on each member, and the share of leaders
+  whose reaction reads as both (the mean can pass while each leader's reaction reads as one member only).
 - avoid: -1 on the leader's class vs an all-zero label: the change in that class's probability.
 """
 
@@ -13,6 +14,8 @@ from collections.abc import Callable
 from itertools import combinations
 
 import numpy as np
+
+from imm_model.reads_as import MIX_SHARE
 
 # (N, C) label vectors for N leaders -> (N, C) judge probabilities of the generated followers
 Judge = Callable[[np.ndarray], np.ndarray]
@@ -38,7 +41,8 @@ def off_diagonal_mean(matrix: np.ndarray) -> float:
 
 
 def mix_table(judge: Judge, num_leaders: int, class_names: tuple[str, ...]) -> list[dict]:
-    """One row per pair of classes at +1 each: probability mass on the pair and on each member."""
+    """One row per pair of classes at +1 each: probability mass on the pair and on each member (means over leaders),
+    and the share of leaders whose reaction reads as both members (each at MIX_SHARE or more)."""
     rows = []
     for i, j in combinations(range(len(class_names)), 2):
         labels = np.zeros((num_leaders, len(class_names)), np.float32)
@@ -46,7 +50,8 @@ def mix_table(judge: Judge, num_leaders: int, class_names: tuple[str, ...]) -> l
         p = judge(labels)
         rows.append({"pair": [class_names[i], class_names[j]], "mass": float((p[:, i] + p[:, j]).mean()),
                      "first": float(p[:, i].mean()), "second": float(p[:, j].mean()),
-                     "both_top2": float(np.mean([{i, j} == set(np.argsort(row)[-2:]) for row in p]))})
+                     "both_top2": float(np.mean([{i, j} == set(np.argsort(row)[-2:]) for row in p])),
+                     "both_read": float(np.mean((p[:, i] >= MIX_SHARE) & (p[:, j] >= MIX_SHARE)))})
     return rows
 
 

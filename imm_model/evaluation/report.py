@@ -99,10 +99,11 @@ def group_summary(results: list[dict], class_names: tuple[str, ...]) -> dict:
 
 
 def _mean_mix(results: list[dict], key_: str) -> list[dict]:
+    """Per pair, the mean of each number every result has (a result recorded before a number existed lacks it)."""
     rows = []
     for k, row in enumerate(results[0][key_]):
-        rows.append({"pair": row["pair"]} | {key: _stat([r[key_][k][key] for r in results])[0]
-                                             for key in row if key != "pair"})
+        keys = [key for key in row if key != "pair" and all(key in r[key_][k] for r in results)]
+        rows.append({"pair": row["pair"]} | {key: _stat([r[key_][k][key] for r in results])[0] for key in keys})
     return rows
 
 

@@ -53,12 +53,12 @@ def control_table(group: dict) -> str:
 
 def mix_table(group: dict) -> str:
     lines = ["| mix (+1 each) | first / second, follower GRU | first / second, independent judge | mass on the pair (judge) "
-             "| both in the top 2 (judge) |", "|---|---:|---:|---:|---:|"]
+             "| both in the top 2 (judge) | leaders read as both (judge) |", "|---|---:|---:|---:|---:|---:|"]
     for r, j in zip(group["mix"], group["mix_judge"], strict=True):
         lines.append(f"| {r['pair'][0]} + {r['pair'][1]} | {r['first']:.2f} / {r['second']:.2f} | {j['first']:.2f} / {j['second']:.2f} "
-                     f"| {j['mass']:.2f} | {j['both_top2']:.2f} |")
+                     f"| {j['mass']:.2f} | {j['both_top2']:.2f} | {j.get('both_read', float('nan')):.2f} |")
     lines.append(f"| **pairs with >= 0.25 on each member** | {group['mix_pairs_ok']} / {len(group['mix'])} "
-                 f"| {group['mix_pairs_ok_judge']} / {len(group['mix'])} | | |")
+                 f"| {group['mix_pairs_ok_judge']} / {len(group['mix'])} | | | |")
     return "\n".join(lines)
 
 
