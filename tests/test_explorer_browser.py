@@ -94,7 +94,7 @@ def test_a_mix_that_does_not_read_is_named_under_the_bars(page):
     names = probe.state(page, "class_names")
     kick, hug = names.index("kicking"), names.index("hugging")
     page.click("#reset-label")
-    probe.wait_state(page, "[0, 1, 2, 3, 4, 5].every((i) => s.get('w_' + i) === 0)")
+    probe.wait_state(page, f"{list(range(len(names)))}.every((i) => s.get('w_' + i) === 0)")
     probe.set_state(page, f"w_{kick}", 1.0)
     probe.set_state(page, f"w_{hug}", 1.0)
     asked = "s.get('reads_as').map((r) => r.asked).join(',')"  # the panel updates a moment after the picture
