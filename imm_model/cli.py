@@ -38,9 +38,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="a bundle .npz, a raw SBU folder or a K3HI folder (default: the bundled sample file)",
     )
     summary.set_defaults(func=_cmd_summary)
-    build = sub.add_parser("build-sample", help="rebuild imm_model/sample_data/sbu_interactions.npz from the raw SBU files")
+    build = sub.add_parser("build-sample", help="rebuild sample_data/sbu_interactions.npz from the raw SBU files")
     build.add_argument("--raw", type=Path, default=None, help="raw SBU folder (default: ../shared/datasets/sbu_kinect_interaction)")
-    build.add_argument("--out", type=Path, default=None, help="output .npz (default: imm_model/sample_data/sbu_interactions.npz)")
+    build.add_argument("--out", type=Path, default=None, help="output .npz (default: sample_data/sbu_interactions.npz)")
     build.set_defaults(func=_cmd_build_sample)
     judge = sub.add_parser("build-judge", help="train the studio's 'reads as' classifier (follower-only, real data only)")
     judge.add_argument("--fold", default="s04", help="held-out subject, as the bundled model's (default s04)")

@@ -1,6 +1,6 @@
 """The inference API the studio builds on, and the `imm generate` command.
 
-    model = ReactionModel.load("imm_model/sample_data/imm_sbu.safetensors")
+    model = ReactionModel.load("sample_data/imm_sbu.safetensors")
     follower = model.synthesize(leader_world, {"kicking": 1.0, "hugging": 0.5})  # (T, J, 3) metres
 
 Labels are multi-hot: one float per class (+1 perform, 0 neutral, -1 avoid, fractions blend, values

@@ -3,11 +3,40 @@
 from __future__ import annotations
 
 import os
+from importlib import metadata
 from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
-# The bundled sample data and models ship inside the package (a wheel has them too); $IMM_SAMPLE_DIR overrides.
-SAMPLE_DIR = Path(os.environ.get("IMM_SAMPLE_DIR") or Path(__file__).resolve().parent / "sample_data")
+DISTRIBUTION = "imm-studio"
+_MARKER = "sbu_interactions.npz"
+
+
+def _installed_sample_dir() -> Path | None:
+    """sample_data/ as an installed wheel placed it: pyproject.toml maps it to share/imm-studio/sample_data
+    (data-files), whose prefix depends on the install scheme (venv, --user, system), so ask the
+    distribution's own file list where it went."""
+    try:
+        files = metadata.distribution(DISTRIBUTION).files or ()
+    except metadata.PackageNotFoundError:
+        return None
+    for f in files:
+        if f.name == _MARKER and f.parent.name == "sample_data":
+            return Path(str(f.locate())).resolve().parent
+    return None
+
+
+def _sample_dir() -> Path:
+    """The bundled data, models and judge: $IMM_SAMPLE_DIR, else sample_data/ at the top of the checkout,
+    else the copy an installed wheel carries."""
+    if os.environ.get("IMM_SAMPLE_DIR"):
+        return Path(os.environ["IMM_SAMPLE_DIR"])
+    checkout = REPO_ROOT / "sample_data"
+    if (checkout / _MARKER).is_file():
+        return checkout
+    return _installed_sample_dir() or checkout
+
+
+SAMPLE_DIR = _sample_dir()
 SAMPLE_DATA = SAMPLE_DIR / "sbu_interactions.npz"
 SAMPLE_CHECKPOINT = SAMPLE_DIR / "imm_sbu.safetensors"
 SAMPLE_JUDGE = SAMPLE_DIR / "follower_judge.safetensors"  # the studio's "reads as" classifier (imm_model/reads_as.py)

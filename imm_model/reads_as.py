@@ -3,7 +3,7 @@
 The studio shows them beside the label sliders, so a user sees whether a mix reads as intended. The classifier
 is the evaluation's independent judge (model/classifier.py FOLLOWER_JUDGE: temporal conv, trained on real
 followers only, never a training critic), trained on the same subjects as the bundled model (fold s04 held out)
-and bundled as imm_model/sample_data/follower_judge.safetensors (`imm data build-judge`). A conv classifier runs
+and bundled as sample_data/follower_judge.safetensors (`imm data build-judge`). A conv classifier runs
 in numpy (model/numpy_runtime.py: the studio never imports torch for it); a GRU one on torch.
 """
 

@@ -1,6 +1,6 @@
 """`InteractionDataset`: many interactions in the canonical frame, as flat arrays.
 
-This is what the model trains on, what the studio shows and what `imm_model/sample_data/` bundles. Frames of
+This is what the model trains on, what the studio shows and what `sample_data/` bundles. Frames of
 all sequences are concatenated (F = total frames) and `offsets[i]:offsets[i]+lengths[i]` selects
 sequence i, which keeps the bundle small and loading a single `np.load`.
 """
