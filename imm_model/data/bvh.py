@@ -4,6 +4,10 @@ Import: bvhio parses the file (channel orders, Euler angles); forward kinematics
 with scipy rotations; then the 15 Kinect joints are picked by name (NAME_TABLE, overridable with a JSON
 mapping), converted to metres (units detected from the leg length, or given) and to the project's Y-up axis,
 and resampled to 15 fps. A skeleton that cannot be mapped is a one-line DataFormatError naming what is missing.
+Before bvhio sees a file, `_check_layout` walks it once without recursion and holds it to what bvhio relies on
+(bvhio's line reader never returns at the end of the file, so a MOTION block shorter than its `Frames:` line would
+hang it): the hierarchy complete and within MAX_JOINTS and MAX_DEPTH, unique joint names, a sane `Frame Time`,
+and as many finite motion rows of the declared width as `Frames:` claims, within MAX_KEYFRAMES and MAX_SECONDS.
 
 Export (one character per file, the project's 15-joint hierarchy rooted at the torso): every joint carries
 translation channels, so re-importing reproduces each position exactly (Kinect bone lengths vary from frame to
@@ -14,6 +18,8 @@ rest pose (median bone lengths, upright), so tools that animate by rotations sho
 from __future__ import annotations
 
 import json
+import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +51,14 @@ NAME_TABLE: dict[str, tuple[str, ...]] = {
 # "cmu": the CMU database's ASF length unit, 1/0.45 inch, kept by its BVH conversions
 UNITS = {"m": 1.0, "dm": 0.1, "cmu": 0.0254 / 0.45, "inch": 0.0254, "cm": 0.01, "mm": 0.001}
 MAX_BYTES = 20_000_000
+# bvhio keeps a Python object per joint per frame (measured: 807,000 of them, a 20 MB CMU file, take 10.6 s and 375 MB)
+MAX_KEYFRAMES = 400_000  # frames x joints
+MAX_JOINTS = 1000
+MAX_DEPTH = 100  # joints from the root to the deepest leaf; a human rig has about a dozen
+MAX_SECONDS = 600.0  # duration of the motion
+FRAME_TIME_RANGE = (1e-4, 1.0)  # seconds per frame: 1 to 10000 frames per second
+MAX_COORDINATE_M = 1000.0  # a joint further than this from the origin is not a person's motion
+CHANNEL_NAMES = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
 LEG_M = 0.85  # hip to ankle of an adult, the yardstick for guessing a file's units
 
 
@@ -100,13 +114,11 @@ def read_bvh(path: Path | str, mapping: dict[str, str] | Path | None = None, uni
     path = Path(path)
     if isinstance(mapping, (str, Path)):
         mapping = _read_mapping(Path(mapping))
-    _check_text(path)
+    _check_layout(path, _read_text(path))
     try:
         container = bvhio.readAsBvh(str(path))
     except Exception as err:  # bvhio raises bare exceptions of many kinds for malformed text
         raise DataFormatError(f"{path}: not a readable BVH file ({type(err).__name__}: {str(err)[:120]})") from None
-    if container.FrameCount < 2 or not container.FrameTime or container.FrameTime <= 0:
-        raise DataFormatError(f"{path}: BVH with {container.FrameCount} frames and frame time {container.FrameTime}")
     world, names = forward_kinematics(container)
     kinect = world[:, joint_mapping(names, mapping)]
     if up == "z":  # Z-up files: (x, y, z) -> (x, z, -y), still right-handed
@@ -116,23 +128,169 @@ def read_bvh(path: Path | str, mapping: dict[str, str] | Path | None = None, uni
     kinect = kinect * _unit_scale(kinect, units, path)
     if not np.isfinite(kinect).all():
         raise DataFormatError(f"{path}: the BVH motion has non-finite values")
+    if np.abs(kinect).max() > MAX_COORDINATE_M:
+        raise DataFormatError(f"{path}: joints {np.abs(kinect).max():.3g} m from the origin; positions within "
+                              f"{MAX_COORDINATE_M:g} m are accepted (wrong units?)")
     return resample(kinect, 1.0 / container.FrameTime, TARGET_FPS)
 
 
-def _check_text(path: Path) -> None:
-    """Refuse what is not BVH text before the parser sees it (bvhio never returns on an empty file)."""
+def _read_text(path: Path) -> str:
+    """The file's text as bvhio reads it (default encoding, universal newlines), refusing what is not BVH text."""
     try:
-        with path.open("rb") as f:
-            head = f.read(4096)
         size = path.stat().st_size
+        if size > MAX_BYTES:
+            raise DataFormatError(f"{path}: {size / 1e6:.0f} MB; BVH leaders up to {MAX_BYTES / 1e6:.0f} MB are accepted")
+        with path.open("r") as f:  # as bvhio opens it
+            text = f.read()
+    except UnicodeDecodeError as err:
+        raise DataFormatError(f"{path}: not a text file ({err.reason} at byte {err.start})") from None
     except OSError as err:
         raise DataFormatError(f"{path}: cannot read ({err.strerror})") from None
-    if size > MAX_BYTES:
-        raise DataFormatError(f"{path}: {size / 1e6:.0f} MB; BVH leaders up to {MAX_BYTES / 1e6:.0f} MB are accepted")
-    if not head.lstrip().upper().startswith(b"HIERARCHY"):
+    if not text.lstrip().startswith("HIERARCHY"):
         raise DataFormatError(f"{path}: not a BVH file (it does not begin with HIERARCHY)")
-    if b"MOTION" not in path.read_bytes():
-        raise DataFormatError(f"{path}: BVH without a MOTION section")
+    return text
+
+
+class _Lines:
+    """The non-blank lines of a text as bvhio's reader sees them (split on whitespace), with their line numbers."""
+
+    def __init__(self, path: Path, text: str):
+        self.path, self.text = path, text
+        self.matches = re.finditer(r"\S[^\n]*", text)  # each from its first non-space character to the line's end
+        self.start = 0
+
+    def line_number(self) -> int:
+        return self.text.count("\n", 0, self.start) + 1
+
+    def fail(self, problem: str) -> DataFormatError:
+        return DataFormatError(f"{self.path}:{self.line_number()}: {problem}")
+
+    def next(self, what: str) -> list[str]:
+        match = next(self.matches, None)
+        if match is None:
+            raise DataFormatError(f"{self.path}: the file ends before {what} (truncated?)")
+        self.start = match.start()
+        return match.group().split()
+
+    def expect(self, keyword: str, what: str, count: int | None = None) -> list[str]:
+        """The next line, which must begin with `keyword` (and have `count` more tokens, where given)."""
+        tokens = self.next(what)
+        if tokens[0] != keyword or (count is not None and len(tokens) != count + 1):
+            raise self.fail(f"expected {what}, found {' '.join(tokens)[:60]!r}")
+        return tokens
+
+    def offset(self, joint: str) -> None:
+        values = self.expect("OFFSET", f"the OFFSET x y z of {joint}", 3)[1:]
+        if not all(_finite(v) for v in values):
+            raise self.fail(f"OFFSET of {joint} is not three finite numbers")
+
+
+def _finite(text: str) -> bool:
+    try:
+        return math.isfinite(float(text))
+    except ValueError:
+        return False
+
+
+def _check_layout(path: Path, text: str) -> None:
+    """Hold the text to what bvhio needs in order to return (module docstring); DataFormatError naming the line."""
+    lines = _Lines(path, text)
+    lines.expect("HIERARCHY", "HIERARCHY")
+    root = lines.expect("ROOT", "ROOT and the root joint's name")
+    if len(root) < 2:
+        raise lines.fail("the ROOT joint has no name")
+    names: set[str] = set()
+    open_joints: list[str] = []
+    channels = 0
+    pending: str | None = root[1]
+    while pending is not None or open_joints:
+        if pending is not None:  # a joint's head: {, OFFSET, CHANNELS
+            if pending in names:
+                raise lines.fail(f"joint name {pending!r} is used twice")
+            if len(names) >= MAX_JOINTS:
+                raise lines.fail(f"more than {MAX_JOINTS} joints")
+            if len(open_joints) >= MAX_DEPTH:
+                raise lines.fail(f"the hierarchy is more than {MAX_DEPTH} joints deep")
+            names.add(pending)
+            open_joints.append(pending)
+            lines.expect("{", f"'{{' opening joint {pending}", 0)
+            lines.offset(pending)
+            declared = lines.expect("CHANNELS", f"the CHANNELS of {pending}")
+            if len(declared) < 2 or declared[1] != str(len(declared) - 2) or not declared[2:]:
+                raise lines.fail(f"CHANNELS of {pending}: a count followed by that many channel names is expected")
+            unknown = [c for c in declared[2:] if c not in CHANNEL_NAMES]
+            if unknown:
+                raise lines.fail(f"CHANNELS of {pending}: unknown channel {unknown[0][:30]!r}; known: {', '.join(CHANNEL_NAMES)}")
+            channels += len(declared) - 2
+            pending = None
+            continue
+        tokens = lines.next(f"the closing '}}' of joint {open_joints[-1]}")
+        if tokens[0] == "JOINT":
+            if len(tokens) < 2:
+                raise lines.fail("a JOINT without a name")
+            pending = tokens[1]
+        elif tokens[0] == "End":
+            lines.expect("{", f"'{{' opening the end site of {open_joints[-1]}")
+            lines.offset(f"the end site of {open_joints[-1]}")
+            lines.expect("}", f"'}}' closing the end site of {open_joints[-1]}")
+        elif tokens[0] == "}":
+            open_joints.pop()
+        else:
+            raise lines.fail(f"expected JOINT, End Site or '}}' in joint {open_joints[-1]}, found {' '.join(tokens)[:60]!r}")
+    lines.expect("MOTION", "MOTION", 0)
+    frames = _header_number(lines, lines.expect("Frames:", "'Frames: N'", 1)[1], "Frames", int)
+    frame_time = _header_number(lines, lines.expect("Frame", "'Frame Time: seconds'", 2)[2], "Frame Time", float)
+    low, high = FRAME_TIME_RANGE
+    if not low <= frame_time <= high:
+        raise lines.fail(f"Frame Time {frame_time:g} s: frame times from {low:g} to {high:g} s are accepted (1 to 10000 frames per second)")
+    if frames < 2:
+        raise lines.fail(f"Frames: {frames}; at least 2 frames are needed")
+    if frames * len(names) > MAX_KEYFRAMES:
+        raise lines.fail(f"Frames: {frames} of {len(names)} joints; up to {MAX_KEYFRAMES} joint-frames are read")
+    if (frames - 1) * frame_time > MAX_SECONDS:
+        raise lines.fail(f"Frames: {frames} at Frame Time {frame_time:g} s lasts {(frames - 1) * frame_time:.0f} s; "
+                         f"motions up to {MAX_SECONDS:.0f} s are read")
+    _check_motion(lines, frames, channels)
+
+
+def _header_number(lines: _Lines, text: str, field: str, kind: type) -> float:
+    try:
+        value = kind(text)
+    except ValueError:
+        raise lines.fail(f"{field}: {text[:30]!r} is not {'an integer' if kind is int else 'a number'}") from None
+    if not math.isfinite(value):
+        raise lines.fail(f"{field}: {text[:30]!r} is not finite")
+    return value
+
+
+def _check_motion(lines: _Lines, frames: int, channels: int, chunk: int = 2048) -> None:
+    """The first `frames` rows of the MOTION block: present, `channels` numbers each, all finite."""
+    done = 0
+    while done < frames:
+        rows, starts = [], []
+        for _ in range(min(chunk, frames - done)):
+            match = next(lines.matches, None)
+            if match is None:
+                raise DataFormatError(f"{lines.path}: the MOTION block has {done + len(rows)} frames; its Frames: line "
+                                      f"says {frames} (truncated?)")
+            if len(match.group()) > 64 * channels:  # refused before it is split into far more values than declared
+                lines.start = match.start()
+                raise lines.fail(f"a motion row of {len(match.group())} characters for {channels} channels")
+            rows.append(match.group().split())
+            starts.append(match.start())
+        for row, start in zip(rows, starts, strict=True):
+            if len(row) != channels:
+                lines.start = start
+                raise lines.fail(f"a motion row of {len(row)} values; the hierarchy declares {channels} channels")
+        try:
+            finite = bool(np.isfinite(np.array(rows, dtype=np.float64)).all())
+        except ValueError:
+            finite = False
+        bad = None if finite else next((k for k, row in enumerate(rows) if not all(_finite(v) for v in row)), None)
+        if bad is not None:  # (bvhio parses each value with float(), as _finite does)
+            lines.start = starts[bad]
+            raise lines.fail("a motion value that is not a finite number (NaN, infinity or text)")
+        done += len(rows)
 
 
 def _read_mapping(path: Path) -> dict[str, str]:
