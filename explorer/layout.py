@@ -26,6 +26,21 @@ STILL_CONTROLS_CSS = """
 .reads-as-bar, .reads-as-bar .v-progress-linear__determinate { transition: none; }
 """
 
+# The page fits the window, from 1280x720 up: the main area is exactly the window below the app bar, and its column
+# (3D view, playback bar, chart and map) never wraps; the 3D view takes what the chart row leaves, down to a floor,
+# and below that floor the column scrolls inside the main area (the page body never scrolls).
+WINDOW_CSS = """
+html { overflow: hidden; }
+.imm-main { height: 100vh; }
+.imm-column { height: 100%; display: flex; flex-direction: column; flex-wrap: nowrap; gap: 6px; padding: 8px;
+              overflow: auto; min-width: 0; }
+.imm-scene { flex: 1 1 auto; min-height: 240px; position: relative; width: 100%; }
+.imm-review { flex: 0 0 clamp(220px, 34vh, 440px); display: flex; gap: 8px; width: 100%; min-height: 0; }
+.imm-review > .v-card { flex: 1 1 50%; min-width: 0; display: flex; flex-direction: column; }
+.imm-fill { flex: 1 1 auto; min-height: 120px; position: relative; }
+.imm-toolbar-row { overflow-x: auto; overflow-y: hidden; flex-wrap: nowrap; }
+"""
+
 
 def build_layout(studio) -> VAppLayout:
     # Built from VAppLayout rather than trame's SinglePageWithDrawerLayout: that one adds a footer (hidden here anyway)
@@ -43,15 +58,15 @@ def build_layout(studio) -> VAppLayout:
                 label_mix(studio)
                 v3.VDivider(classes="my-3")
                 character_toggles(studio)
-        with v3.VMain():
-            with v3.VContainer(fluid=True, classes="pa-2 fill-height d-flex flex-column align-stretch", style="gap: 6px"):
+        with v3.VMain(classes="imm-main"):
+            with html.Div(classes="imm-column"):
                 scene_view(studio)
                 playback_bar(studio)
                 review_cards(studio)
                 v3.VSnackbar("{{ notice }}", model_value=("!!notice",), timeout=4000, update_modelValue="notice = ''")
                 page_hooks()
                 keys_card()
-                client.Style(STILL_CONTROLS_CSS)
+                client.Style(STILL_CONTROLS_CSS + WINDOW_CSS)
     return layout
 
 
@@ -267,7 +282,7 @@ def scene_view(studio) -> None:
         click_close="error = ''",
         id="error-alert",
     )
-    with html.Div(style="flex: 1 1 60%; min-height: 320px; position: relative; width: 100%", classes="rounded border"):
+    with html.Div(classes="rounded border imm-scene"):
         if studio.render_mode == "local":  # vtk.js in the browser (see docs/explorer.md)
             view = vtk_widgets.VtkLocalView(studio.scene.render_window, ref="view")
         else:  # rendered on the server, streamed as pictures (explorer/view_stream.py)
@@ -284,7 +299,7 @@ def scene_view(studio) -> None:
 
 def playback_bar(studio) -> None:
     """Play/pause, step, the frame slider, time, speed and loop."""
-    with html.Div(classes="d-flex align-center", style="width: 100%; gap: 8px"):
+    with html.Div(classes="d-flex align-center", style="width: 100%; gap: 8px; flex: 0 0 auto"):
         v3.VBtn(icon="mdi-skip-previous", size="small", variant="text", click=(studio.ctrl.step_frame, "[-1]"))
         v3.VBtn(
             icon=("playing ? 'mdi-pause' : 'mdi-play'",),
@@ -318,15 +333,15 @@ def playback_bar(studio) -> None:
 
 def review_cards(studio) -> None:
     """The per-frame error chart and the latent map."""
-    with html.Div(classes="d-flex", style="flex: 0 0 250px; width: 100%; gap: 8px"):
-        with v3.VCard(variant="outlined", style="flex: 1 1 50%", classes="pa-1"):
+    with html.Div(classes="imm-review"):
+        with v3.VCard(variant="outlined", classes="pa-1", id="chart-card"):
             with html.Div(classes="d-flex align-center px-2"):
                 html.Div("Per frame: error and contact", classes="text-caption font-weight-bold")
                 v3.VSpacer()
                 html.Div("{{ afd_text }}", classes="text-caption", id="afd-text")
             html.Div("{{ contact_text }}", classes="text-caption px-2", style=f"color: {WARNING}", id="contact-text")
             distance_chart()
-        with v3.VCard(variant="outlined", style="flex: 1 1 50%", classes="pa-1"):
+        with v3.VCard(variant="outlined", classes="pa-1", id="latent-card"):
             with html.Div(classes="d-flex align-center px-2"):
                 html.Div("Latent map: click a point to load it", classes="text-caption font-weight-bold")
                 html.Div("● seen in training  ○ held out", classes="text-caption text-medium-emphasis ml-2")
@@ -348,7 +363,7 @@ SEEK_JS = ("frame = Math.max(0, Math.min(num_frames - 1, Math.round((num_frames 
 def distance_chart() -> None:
     """explorer/charts.py's markup, with the frame cursor on top (it follows playback without a redraw)."""
     client.Style(CHART_CSS)
-    with html.Div(style="position: relative; height: 200px", id="distance-chart"):
+    with html.Div(classes="imm-fill", id="distance-chart"):
         html.Div(v_html=("distance_chart",))
         with html.Div(classes="imm-plot", style=f"{DISTANCE_BOX}; cursor: crosshair", click=SEEK_JS, id="distance-seek"):
             html.Div(classes="imm-cursor", style=("{left: (100 * frame / Math.max(1, num_frames - 1)) + '%'}",))
@@ -357,7 +372,7 @@ def distance_chart() -> None:
 def latent_map(studio) -> None:
     """explorer/charts.py's points; a click reads the point's data-index. The ring (this sequence) and the star
     (the current mix) are overlays that move without resending the points."""
-    with html.Div(style="position: relative; height: 215px", id="latent-plot",
+    with html.Div(classes="imm-fill", id="latent-plot",
                   click=(studio.ctrl.pick_latent_point, "[$event.target.dataset.index]")):
         html.Div(v_html=("latent_chart",))
         html.Div("fitting the {{ projection === 'umap' ? 'UMAP' : 't-SNE' }} map (a few seconds; UMAP's first fit up to a minute)...",

@@ -344,3 +344,32 @@ def test_interpenetrating_limbs_are_marked(page, sample_data):
     page.locator("#clean-up").click()
     probe.wait_state(page, f"s.get('clean_up') === true && s.get('mix_count') > {count}")
 
+
+
+PANELS = {"3D view": ".imm-scene", "error chart": "#distance-chart", "latent map": "#latent-plot"}
+PANEL_BOXES_JS = """(sels) => Object.fromEntries(Object.entries(sels).map(([k, s]) => {
+    const b = document.querySelector(s).getBoundingClientRect(); return [k, [b.left, b.top, b.right, b.bottom]]; }))"""
+
+
+@pytest.mark.parametrize("width,height", [(1280, 720), (1366, 768), (1920, 1080)])
+def test_the_view_chart_and_map_fit_the_window(browser, studio, width, height):
+    """From 1366x768 up the 3D view, the error chart and the latent map are all inside the window with the page body
+    unscrolled; at 1280x720 too, or reachable by scrolling the main column inside the window. The body never scrolls
+    or wraps a panel off the right edge."""
+    page = probe.open_studio(browser, studio.url, width, height)
+    try:
+        page.wait_for_selector("#latent-plot .imm-pt", timeout=30000)
+        body = page.evaluate("() => [document.documentElement.scrollWidth, document.documentElement.scrollHeight]")
+        assert body[0] <= width and body[1] <= height, body
+        boxes = page.evaluate(PANEL_BOXES_JS, PANELS)
+        if width < 1366:  # the column may scroll inside the main area: bring each panel in, then judge it
+            for name, sel in PANELS.items():
+                page.locator(sel).scroll_into_view_if_needed()
+                boxes[name] = page.evaluate(PANEL_BOXES_JS, {name: sel})[name]
+        probe.shot(page, f"studio-{width}x{height}")
+        for name, (left, top, right, bottom) in boxes.items():
+            assert right - left > 300 and bottom - top > 150, (name, boxes)
+            assert left >= 0 and top >= 0 and right <= width and bottom <= height, (name, boxes)
+        assert page.evaluate("() => [window.scrollX, window.scrollY]") == [0, 0]
+    finally:
+        page.close()
