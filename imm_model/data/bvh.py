@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from imm_model.data.sequence import check_world_positions
 from imm_model.errors import DataFormatError
 from imm_model.skeleton import KINECT15, Skeleton
 
@@ -57,7 +58,6 @@ MAX_JOINTS = 1000
 MAX_DEPTH = 100  # joints from the root to the deepest leaf; a human rig has about a dozen
 MAX_SECONDS = 600.0  # duration of the motion
 FRAME_TIME_RANGE = (1e-4, 1.0)  # seconds per frame: 1 to 10000 frames per second
-MAX_COORDINATE_M = 1000.0  # a joint further than this from the origin is not a person's motion
 CHANNEL_NAMES = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
 LEG_M = 0.85  # hip to ankle of an adult, the yardstick for guessing a file's units
 
@@ -126,11 +126,7 @@ def read_bvh(path: Path | str, mapping: dict[str, str] | Path | None = None, uni
     elif up != "y":
         raise ValueError(f"up axis must be 'y' or 'z', not {up!r}")
     kinect = kinect * _unit_scale(kinect, units, path)
-    if not np.isfinite(kinect).all():
-        raise DataFormatError(f"{path}: the BVH motion has non-finite values")
-    if np.abs(kinect).max() > MAX_COORDINATE_M:
-        raise DataFormatError(f"{path}: joints {np.abs(kinect).max():.3g} m from the origin; positions within "
-                              f"{MAX_COORDINATE_M:g} m are accepted (wrong units?)")
+    check_world_positions(kinect, str(path))
     return resample(kinect, 1.0 / container.FrameTime, TARGET_FPS)
 
 

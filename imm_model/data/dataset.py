@@ -17,11 +17,12 @@ from pathlib import Path
 import numpy as np
 
 from imm_model.data.canonical import CanonicalFrame, CanonicalMode
-from imm_model.data.sequence import Interaction
+from imm_model.data.sequence import MAX_COORDINATE_M, Interaction
 from imm_model.errors import DataFormatError
 from imm_model.skeleton import KINECT15, Skeleton
 
 FORMAT_VERSION = 1
+MAX_BUNDLE_BYTES = 256_000_000  # arrays, uncompressed: about 600,000 frames (the SBU sample's 6,822 take 2 MB)
 _ARRAYS = ("leader", "follower", "yaw", "origin", "frame_numbers", "lengths", "actions", "held_out")
 
 
@@ -212,45 +213,67 @@ class InteractionDataset:
 
     @classmethod
     def load(cls, path: Path | str) -> InteractionDataset:
-        """Read a bundle written by `save`. Never unpickles: a malformed file gives a one-line error."""
+        """Read a bundle written by `save`. Never unpickles, never allocates more than MAX_BUNDLE_BYTES: a malformed
+        file gives a one-line error naming it (and the field)."""
+        from imm_model.data.npz import read_npz
+
         path = Path(path)
         if not path.exists():
             raise DataFormatError(f"{path}: data file not found")
+        arrays = read_npz(path, (*_ARRAYS, "metadata"), MAX_BUNDLE_BYTES, "interaction bundle")
         try:
-            with np.load(path, allow_pickle=False) as npz:
-                arrays = {name: npz[name] for name in _ARRAYS}
-                meta = json.loads(npz["metadata"].tobytes().decode())
-        except KeyError as err:
-            raise DataFormatError(f"{path}: not an IMM interaction bundle (missing {err})") from None
-        except Exception as err:
-            raise DataFormatError(f"{path}: unreadable interaction bundle ({type(err).__name__}: {err})") from None
+            meta = json.loads(arrays.pop("metadata").tobytes().decode())
+        except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as err:
+            raise DataFormatError(f"{path}: unreadable bundle metadata ({type(err).__name__})") from None
+        if not isinstance(meta, dict):
+            raise DataFormatError(f"{path}: bundle metadata is not a JSON object")
         if meta.get("format_version") != FORMAT_VERSION:
-            raise DataFormatError(f"{path}: bundle format {meta.get('format_version')} (this version reads {FORMAT_VERSION})")
-        skeleton = Skeleton.from_dict(meta["skeleton"])
-        ds = cls(
-            skeleton=skeleton,
-            class_names=tuple(meta["class_names"]),
-            sequence_ids=list(meta["sequence_ids"]),
-            subject_pairs=list(meta["subject_pairs"]),
-            leader_sources=list(meta["leader_sources"]),
-            leader_rules=list(meta["leader_rules"]),
-            dataset=meta["dataset"],
-            canonical_mode=meta["canonical_mode"],
-            info=meta.get("info", {}),
-            **arrays,
-        )
+            raise DataFormatError(f"{path}: bundle format {meta.get('format_version')!r} (this version reads {FORMAT_VERSION})")
+        try:
+            ds = cls(
+                skeleton=Skeleton.from_dict(meta["skeleton"]),
+                class_names=_strings(meta["class_names"], "class_names", unique=True),
+                sequence_ids=list(_strings(meta["sequence_ids"], "sequence_ids")),
+                subject_pairs=list(_strings(meta["subject_pairs"], "subject_pairs")),
+                leader_sources=list(_strings(meta["leader_sources"], "leader_sources")),
+                leader_rules=list(_strings(meta["leader_rules"], "leader_rules")),
+                dataset=str(meta["dataset"]),
+                canonical_mode=str(meta["canonical_mode"]),
+                info=dict(meta.get("info", {})),
+                **arrays,
+            )
+        except KeyError as err:
+            raise DataFormatError(f"{path}: bundle metadata lacks {err}") from None
+        except (TypeError, ValueError) as err:
+            raise DataFormatError(f"{path}: bundle metadata: {err}") from None
         ds.validate(str(path))
         return ds
 
     def validate(self, where: str = "dataset") -> None:
-        n, f = len(self.sequence_ids), int(self.lengths.sum())
-        if not (len(self.actions) == len(self.lengths) == len(self.held_out) == len(self.subject_pairs) == n):
+        per_sequence = (self.actions, self.lengths, self.held_out, self.subject_pairs, self.leader_sources, self.leader_rules)
+        n = len(self.sequence_ids)
+        if any(len(x) != n for x in per_sequence) or any(np.ndim(x) != 1 for x in per_sequence[:3]):
             raise DataFormatError(f"{where}: per-sequence arrays disagree on the number of sequences")
+        if n and (self.lengths.dtype.kind not in "iu" or self.lengths.min() < 1):
+            raise DataFormatError(f"{where}: lengths must be positive frame counts")
+        f = int(self.lengths.sum())
         if self.leader.shape != (f, self.skeleton.num_joints, 3) or self.follower.shape != self.leader.shape:
             raise DataFormatError(f"{where}: pose arrays have shape {self.leader.shape}, expected ({f}, {self.skeleton.num_joints}, 3)")
         if len(self.yaw) != f or self.origin.shape != (f, 3) or len(self.frame_numbers) != f:
             raise DataFormatError(f"{where}: canonical-frame arrays do not match the {f} frames")
         if not (np.isfinite(self.leader).all() and np.isfinite(self.follower).all()):
             raise DataFormatError(f"{where}: NaN or infinite positions")
-        if n and (self.actions.min() < 0 or self.actions.max() >= len(self.class_names)):
+        if np.abs(self.origin).max(initial=0) > MAX_COORDINATE_M or np.abs(self.leader).max(initial=0) > MAX_COORDINATE_M \
+                or np.abs(self.follower).max(initial=0) > MAX_COORDINATE_M or not np.isfinite(self.yaw).all():
+            raise DataFormatError(f"{where}: positions beyond {MAX_COORDINATE_M:g} m or a non-finite canonical frame")
+        if n and (self.actions.dtype.kind not in "iu" or self.actions.min() < 0 or self.actions.max() >= len(self.class_names)):
             raise DataFormatError(f"{where}: class index outside 0..{len(self.class_names) - 1}")
+
+
+def _strings(values, field: str, unique: bool = False) -> tuple[str, ...]:
+    """A metadata list of strings -> tuple (ValueError naming `field` otherwise)."""
+    if not isinstance(values, list) or not all(isinstance(v, str) for v in values):
+        raise ValueError(f"{field} must be a list of strings")
+    if unique and len(set(values)) != len(values):
+        raise ValueError(f"{field} names {next(v for v in values if values.count(v) > 1)!r} twice")
+    return tuple(values)

@@ -9,6 +9,8 @@ fall back to the motion-energy rule.
 
 from __future__ import annotations
 
+import struct
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +18,7 @@ import numpy as np
 from imm_model.data.leader import LeaderChoice, actor_by_motion_energy, check_leader_choice
 from imm_model.data.loading import LoadResult, load_many
 from imm_model.data.sbu import normalized_to_metres
-from imm_model.data.sequence import Interaction
+from imm_model.data.sequence import Interaction, check_world_positions
 from imm_model.errors import DataFormatError
 
 K3HI_CLASSES: tuple[str, ...] = (
@@ -26,21 +28,33 @@ K3HI_CLASSES: tuple[str, ...] = (
 # (K3HI: 0 head, 1 neck, 2 L-sh, 3 R-sh, 4 L-elb, 5 R-elb, 6 L-hand, 7 R-hand, 8 torso, 9 L-hip,
 #  10 R-hip, 11 L-knee, 12 R-knee, 13 L-foot, 14 R-foot).
 K3HI_TO_KINECT15 = np.array([0, 1, 8, 2, 4, 6, 3, 5, 7, 9, 11, 13, 10, 12, 14])
+MAX_BYTES = 2_000_000  # the dataset's files are under 25 kB
+MAX_FRAMES = 100_000
+MAX_INFLATED_BYTES = 45 * MAX_FRAMES * 8 + 65_536  # one compressed variable, inflated: curve_B at MAX_FRAMES and headers
 
 
 def read_mat_skeleton(path: Path) -> np.ndarray:
     """One `skeleton_X.mat` -> (T, 15, 3) positions in normalized units, KINECT15 joint order."""
-    from scipy.io import loadmat
+    from scipy.io import loadmat, whosmat
 
     try:
-        mat = loadmat(str(path))
+        size = path.stat().st_size
+        if size > MAX_BYTES:
+            raise DataFormatError(f"{path}: {size / 1e6:.1f} MB; K3HI skeleton files up to {MAX_BYTES / 1e6:.0f} MB are read")
+        _check_inflated_sizes(path, path.read_bytes())
+        declared = dict((name, shape) for name, shape, _ in whosmat(str(path)))  # the headers only, nothing allocated
+        if "curve_B" not in declared:
+            raise DataFormatError(f"{path}: no 'curve_B' variable (found {sorted(declared)[:10]})")
+        shape = declared["curve_B"]
+        if len(shape) != 2 or shape[0] != 45 or not 0 < shape[1] <= MAX_FRAMES:
+            raise DataFormatError(f"{path}: curve_B has shape {shape}, expected (45, T) with T in 1..{MAX_FRAMES}")
+        mat = loadmat(str(path), variable_names=["curve_B"])
+    except DataFormatError:
+        raise
     except FileNotFoundError:
         raise DataFormatError(f"{path}: file not found") from None
     except Exception as err:  # scipy raises several types for corrupt files
-        raise DataFormatError(f"{path}: unreadable .mat file ({type(err).__name__}: {err})") from None
-    if "curve_B" not in mat:
-        keys = [k for k in mat if not k.startswith("__")]
-        raise DataFormatError(f"{path}: no 'curve_B' variable (found {keys})")
+        raise DataFormatError(f"{path}: unreadable .mat file ({type(err).__name__}: {str(err)[:100]})") from None
     arr = np.asarray(mat["curve_B"])
     if arr.ndim != 2 or arr.shape[0] != 45:
         raise DataFormatError(f"{path}: curve_B has shape {arr.shape}, expected (45, T)")
@@ -54,7 +68,22 @@ def read_mat_skeleton(path: Path) -> np.ndarray:
     if arr.shape[1] < 2:
         raise DataFormatError(f"{path}: only 1 frame; at least 2 are needed")
     xyz = arr.reshape(3, 15, -1).transpose(2, 1, 0)  # (T, 15, 3)
+    check_world_positions(normalized_to_metres(xyz), str(path))
     return xyz[:, K3HI_TO_KINECT15]
+
+
+def _check_inflated_sizes(path: Path, data: bytes) -> None:
+    """Inflate each compressed variable of a MAT v5 file (a 128-byte header, then elements of an 8-byte tag (type,
+    size) and data; type 15 is zlib) only as far as MAX_INFLATED_BYTES: scipy would inflate it whole."""
+    order = "<" if data[126:128] == b"IM" else ">"
+    pos = 128
+    while pos + 8 <= len(data):
+        kind, size = struct.unpack(order + "II", data[pos : pos + 8])
+        if kind == 15:
+            inflated = zlib.decompressobj().decompress(data[pos + 8 : pos + 8 + size], MAX_INFLATED_BYTES + 1)
+            if len(inflated) > MAX_INFLATED_BYTES:
+                raise DataFormatError(f"{path}: a compressed variable inflates past {MAX_INFLATED_BYTES / 1e6:.0f} MB")
+        pos += 8 + size
 
 
 def read_actor_lists(root: Path) -> dict[str, str]:

@@ -17,7 +17,7 @@ import numpy as np
 
 from imm_model.data.leader import LeaderChoice, actor_by_motion_energy, check_leader_choice
 from imm_model.data.loading import LoadResult, load_many
-from imm_model.data.sequence import Interaction
+from imm_model.data.sequence import Interaction, check_world_positions
 from imm_model.errors import DataFormatError
 
 SBU_CLASSES: dict[str, str] = {
@@ -35,6 +35,8 @@ PAPER_CLASSES: tuple[str, ...] = ("kicking", "pushing", "shaking_hands", "huggin
 ALL_CLASSES: tuple[str, ...] = tuple(SBU_CLASSES.values())
 NUM_JOINTS = 15
 NUM_COLUMNS = 1 + 2 * NUM_JOINTS * 3
+MAX_BYTES = 10_000_000  # about 11,000 frames (the dataset's files are under 40 kB)
+MAX_LINE_CHARS = 40 * NUM_COLUMNS
 ACTOR_CSV = "interformer_actor_assignment.csv"
 _PATH_RE = re.compile(r"^s\d\ds\d\d$")
 
@@ -59,6 +61,9 @@ def parse_skeleton_file(path: Path | str) -> tuple[np.ndarray, np.ndarray]:
     """
     path = Path(path)
     try:
+        size = path.stat().st_size
+        if size > MAX_BYTES:
+            raise DataFormatError(f"{path}: {size / 1e6:.1f} MB; skeleton files up to {MAX_BYTES / 1e6:.0f} MB are read")
         text = path.read_bytes().decode("ascii")
     except UnicodeDecodeError as err:
         raise DataFormatError(f"{path}: not a text file ({err.reason} at byte {err.start})") from None
@@ -69,6 +74,8 @@ def parse_skeleton_file(path: Path | str) -> tuple[np.ndarray, np.ndarray]:
         raise DataFormatError(f"{path}: empty file (no frames)")
     rows = []
     for lineno, line in lines:
+        if len(line) > MAX_LINE_CHARS:  # refused before it is split into far more values than a row has
+            raise DataFormatError(f"{path}:{lineno}: a line of {len(line)} characters; rows of {NUM_COLUMNS} values are expected")
         fields = line.rstrip(",").split(",")
         if len(fields) != NUM_COLUMNS:
             raise DataFormatError(f"{path}:{lineno}: expected {NUM_COLUMNS} comma-separated values, found {len(fields)}")
@@ -84,7 +91,10 @@ def parse_skeleton_file(path: Path | str) -> tuple[np.ndarray, np.ndarray]:
         raise DataFormatError(f"{path}:{lines[row][0]}: NaN or infinite value")
     if len(data) < 2:
         raise DataFormatError(f"{path}: only {len(data)} frame; at least 2 are needed")
+    if np.abs(data[:, 0]).max() > 2**53:
+        raise DataFormatError(f"{path}: frame numbers beyond 2^53")
     positions = data[:, 1:].reshape(len(data), 2, NUM_JOINTS, 3).transpose(1, 0, 2, 3)
+    check_world_positions(normalized_to_metres(positions), str(path))
     return data[:, 0].astype(np.int64), positions
 
 

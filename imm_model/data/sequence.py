@@ -6,6 +6,21 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from imm_model.errors import DataFormatError
+
+MAX_COORDINATE_M = 1000.0  # a joint further than this from the origin is not a person's motion (wrong units, garbage)
+
+
+def check_world_positions(positions: np.ndarray, where: str) -> np.ndarray:
+    """Finite positions within MAX_COORDINATE_M of the origin pass through; else a one-line DataFormatError."""
+    if not np.isfinite(positions).all():
+        raise DataFormatError(f"{where}: NaN or infinite positions")
+    largest = float(np.abs(positions).max(initial=0.0))
+    if largest > MAX_COORDINATE_M:
+        raise DataFormatError(f"{where}: a joint {largest:.3g} m from the origin; positions within {MAX_COORDINATE_M:g} m "
+                              "are accepted (wrong units?)")
+    return positions
+
 
 @dataclass(frozen=True)
 class Interaction:
