@@ -19,9 +19,16 @@ from typing import Any
 import numpy as np
 
 from imm_model.cleanup import clean_follower
+from imm_model.data.sequence import check_world_positions
 from imm_model.errors import CheckpointError, DataFormatError, LabelError
 
 MAX_LENGTH_FACTOR = 10  # inputs longer than this times the longest training sequence are refused
+# A label value times the scale: +1 performs a class and values beyond 1 exaggerate it (the studio's sliders reach 2);
+# far beyond, the network is fed numbers it never saw and its output means nothing.
+MAX_LABEL_VALUE = 10.0
+MAX_LEADER_BYTES = 16_000_000  # an .npz leader's arrays, uncompressed (about 44,000 frames of 15 joints in float64)
+MAX_BONE_M = 5.0  # a checkpoint's follower bone lengths, metres
+MAX_TRAIN_LENGTH = 100_000  # a checkpoint's max_train_length, frames
 
 
 class ReactionModel:
@@ -37,6 +44,7 @@ class ReactionModel:
         # One sequence on a CPU runs in numpy (model/numpy_runtime.py: the same numbers, as fast, and no `import torch`,
         # which was most of the studio's start). Batches, GPUs and the paper's frame-by-frame decoder use torch.
         self.fast = NumpyGenerator(weights, config) if self.device == "cpu" and NumpyGenerator.supports(config) else None
+        check_sidecar(meta, path)
         self.info: dict[str, Any] = meta
         self.path = path
         self.class_names: tuple[str, ...] = tuple(meta["class_names"])
@@ -124,6 +132,10 @@ class ReactionModel:
             vec = vec * scale
         if not (np.isfinite(vec).all() and np.isfinite(scale)):
             raise LabelError("label values must be finite (no NaN or infinity)")
+        if np.abs(vec).max(initial=0.0) > MAX_LABEL_VALUE:
+            k = int(np.argmax(np.abs(vec)))
+            raise LabelError(f"label value {self.class_names[k]}={vec[k]:g} (after the scale) is outside the range of "
+                             f"label values, -{MAX_LABEL_VALUE:g}..{MAX_LABEL_VALUE:g}")
         return vec.astype(np.float32)
 
     def check_leader(self, leader: np.ndarray) -> np.ndarray:
@@ -148,7 +160,7 @@ class ReactionModel:
                                   f"({MAX_LENGTH_FACTOR}x the longest training sequence) are supported")
         if not np.isfinite(arr).all():
             raise DataFormatError("leader motion contains NaN or infinite values")
-        return arr
+        return check_world_positions(arr, "leader motion")
 
     # ---- synthesis ------------------------------------------------------------------------
     def synthesize(self, leader_world: np.ndarray, label, scale: float = 1.0) -> np.ndarray:
@@ -260,6 +272,39 @@ def check_compatible(model, data, where: str = "checkpoint") -> None:
         raise CheckpointError(f"{where}: trained on the {model_mode!r} canonical frame, the data uses {data_mode!r}")
 
 
+def check_sidecar(meta: dict[str, Any], path: Path | None) -> None:
+    """The sidecar fields a model reads, checked together before any is used (one-line CheckpointError naming the
+    field); the weights' own description (model_config) is its config class's to check."""
+    from imm_model.data.canonical import CANONICAL_MODES
+    from imm_model.skeleton import Skeleton
+
+    def refuse(problem: str) -> CheckpointError:
+        return CheckpointError(f"{path}: sidecar {problem}"[:300])
+
+    classes = meta.get("class_names")
+    if not (isinstance(classes, list) and 1 <= len(classes) <= 512 and all(isinstance(c, str) and c for c in classes)):
+        raise refuse("class_names must be a list of 1 to 512 class names")
+    if len(set(classes)) != len(classes):
+        raise refuse(f"class_names names {next(c for c in classes if classes.count(c) > 1)!r} twice")
+    try:
+        Skeleton.from_dict(meta.get("skeleton"))
+    except (TypeError, ValueError) as err:
+        raise refuse(str(err)) from None
+    length = meta.get("max_train_length", 1)
+    if isinstance(length, bool) or not isinstance(length, int) or not 1 <= length <= MAX_TRAIN_LENGTH:
+        raise refuse(f"max_train_length must be a frame count in 1..{MAX_TRAIN_LENGTH}, not {length!r}")
+    if meta.get("canonical_mode", CANONICAL_MODES[0]) not in CANONICAL_MODES:
+        raise refuse(f"canonical_mode must be one of {', '.join(CANONICAL_MODES)}, not {meta.get('canonical_mode')!r}")
+    if not isinstance(meta.get("held_out_subject", ""), str | None):
+        raise refuse("held_out_subject must be a string")
+    training = meta.get("train_config") or {}
+    excluded = training.get("mirror_exclude_classes", []) if isinstance(training, dict) else None
+    mirror_prob = training.get("mirror_prob", 0) if isinstance(training, dict) else None
+    if not (isinstance(excluded, list) and all(isinstance(c, str) for c in excluded)
+            and isinstance(mirror_prob, int | float) and not isinstance(mirror_prob, bool)):
+        raise refuse("train_config must be an object with a numeric mirror_prob and a list of mirror_exclude_classes")
+
+
 def _bone_lengths(values, skeleton, path) -> np.ndarray | None:
     """A checkpoint's `follower_bone_lengths` -> (bones,) metres, None when absent; CheckpointError when malformed."""
     if values is None:
@@ -268,8 +313,10 @@ def _bone_lengths(values, skeleton, path) -> np.ndarray | None:
         lengths = np.asarray(values, dtype=np.float64)
     except (TypeError, ValueError):
         lengths = np.zeros(0)
-    if lengths.shape != (len(skeleton.bones),) or not (np.isfinite(lengths).all() and (lengths > 0).all()):
-        raise CheckpointError(f"{path}: follower_bone_lengths must be {len(skeleton.bones)} positive lengths, one per bone")
+    if lengths.shape != (len(skeleton.bones),) or not (np.isfinite(lengths).all() and (lengths > 0).all()
+                                                       and (lengths <= MAX_BONE_M).all()):
+        raise CheckpointError(f"{path}: follower_bone_lengths must be {len(skeleton.bones)} lengths in (0, {MAX_BONE_M:g}] m, "
+                              "one per bone")
     return lengths
 
 
@@ -312,8 +359,10 @@ def parse_label(text: str, class_names: Sequence[str]) -> dict[str, float] | lis
     if all("=" in p for p in parts):
         out: dict[str, float] = {}
         for p in parts:
-            k, v = p.split("=", 1)
-            out[k.strip()] = _as_float(v.strip(), k.strip())
+            k, v = (s.strip() for s in p.split("=", 1))
+            if k in out:
+                raise LabelError(f"--label gives {k} twice ({k}={out[k]:g} and {k}={v}); give each class once")
+            out[k] = _as_float(v, k)
         return out
     if any("=" in p for p in parts):
         raise LabelError("--label mixes name=value and plain values")
@@ -323,32 +372,30 @@ def parse_label(text: str, class_names: Sequence[str]) -> dict[str, float] | lis
 
 
 def read_leader_file(path: Path, bvh_map: Path | None = None) -> np.ndarray:
-    """A .bvh (any recognisable human skeleton, data/bvh.py), an .npz with a `leader` (T, J, 3) array, or an SBU
-    skeleton_pos.txt -> world metres."""
-    from imm_model.data.leader import actor_by_motion_energy
-    from imm_model.data.sbu import normalized_to_metres, parse_skeleton_file, read_sbu_sequence
-
+    """A .bvh (any recognisable human skeleton, data/bvh.py), an .npz with a `leader` array ((T, J, 3), or (T, 3J)
+    as `check_leader` reads it), or an SBU skeleton_pos.txt (its more active person) -> (T, J, 3) world metres.
+    Suffixes in either case; anything else, or beyond the readers' bounds, is a one-line DataFormatError."""
     if not path.is_file():
         raise DataFormatError(f"{path}: leader file not found")
-    if path.suffix.lower() == ".bvh":
+    suffix = path.suffix.lower()
+    if suffix == ".bvh":
         from imm_model.data.bvh import read_bvh
 
         return read_bvh(path, bvh_map)
-    if path.suffix == ".npz":
-        try:
-            with np.load(path, allow_pickle=False) as npz:
-                if "leader" not in npz:
-                    raise DataFormatError(f"{path}: no 'leader' array (found {', '.join(npz.files) or 'none'})")
-                return np.asarray(npz["leader"], dtype=np.float64)
-        except DataFormatError:
-            raise
-        except Exception as err:
-            raise DataFormatError(f"{path}: unreadable .npz ({type(err).__name__})") from None
-    try:
-        return read_sbu_sequence(path).leader
-    except DataFormatError as err:
-        if "class folder" not in str(err) and "unknown" not in str(err):
-            raise
-    _, positions = parse_skeleton_file(path)  # a skeleton_pos.txt outside the dataset's folder layout
-    metres = normalized_to_metres(positions)
-    return metres[actor_by_motion_energy(metres[0], metres[1])]
+    if suffix == ".npz":
+        from imm_model.data.npz import read_npz
+
+        leader = read_npz(path, ["leader"], MAX_LEADER_BYTES, "leader")["leader"].astype(np.float64)
+        if leader.ndim == 2 and leader.shape[1] % 3 == 0 and leader.shape[1] > 0:
+            leader = leader.reshape(len(leader), -1, 3)
+        if leader.ndim != 3 or leader.shape[2] != 3:
+            raise DataFormatError(f"{path}: 'leader' has shape {leader.shape}; expected (frames, joints, 3)")
+        return check_world_positions(leader, f"{path}: 'leader'")
+    if suffix == ".txt":
+        from imm_model.data.leader import actor_by_motion_energy
+        from imm_model.data.sbu import normalized_to_metres, parse_skeleton_file
+
+        _, positions = parse_skeleton_file(path)
+        metres = normalized_to_metres(positions)
+        return metres[actor_by_motion_energy(metres[0], metres[1])]
+    raise DataFormatError(f"{path}: unsupported leader file type {path.suffix!r}; give a .bvh, .npz or SBU skeleton_pos.txt")

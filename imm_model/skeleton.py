@@ -6,9 +6,13 @@ indices, so a second skeleton (e.g. a BVH rig) plugs in by describing itself her
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
+
+from imm_model.typed_config import checked_kwargs
+
+MAX_JOINTS = 1000
 
 
 @dataclass(frozen=True)
@@ -23,14 +27,30 @@ class Skeleton:
     facing_joints: tuple[int, int, int, int] = (0, 0, 0, 0)
 
     def __post_init__(self) -> None:
-        n = len(self.joint_names)
+        """The description checked as a whole (ValueError naming the field): whatever reads a skeleton indexes with it
+        and walks its tree, so an index out of range or a cycle would fail far from here, or never return."""
+        n, where = len(self.joint_names), f"skeleton {str(self.name)[:40]}"
+        if not 1 <= n <= MAX_JOINTS:
+            raise ValueError(f"{where}: {n} joints; 1 to {MAX_JOINTS} are accepted")
+        if not all(isinstance(j, str) and j for j in self.joint_names):
+            raise ValueError(f"{where}: joint_names must be non-empty strings")
+        if len(set(self.joint_names)) != n:
+            raise ValueError(f"{where}: joint name {_first_repeat(self.joint_names)!r} is used twice")
         if len(self.parents) != n:
-            raise ValueError(f"skeleton {self.name}: {len(self.parents)} parents for {n} joints")
+            raise ValueError(f"{where}: {len(self.parents)} parents for {n} joints")
+        _check_indices(self.parents, n, f"{where}: parents", allow_root=True)
         if sum(p < 0 for p in self.parents) != 1:
-            raise ValueError(f"skeleton {self.name}: exactly one root joint (parent -1) is required")
+            raise ValueError(f"{where}: exactly one root joint (parent -1) is required")
+        _check_tree(self.parents, where)
         for part, joints in self.body_parts.items():
-            if any(not 0 <= j < n for j in joints):
-                raise ValueError(f"skeleton {self.name}: body part {part} names a joint outside 0..{n - 1}")
+            if not isinstance(part, str) or not joints:
+                raise ValueError(f"{where}: body part {part!r} must be named and list at least one joint")
+            _check_indices(joints, n, f"{where}: body part {part}")
+        if isinstance(self.vertical_axis, bool) or self.vertical_axis not in (0, 1, 2):
+            raise ValueError(f"{where}: vertical_axis must be 0, 1 or 2 (x, y, z), not {self.vertical_axis!r}")
+        if len(self.facing_joints) != 4:
+            raise ValueError(f"{where}: facing_joints must be 4 joints (left hip, right hip, left shoulder, right shoulder)")
+        _check_indices(self.facing_joints, n, f"{where}: facing_joints")
 
     @property
     def num_joints(self) -> int:
@@ -105,14 +125,53 @@ class Skeleton:
 
     @classmethod
     def from_dict(cls, d: dict) -> Skeleton:
+        """A skeleton from its JSON form (a checkpoint's sidecar, a bundle's metadata): every field required and
+        checked (ValueError naming the first problem)."""
+        d = checked_kwargs(cls, d, "skeleton")
+        missing = [f.name for f in fields(cls) if f.name not in d]
+        if missing:
+            raise ValueError(f"skeleton lacks {', '.join(missing)}")
+        parts = d["body_parts"]
+        if not all(isinstance(v, list) and all(isinstance(j, int) and not isinstance(j, bool) for j in v) for v in parts.values()):
+            raise ValueError("skeleton: body_parts must map each part's name to a list of joint indices")
         return cls(
-            name=str(d["name"]),
+            name=d["name"],
             joint_names=tuple(d["joint_names"]),
-            parents=tuple(int(p) for p in d["parents"]),
-            body_parts={k: tuple(int(j) for j in v) for k, v in d["body_parts"].items()},
-            vertical_axis=int(d["vertical_axis"]),
-            facing_joints=tuple(int(j) for j in d["facing_joints"]),  # type: ignore[arg-type]
+            parents=tuple(d["parents"]),
+            body_parts={k: tuple(v) for k, v in parts.items()},
+            vertical_axis=d["vertical_axis"],
+            facing_joints=tuple(d["facing_joints"]),
         )
+
+
+def _check_indices(joints: tuple[int, ...], n: int, what: str, allow_root: bool = False) -> None:
+    low = -1 if allow_root else 0
+    bad = next((j for j in joints if isinstance(j, bool) or not isinstance(j, int | np.integer) or not low <= j < n), None)
+    if bad is not None:
+        raise ValueError(f"{what} names joint {bad!r}; the indices are {low}..{n - 1}")
+
+
+def _check_tree(parents: tuple[int, ...], where: str) -> None:
+    """Every joint reaches the root by following parents (no cycle); each joint is walked once."""
+    reaches: set[int] = set()
+    for j in range(len(parents)):
+        path = []
+        while j not in reaches and parents[j] >= 0:
+            if j in path:
+                raise ValueError(f"{where}: parents form a cycle through joint {j}")
+            path.append(j)
+            j = parents[j]
+        reaches.update(path)
+        reaches.add(j)
+
+
+def _first_repeat(names: tuple[str, ...]) -> str:
+    seen: set[str] = set()
+    for n in names:
+        if n in seen:
+            return n
+        seen.add(n)
+    return ""
 
 
 # SBU Kinect Interaction joint order (dataset README, 1-based there, 0-based here).

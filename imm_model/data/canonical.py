@@ -25,6 +25,7 @@ bone lengths are unchanged, and `to_world` inverts `to_canonical` exactly (to fl
 
 from __future__ import annotations
 
+import typing
 from dataclasses import dataclass
 from typing import Literal
 
@@ -33,6 +34,7 @@ import numpy as np
 from imm_model.skeleton import Skeleton
 
 CanonicalMode = Literal["first_frame", "per_frame"]
+CANONICAL_MODES: tuple[str, ...] = typing.get_args(CanonicalMode)
 FACING_WINDOW = 10  # frames (0.67 s at 15 fps) averaged for A's facing in first_frame mode
 
 
@@ -78,8 +80,8 @@ class CanonicalFrame:
         cls, leader: np.ndarray, skeleton: Skeleton, mode: CanonicalMode = "first_frame"
     ) -> CanonicalFrame:
         """leader (T, J, 3) world positions of A -> the frame that standardizes them."""
-        if mode not in ("first_frame", "per_frame"):
-            raise ValueError(f"unknown canonical mode {mode!r} (first_frame or per_frame)")
+        if mode not in CANONICAL_MODES:
+            raise ValueError(f"unknown canonical mode {mode!r} ({' or '.join(CANONICAL_MODES)})")
         _, fwd, side = _axes(skeleton)
         facing = facing_direction(leader, skeleton)
         yaw = np.arctan2(facing @ side, facing @ fwd)  # 0 where facing is undefined

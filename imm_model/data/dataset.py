@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from imm_model.data.canonical import CanonicalFrame, CanonicalMode
+from imm_model.data.canonical import CANONICAL_MODES, CanonicalFrame, CanonicalMode
 from imm_model.data.sequence import MAX_COORDINATE_M, Interaction
 from imm_model.errors import DataFormatError
 from imm_model.skeleton import KINECT15, Skeleton
@@ -250,6 +250,8 @@ class InteractionDataset:
         return ds
 
     def validate(self, where: str = "dataset") -> None:
+        if self.canonical_mode not in CANONICAL_MODES:
+            raise DataFormatError(f"{where}: canonical_mode must be one of {', '.join(CANONICAL_MODES)}, not {self.canonical_mode!r}")
         per_sequence = (self.actions, self.lengths, self.held_out, self.subject_pairs, self.leader_sources, self.leader_rules)
         n = len(self.sequence_ids)
         if any(len(x) != n for x in per_sequence) or any(np.ndim(x) != 1 for x in per_sequence[:3]):
