@@ -1,0 +1,80 @@
+"""Score reaction models on LOSO folds with `imm evaluate`'s own fold evaluation, one JSON line per model x fold x
+guidance, for the diffusion experiments (docs/experiments/).
+
+    python docs/experiments/scripts/diffusion_fold.py --checkpoint runs/d/fold-s04/final.safetensors --fold s04 \\
+        --label-scale 2 3 --out results.jsonl
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+
+def headline(result: dict) -> dict:
+    """The numbers the diffusion model's bar reads, from one evaluate_fold result."""
+    m, nn1 = result["model"], result["baselines"].get("nn1", {})
+    matrix = np.array(result["adherence_matrix_judge"], dtype=float)
+    mixes = result["mix_judge"]
+    p = m["plausibility"]
+    out = {
+        "afd": float(np.mean([c["afd"] for c in m["classes"].values()])), "afd_nn1": float(np.mean([c["afd"] for c in nn1["classes"].values()])) if nn1 else None,
+        "fid": m["fid"], "fid_nn1": nn1.get("fid"),
+        "judge_real_accuracy": result["classifier"]["real_accuracy"]["follower_judge"],
+        "off_label": result["adherence_off_diagonal_judge"], "true_label": float(np.nanmean(np.diag(matrix))),
+        "mix_both_read": float(np.mean([r["both_read"] for r in mixes])), "mix_pairs_read": int(sum(r["first"] >= 0.25 and r["second"] >= 0.25 for r in mixes)),
+        "avoid_change": result["avoid_judge"]["change"],
+        "interior_limb_speed_ratio": p["interior_limb_speed_ratio"], "lean_error_deg": p["lean_error_deg"],
+        "bone_error_cm": p["bone_error_cm"], "foot_skate_mps": p["foot_skate_mps"], "interpenetration": p["interpenetration"],
+        "real_interpenetration": p["real_interpenetration"],
+        "start_root_m": m["afd_parts"]["start_root_m"], "limb_m": m["afd_parts"]["limb_m"],
+    }
+    if "variations" in result:
+        v = result["variations"]
+        out |= {"multimodality": v["multimodality"], "real_class_diversity": v["real_class_diversity"],
+                "multimodality_m": v["multimodality_m"], "afd_best_of_5": v["afd_best_of_n"]}
+    return out
+
+
+def main() -> None:
+    import torch
+
+    from imm_model.data.dataset import InteractionDataset
+    from imm_model.evaluation.loso import EvalOptions, evaluate_fold
+    from imm_model.inference import ReactionModel
+    from imm_model.paths import SAMPLE_DATA
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--checkpoint", type=Path, required=True)
+    ap.add_argument("--fold", required=True)
+    ap.add_argument("--label-scale", type=float, nargs="*", default=[], help="guidance strengths to score (diffusion)")
+    ap.add_argument("--leader-scale", type=float, default=None)
+    ap.add_argument("--sample-steps", type=int, default=None)
+    ap.add_argument("--baselines", default="nn1")
+    ap.add_argument("--raw", action="store_true")
+    ap.add_argument("--out", type=Path, default=None, help="append one JSON line per run here")
+    args = ap.parse_args()
+    torch.set_num_threads(1)
+    data = InteractionDataset.load(SAMPLE_DATA)
+    opts = EvalOptions(baselines=tuple(b for b in args.baselines.split(",") if b), progress=False, raw=args.raw)
+    for scale in args.label_scale or [None]:
+        model = ReactionModel.load(args.checkpoint)
+        if model.stochastic:
+            changes = {k: v for k, v in (("label_scale", scale), ("leader_scale", args.leader_scale),
+                                         ("sample_steps", args.sample_steps)) if v is not None}
+            model.guidance = replace(model.guidance, **changes)
+        row = {"checkpoint": str(args.checkpoint), "fold": args.fold, "raw": args.raw,
+               "guidance": model.guidance.to_dict() if model.stochastic else None}
+        row |= headline(evaluate_fold(model, data, args.fold, opts, latents=False))
+        print(json.dumps(row), flush=True)
+        if args.out:
+            with open(args.out, "a") as fh:
+                fh.write(json.dumps(row) + "\n")
+
+
+if __name__ == "__main__":
+    main()
