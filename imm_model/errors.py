@@ -15,3 +15,7 @@ class CheckpointError(IMMError, ValueError):
 
 class LabelError(IMMError, ValueError):
     """A label vector has the wrong length, unknown class names or non-finite values."""
+
+
+class TrainingError(IMMError, RuntimeError):
+    """Training cannot go on (a loss that is not finite, names the epoch or step)."""

@@ -32,11 +32,17 @@ MAX_TRAIN_LENGTH = 100_000  # a checkpoint's max_train_length, frames
 
 
 class ReactionModel:
-    """A trained generator with what is needed to use it: classes, skeleton, canonical mode."""
+    """A trained reaction model with what is needed to use it: classes, skeleton, canonical mode.
+
+    Two families share this API: the paper's GAN generator (deterministic: one reaction per leader and label) and the
+    reaction diffusion model (`DiffusionReactionModel`: a seed picks one of many reactions). `load` returns the
+    checkpoint's family."""
+
+    family = "gan"
+    stochastic = False  # True: `seed` picks among reactions; False: every seed gives the same one
 
     def __init__(self, weights: dict[str, np.ndarray], config, meta: dict[str, Any], path: Path | None = None, device: str = "cpu"):
         from imm_model.model.numpy_runtime import NumpyGenerator
-        from imm_model.skeleton import Skeleton
 
         self.weights = weights  # the generator's state dict, float32 arrays
         self.config = config
@@ -44,6 +50,11 @@ class ReactionModel:
         # One sequence on a CPU runs in numpy (model/numpy_runtime.py: the same numbers, as fast, and no `import torch`,
         # which was most of the studio's start). Batches, GPUs and the paper's frame-by-frame decoder use torch.
         self.fast = NumpyGenerator(weights, config) if self.device == "cpu" and NumpyGenerator.supports(config) else None
+        self._read_meta(meta, path)
+
+    def _read_meta(self, meta: dict[str, Any], path: Path | None) -> None:
+        from imm_model.skeleton import Skeleton
+
         check_sidecar(meta, path)
         self.info: dict[str, Any] = meta
         self.path = path
@@ -88,6 +99,8 @@ class ReactionModel:
 
         path = Path(path) if path is not None else SAMPLE_CHECKPOINT
         arrays, meta = load_checkpoint(path, framework="np")
+        if meta.get("family") == DiffusionReactionModel.family:
+            return DiffusionReactionModel.from_checkpoint(arrays, meta, path, device)
         try:
             cfg = ModelConfig.from_dict(meta["model_config"])
             skeleton = Skeleton.from_dict(meta["skeleton"])
@@ -163,29 +176,44 @@ class ReactionModel:
         return check_world_positions(arr, "leader motion")
 
     # ---- synthesis ------------------------------------------------------------------------
-    def synthesize(self, leader_world: np.ndarray, label, scale: float = 1.0) -> np.ndarray:
-        """Leader (T, J, 3) world metres + label -> follower (T, J, 3) in the same world frame (float32)."""
+    def synthesize(self, leader_world: np.ndarray, label, scale: float = 1.0, seed: int = 0,
+                   samples: int | None = None) -> np.ndarray:
+        """Leader (T, J, 3) world metres + label -> follower (T, J, 3) in the same world frame (float32); with
+        `samples` N, N reactions (N, T, J, 3) drawn with seeds seed, seed + 1, ... (all alike for a deterministic
+        model)."""
         from imm_model.data.canonical import CanonicalFrame
 
         leader = self.check_leader(leader_world)
         vec = self.label_vector(label, scale)
+        seeds = check_seeds(seed, samples)
+        if not self.stochastic:
+            seeds = seeds[:1]  # every seed gives this reaction: computed once
         frame = CanonicalFrame.from_leader(leader, self.skeleton, self.canonical_mode)
-        follower = self.synthesize_canonical(frame.to_canonical(leader, self.skeleton), vec)
-        return frame.to_world(follower.astype(np.float64), self.skeleton).astype(np.float32)
+        canonical = frame.to_canonical(leader, self.skeleton)
+        followers = self.synthesize_batch_canonical([canonical] * len(seeds), np.repeat(vec[None], len(seeds), 0), seeds)
+        world = np.stack([frame.to_world(f.astype(np.float64), self.skeleton).astype(np.float32) for f in followers])
+        if samples is None:
+            return world[0]
+        return world if len(world) == samples else np.repeat(world, samples, 0)
 
-    def synthesize_canonical(self, leader_canonical: np.ndarray, label_vector: np.ndarray) -> np.ndarray:
+    def synthesize_canonical(self, leader_canonical: np.ndarray, label_vector: np.ndarray, seed: int = 0) -> np.ndarray:
         """Leader (T, J, 3) canonical + (C,) label vector -> follower (T, J, 3) canonical, float32."""
-        return self.synthesize_batch_canonical([leader_canonical], np.asarray(label_vector).reshape(1, -1))[0]
+        return self.synthesize_batch_canonical([leader_canonical], np.asarray(label_vector).reshape(1, -1), [seed])[0]
 
-    def synthesize_batch_canonical(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> list[np.ndarray]:
-        """N leaders (T_i, J, 3) canonical + (N, C) label vectors -> N followers (T_i, J, 3)."""
+    def synthesize_batch_canonical(self, leaders: list[np.ndarray], label_vectors: np.ndarray,
+                                   seeds: Sequence[int] | None = None) -> list[np.ndarray]:
+        """N leaders (T_i, J, 3) canonical + (N, C) label vectors (+ N sampler seeds, default 0) -> N followers (T_i, J, 3)."""
         labels = self._label_array(label_vectors, len(leaders))
-        out = self._network(leaders, labels)
+        seeds = [0] * len(leaders) if seeds is None else [int(s) for s in seeds]
+        if len(seeds) != len(leaders):
+            raise ValueError(f"{len(seeds)} seeds for {len(leaders)} leaders")
+        out = self._network(leaders, labels, seeds)
         if self.average_placement:
-            self._average_placement(leaders, labels, out)
+            self._average_placement(leaders, labels, out, seeds)
         return [self._clean(f) for f in out]
 
-    def _average_placement(self, leaders: list[np.ndarray], labels: np.ndarray, followers: list[np.ndarray]) -> None:
+    def _average_placement(self, leaders: list[np.ndarray], labels: np.ndarray, followers: list[np.ndarray],
+                           seeds: list[int]) -> None:
         """Move each follower (in place, by one offset for the whole sequence) to the mean of where it stands and where
         the network places it for the leader's mirror image, mirrored back. Where the follower stands is the least
         certain part of a reaction; the network's two answers disagree about it, and for the steered models their mean is
@@ -194,14 +222,15 @@ class ReactionModel:
         rows = [i for i in range(len(leaders)) if not (labels[i] != 0)[self.handed].any()]
         if not rows:
             return
-        twins = self._network([self.skeleton.mirrored(np.asarray(leaders[i])) for i in rows], labels[rows])
+        twins = self._network([self.skeleton.mirrored(np.asarray(leaders[i])) for i in rows], labels[rows], [seeds[i] for i in rows])
         body = self.skeleton.root_neighbours
         for i, twin in zip(rows, twins, strict=True):
             offset = self.skeleton.mirrored(twin)[:, body].mean((0, 1)) - followers[i][:, body].mean((0, 1))
             followers[i] = followers[i] + 0.5 * offset
 
-    def _network(self, leaders: list[np.ndarray], labels: np.ndarray) -> list[np.ndarray]:
-        """The generator's own followers (T_i, J, 3): numpy for one sequence on a CPU, else one torch batch."""
+    def _network(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int]) -> list[np.ndarray]:
+        """The generator's own followers (T_i, J, 3): numpy for one sequence on a CPU, else one torch batch (the
+        generator is deterministic: seeds change nothing)."""
         if self.fast is not None and len(leaders) == 1:
             t = len(leaders[0])
             return [self.fast(np.asarray(leaders[0], np.float32).reshape(t, -1), labels[0]).reshape(t, -1, 3)]
@@ -254,6 +283,99 @@ class ReactionModel:
                 m = mask[..., None].float()
                 return ((h * m).sum(1) / m.sum(1)).cpu().numpy(), lengths
             return self.generator(x, lab, lens).cpu().numpy(), lengths
+
+
+MAX_SAMPLES = 64  # reactions drawn by one call
+
+
+def check_seeds(seed: int, samples: int | None) -> list[int]:
+    """A sampler seed and an optional number of samples -> the seeds to draw with (LabelError when out of range)."""
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= seed < 2**31:
+        raise LabelError(f"seed must be an integer in 0..{2**31 - 1}, not {seed!r}")
+    n = 1 if samples is None else samples
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or not 1 <= n <= MAX_SAMPLES:
+        raise LabelError(f"samples must be an integer in 1..{MAX_SAMPLES}, not {samples!r}")
+    if seed + n > 2**31:
+        raise LabelError(f"seed {seed} + {n} samples runs past {2**31 - 1}")
+    return [int(seed) + k for k in range(int(n))]
+
+
+class DiffusionReactionModel(ReactionModel):
+    """The reaction diffusion model (model/diffusion.py) behind the ReactionModel API. A seed fixes the sampler's
+    starting noise, so the same seed with a moved label slider moves the reaction continuously; another seed is
+    another reaction. `guidance` (label strength, leader guidance, steps) defaults to what the model shipped with."""
+
+    family = "diffusion"
+    stochastic = True
+    BATCH = 64  # sequences per sampler batch (bounds memory for `imm evaluate`'s hundreds of reactions)
+
+    def __init__(self, net, guidance, meta: dict[str, Any], path: Path | None = None, device: str = "cpu"):
+        self.net = net
+        self.config = net.cfg
+        self.guidance = guidance
+        self.device = str(device)
+        self.fast = None
+        self._read_meta(meta, path)
+
+    @classmethod
+    def from_checkpoint(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], path: Path, device: str = "cpu"):
+        import torch
+
+        from imm_model.checkpoint import load_module_state, prefixed
+        from imm_model.model.diffusion import DiffusionConfig, Guidance, ReactionDenoiser
+        from imm_model.skeleton import Skeleton
+
+        try:
+            cfg = DiffusionConfig.from_dict(meta["model_config"])
+            guidance = Guidance.from_dict(meta["guidance"])
+            skeleton = Skeleton.from_dict(meta["skeleton"])
+            classes = list(meta["class_names"])
+        except (KeyError, TypeError, ValueError) as err:
+            raise CheckpointError(f"{path}: sidecar lacks a valid diffusion model description ({type(err).__name__}: {err})") from None
+        if cfg.num_classes != len(classes) or cfg.num_joints != skeleton.num_joints:
+            raise CheckpointError(f"{path}: model config disagrees with the class names or the skeleton")
+        weights = prefixed(arrays, "denoiser")
+        bad = sorted(k for k, v in weights.items() if v.dtype.kind != "f" or not np.isfinite(v).all())
+        if bad:
+            raise CheckpointError(f"{path}: weights that are not finite floats ({', '.join(bad[:3])}{', ...' if len(bad) > 3 else ''})")
+        net = ReactionDenoiser(cfg)
+        load_module_state(net, {k: torch.from_numpy(np.ascontiguousarray(v, np.float32)) for k, v in weights.items()}, "denoiser", path)
+        return cls(net.eval().to(device), guidance, meta, path, device)
+
+    def _network(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int]) -> list[np.ndarray]:
+        import torch
+
+        from imm_model.data.batching import pad_sequences
+        from imm_model.model.diffusion import initial_noise, sample
+
+        d = self.net.cfg.pose_dim
+        out: list[np.ndarray] = []
+        for start in range(0, len(leaders), self.BATCH):
+            rows = range(start, min(start + self.BATCH, len(leaders)))
+            x, mask = pad_sequences([np.asarray(leaders[i], np.float32).reshape(len(leaders[i]), d) for i in rows])
+            noise, _ = pad_sequences([initial_noise(seeds[i], len(leaders[i]), d) for i in rows])
+            dev = self.device
+            followers = sample(self.net, x.to(dev), mask.to(dev), torch.from_numpy(labels[list(rows)]).to(dev), noise.to(dev),
+                               self.guidance).cpu().numpy()
+            out += [followers[k, : len(leaders[i])].reshape(len(leaders[i]), -1, 3) for k, i in enumerate(rows)]
+        return out
+
+    def latent_canonical_batch(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> np.ndarray:
+        """N canonical leaders + (N, C) labels -> (N, width): the denoiser's last hidden state, averaged over frames,
+        for the leader and label with the follower all noise (the first sampler step's view of the reaction)."""
+        import torch
+
+        from imm_model.data.batching import pad_sequences
+
+        labels = torch.from_numpy(self._label_array(label_vectors, len(leaders)))
+        d, net, steps = self.net.cfg.pose_dim, self.net, self.net.cfg.diffusion_steps
+        x, mask = pad_sequences([np.asarray(a, np.float32).reshape(len(a), d) for a in leaders])
+        on = torch.ones(len(leaders), dtype=torch.bool)
+        with torch.inference_mode():
+            m = mask[..., None].float()
+            h = net(torch.zeros_like(x), torch.full((len(leaders),), steps - 1), net.normalize(x, "leader") * m, on, labels,
+                    labels.abs().sum(1) > 0, mask, return_hidden=True)
+            return ((h * m).sum(1) / m.sum(1)).numpy()
 
 
 def check_compatible(model, data, where: str = "checkpoint") -> None:

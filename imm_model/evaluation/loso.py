@@ -18,7 +18,7 @@ from imm_model import cache
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold
 from imm_model.evaluation import control, distribution
-from imm_model.evaluation.baselines import HEURISTIC_BASELINES, baseline_predictions, evaluate_predictions
+from imm_model.evaluation.baselines import HEURISTIC_BASELINES, baseline_predictions, evaluate_predictions, sequence_afds
 from imm_model.evaluation.metrics import afd_parts, per_class_mean
 from imm_model.evaluation.plausibility import frame_rate, plausibility
 from imm_model.model import classifier as classifiers
@@ -135,6 +135,34 @@ def label_control(model, data: InteractionDataset, judges: FoldJudges) -> dict:
     return out
 
 
+VARIATIONS = 5  # reactions drawn per test leader for multimodality and best-of-N AFD
+
+
+def variations(model, data: InteractionDataset, judges: FoldJudges, n: int = VARIATIONS) -> dict:
+    """A stochastic model's spread, each test leader with its true label and sampler seeds 0..n-1 (seed 0 is the
+    single sample every other number scores):
+    - multimodality: mean interaction-classifier feature distance between two reactions to the same leader and label
+      (ACTOR's and ReGenNet's definition), beside real_class_diversity, the same distance between the real followers
+      of different test sequences of the same class (what a reaction may vary by); multimodality_m the same pairs'
+      mean per-frame pose distance in metres;
+    - afd_best_of_n: per sequence the lowest AFD of the n reactions, averaged (normalized units, as `afd`)."""
+    test = judges.test
+    labels = np.eye(len(data.class_names), dtype=np.float32)[data.actions[test]]
+    draws = [model.synthesize_batch_canonical(judges.leaders, labels, [k] * len(test)) for k in range(n)]
+    features = np.stack([judges.interaction_view(d)[1] for d in draws], 1)  # (N, n, F)
+    pairs = [(a, b) for a in range(n) for b in range(a + 1, n)]
+    multimodality = np.mean([np.linalg.norm(features[:, a] - features[:, b], axis=-1).mean() for a, b in pairs])
+    metres = np.mean([[np.linalg.norm(d1 - d2, axis=-1).mean() for d1, d2 in zip(draws[a], draws[b], strict=True)]
+                      for a, b in pairs])
+    real, y = judges.real_features, data.actions[test]
+    same = (y[:, None] == y[None]) & ~np.eye(len(y), dtype=bool)
+    distances = np.linalg.norm(real[:, None] - real[None], axis=-1)
+    afds = np.array([[v for _, v in sorted(sequence_afds(data, dict(zip(map(int, test), d, strict=True))).items())]
+                     for d in draws])  # (n, N)
+    return {"samples": n, "multimodality": float(multimodality), "real_class_diversity": float(distances[same].mean()),
+            "multimodality_m": float(metres), "afd_single": float(afds[0].mean()), "afd_best_of_n": float(afds.min(0).mean())}
+
+
 def prepare_model(model, data: InteractionDataset, subject: str, opts: EvalOptions) -> None:
     """Clean-up on (or off with `raw`) and placement averaging as asked; a checkpoint from before the clean-up stored no
     bone lengths gets those its training would have stored (the fold's training followers'), so that every model is
@@ -162,6 +190,8 @@ def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptio
               "model": method_scores(data, judges, model_predictions(model, data, judges.test)),
               "baselines": {}}
     result |= label_control(model, data, judges)
+    if getattr(model, "stochastic", False):
+        result["variations"] = variations(model, data, judges)
     all_idx = np.arange(len(data))
     result["_latent"] = {"model": _latents(model, data, all_idx)} if latents else {}  # "_": for the figures, not the JSON
     for name in opts.baselines:

@@ -22,11 +22,13 @@ def headline(result: dict) -> dict:
     mixes = result["mix_judge"]
     p = m["plausibility"]
     out = {
-        "afd": float(np.mean([c["afd"] for c in m["classes"].values()])), "afd_nn1": float(np.mean([c["afd"] for c in nn1["classes"].values()])) if nn1 else None,
+        "afd": float(np.mean([c["afd"] for c in m["classes"].values()])),
+        "afd_nn1": float(np.mean([c["afd"] for c in nn1["classes"].values()])) if nn1 else None,
         "fid": m["fid"], "fid_nn1": nn1.get("fid"),
         "judge_real_accuracy": result["classifier"]["real_accuracy"]["follower_judge"],
         "off_label": result["adherence_off_diagonal_judge"], "true_label": float(np.nanmean(np.diag(matrix))),
-        "mix_both_read": float(np.mean([r["both_read"] for r in mixes])), "mix_pairs_read": int(sum(r["first"] >= 0.25 and r["second"] >= 0.25 for r in mixes)),
+        "mix_both_read": float(np.mean([r["both_read"] for r in mixes])),
+        "mix_pairs_read": int(sum(r["first"] >= 0.25 and r["second"] >= 0.25 for r in mixes)),
         "avoid_change": result["avoid_judge"]["change"],
         "interior_limb_speed_ratio": p["interior_limb_speed_ratio"], "lean_error_deg": p["lean_error_deg"],
         "bone_error_cm": p["bone_error_cm"], "foot_skate_mps": p["foot_skate_mps"], "interpenetration": p["interpenetration"],

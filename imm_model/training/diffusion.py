@@ -1,0 +1,301 @@
+"""Training the reaction diffusion model (model/diffusion.py) on one fold: x0-prediction with the label and the
+leader dropped independently, the GAN's augmentation, an exponential moving average shipped at the end.
+
+Run directory (one per fold): log.csv, last.safetensors/.json (full state for --resume, every
+`checkpoint_every` steps and at the end), final.safetensors/.json (the EMA denoiser: what inference loads).
+Randomness is re-derived from (seed, step), so a resumed run continues exactly as an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import copy
+import csv
+import time
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+import imm_model
+from imm_model.checkpoint import load_checkpoint, load_module_state, optimizer_from_tensors, optimizer_to_tensors, prefixed, save_checkpoint
+from imm_model.cleanup import follower_bone_lengths
+from imm_model.data.dataset import InteractionDataset
+from imm_model.data.splits import loso_fold
+from imm_model.errors import CheckpointError, TrainingError
+from imm_model.model.diffusion import DiffusionConfig, Guidance, ReactionDenoiser, cosine_alpha_bar, q_sample
+from imm_model.training.data import Augmenter, PaddedData
+from imm_model.typed_config import checked_kwargs
+
+FAMILY = "diffusion"
+LOG_FIELDS = ("step", "loss", "x0", "velocity", "lr", "seconds")
+
+
+@dataclass(frozen=True)
+class DiffusionTrainConfig:
+    name: str = "imm-diffusion"
+    family: str = FAMILY  # tells `imm train` which trainer runs the recipe
+    model: dict[str, Any] = field(default_factory=dict)  # DiffusionConfig sizes (joints and classes come from the data)
+    guidance: dict[str, Any] = field(default_factory=dict)  # the sampler's defaults shipped with the model (Guidance)
+    steps: int = 6000  # optimizer steps
+    batch_size: int = 32
+    lr: float = 5e-4  # peak AdamW learning rate, after a linear warm-up, decayed by a cosine to a tenth
+    warmup_steps: int = 200
+    weight_decay: float = 1e-4
+    label_drop: float = 0.15  # probability a training row sees the "absent" label (the label-free term)
+    leader_drop: float = 0.25  # probability a training row sees the "absent" leader (the unconditioned term)
+    lambda_velocity: float = 1.0  # weight of the frame-to-frame velocity error beside the x0 error (normalized units)
+    ema_decay: float = 0.999  # the shipped model is this exponential moving average of the weights
+    mirror_prob: float = 0.5  # swap left/right joints and flip the lateral axis
+    mirror_exclude_classes: tuple[str, ...] = ("shaking_hands",)  # SBU's handshakes are all right-handed
+    rotate_deg: float = 0.0  # uniform yaw of both characters in [-rotate_deg, rotate_deg]
+    scale_jitter: float = 0.0  # scale both characters about A's root by U(1 - s, 1 + s)
+    time_warp: float = 0.0  # resample each sequence to length * U(1 - w, 1 + w)
+    role_swap_prob: float = 0.0  # B becomes the leader (re-canonicalized), for role_swap_classes only
+    role_swap_classes: tuple[str, ...] = ()
+    checkpoint_every: int = 1000  # steps between resumable checkpoints
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        DiffusionConfig.from_dict(dict(self.model) | {"num_joints": 15, "num_classes": 6})  # sizes checked now
+        Guidance.from_dict(dict(self.guidance))
+        checks = (
+            ("family", self.family == FAMILY, repr(FAMILY)),
+            ("steps", 1 <= self.steps <= 10_000_000, "in 1..10000000"),
+            ("batch_size", 1 <= self.batch_size <= 4096, "in 1..4096"),
+            ("lr", 0 < self.lr <= 1, "in (0, 1]"),
+            ("warmup_steps", self.warmup_steps >= 0, ">= 0"),
+            ("weight_decay", self.weight_decay >= 0, ">= 0"),
+            ("label_drop", 0 <= self.label_drop < 1, "in [0, 1)"),
+            ("leader_drop", 0 <= self.leader_drop < 1, "in [0, 1)"),
+            ("lambda_velocity", self.lambda_velocity >= 0, ">= 0"),
+            ("ema_decay", 0 <= self.ema_decay < 1, "in [0, 1)"),
+            ("mirror_prob", 0 <= self.mirror_prob <= 1, "in [0, 1]"),
+            ("rotate_deg", 0 <= self.rotate_deg <= 180, "in [0, 180]"),
+            ("scale_jitter", 0 <= self.scale_jitter < 1, "in [0, 1)"),
+            ("time_warp", 0 <= self.time_warp < 1, "in [0, 1)"),
+            ("role_swap_prob", 0 <= self.role_swap_prob <= 1, "in [0, 1]"),
+            ("checkpoint_every", self.checkpoint_every >= 1, ">= 1"),
+            ("seed", 0 <= self.seed < 2**31, "in 0..2**31-1"),
+        )
+        for name, ok, expected in checks:
+            if not ok:
+                raise ValueError(f"training config: {name} must be {expected}, not {getattr(self, name)!r}")
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["mirror_exclude_classes"] = list(self.mirror_exclude_classes)
+        d["role_swap_classes"] = list(self.role_swap_classes)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> DiffusionTrainConfig:
+        d = checked_kwargs(cls, d, "training config")
+        for key in ("mirror_exclude_classes", "role_swap_classes"):
+            if key in d:
+                d[key] = tuple(d[key])
+        return cls(**d)
+
+
+# The reaction diffusion model as shipped: 128 wide, 4 blocks, 6000 steps of batch 32 (about 15 minutes a fold on one
+# CPU thread), guidance 2.5 on each class term.
+IMM_DIFFUSION = DiffusionTrainConfig(
+    model=dict(width=128, layers=4, heads=4, ff_mult=2, dropout=0.1),
+    guidance=dict(label_scale=2.5, leader_scale=1.0, sample_steps=20),
+)
+
+NAMED: dict[str, DiffusionTrainConfig] = {"imm-diffusion": IMM_DIFFUSION}
+
+
+def derive_seed(*parts: int) -> int:
+    return int(np.random.SeedSequence([int(p) for p in parts]).generate_state(1)[0])
+
+
+class DiffusionTrainer:
+    def __init__(self, cfg: DiffusionTrainConfig, data: InteractionDataset, subject: str | None, out_dir: Path | str,
+                 device: torch.device | str = "cpu"):
+        self.cfg, self.data, self.subject = cfg, data, subject
+        self.device = torch.device(device)
+        self.out = Path(out_dir)
+        self.train_idx = np.arange(len(data)) if subject is None else loso_fold(data.subject_pairs, subject).train
+        self.padded = PaddedData.from_dataset(data)
+        torch.manual_seed(cfg.seed)
+        self.model_cfg = DiffusionConfig.from_dict(dict(cfg.model) | {"num_joints": data.skeleton.num_joints,
+                                                                       "num_classes": len(data.class_names)})
+        self.guidance = Guidance.from_dict(dict(cfg.guidance))
+        self.net = ReactionDenoiser(self.model_cfg)
+        frames = np.concatenate([np.arange(data.frames(i).start, data.frames(i).stop) for i in self.train_idx])
+        self.net.set_normalization(data.leader[frames].reshape(len(frames), -1), data.follower[frames].reshape(len(frames), -1))
+        self.net = self.net.to(self.device)
+        self.ema = copy.deepcopy(self.net).requires_grad_(False).eval()
+        self.opt = torch.optim.AdamW(self.net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+        swap = torch.tensor([c in cfg.role_swap_classes for c in data.class_names])
+        mirror = torch.tensor([c not in cfg.mirror_exclude_classes for c in data.class_names])
+        self.augment = Augmenter(data.skeleton, cfg.mirror_prob, cfg.rotate_deg, cfg.role_swap_prob, swap, cfg.time_warp,
+                                 cfg.scale_jitter, mirror)
+        self.alpha_bar = torch.as_tensor(cosine_alpha_bar(self.model_cfg.diffusion_steps), dtype=torch.float32, device=self.device)
+        self.bone_lengths = follower_bone_lengths([data.follower[data.frames(i)] for i in self.train_idx], data.skeleton)
+        self.step = 0
+
+    # ---- one step -------------------------------------------------------------------------
+    def lr_at(self, step: int) -> float:
+        cfg = self.cfg
+        if step < cfg.warmup_steps:
+            return cfg.lr * (step + 1) / cfg.warmup_steps
+        progress = (step - cfg.warmup_steps) / max(1, cfg.steps - cfg.warmup_steps)
+        return cfg.lr * (0.1 + 0.9 * 0.5 * (1 + np.cos(np.pi * min(progress, 1.0))))
+
+    def train_step(self) -> dict[str, float]:
+        cfg, net = self.cfg, self.net
+        gen = torch.Generator().manual_seed(derive_seed(cfg.seed, self.step))
+        idx = torch.as_tensor(self.train_idx)[torch.randint(len(self.train_idx), (cfg.batch_size,), generator=gen)]
+        leader, follower, lengths, actions = self.augment(self.padded, idx, gen)
+        b, t, _ = follower.shape
+        mask = torch.arange(t)[None] < lengths[:, None]  # (B, T)
+        step = torch.randint(self.model_cfg.diffusion_steps, (b,), generator=gen)
+        noise = torch.randn(follower.shape, generator=gen)
+        label_on = torch.rand(b, generator=gen) >= cfg.label_drop
+        leader_on = torch.rand(b, generator=gen) >= cfg.leader_drop
+        label = torch.nn.functional.one_hot(actions, len(self.data.class_names)).float()
+        to = lambda *ts: [x.to(self.device) for x in ts]  # noqa: E731
+        leader, follower, mask, step, noise, label_on, leader_on, label = to(leader, follower, mask, step, noise, label_on,
+                                                                          leader_on, label)
+        m = mask[..., None].float()
+        x0 = net.normalize(follower, "follower") * m
+        x_t = q_sample(x0, step, noise, self.alpha_bar) * m
+        pred = net(x_t, step, net.normalize(leader, "leader") * m, leader_on, label, label_on, mask) * m
+        n = m.sum() * x0.shape[-1]
+        x0_loss = ((pred - x0) ** 2).sum() / n
+        mv = m[:, 1:] * m[:, :-1]
+        vel_loss = (((pred[:, 1:] - pred[:, :-1]) - (x0[:, 1:] - x0[:, :-1])) ** 2 * mv).sum() / (mv.sum() * x0.shape[-1])
+        loss = x0_loss + cfg.lambda_velocity * vel_loss
+        if not torch.isfinite(loss):
+            raise TrainingError(f"training stopped: the loss is not finite at step {self.step}")
+        lr = self.lr_at(self.step)
+        for group in self.opt.param_groups:
+            group["lr"] = lr
+        self.opt.zero_grad(set_to_none=True)
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
+        self.opt.step()
+        decay = min(cfg.ema_decay, (1 + self.step) / (10 + self.step))
+        with torch.no_grad():
+            for e, p in zip(self.ema.parameters(), net.parameters(), strict=True):
+                e.lerp_(p, 1 - decay)
+        self.step += 1
+        return {"loss": loss.item(), "x0": x0_loss.item(), "velocity": vel_loss.item(), "lr": lr}
+
+    # ---- the run --------------------------------------------------------------------------
+    def fit(self, progress: bool = True) -> Path:
+        from tqdm import tqdm
+
+        self.out.mkdir(parents=True, exist_ok=True)
+        log = self.out / "log.csv"
+        new_log = not log.exists() or self.step == 0
+        t0 = time.time()
+        totals: dict[str, float] = {}
+        count = 0
+        with open(log, "w" if new_log else "a", newline="") as fh:
+            writer = csv.DictWriter(fh, fieldnames=LOG_FIELDS)
+            if new_log:
+                writer.writeheader()
+            bar = tqdm(total=self.cfg.steps, initial=self.step, disable=not progress, desc=f"fold {self.subject or 'none'}",
+                       unit="step", mininterval=2.0)
+            while self.step < self.cfg.steps:
+                self.net.train()
+                parts = self.train_step()
+                for k, v in parts.items():
+                    totals[k] = totals.get(k, 0.0) + v
+                count += 1
+                bar.update(1)
+                if self.step % 100 == 0 or self.step == self.cfg.steps:
+                    row = {k: totals[k] / count for k in ("loss", "x0", "velocity")} | {"lr": parts["lr"]}
+                    writer.writerow({"step": self.step, **{k: f"{v:.5g}" for k, v in row.items()}, "seconds": f"{time.time() - t0:.1f}"})
+                    fh.flush()
+                    bar.set_postfix(loss=f"{row['loss']:.4f}")
+                    totals, count = {}, 0
+                if self.step % self.cfg.checkpoint_every == 0 or self.step == self.cfg.steps:
+                    self.save_last()
+            bar.close()
+        final = self.out / "final.safetensors"
+        save_checkpoint(final, {f"denoiser.{k}": v.detach().cpu() for k, v in self.ema.state_dict().items()}, self.meta("final"))
+        return final
+
+    # ---- checkpoints ----------------------------------------------------------------------
+    def meta(self, kind: str) -> dict:
+        d = self.data
+        return {
+            "kind": kind,
+            "family": FAMILY,
+            "code_version": imm_model.__version__,
+            "model_config": self.model_cfg.to_dict(),
+            "guidance": self.guidance.to_dict(),
+            "train_config": self.cfg.to_dict(),
+            "skeleton": d.skeleton.to_dict(),
+            "class_names": list(d.class_names),
+            "canonical_mode": d.canonical_mode,
+            "dataset": d.dataset,
+            "held_out_subject": self.subject,
+            "max_train_length": int(d.lengths[self.train_idx].max()),
+            "follower_bone_lengths": self.bone_lengths,
+            "training": {"fold": f"loso-{self.subject}" if self.subject else "all", "step": self.step,
+                         "train_sequences": len(self.train_idx), "seed": self.cfg.seed},
+        }
+
+    def save_last(self) -> None:
+        tensors, optim = optimizer_to_tensors(self.opt, "optim")
+        tensors |= {f"denoiser.{k}": v.detach().cpu() for k, v in self.ema.state_dict().items()}
+        tensors |= {f"denoiser_train.{k}": v.detach().cpu() for k, v in self.net.state_dict().items()}
+        save_checkpoint(self.out / "last.safetensors", tensors, self.meta("last") | {"optim": optim})
+
+    def resume(self) -> None:
+        path = self.out / "last.safetensors"
+        tensors, meta = load_checkpoint(path)
+        if meta.get("train_config", {}) | {"steps": self.cfg.steps} != self.cfg.to_dict():
+            raise CheckpointError(f"{path}: trained with a different config; resume with the same --config/--seed")
+        load_module_state(self.net, prefixed(tensors, "denoiser_train"), "denoiser", path)
+        load_module_state(self.ema, prefixed(tensors, "denoiser"), "denoiser", path)
+        optimizer_from_tensors(self.opt, tensors, meta["optim"], "optim")
+        self.step = int(meta["training"]["step"])
+
+
+def _read_recipe_file(path: Path) -> dict | None:
+    import json
+
+    try:
+        d = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError):
+        return None  # the GAN's config loader reports what is wrong with the file
+    return d if isinstance(d, dict) else None
+
+
+def diffusion_recipe(name_or_path: str) -> bool:
+    """Whether `imm train --config` names a diffusion recipe (a name here, or a JSON file whose base is one)."""
+    if name_or_path in NAMED:
+        return True
+    path = Path(name_or_path)
+    d = _read_recipe_file(path) if path.suffix == ".json" and path.is_file() else None
+    return bool(d) and (d.get("base") in NAMED or d.get("family") == FAMILY)
+
+
+def load_config(name_or_path: str, **overrides: Any) -> DiffusionTrainConfig:
+    """A named diffusion recipe or a JSON file {"base": "imm-diffusion", ...overrides}."""
+    if name_or_path in NAMED:
+        cfg = NAMED[name_or_path]
+    else:
+        d = _read_recipe_file(Path(name_or_path))
+        if d is None:
+            raise ValueError(f"{name_or_path}: not a readable JSON object")
+        base = NAMED.get(d.pop("base", "imm-diffusion"))
+        if base is None:
+            raise ValueError(f"{name_or_path}: unknown base config (one of {sorted(NAMED)})")
+        for key in ("model", "guidance"):
+            if not isinstance(d.get(key, {}), dict):
+                raise ValueError(f"{name_or_path}: {key} must be a JSON object")
+        merged = base.to_dict() | d
+        merged["model"] = base.model | d.get("model", {})
+        merged["guidance"] = base.guidance | d.get("guidance", {})
+        merged.setdefault("name", Path(name_or_path).stem)
+        cfg = DiffusionTrainConfig.from_dict(merged)
+    return replace(cfg, **{k: v for k, v in overrides.items() if v is not None})
