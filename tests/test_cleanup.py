@@ -96,24 +96,6 @@ def test_the_model_cleans_up_unless_raw_and_reads_its_bone_lengths(sample_data, 
             ReactionModel.load(path)
 
 
-def test_training_gives_followers_the_same_rigid_bones_as_the_clean_up(sample_data):
-    """training/rigid.py is cleanup.rigid_bones in torch, so that training scores what inference ships."""
-    import torch
-
-    from imm_model.training.rigid import RigidBones
-
-    sk = sample_data.skeleton
-    lengths = np.linspace(0.1, 0.4, len(sk.bones))
-    motions = [sample_data.canonical(i)[1].astype(np.float64) * 1.1 for i in (2, 9)]
-    t = min(len(m) for m in motions)
-    batch = torch.tensor(np.stack([m[:t].reshape(t, -1) for m in motions]), dtype=torch.float32, requires_grad=True)
-    out = RigidBones(sk, lengths)(batch)
-    for m, o in zip(motions, out.detach().numpy(), strict=True):
-        np.testing.assert_allclose(o.reshape(t, -1, 3), rigid_bones(m[:t], sk, lengths), atol=1e-5)
-    out.sum().backward()
-    assert torch.isfinite(batch.grad).all() and batch.grad.abs().sum() > 0
-
-
 def test_evaluation_cleans_up_every_model_alike(sample_data, tmp_path):
     """`imm evaluate` scores cleaned followers (or raw ones with --raw); a checkpoint from before the clean-up gets
     the bone lengths its training would have stored: the fold's training followers'."""

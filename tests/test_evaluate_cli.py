@@ -85,7 +85,7 @@ def test_checkpoint_that_does_not_match_the_data(tmp_path, quick_classifiers, ca
 
 
 def test_fold_names():
-    from imm_model.evaluation.commands import normalize_fold
+    from imm_model.data.splits import normalize_fold
 
     assert normalize_fold("4") == normalize_fold("loso-s04") == normalize_fold("s04") == "s04"
     assert normalize_fold("all") == "all" and normalize_fold(None) is None

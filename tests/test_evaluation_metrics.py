@@ -274,12 +274,29 @@ def test_report_groups_folds_and_seeds():
     assert "| model | 0.400 | 0.400 | 0.200 |" in text  # where the AFD comes from, all folds and seeds
 
 
+def tilted_back(motion: np.ndarray, degrees: float) -> np.ndarray:
+    """The whole body turned back about its own left-right axis through the body centre, frame by frame: turned the
+    way that moves the head further behind the body centre along the body's facing (across x up)."""
+    from scipy.spatial.transform import Rotation
+
+    from imm_model.skeleton import KINECT15
+
+    centre = motion[:, KINECT15.root_neighbours].mean(1, keepdims=True)
+    across = motion[:, 9] - motion[:, 12] + motion[:, 3] - motion[:, 6]
+    axis = across.mean(0) * np.array([1, 0, 1])
+    forward = np.cross(axis, np.eye(3)[KINECT15.vertical_axis])
+    head_forward = lambda m: float((m[:, 0] - m[:, KINECT15.root_neighbours].mean(1)).mean(0) @ forward)  # noqa: E731
+    rot = Rotation.from_rotvec(np.radians(degrees) * axis / np.linalg.norm(axis))
+    out = rot.apply((motion - centre).reshape(-1, 3)).reshape(motion.shape) + centre
+    if head_forward(out) > head_forward(motion):
+        out = rot.inv().apply((motion - centre).reshape(-1, 3)).reshape(motion.shape) + centre  # the other way is back
+    return out
+
+
 def test_lean_error_counts_a_follower_thrown_further_back_than_the_real_one(sample_data):
     """The real followers tilted back by 15 degrees about their own left-right axis (hand-made): their lean error is
     about 15 degrees, the real followers' own is 0, and a yaw turn of the whole scene changes neither."""
     from scipy.spatial.transform import Rotation
-
-    from tests.test_posture import tilted_back
 
     idx = [int(i) for i in np.flatnonzero(sample_data.held_out)[:6]]
     leaders, reals = zip(*(sample_data.canonical(i) for i in idx), strict=True)

@@ -33,6 +33,17 @@ class Fold:
             raise ValueError(f"fold {self.name}: train and test overlap")
 
 
+def normalize_fold(fold: str | None) -> str | None:
+    """A fold as the user may name it -> the held-out subject: 's04', 'loso-s04', '4' -> 's04'; 'all' and None
+    unchanged."""
+    if fold is None or fold == "all":
+        return fold
+    fold = fold.removeprefix("loso-")
+    if fold.isdigit():
+        fold = f"s{int(fold):02d}"
+    return fold
+
+
 def subjects_of(pair: str) -> tuple[str, str]:
     """'s01s02' -> ('s01', 's02')."""
     if len(pair) != 6:

@@ -44,16 +44,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_evaluate)
 
 
-def normalize_fold(fold: str | None) -> str | None:
-    """'s04', 'loso-s04', '4' -> 's04'; 'all' and None unchanged."""
-    if fold is None or fold == "all":
-        return fold
-    fold = fold.removeprefix("loso-")
-    if fold.isdigit():
-        fold = f"s{int(fold):02d}"
-    return fold
-
-
 def _options(args: argparse.Namespace):
     from imm_model.checkpoint import final_checkpoint
     from imm_model.evaluation.loso import EvalOptions
@@ -83,6 +73,7 @@ def _options(args: argparse.Namespace):
 def _jobs(args: argparse.Namespace, subjects: list[str]) -> list[tuple[Path, str]]:
     """(checkpoint, subject) pairs to evaluate."""
     from imm_model.checkpoint import final_checkpoint
+    from imm_model.data.splits import normalize_fold
     from imm_model.inference import ReactionModel
 
     fold = normalize_fold(args.fold) or ("all" if args.run is not None else None)

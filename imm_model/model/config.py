@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, fields
+from typing import ClassVar
 
-from imm_model.typed_config import checked_kwargs
+from imm_model.typed_config import Flag, Interval, ListOf, OneOf, checked_kwargs, param, validate
 
 BODY_PARTS = ("left_arm", "right_arm", "left_leg", "right_leg", "trunk")
 DECODER_INPUTS = ("concat", "sum", "context")
@@ -12,46 +13,47 @@ ATTENTION_QUERIES = ("encoder", "decoder")
 MAX_WIDTH = 4096
 
 
+WIDTH = Interval(int, 1, MAX_WIDTH)  # a typo of 1e9 must not ask for a terabyte
+FLAG = Flag()
+
+
 @dataclass(frozen=True)
 class ModelConfig:
-    num_joints: int = 15
-    num_classes: int = 6
+    num_joints: int = param(15, Interval(int, 1, 512))  # joints per character (from the data)
+    num_classes: int = param(6, Interval(int, 1, 512))  # interaction classes, the label's length (from the data)
     # Joint indices of the five body-part streams (the sixth stream is the whole body + label).
-    body_parts: tuple[tuple[int, ...], ...] = field(default_factory=tuple)
-    stream_embed: int = 64  # width of the per-stream fully connected layer
-    encoder_hidden: int = 40  # per direction: a Bi-LSTM slice is 2 * 40 = 80 (paper, SBU)
-    decoder_hidden: int = 240  # per direction: the attentive Bi-LSTM decoder is 480 wide (paper, SBU)
-    attention_dim: int = 128  # additive attention v^T tanh(W h_t + U h_s)
-    disc_hidden: int = 64  # per direction, two Bi-LSTM layers
-    dropout: float = 0.0  # on the concatenated encodings and the decoder output
+    body_parts: tuple[tuple[int, ...], ...] = param(check=ListOf(ListOf(Interval(int, 0, 511), min_length=1)),
+                                                    factory=tuple)
+    stream_embed: int = param(64, WIDTH)  # width of the per-stream fully connected layer
+    encoder_hidden: int = param(40, WIDTH)  # per direction: a Bi-LSTM slice is 2 * 40 = 80 (paper, SBU)
+    decoder_hidden: int = param(240, WIDTH)  # per direction: the attentive Bi-LSTM decoder is 480 wide (paper, SBU)
+    attention_dim: int = param(128, WIDTH)  # additive attention v^T tanh(W h_t + U h_s)
+    disc_hidden: int = param(64, WIDTH)  # per direction, two Bi-LSTM layers
+    dropout: float = param(0.0, Interval(float, 0, 1, closed="left"))  # on the concatenated encodings and decoder output
     # True: one dropout mask per sequence, shared by all its frames ("variational" dropout for RNNs,
     # Gal & Ghahramani 2016); B x D random draws instead of B x T x D, which dominate dropout's CPU cost.
-    dropout_per_sequence: bool = False
+    dropout_per_sequence: bool = param(False, FLAG)
     # What the attentive decoder reads at each frame t, from the frame's encoding h_t and its attention
     # context c_t: "concat" [h_t, c_t] (2 x latent wide), "sum" h_t + c_t (a residual connection around the
     # attention, as in a Transformer block; latent wide, so the decoder's input projection costs half),
     # or "context" c_t alone (an attention layer placed between encoder and decoder).
-    decoder_input: str = "concat"
+    decoder_input: str = param("concat", OneOf(DECODER_INPUTS))
     # False: the whole-body stream reads the pose alone, the label is ignored (the label-free, Men et al.
     # 2022-style baseline `--config men`; the paper's ablation "without the multi-hot embedding").
-    label_input: bool = True
+    label_input: bool = param(True, FLAG)
     # False: no per-stream fully connected layer, each Bi-LSTM reads its stream's coordinates directly (the
     # paper's ablation "without the FC layers").
-    stream_fc: bool = True
+    stream_fc: bool = param(True, FLAG)
     # The attention query: "encoder", the frame's own encoding h_t (all frames at once, fast); "decoder", the
     # decoder's previous state as in the paper's Eq. 3 (frame by frame, layers.AttentiveDecoder).
-    attention_query: str = "encoder"
+    attention_query: str = param("encoder", OneOf(ATTENTION_QUERIES))
+
+    RULES: ClassVar = (
+        ("body_parts", lambda c: all(j < c.num_joints for part in c.body_parts for j in part), "joint indices below num_joints"),
+    )
 
     def __post_init__(self) -> None:
-        if self.decoder_input not in DECODER_INPUTS:
-            raise ValueError(f"decoder_input must be one of {DECODER_INPUTS}, not {self.decoder_input!r}")
-        if self.attention_query not in ATTENTION_QUERIES:
-            raise ValueError(f"attention_query must be one of {ATTENTION_QUERIES}, not {self.attention_query!r}")
-        for name in ("stream_embed", "encoder_hidden", "decoder_hidden", "attention_dim", "disc_hidden"):
-            if not 1 <= getattr(self, name) <= MAX_WIDTH:  # a typo of 1e9 must not ask for a terabyte
-                raise ValueError(f"model config: {name} must be in 1..{MAX_WIDTH}, not {getattr(self, name)!r}")
-        if not 0 <= self.dropout < 1:
-            raise ValueError(f"model config: dropout must be in [0, 1), not {self.dropout!r}")
+        validate(self, "model config")
 
     @property
     def pose_dim(self) -> int:

@@ -37,9 +37,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
     from imm_model.checkpoint import export_generator, final_checkpoint
     from imm_model.data.dataset import InteractionDataset
-    from imm_model.data.splits import all_subjects
+    from imm_model.data.splits import all_subjects, normalize_fold
     from imm_model.device import resolve_device
-    from imm_model.evaluation.commands import normalize_fold
     from imm_model.paths import SAMPLE_DATA
     from imm_model.training.config import load_config
     from imm_model.training.refit import refit
@@ -99,8 +98,9 @@ def check_run_dirs(out: Path, folds: list, config: dict, resume: bool, overwrite
             before = json.loads(saved.read_text())
         except (OSError, json.JSONDecodeError) as err:
             raise ValueError(f"{saved}: unreadable ({err}); --overwrite starts the runs again") from None
-        same = lambda d: {k: v for k, v in d.items() if k != "epochs"}  # noqa: E731 (more epochs is fine)
-        if same(before) != same(config):
+        from imm_model.training.config import same_recipe
+
+        if not same_recipe(before, config):
             raise ValueError(f"--resume: {out} was trained with a different config; resume with the same --config/--seed")
     for subject in folds:
         fold = fold_dir(out, subject)

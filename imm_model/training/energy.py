@@ -44,21 +44,11 @@ def limb_speeds(pose: torch.Tensor, lengths: torch.Tensor, reference: int | list
     return (speed * valid[..., None]).sum(1) / valid.sum(1).clamp(min=1)[:, None]
 
 
-def energy_loss(fake: torch.Tensor, target_speeds: torch.Tensor, lengths: torch.Tensor, reference: int | list[int],
-                per_frame: bool = False) -> torch.Tensor:
-    """Mean |limb speed(fake) - target| over sequences long enough to measure and joints (metres/frame).
-
-    target_speeds (B, J): per sequence (the default compares means over the sequence; with `per_frame`, every valid
-    frame's speed with it), or (B, T - WINDOW, J) per frame (`per_frame` only). Per frame, a burst of motion in a few
-    frames cannot pay for stillness in the rest (docs/evaluation.md, "Root sway and edge motion")."""
-    if not per_frame:
-        has = (lengths > WINDOW).to(fake.dtype)[:, None]
-        diff = (limb_speeds(fake, lengths, reference) - target_speeds).abs() * has
-        return diff.sum() / (has.sum() * diff.shape[1]).clamp(min=1)
-    speed, valid = frame_speeds(fake, lengths, reference)
-    target = target_speeds[:, None] if target_speeds.dim() == 2 else target_speeds
-    diff = (speed - target).abs() * valid[..., None]
-    return diff.sum() / (valid.sum() * speed.shape[-1]).clamp(min=1)
+def energy_loss(fake: torch.Tensor, target_speeds: torch.Tensor, lengths: torch.Tensor, reference: int | list[int]) -> torch.Tensor:
+    """Mean |limb speed(fake) - target_speeds (B, J)| over sequences long enough to measure and joints (metres/frame)."""
+    has = (lengths > WINDOW).to(fake.dtype)[:, None]
+    diff = (limb_speeds(fake, lengths, reference) - target_speeds).abs() * has
+    return diff.sum() / (has.sum() * diff.shape[1]).clamp(min=1)
 
 
 def class_profiles(followers: list[np.ndarray], classes: np.ndarray, num_classes: int, reference: int | list[int]) -> torch.Tensor:

@@ -27,18 +27,14 @@ from imm_model.data.splits import loso_fold, validation_split
 from imm_model.errors import CheckpointError
 from imm_model.model import Discriminator, Generator, model_config_for
 from imm_model.training import losses
-from imm_model.training.config import TrainConfig
+from imm_model.training.config import TrainConfig, same_recipe
 from imm_model.training.critic import LabelCritic, drawn_labels
 from imm_model.training.curves import plot_curves
 from imm_model.training.data import Augmenter, PaddedData
-from imm_model.training.energy import class_profiles, energy_loss, frame_speeds, limb_speeds, mixed_profile
-from imm_model.training.penetration import penetration_loss
-from imm_model.training.posture import PostureTarget, class_postures
-from imm_model.training.relation import class_relations, relation_loss
-from imm_model.training.rigid import RigidBones
+from imm_model.training.energy import class_profiles, energy_loss, limb_speeds, mixed_profile
 from imm_model.training.schedule import adversarial_weight, lr_scale
 
-LOSS_TERMS = ("l1", "root", "bone", "cont", "adv", "critic", "start", "energy", "relation", "posture", "penetration")
+LOSS_TERMS = ("l1", "bone", "cont", "adv", "critic", "energy")
 LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", *LOSS_TERMS, "d_loss", "d_real_acc", "d_fake_acc", "val_afd_m", "val_l1", "seconds")
 
 
@@ -93,17 +89,13 @@ class Trainer:
         self.augment = Augmenter(data.skeleton, cfg.mirror_prob, cfg.rotate_deg, cfg.role_swap_prob, swap, cfg.time_warp,
                                  cfg.scale_jitter, mirror)
         self.bones = torch.tensor(data.skeleton.bones, dtype=torch.int64, device=self.device)
-        self.critic = LabelCritic.for_fold(cfg, data, subject, self.device) if cfg.lambda_critic > 0 else None
+        self.critic = LabelCritic.for_fold(data, subject, self.device) if cfg.lambda_critic > 0 else None
         skeleton = data.skeleton
         self.energy_reference = skeleton.root_neighbours if cfg.energy_reference == "body" else skeleton.root
-        self.root_coords = slice(3 * skeleton.root, 3 * skeleton.root + 3)  # the root joint in a (B, T, 3J) pose
         self.profiles = self._class_profiles() if cfg.lambda_energy > 0 else None
-        self.relations = self._class_relations() if cfg.lambda_relation > 0 else None
-        self.posture = self._posture_target() if cfg.lambda_posture > 0 else None
         # the fold's training subjects, validation sequences included: the selection run and its refit ship one skeleton
         fold_train = np.concatenate([self.train_idx, self.val_idx])
         self.bone_lengths = follower_bone_lengths([data.follower[data.frames(i)] for i in fold_train], data.skeleton)
-        self.rigid = RigidBones(data.skeleton, self.bone_lengths, self.device) if cfg.rigid_output else None
         self.state = FoldState()
 
     # ---- setup ----------------------------------------------------------------------------
@@ -119,16 +111,6 @@ class Trainer:
         followers = [self.data.follower[self.data.frames(i)] for i in self.train_idx]
         profiles = class_profiles(followers, self.data.actions[self.train_idx], len(self.data.class_names), self.energy_reference)
         return profiles.to(self.device)
-
-    def _class_relations(self) -> torch.Tensor:
-        d, idx = self.data, self.train_idx
-        return class_relations([d.leader[d.frames(i)] for i in idx], [d.follower[d.frames(i)] for i in idx], d.actions[idx],
-                               len(d.class_names), d.skeleton.root, d.skeleton.vertical_axis).to(self.device)
-
-    def _posture_target(self) -> PostureTarget:
-        d, idx, cfg = self.data, self.train_idx, self.cfg
-        means, spreads = class_postures([d.follower[d.frames(i)] for i in idx], d.actions[idx], len(d.class_names), d.skeleton)
-        return PostureTarget(means.to(self.device), spreads.to(self.device), d.skeleton, cfg.posture_tolerance, cfg.posture_on_mixes)
 
     def meta(self, kind: str) -> dict:
         d = self.data
@@ -183,8 +165,7 @@ class Trainer:
     def resume(self) -> None:
         path = self.out / "last.safetensors"
         tensors, meta = load_checkpoint(path)
-        same = lambda d: {k: v for k, v in d.items() if k != "epochs"}  # noqa: E731 (more epochs is fine)
-        if same(meta.get("train_config") or {}) != same(self.cfg.to_dict()):
+        if not same_recipe(meta.get("train_config") or {}, self.cfg.to_dict()):
             raise CheckpointError(f"{path}: saved with a different training config; resume with the same --config/--seed")
         if self.G_ema is not None:
             load_module_state(self.G_ema, prefixed(tensors, "generator"), "generator", path)
@@ -224,16 +205,15 @@ class Trainer:
             leader, follower, lengths, actions = (x.to(self.device) for x in batch_cpu)
             mask = torch.arange(leader.shape[1], device=self.device)[None] < lengths[:, None]
             labels = torch.nn.functional.one_hot(actions, len(self.data.class_names)).float()
-            fake = self.generate(self.G, leader, labels, lengths)
-            if use_d and k % cfg.d_every == 0:  # discriminator step(s): G's output detached, D alone is updated
+            fake = self.G(leader, labels, lengths)
+            if use_d and k % cfg.d_every == 0:  # discriminator step: G's output detached, D alone is updated
                 self.D.requires_grad_(True)
-                for _ in range(cfg.d_steps):
-                    logits = self.D(torch.cat([follower, fake.detach()]), torch.cat([lengths, lengths]))
-                    real_logits, fake_logits = logits.chunk(2)
-                    d_loss = losses.discriminator_loss(real_logits, fake_logits, actions, cfg.label_smoothing, cfg.discriminator)
-                    self.opt_d.zero_grad(set_to_none=True)
-                    d_loss.backward()
-                    self.opt_d.step()
+                logits = self.D(torch.cat([follower, fake.detach()]), torch.cat([lengths, lengths]))
+                real_logits, fake_logits = logits.chunk(2)
+                d_loss = losses.discriminator_loss(real_logits, fake_logits, actions, cfg.label_smoothing, cfg.discriminator)
+                self.opt_d.zero_grad(set_to_none=True)
+                d_loss.backward()
+                self.opt_d.step()
                 sums["d_loss"] += float(d_loss.detach())
                 sums["d_real_acc"] += float((real_logits.argmax(-1) == actions).float().mean())  # right class
                 sums["d_fake_acc"] += float((fake_logits.argmax(-1) == fake_logits.shape[-1] - 1).float().mean())  # "fake"
@@ -251,11 +231,6 @@ class Trainer:
         d_keys = ("d_loss", "d_real_acc", "d_fake_acc")
         return {k: v / (max(n_d, 1) if k in d_keys else n) for k, v in sums.items()} | {"adv_weight": w_adv, "lr_scale": scale}
 
-    def generate(self, G, leader, labels, lengths) -> torch.Tensor:
-        """G's followers (B, T, 3J), given rigid bones when the recipe says so (what the clean-up ships)."""
-        fake = G(leader, labels, lengths)
-        return fake if self.rigid is None else self.rigid(fake)
-
     def _generator_loss(self, epoch, leader, follower, fake, lengths, actions, mask, gen) -> tuple[torch.Tensor, dict]:
         """The generator's loss for one batch -> (loss, {term: value} for the log)."""
         cfg = self.cfg
@@ -265,28 +240,17 @@ class Trainer:
         l1_term = l1 * (mask.sum() * fake.shape[-1]) if cfg.l1_reduction == "sum" else l1
         g_loss = cfg.lambda_l1 * l1_term + cfg.lambda_bone * bone + cfg.lambda_cont * cont
         terms = {"l1": float(l1.detach()), "bone": float(bone.detach()), "cont": float(cont.detach())}
-        if cfg.lambda_root > 0:
-            root_l1 = losses.masked_l1(fake[..., self.root_coords], follower[..., self.root_coords], mask)
-            g_loss = g_loss + cfg.lambda_root * root_l1
-            terms["root"] = float(root_l1.detach())
-        if cfg.lambda_afd > 0:
-            g_loss = g_loss + cfg.lambda_afd * losses.afd_metres(fake, follower, mask).mean()
         w_critic = adversarial_weight(cfg, epoch, cfg.lambda_critic)
         w_energy = adversarial_weight(cfg, epoch, cfg.lambda_energy)
         if w_energy > 0:
             ref = self.energy_reference
             with torch.no_grad():
-                target = frame_speeds(follower, lengths, ref)[0] if cfg.energy_per_frame else limb_speeds(follower, lengths, ref)
-            energy = energy_loss(fake, target, lengths, ref, cfg.energy_per_frame)
+                target = limb_speeds(follower, lengths, ref)
+            energy = energy_loss(fake, target, lengths, ref)
             g_loss = g_loss + w_energy * energy
             terms["energy"] = float(energy.detach())
-        w_penetration = adversarial_weight(cfg, epoch, cfg.lambda_penetration)
-        if w_penetration > 0:
-            penetration = penetration_loss(leader, fake, mask, self.bones)
-            g_loss = g_loss + w_penetration * penetration
-            terms["penetration"] = float(penetration.detach())
         if self.critic is not None and w_critic > 0:
-            critic_loss, critic_terms = self._critic_loss(epoch, leader, fake, lengths, actions, mask, gen, w_critic)
+            critic_loss, critic_terms = self._critic_loss(epoch, leader, fake, lengths, actions, gen, w_critic)
             g_loss = g_loss + critic_loss
             terms |= critic_terms
         if cfg.lambda_adv > 0 and (w_adv := adversarial_weight(cfg, epoch)) > 0:
@@ -296,42 +260,23 @@ class Trainer:
             terms["adv"] = float(adv.detach())
         return g_loss, terms
 
-    def _critic_loss(self, epoch, leader, fake, lengths, actions, mask, gen, w_critic) -> tuple[torch.Tensor, dict]:
+    def _critic_loss(self, epoch, leader, fake, lengths, actions, gen, w_critic) -> tuple[torch.Tensor, dict]:
         """The label critic's terms: the true-label follower and one for a drawn label; the drawn one has no ground
-        truth, so only the critic (and energy, interpenetration and relation) terms apply to it."""
-        cfg, root = self.cfg, self.data.skeleton.root
+        truth, so only the critic and motion-energy terms apply to it."""
+        cfg = self.cfg
         c = len(self.data.class_names)
         labels, target = (x.to(self.device) for x in drawn_labels(actions.cpu(), c, cfg.critic_mix_prob, gen))
-        other = self.generate(self.G, leader, labels, lengths)
-        scored = [(other, target, 1.0)]
-        if cfg.critic_true_label:  # first, as before the option existed: augmentation draws from gen in order
-            scored.insert(0, (fake, torch.nn.functional.one_hot(actions, c).float(), cfg.critic_true_confidence))
-        critic = sum(self.critic.loss(x, lengths, t, gen, confidence) for x, t, confidence in scored)
+        other = self.G(leader, labels, lengths)
+        critic = (self.critic.loss(fake, lengths, torch.nn.functional.one_hot(actions, c).float())
+                  + self.critic.loss(other, lengths, target))
         loss, terms = w_critic * critic, {"critic": float(critic.detach())}
-        if (w_start := adversarial_weight(cfg, epoch, cfg.lambda_start)) > 0:
-            start = (other[:, 0, self.root_coords] - fake[:, 0, self.root_coords].detach()).abs().mean()
-            loss = loss + w_start * start
-            terms["start"] = float(start.detach())
         if (w_energy := adversarial_weight(cfg, epoch, cfg.lambda_energy)) > 0:
-            loss = loss + w_energy * energy_loss(other, mixed_profile(labels, self.profiles), lengths, self.energy_reference,
-                                                 cfg.energy_per_frame)
-        if (w_penetration := adversarial_weight(cfg, epoch, cfg.lambda_penetration)) > 0:
-            loss = loss + w_penetration * penetration_loss(leader, other, mask, self.bones)
-        if self.relations is not None and (w_relation := adversarial_weight(cfg, epoch, cfg.lambda_relation)) > 0:
-            relation = relation_loss(leader, other, mixed_profile(labels, self.relations), lengths, root,
-                                     self.data.skeleton.vertical_axis)
-            loss = loss + w_relation * relation
-            terms["relation"] = float(relation.detach())
-        if self.posture is not None and (w_posture := adversarial_weight(cfg, epoch, cfg.lambda_posture)) > 0:
-            posture = self.posture.loss(other, labels, lengths)
-            loss = loss + w_posture * posture
-            terms["posture"] = float(posture.detach())
+            loss = loss + w_energy * energy_loss(other, mixed_profile(labels, self.profiles), lengths, self.energy_reference)
         return loss, terms
 
     @torch.no_grad()
     def _update_ema(self, step: int) -> None:
-        f = self.cfg.ema_window_fraction  # warm-up: early weights fade quickly
-        decay = min(self.cfg.ema_decay, (f * step) / (f * step + 1) if f > 0 else (1 + step) / (10 + step))
+        decay = min(self.cfg.ema_decay, (1 + step) / (10 + step))  # warm-up: early weights fade quickly
         torch._foreach_lerp_(list(self.G_ema.parameters()), list(self.G.parameters()), 1.0 - decay)
 
     @torch.inference_mode()
@@ -341,7 +286,7 @@ class Trainer:
         leader, follower, lengths, actions = (x.to(self.device) for x in self.padded.batch(idx))
         mask = torch.arange(leader.shape[1], device=self.device)[None] < lengths[:, None]
         labels = torch.nn.functional.one_hot(actions, len(self.data.class_names)).float()
-        pred = self.generate(G, leader, labels, lengths)
+        pred = G(leader, labels, lengths)
         return {"val_afd_m": float(losses.afd_metres(pred, follower, mask).mean()),
                 "val_l1": float(losses.masked_l1(pred, follower, mask))}
 
