@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from imm_model.checkpoint import sidecar_path
 from imm_model.data.dataset import InteractionDataset
 
 METHODS = ("tsne", "umap")
@@ -48,7 +49,7 @@ def cache_key(checkpoint: Path | str, data: Path | str) -> str:
     for p in (checkpoint, data):
         h.update(file_digest(p).encode())
         # A sidecar (e.g. the checkpoint's .json config) changes the model too.
-        side = Path(p).with_suffix(".json")
+        side = sidecar_path(p)
         if side.exists():
             h.update(file_digest(side).encode())
     return h.hexdigest()[:24]

@@ -1,4 +1,5 @@
-"""The cache: per-fold reaction classifiers (evaluation judges, training critics) and baseline models, trained once.
+"""The cache: per-fold reaction classifiers (evaluation judges, training critics), trained once, and the keys and
+place of every cached entry (evaluation/baselines.py caches the trained baseline models here too).
 
 Entries are keyed by what determines them (dataset hash, held-out subject, config, code version), so a
 changed dataset or recipe never reuses a stale entry. Files are safetensors + JSON (imm_model.checkpoint):
@@ -18,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 import imm_model
-from imm_model.checkpoint import final_checkpoint, load_checkpoint, load_module_state, save_checkpoint
+from imm_model.checkpoint import load_checkpoint, load_module_state, save_checkpoint
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold
 from imm_model.errors import CheckpointError
@@ -47,7 +48,8 @@ def entry_key(kind: str, data: InteractionDataset, subject: str, config: dict) -
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def _say(message: str) -> None:
+def note(message: str) -> None:
+    """A line about the cache on stderr (what was trained or rebuilt)."""
     print(message, file=sys.stderr, flush=True)
 
 
@@ -64,41 +66,14 @@ def fold_classifier(cfg: ClassifierConfig, data: InteractionDataset, subject: st
             load_module_state(model, tensors, "classifier", path)
             return model.eval()
         except CheckpointError as err:
-            _say(f"cache: {err}; rebuilding")
+            note(f"cache: {err}; rebuilding")
     train = loso_fold(data.subject_pairs, subject).train if subject else np.arange(len(data))
     leaders, followers = zip(*(data.canonical(int(i)) for i in train), strict=True)
     t0 = time.perf_counter()
     model = train_classifier(cfg, motion_inputs(list(leaders), list(followers), cfg.inputs), data.actions[train],
                              len(data.class_names), progress, desc=f"{cfg.inputs} {cfg.arch} classifier, fold {subject or 'none'}")
-    _say(f"cache: trained the {cfg.inputs}-only {cfg.arch} classifier for fold {subject or 'none'} in {time.perf_counter() - t0:.0f} s"
+    note(f"cache: trained the {cfg.inputs}-only {cfg.arch} classifier for fold {subject or 'none'} in {time.perf_counter() - t0:.0f} s"
          .replace("interaction-only", "interaction"))
     save_checkpoint(path, model.state_dict(), {"kind": "classifier", "key": key, "subject": subject, "config": cfg.to_dict(),
                                                "class_names": list(data.class_names)})
     return model
-
-
-def fold_baseline_model(config: str, data: InteractionDataset, subject: str, progress: bool = True) -> Path:
-    """A training recipe (e.g. the label-free `men`) trained on fold `subject` (cached) -> its final checkpoint."""
-    from imm_model.training.config import load_config
-    from imm_model.training.refit import refit
-    from imm_model.training.trainer import Trainer
-
-    cfg = load_config(config)
-    key = entry_key("model", data, subject, cfg.to_dict())
-    out = cache_dir() / "models" / f"{cfg.name}-{subject}-{key}"
-    done = out / "done.json"
-    if done.exists():
-        try:
-            path = final_checkpoint(out)
-            load_checkpoint(path)
-            return path
-        except CheckpointError as err:
-            _say(f"cache: {err}; rebuilding")
-    t0 = time.perf_counter()
-    trainer = Trainer(cfg, data, subject, out)
-    state = trainer.fit(progress=progress)
-    if cfg.refit:
-        refit(trainer, progress=progress)
-    done.write_text(json.dumps({"key": key, "best_epoch": state.best_epoch}) + "\n")
-    _say(f"cache: trained the {cfg.name} baseline for fold {subject} in {time.perf_counter() - t0:.0f} s")
-    return final_checkpoint(out)

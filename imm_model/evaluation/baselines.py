@@ -11,12 +11,13 @@ is to the model):
 - `template`: the class's mean follower (every training follower resampled to the test length and
   averaged). It never looks at the leader: anything the model does better comes from reading A.
 The label-free Men et al. 2022-style model (`--config men`) is the fourth baseline; it is trained like the
-model and cached (imm_model/cache.py).
+model and cached (`fold_baseline_model`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from pathlib import Path
 
 import numpy as np
 
@@ -114,3 +115,37 @@ def evaluate_predictions(data: InteractionDataset, test_idx: np.ndarray, predict
         raise ValueError(f"no prediction for {len(missing)} test sequences (e.g. {data.sequence_ids[missing[0]]})")
     afds = sequence_afds(data, {int(i): predictions[int(i)] for i in test_idx}, squared=squared)
     return per_class_mean(afds, data.actions, data.class_names)
+
+
+def fold_baseline_model(config: str, data: InteractionDataset, subject: str, progress: bool = True) -> Path:
+    """A training recipe (e.g. the label-free `men`) trained on fold `subject`, cached (imm_model/cache.py) -> its
+    final checkpoint."""
+    import json
+    import time
+
+    from imm_model import cache
+    from imm_model.checkpoint import final_checkpoint, load_checkpoint
+    from imm_model.errors import CheckpointError
+    from imm_model.training.config import load_config
+    from imm_model.training.refit import refit
+    from imm_model.training.trainer import Trainer
+
+    cfg = load_config(config)
+    key = cache.entry_key("model", data, subject, cfg.to_dict())
+    out = cache.cache_dir() / "models" / f"{cfg.name}-{subject}-{key}"
+    done = out / "done.json"
+    if done.exists():
+        try:
+            path = final_checkpoint(out)
+            load_checkpoint(path)
+            return path
+        except CheckpointError as err:
+            cache.note(f"cache: {err}; rebuilding")
+    t0 = time.perf_counter()
+    trainer = Trainer(cfg, data, subject, out)
+    state = trainer.fit(progress=progress)
+    if cfg.refit:
+        refit(trainer, progress=progress)
+    done.write_text(json.dumps({"key": key, "best_epoch": state.best_epoch}) + "\n")
+    cache.note(f"cache: trained the {cfg.name} baseline for fold {subject} in {time.perf_counter() - t0:.0f} s")
+    return final_checkpoint(out)

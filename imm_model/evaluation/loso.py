@@ -18,7 +18,13 @@ from imm_model import cache
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold
 from imm_model.evaluation import control, distribution
-from imm_model.evaluation.baselines import HEURISTIC_BASELINES, baseline_predictions, evaluate_predictions, sequence_afds
+from imm_model.evaluation.baselines import (
+    HEURISTIC_BASELINES,
+    baseline_predictions,
+    evaluate_predictions,
+    fold_baseline_model,
+    sequence_afds,
+)
 from imm_model.evaluation.metrics import afd_parts, per_class_mean
 from imm_model.evaluation.plausibility import frame_rate, plausibility
 from imm_model.model import classifier as classifiers
@@ -196,7 +202,7 @@ def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptio
     result["_latent"] = {"model": _latents(model, data, all_idx)} if latents else {}  # "_": for the figures, not the JSON
     for name in opts.baselines:
         if name == "men":
-            path = opts.men_checkpoint(subject) if opts.men_checkpoint else cache.fold_baseline_model("men", data, subject, opts.progress)
+            path = opts.men_checkpoint(subject) if opts.men_checkpoint else fold_baseline_model("men", data, subject, opts.progress)
             men = ReactionModel.load(path)
             check_compatible(men, data, str(men.path))
             prepare_model(men, data, subject, opts)
