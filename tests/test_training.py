@@ -257,6 +257,29 @@ def test_cli_train_never_loses_work(tmp_path, capsys):
     assert not (tmp_path / "new").exists()  # nothing written by a refused command
 
 
+def test_losses_that_stop_being_numbers_stop_training_naming_the_epoch(sample_data, tmp_path, capsys):
+    """A follower frame at 1e30 (in memory: the readers refuse such files) or a learning rate that blows the weights up
+    make the losses NaN: training stops at that epoch with one line, rc 2 from the CLI, and claims no checkpoint."""
+    import copy
+
+    from imm_model.errors import TrainingError
+
+    poisoned = copy.deepcopy(sample_data)
+    poisoned.follower[poisoned.frames(0).start + 3] = 1e30  # sequence 0 is a training sequence of fold s04
+    with np.errstate(over="ignore", invalid="ignore"):  # the normalization's statistics overflow
+        trainer = Trainer(replace(TINY, epochs=2), poisoned, "s04", tmp_path / "poisoned")
+    with pytest.raises(TrainingError, match=r"training stopped at epoch 0: \w+ is nan"):
+        trainer.fit(progress=False)
+    assert not (tmp_path / "poisoned" / "best.safetensors").exists() and trainer.state.history == []
+    cfg = tmp_path / "fast.json"
+    cfg.write_text(json.dumps(TINY.to_dict() | {"epochs": 2, "lr_g": 1e30, "lr_d": 1e30, "ema_decay": 0.0}))
+    out = tmp_path / "run"
+    assert main(["train", "--config", str(cfg), "--fold", "s04", "--out", str(out), "--quiet"]) == 2
+    printed = capsys.readouterr()
+    assert len(printed.err.strip().splitlines()) == 1 and "training stopped at epoch 0" in printed.err
+    assert "best.safetensors" not in printed.out and not (out / "fold-s04" / "best.safetensors").exists()
+
+
 def test_augmentation_keeps_skeletons_valid(sample_data):
     from imm_model.training.data import Augmenter, PaddedData
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from imm_model.checkpoint import save_checkpoint
 from imm_model.training.schedule import lr_scale
-from imm_model.training.trainer import FoldState, Trainer
+from imm_model.training.trainer import FoldState, Trainer, check_finite
 
 
 def refit(selection: Trainer, progress: bool = True) -> Path:
@@ -29,7 +29,7 @@ def refit(selection: Trainer, progress: bool = True) -> Path:
     t = Trainer(selection.cfg, selection.data, selection.subject, selection.out, selection.device)
     t.train_idx = np.concatenate([t.train_idx, t.val_idx])
     for epoch in tqdm(range(epochs), desc=f"refit {t.subject or 'all'}", disable=not progress, leave=False, dynamic_ncols=True):
-        t.train_epoch(epoch, lr_multiplier=lr_scale(t.cfg, history[:epoch], selection.select_from))
+        check_finite(t.train_epoch(epoch, lr_multiplier=lr_scale(t.cfg, history[:epoch], selection.select_from)), epoch, t.out)
     t.state = FoldState(epoch=epochs, best_val=selection.state.best_val, best_epoch=selection.state.best_epoch)
     path = t.out / "final.safetensors"
     save_checkpoint(path, t.weights(), t.meta("final") | {"refit": {"epochs": epochs, "sequences": len(t.train_idx)}})

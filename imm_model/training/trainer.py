@@ -24,7 +24,7 @@ from imm_model.cleanup import follower_bone_lengths
 from imm_model.data.batching import LengthBucketSampler
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold, validation_split
-from imm_model.errors import CheckpointError
+from imm_model.errors import CheckpointError, TrainingError
 from imm_model.model import Discriminator, Generator, model_config_for
 from imm_model.training import losses
 from imm_model.training.config import TrainConfig, same_recipe
@@ -56,6 +56,14 @@ def make_optimizer(cfg: TrainConfig, params, lr: float) -> torch.optim.Optimizer
     if cfg.optimizer == "rmsprop":
         return torch.optim.RMSprop(params, lr=lr, weight_decay=cfg.weight_decay, foreach=True)
     raise ValueError(f"unknown optimizer {cfg.optimizer!r} (adam or rmsprop)")
+
+
+def check_finite(row: dict, epoch: int, out: Path) -> None:
+    """Stop a run whose losses stopped being numbers: its weights are lost, and nothing of the epoch is saved."""
+    bad = next((k for k, v in row.items() if k != "epoch" and not math.isfinite(v)), None)
+    if bad is not None:
+        raise TrainingError(f"{out}: training stopped at epoch {epoch}: {bad} is {row[bad]}, the losses diverged "
+                            f"(a lower learning rate may help); nothing of this epoch was saved")
 
 
 @dataclass
@@ -305,6 +313,7 @@ class Trainer:
         for epoch in bar:
             t0 = time.perf_counter()
             row = {"epoch": epoch} | self.train_epoch(epoch) | self.validate()
+            check_finite(row, epoch, self.out)
             row["seconds"] = time.perf_counter() - t0
             self.state.history.append(row)
             self.state.epoch = epoch + 1
