@@ -47,7 +47,7 @@ def start_to_interactive(browser, cache_dir: Path, model: tuple[str, ...]) -> tu
     page.goto(studio.url, timeout=120000)
     probe.wait_for_view(page, 120000)
     interactive = time.monotonic() - t0
-    page.wait_for_function("() => !!window.trame.state.get('latent_chart')", timeout=120000, polling=50)
+    page.wait_for_selector(probe.LATENT_POINTS, timeout=120000)
     mapped = time.monotonic() - t0
     page.close()
     return studio.ready_s, interactive, mapped, studio

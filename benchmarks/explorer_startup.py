@@ -81,8 +81,8 @@ def main() -> int:
             for t, what in timeline(page):
                 print(f"  {t:6d}  {what}")
             # a cold cache's map is fitted after the page opens: wait for it, so that the warm start finds it cached
-            page.wait_for_function("() => !!window.trame.state.get('latent_chart')", timeout=120000, polling=50)
-            print(f"  latent map shown {time.monotonic() - t0:.2f} s after start")
+            page.wait_for_selector(probe.LATENT_POINTS, timeout=120000)
+            print(f"  latent map (Plotly, loaded after the first picture) drawn {time.monotonic() - t0:.2f} s after start")
             context.close()
             studio.stop()
         browser.close()

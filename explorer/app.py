@@ -102,8 +102,6 @@ class Studio:
                 "projection_busy": False,
                 "afd_text": "",
                 "distance_chart": "",  # explorer/charts.py markup; the frame cursor over it follows `frame` in the page
-                "latent_chart": "",
-                "latent_marks": {"ring": None, "star": None},  # the current sequence and mix on the map, percent of its box
                 "error": "",
                 "notice": "",
                 "mix_count": 0,  # increments after each re-synthesis (tests and benchmarks wait on it)

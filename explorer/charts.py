@@ -1,29 +1,25 @@
-"""The distance chart and the latent map, drawn as HTML + SVG markup that the page shows with `v-html`.
+"""The per-frame distance chart, drawn as HTML + SVG markup that the page shows with `v-html`.
 
-Written by hand rather than with a charting library: Plotly, which drew them before, is 4.6 MB of the page's
-~7 MB of JavaScript and cost 1.5-2.7 s of its start-up (docs/explorer.md); these two charts need lines, shaded
-bands, points, hover labels and a click, which a few lines of markup do. What moves often (the frame cursor, the
-current mix's star) is not in the markup: the layout binds it to small state values (`distance_frames`,
-`latent_marks`), so playback and slider moves do not resend the charts.
+Written by hand rather than with Plotly: it needs lines, shaded bands and a click that seeks, which a few lines of
+markup do, and it is on screen from the page's first picture, before Plotly's 4.8 MB have loaded (the latent map,
+which needs zoom, pan and selection, is a Plotly figure loaded after that picture: latent_panel.py). The frame
+cursor is not in the markup: the layout binds it to `frame`, so playback does not resend the chart.
 
-Both charts put their plot area in the same box (PLOT_BOX, CSS insets), so that the layout's overlays line up.
-Coordinates inside it are percentages (HTML) or a 0-1000 SVG viewBox stretched to the box, with strokes that
-do not scale.
+Coordinates inside the plot box (DISTANCE_BOX, CSS insets) are percentages (HTML) or a 0-1000 SVG viewBox stretched
+to the box, with strokes that do not scale.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from html import escape
 
 import numpy as np
 
-from explorer.palette import PINNED, SYNTHESIZED, WARNING, class_color, display_name
+from explorer.palette import PINNED, SYNTHESIZED, WARNING
 from imm_model.evaluation.plausibility import PENETRATION_M
 
 DISTANCE_BOX = "left: 52px; right: 12px; top: 24px; bottom: 34px"  # plot area of the distance chart
-LATENT_BOX = "left: 12px; right: 132px; top: 18px; bottom: 10px"  # plot area of the latent map (legend at right)
 
 CHART_CSS = """
 .imm-chart { position: absolute; inset: 0; font: 11px Roboto, sans-serif; color: #444; }
@@ -34,15 +30,7 @@ CHART_CSS = """
 .imm-axis-x { position: absolute; bottom: 0; left: 52px; right: 12px; text-align: center; }
 .imm-axis-y { position: absolute; left: 0; top: 50%; transform: rotate(-90deg) translateX(50%); transform-origin: left top; }
 .imm-legend { position: absolute; display: flex; gap: 10px; font-size: 10px; }
-.imm-legend.vertical { flex-direction: column; gap: 2px; }
 .imm-swatch { display: inline-block; width: 14px; height: 0; border-top: 2px solid; vertical-align: middle; margin-right: 4px; }
-.imm-dot { display: inline-block; width: 8px; height: 8px; border-radius: 50%; margin-right: 4px; vertical-align: middle; }
-.imm-pt { position: absolute; width: 9px; height: 9px; margin: -4.5px 0 0 -4.5px; border-radius: 50%;
-          border: 1.5px solid; box-sizing: border-box; cursor: pointer; }
-.imm-pt:hover { transform: scale(1.6); z-index: 3; }
-.imm-pt:hover::after { content: attr(data-tip); position: absolute; left: 12px; top: -6px; white-space: nowrap;
-                       background: rgba(255,255,255,.92); border: 1px solid #bbb; padding: 1px 4px; font-size: 8px; }
-.imm-mark { position: absolute; transform: translate(-50%, -50%); pointer-events: none; }
 .imm-cursor { position: absolute; top: 0; bottom: 0; border-left: 1.5px dotted #333; pointer-events: none; }
 """
 
@@ -108,39 +96,3 @@ def distance_chart(distances: np.ndarray, fps: float, ab: np.ndarray | None = No
             f'<div class="imm-plot" style="{DISTANCE_BOX}">'
             f'<svg viewBox="0 0 1000 1000" preserveAspectRatio="none">{"".join(svg)}</svg>{"".join(labels)}</div>'
             f'<div class="imm-axis-x">frame ({fps:g} fps)</div><div class="imm-axis-y">distance (m)</div></div>')
-
-
-def map_positions(coords: np.ndarray, xy) -> np.ndarray:
-    """Where points (..., 2) fall in the latent map's plot box: percent from its left and top (y grows upwards)."""
-    low, high = coords.min(0), coords.max(0)
-    span = np.where(high > low, high - low, 1.0)
-    frac = np.clip((np.asarray(xy, dtype=float) - low) / span, 0, 1)  # a star beyond the points stays at the edge
-    return np.round(100 * np.stack([frac[..., 0], 1 - frac[..., 1]], -1), 2)
-
-
-def map_position(coords: np.ndarray, xy) -> list[float]:
-    """One point's place on the map, as [left, top] percent (what the page's overlays take)."""
-    return [float(v) for v in map_positions(coords, xy)]
-
-
-def latent_chart(coords: np.ndarray, actions: np.ndarray, held_out: np.ndarray, sequence_ids: Sequence[str],
-                 class_names: Sequence[str], method: str) -> str:
-    """Every sequence as a point in its class color (held out: an open circle), hover for its id; a click on a
-    point reads its `data-index`. The current sequence's ring and the current mix's star are overlays
-    (latent_marks)."""
-    points = []
-    for i, ((left, top), c) in enumerate(zip(map_positions(coords, coords), actions, strict=True)):
-        color = class_color(int(c))
-        tip = escape(f"{sequence_ids[i]}{' (held out)' if held_out[i] else ''} · {display_name(class_names[int(c)])}")
-        fill = "transparent" if held_out[i] else color
-        points.append(f'<span class="imm-pt" data-index="{i}" data-tip="{tip}" style="left: {left}%; top: {top}%;'
-                      f' border-color: {color}; background: {fill}"></span>')
-    present = sorted(set(int(c) for c in actions))
-    legend = "".join(f'<span><i class="imm-dot" style="background: {class_color(c)}"></i>{escape(display_name(class_names[c]))}</span>'
-                     for c in present)
-    legend += ('<span><i class="imm-dot" style="border: 2px solid #111"></i>this sequence</span>'
-               f'<span style="color: {SYNTHESIZED}">★ <span style="color: #444">current mix</span></span>')
-    title = "UMAP" if method == "umap" else "t-SNE"
-    return (f'<div class="imm-chart"><div style="position: absolute; left: 6px; top: 0; color: #777; font-size: 10px">{title}</div>'
-            f'<div class="imm-plot" style="{LATENT_BOX}">{"".join(points)}</div>'
-            f'<div class="imm-legend vertical" style="right: 4px; top: 18px; width: 118px">{legend}</div></div>')

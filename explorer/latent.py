@@ -1,4 +1,5 @@
-"""The latent map: every sequence's embedding projected to 2D (t-SNE or UMAP), cached on disk.
+"""The latent map: every sequence's embedding projected to 2D (t-SNE or UMAP), cached on disk, with each
+sequence's AFD under its own label (what the map's hover and its AFD colouring show).
 
 Points are the model's per-sequence embeddings of each leader with the sequence's own one-hot label
 ("real / match"). The current mix (leader + mixed label) is placed on the existing map by
@@ -24,6 +25,7 @@ import numpy as np
 
 from imm_model.checkpoint import sidecar_path
 from imm_model.data.dataset import InteractionDataset
+from imm_model.evaluation.metrics import afd
 
 METHODS = ("tsne", "umap")
 CACHE_VERSION = "1"  # bump when embeddings or projections are computed differently
@@ -66,6 +68,16 @@ def embed_all(model, data: InteractionDataset) -> np.ndarray:
     return np.asarray(model.latent_canonical_batch(leaders, one_hot_labels(model, data)), np.float32)
 
 
+def afd_all(model, data: InteractionDataset) -> np.ndarray:
+    """(N,) each sequence's AFD (SBU normalized units) with its own one-hot label, as the studio opens it."""
+    labels = one_hot_labels(model, data)
+    scores = []
+    for i in range(len(data)):
+        leader, real = data.canonical(i)
+        scores.append(afd(model.synthesize_canonical(leader, labels[i]), real, data.frame_of(i), data.skeleton, units="normalized"))
+    return np.asarray(scores, np.float32)
+
+
 def project(latents: np.ndarray, method: str, seed: int = 0) -> np.ndarray:
     """(N, D) -> (N, 2), standardized features, deterministic for a seed."""
     from threadpoolctl import threadpool_limits
@@ -101,6 +113,7 @@ class LatentMap:
     latents: np.ndarray  # (N, D) embeddings with each sequence's own one-hot label
     coords: dict[str, np.ndarray] = field(default_factory=dict)  # method -> (N, 2)
     path: Path | None = None  # cache file, when cached
+    afd: np.ndarray | None = None  # (N,) per-sequence AFD under its own label; None until scored (score_afd)
     # one fit per method at a time: a second request for a method being fitted waits for that fit
     _locks: dict[str, threading.Lock] = field(default_factory=lambda: {m: threading.Lock() for m in METHODS}, repr=False)
     _save_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
@@ -123,7 +136,7 @@ class LatentMap:
         """The cached map, or None when there is none or it cannot be read (a corrupt cache is recomputed)."""
         try:
             with np.load(path, allow_pickle=False) as z:
-                return cls(z["latents"], {m: z[m] for m in METHODS if m in z.files}, path)
+                return cls(z["latents"], {m: z[m] for m in METHODS if m in z.files}, path, z["afd"] if "afd" in z.files else None)
         except Exception:
             return None
 
@@ -136,6 +149,8 @@ class LatentMap:
         if other is not None and np.array_equal(other.latents, self.latents):
             for m, xy in other.coords.items():
                 self.coords.setdefault(m, xy)
+            if self.afd is None:
+                self.afd = other.afd
 
     def ensure(self, method: str) -> np.ndarray:
         """The method's map: from memory, from the cache file, or fitted here (once across threads and, through a
@@ -168,8 +183,20 @@ class LatentMap:
             self.reload()  # keep what other processes saved
             # a unique temporary name: threads of one process and other studio processes may save at once
             with tempfile.NamedTemporaryFile(dir=self.path.parent, prefix=self.path.name, suffix=".tmp", delete=False) as f:
-                np.savez(f, latents=self.latents, **dict(self.coords))
+                extra = {} if self.afd is None else {"afd": self.afd}
+                np.savez(f, latents=self.latents, **dict(self.coords), **extra)
             Path(f.name).replace(self.path)  # atomic
+
+    def score_afd(self, model, data: InteractionDataset) -> np.ndarray:
+        """Every sequence's AFD: from memory, from the cache file, or computed here (~2 s for 197 sequences on a
+        busy core, so the studio does it in a thread once the page is up) and saved for every later process."""
+        with self._file_lock():
+            if self.afd is None:
+                self.reload()
+            if self.afd is None or len(self.afd) != len(data):
+                self.afd = afd_all(model, data)
+                self.save()
+        return self.afd
 
     async def fit_elsewhere(self, method: str) -> None:
         """Fit in a separate process (`python -m explorer.latent`), then take its result: a fit holds the GIL for

@@ -1,15 +1,27 @@
-"""The latent map beside the 3D view: every sequence's latent as a point (t-SNE or UMAP), the current mix as a
-star, and a click on a point that opens that sequence. A method not fitted yet (UMAP until asked for; t-SNE too on
-a cold cache) is fitted in a separate process while the page works, with a progress message (explorer/latent.py
-keeps one fit per method at a time, across the studio's processes)."""
+"""The latent map beside the 3D view, as a Plotly figure (drawn in the page by static/latent_map.js): every
+sequence's latent as a point (t-SNE or UMAP), the current sequence ringed, the current mix as a star that moves
+with the sliders (placed on the fitted map, never refitted), hover for a sequence's id, class, subject pair, held
+out and AFD, zoom, pan, box and lasso selection that lists the selected sequences, colour by class, AFD or held
+out, and a click on a point that opens that sequence and plays it.
+
+A method not fitted yet (UMAP until asked for; t-SNE too on a cold cache) is fitted in a separate process while
+the page works, with a progress message (explorer/latent.py keeps one fit per method at a time, across the
+studio's processes). The per-sequence AFDs are computed once, in a thread after the page is up, and cached.
+"""
 
 from __future__ import annotations
 
+import asyncio
+
 from trame.app import asynchronous
 
-from explorer import charts
 from explorer.exports import one_line
 from explorer.latent import METHODS, LatentMap
+from explorer.palette import SYNTHESIZED, class_color, display_name
+
+COLOR_MODES = ("class", "afd", "held")
+SORT_KEYS = ("afd", "id", "class")
+AFD_DELAY_S = 2.0  # the per-sequence AFDs wait this long after the page opens: its first picture goes first
 
 
 class LatentPanel:
@@ -18,25 +30,56 @@ class LatentPanel:
         self.latent = latent
         self._drawn = ""  # the method whose points the page holds
         self._fitting: set[str] = set()  # methods being fitted (explorer/latent.py fit_elsewhere)
+        studio.state.update({
+            "latent_points": None,  # the figure's points (static/latent_map.js draws them)
+            "latent_marks": {"ring": None, "star": None},  # the current sequence and mix, map coordinates
+            "latent_color": "class",
+            "latent_colors": {"classes": [class_color(i) for i in range(len(studio.session.class_names))],
+                              "star": SYNTHESIZED},
+            "latent_selection": [],  # indices the page's box or lasso selected
+            "latent_rows": [],  # ... as rows of the list under the map
+            "latent_sort": "afd",
+        })  # fmt: skip
         studio.state.change("projection")(self.on_projection_change)
+        studio.state.change("latent_selection", "latent_sort")(self.on_selection_change)
         studio.ctrl.pick_latent_point = studio.guarded(self.pick_point)
+        studio.ctrl.open_listed = studio.guarded(self.open_listed)
+        studio.server.trigger("latent_pick")(studio.guarded(self.pick_point))
         studio.ctrl.on_server_ready.add(lambda **_: self.on_projection_change(studio.state.projection or "tsne"))
+        studio.ctrl.on_server_ready.add(lambda **_: asynchronous.create_task(self._score()))
+
+    def points(self, method: str) -> dict:
+        """What the figure plots for `method`: coordinates and each point's hover readout."""
+        d, names = self.studio.session.data, self.studio.session.class_names
+        xy = self.latent.coords[method]
+        afd = self.latent.afd
+        return {
+            "method": method,
+            "x": [round(float(v), 3) for v in xy[:, 0]],
+            "y": [round(float(v), 3) for v in xy[:, 1]],
+            "id": list(d.sequence_ids),
+            "cls": [int(c) for c in d.actions],
+            "class_names": [display_name(n) for n in names],
+            "pair": list(d.subject_pairs),
+            "held": [bool(h) for h in d.held_out],
+            "afd": None if afd is None else [round(float(v), 3) for v in afd],
+        }
 
     def redraw(self) -> None:
         """The map for the chosen method (nothing while that method is still being fitted). Its points are sent
         when the method changes; after that only the current sequence's ring and the mix's star move."""
-        s, ses, d = self.studio.state, self.studio.session, self.studio.session.data
+        s, ses = self.studio.state, self.studio.session
         method = s.projection or "tsne"
         if not self.latent.has(method):
             return
         coords = self.latent.coords[method]
         if self._drawn != method:
-            s.latent_chart = charts.latent_chart(coords, d.actions, d.held_out, d.sequence_ids, ses.class_names, method)
+            s.latent_points = self.points(method)
             self._drawn = method
         star = self.latent.place(ses.mix_latent(), method)
         s.latent_marks = {
-            "ring": None if ses.upload else charts.map_position(coords, coords[ses.index]),  # an upload has no point
-            "star": None if star is None else charts.map_position(coords, star),
+            "ring": None if ses.upload else [float(v) for v in coords[ses.index]],  # an upload has no point
+            "star": None if star is None else [float(v) for v in star],
         }
 
     def on_projection_change(self, projection, **_):
@@ -64,11 +107,55 @@ class LatentPanel:
             state.projection_busy = bool(self._fitting)
             self.redraw()
 
+    async def _score(self):
+        """Every sequence's AFD for the hover and the AFD colouring (cached: later processes find it at once)."""
+        if self.latent.afd is not None:
+            return
+        await asyncio.sleep(AFD_DELAY_S)
+        ses = self.studio.session
+        try:
+            await asyncio.to_thread(self.latent.score_afd, ses.model, ses.data)
+        except Exception as err:
+            with self.studio.state:
+                self.studio.state.error = f"AFD of the sequences failed: {one_line(err)}"
+            return
+        with self.studio.state:
+            self._drawn = ""  # resend the points, now with their AFDs
+            self.redraw()
+            self.on_selection_change()
+
+    def rows(self, indices, sort: str) -> list[dict]:
+        """The listed sequences: id, class, subject pair, held out, AFD; the worst AFD first, or by id or class."""
+        d, names, afd = self.studio.session.data, self.studio.session.class_names, self.latent.afd
+        rows = [{"i": i, "id": d.sequence_ids[i], "cls": display_name(names[int(d.actions[i])]),
+                 "color": class_color(int(d.actions[i])), "held": bool(d.held_out[i]),
+                 "afd": None if afd is None else round(float(afd[i]), 3)}
+                for i in sorted({int(i) for i in indices if 0 <= int(i) < len(d)})]  # fmt: skip
+        if sort == "afd" and afd is not None:
+            rows.sort(key=lambda r: -r["afd"])
+        elif sort == "class":
+            rows.sort(key=lambda r: (r["cls"], r["id"]))
+        else:
+            rows.sort(key=lambda r: r["id"])
+        return rows
+
+    def on_selection_change(self, **_):
+        s = self.studio.state
+        sort = s.latent_sort if s.latent_sort in SORT_KEYS else "afd"
+        s.latent_rows = self.rows(s.latent_selection or [], sort)
+
     def pick_point(self, index) -> None:
-        """A click on a point: open that sequence, with the filters cleared so that it is in the list."""
+        """A click on a point: open that sequence, with the filters cleared so that it is in the list, and play it."""
         if index is None:
             return
-        index = int(index[0] if isinstance(index, list | tuple) else index)
+        self.open(int(index[0] if isinstance(index, list | tuple) else index))
+        self.studio.state.playing = True
+
+    def open_listed(self, index) -> None:
+        """A row of the selection list: open that sequence (paused, at its first frame)."""
+        self.open(int(index))
+
+    def open(self, index: int) -> None:
         state = self.studio.state
         with state:
             state.class_filter = ""

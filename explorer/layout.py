@@ -10,9 +10,9 @@ from trame.widgets import client, html
 from trame.widgets import vtk as vtk_widgets
 from trame.widgets import vuetify3 as v3
 
-from explorer.charts import CHART_CSS, DISTANCE_BOX, LATENT_BOX
+from explorer.charts import CHART_CSS, DISTANCE_BOX
 from explorer.keys import KEY_HELP, LISTENER_JS
-from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED, SYNTHESIZED, WARNING, class_color, display_name
+from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED, WARNING, class_color, display_name
 from explorer.reads_as_panel import reads_as_panel
 from explorer.scene import CAMERA_PRESETS, CHARACTER_KEYS
 from explorer.view_stream import ViewStream
@@ -342,17 +342,24 @@ def review_cards(studio) -> None:
             html.Div("{{ contact_text }}", classes="text-caption px-2", style=f"color: {WARNING}", id="contact-text")
             distance_chart()
         with v3.VCard(variant="outlined", classes="pa-1", id="latent-card"):
-            with html.Div(classes="d-flex align-center px-2"):
-                html.Div("Latent map: click a point to load it", classes="text-caption font-weight-bold")
-                html.Div("● seen in training  ○ held out", classes="text-caption text-medium-emphasis ml-2")
-                v3.VProgressCircular(v_if="projection_busy", indeterminate=True, size=14, width=2, classes="ml-2")
+            with html.Div(classes="d-flex align-center px-2", style="gap: 6px"):
+                html.Div("Latent map", classes="text-caption font-weight-bold", style="white-space: nowrap")
+                v3.VProgressCircular(v_if="projection_busy", indeterminate=True, size=14, width=2)
                 v3.VSpacer()
+                with v3.VBtnToggle(v_model=("latent_color",), density="compact", mandatory=True, variant="outlined", divided=True,
+                                   id="latent-color"):
+                    v3.VBtn("class", value="class", size="x-small")
+                    v3.VBtn("AFD", value="afd", size="x-small", disabled=("!(latent_points && latent_points.afd)",),
+                            id="latent-color-afd")
+                    v3.VBtn("held out", value="held", size="x-small")
                 with v3.VBtnToggle(
                     v_model=("projection",), density="compact", mandatory=True, variant="outlined", divided=True
                 ):
                     v3.VBtn("t-SNE", value="tsne", size="x-small")
                     v3.VBtn("UMAP", value="umap", size="x-small", id="umap-button")
-            latent_map(studio)
+            with html.Div(classes="d-flex imm-fill", style="gap: 6px"):
+                latent_map()
+                selection_list(studio)
 
 
 # A click on the chart moves to the frame under the mouse.
@@ -369,19 +376,36 @@ def distance_chart() -> None:
             html.Div(classes="imm-cursor", style=("{left: (100 * frame / Math.max(1, num_frames - 1)) + '%'}",))
 
 
-def latent_map(studio) -> None:
-    """explorer/charts.py's points; a click reads the point's data-index. The ring (this sequence) and the star
-    (the current mix) are overlays that move without resending the points."""
-    with html.Div(classes="imm-fill", id="latent-plot",
-                  click=(studio.ctrl.pick_latent_point, "[$event.target.dataset.index]")):
-        html.Div(v_html=("latent_chart",))
+def latent_map() -> None:
+    """The Plotly figure (static/latent_map.js draws it from the state latent_panel.py writes): hover a point for its
+    readout, click it to open and play it, zoom, pan, box or lasso select from the figure's own tool bar."""
+    with html.Div(style="flex: 1 1 auto; min-width: 0; position: relative", id="latent-plot"):
+        html.Div(id="latent-plotly", style="position: absolute; inset: 0")
         html.Div("fitting the {{ projection === 'umap' ? 'UMAP' : 't-SNE' }} map (a few seconds; UMAP's first fit up to a minute)...",
                  v_if="projection_busy", classes="text-caption text-medium-emphasis", id="latent-busy",
                  style="position: absolute; left: 50%; top: 45%; transform: translateX(-50%); background: rgba(255,255,255,.85)")
-        with html.Div(classes="imm-plot", style=f"{LATENT_BOX}; pointer-events: none"):
-            html.Div(v_if="latent_marks.ring", classes="imm-mark", id="latent-ring",
-                     style=("{left: latent_marks.ring[0] + '%', top: latent_marks.ring[1] + '%', width: '16px',"
-                            " height: '16px', borderRadius: '50%', border: '2.5px solid #111'}",))
-            html.Div("★", v_if="latent_marks.star", classes="imm-mark", id="latent-star",
-                     style=(f"{{left: latent_marks.star[0] + '%', top: latent_marks.star[1] + '%', fontSize: '22px',"
-                            f" color: '{SYNTHESIZED}', textShadow: '0 0 2px #111'}}",))
+    draw = "utils.get('immLatent').draw(latent_points, latent_marks, latent_color, latent_colors)"
+    client.ClientStateChange(value="latent_points", trigger_on_create=True, change=draw)
+    client.ClientStateChange(value="latent_color", change=draw)
+    client.ClientStateChange(value="latent_marks", change="utils.get('immLatent').marks(latent_marks)")
+
+
+def selection_list(studio) -> None:
+    """The sequences a box or lasso selected on the map: worst AFD first (or by id or class); a click opens one."""
+    with html.Div(v_if="latent_rows.length", id="latent-selection",
+                  style="flex: 0 0 200px; display: flex; flex-direction: column; min-height: 0; border-left: 1px solid #ddd"):
+        with html.Div(classes="d-flex align-center px-1", style="gap: 4px"):
+            html.Div("{{ latent_rows.length }} selected", classes="text-caption font-weight-bold", style="white-space: nowrap")
+            v3.VSpacer()
+            v3.VSelect(v_model=("latent_sort",), items=("latent_sort_items", [{"title": "worst AFD", "value": "afd"},
+                       {"title": "id", "value": "id"}, {"title": "class", "value": "class"}]), density="compact",
+                       hide_details=True, variant="plain", style="max-width: 96px; font-size: 11px", id="latent-sort")
+            v3.VBtn(icon="mdi-close", size="x-small", variant="text", title="clear the selection", click="latent_selection = []")
+        with html.Div(style="overflow-y: auto; flex: 1 1 auto; min-height: 0"):
+            with html.Div(v_for="row in latent_rows", key=("row.i",), classes="latent-row text-caption d-flex align-center px-1",
+                          style="cursor: pointer; gap: 4px; line-height: 18px", click=(studio.ctrl.open_listed, "[row.i]"),
+                          title=("row.cls + (row.held ? ' · held out' : ' · seen in training')",)):
+                html.Span("●", style=("{color: row.color}",))
+                html.Span("{{ row.id }}", style="flex: 1 1 auto; white-space: nowrap")
+                html.Span("{{ row.held ? 'held' : '' }}", classes="text-medium-emphasis")
+                html.Span("{{ row.afd === null ? '' : row.afd.toFixed(2) }}", style="width: 34px; text-align: right")

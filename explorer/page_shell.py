@@ -1,6 +1,8 @@
 """The page's shell: trame's index.html with static/websocket_bytes.js run before trame's client, served by every
 studio process as its main web content. Binary websocket messages then reach wslink as bytes instead of Blobs that
 it reads back asynchronously (~20 ms between a picture's arrival and its display, measured in docs/explorer.md).
+The shell also carries static/latent_map.js, the latent map's Plotly figure, and serves plotly.js (from the plotly
+package) under imm_plotly/, which that script loads after the page's first picture.
 
 The shell is written once per content into the studio's cache folder (a copy of trame's 0.3 MB client folder with
 the new index.html) and found there by every later studio process.
@@ -9,12 +11,15 @@ the new index.html) and found there by every later studio process.
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import os
 import shutil
 import tempfile
 from pathlib import Path
 
 BYTES_SCRIPT = Path(__file__).with_name("static") / "websocket_bytes.js"
+LATENT_SCRIPT = Path(__file__).with_name("static") / "latent_map.js"
+PLOTLY_URL = "imm_plotly"  # where the page finds plotly.min.js (static/latent_map.js PLOTLY_SRC)
 ANCHOR = '<script src="vue.global.js"></script>'  # trame's first script: ours go before it
 
 
@@ -23,14 +28,23 @@ def use_page_shell(server, cache_dir: Path) -> None:
     from trame_client import module
 
     server.enable_module(module)  # trame's client, which the server would enable when it starts; its page is replaced
-    server.enable_module({"www": str(page_shell(cache_dir))})
+    server.enable_module({"www": str(page_shell(cache_dir)), "serve": {PLOTLY_URL: str(plotly_js_dir())}})
+
+
+def plotly_js_dir() -> Path:
+    """The plotly package's folder holding plotly.min.js (found without importing plotly)."""
+    spec = importlib.util.find_spec("plotly")
+    if spec is None or not spec.submodule_search_locations:
+        raise ImportError("the studio's latent map needs plotly (pip install 'imm-studio[studio]')")
+    return Path(spec.submodule_search_locations[0]) / "package_data"
 
 
 def shell_index(trame_index: str) -> str:
-    """trame's index.html -> the studio's: the websocket script inline, before trame's scripts."""
+    """trame's index.html -> the studio's: the websocket and latent map scripts inline, before trame's scripts."""
     if ANCHOR not in trame_index:
         return trame_index  # another trame client layout: serve it unchanged rather than guess
-    return trame_index.replace(ANCHOR, f"<script>{BYTES_SCRIPT.read_text()}</script>{ANCHOR}", 1)
+    scripts = "".join(f"<script>{path.read_text()}</script>" for path in (BYTES_SCRIPT, LATENT_SCRIPT))
+    return trame_index.replace(ANCHOR, scripts + ANCHOR, 1)
 
 
 def page_shell(cache_dir: Path) -> Path:

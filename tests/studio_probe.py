@@ -27,6 +27,7 @@ CHROMIUM_ARGS = [
 URL_RE = re.compile(r"IMM Studio ready at (http://\S+)")
 ARTIFACTS = REPO_ROOT / "test-artifacts"  # the browser tests' screenshots
 VIEW_IMG = ".v-main .rounded.border img"
+LATENT_POINTS = "#latent-plotly .scatterlayer .point"  # the latent map's points, once Plotly has drawn them
 
 
 class StudioProcess:

@@ -109,31 +109,98 @@ def test_a_mix_that_does_not_read_is_named_under_the_bars(page):
     probe.wait_state(page, "!s.get('reads_as_note')")
 
 
-def test_latent_click_switches_sequence(page):
+# Where map points are on the page: Plotly's own axes turn data coordinates into pixels.
+POINT_PIXELS_JS = """() => { const el = document.getElementById('latent-plotly'), fl = el._fullLayout, r = el.getBoundingClientRect();
+    const p = window.trame.state.get('latent_points');
+    return p.x.map((x, i) => [r.left + fl.xaxis._offset + fl.xaxis.l2p(x), r.top + fl.yaxis._offset + fl.yaxis.l2p(p.y[i])]); }"""
+
+
+def wait_for_map(page, afd: bool = False) -> None:
+    page.wait_for_selector(probe.LATENT_POINTS, timeout=30000)
+    if afd:  # the per-sequence AFDs are computed once, a moment after the first page opened
+        probe.wait_state(page, "s.get('latent_points') && !!s.get('latent_points').afd", timeout_ms=60000)
+        page.wait_for_function("() => document.querySelector('#latent-plotly').data.some((t) => t.customdata &&"
+                               " t.customdata.length && t.customdata[0][5] !== '(computing)')", timeout=10000)
+
+
+def test_latent_map_is_a_plotly_figure_and_a_click_loads_and_plays(page):
+    """Hover a point for its readout; a click opens that sequence and plays it; the current sequence is ringed."""
+    wait_for_map(page, afd=True)
     current = probe.state(page, "sequence_index")
-    page.wait_for_selector("#latent-plot .imm-pt", timeout=30000)
-    points = page.locator("#latent-plot .imm-pt")
-    assert points.count() > 10
-    ring = page.locator("#latent-ring").bounding_box()  # the current sequence is ringed on the map
-    mine = page.locator(f'#latent-plot .imm-pt[data-index="{current}"]').bounding_box()
-    assert abs(ring["x"] + ring["width"] / 2 - (mine["x"] + mine["width"] / 2)) < 2
-    # a point no other point covers (which ones overlap depends on the model's embedding)
-    target = page.evaluate("""(current) => {
-        for (const p of document.querySelectorAll('#latent-plot .imm-pt')) {
-            const r = p.getBoundingClientRect();
-            const hit = document.elementFromPoint(r.x + r.width / 2, r.y + r.height / 2);
-            if (hit === p && Number(p.dataset.index) !== current) return Number(p.dataset.index);
-        }
-        return null;
-    }""", current)
-    assert target is not None
-    point = page.locator(f'#latent-plot .imm-pt[data-index="{target}"]')
-    point.hover()
-    point.click()
-    page.wait_for_function(f"() => window.trame.state.get('sequence_index') !== {current}", timeout=10000)
-    assert probe.state(page, "sequence_index") == target
-    assert probe.state(page, "frame") == 0
+    points = np.array(page.evaluate(POINT_PIXELS_JS))
+    ring = page.evaluate("() => { const el = document.getElementById('latent-plotly');"
+                         " return el.data.find((t) => t.meta === 'ring').x[0]; }")
+    assert ring == pytest.approx(probe.state(page, "latent_points")["x"][current], abs=1e-3)
+    gaps = np.linalg.norm(points[:, None] - points[None], axis=-1) + np.eye(len(points)) * 1e9
+    gaps[:, current] = gaps[current, :] = 0  # never the current sequence, nor a point beside it
+    target = int(np.argmax(gaps.min(1)))  # the point with the most room around it
+    x, y = points[target]
+    page.mouse.move(x, y)
+    readout = page.locator("#latent-plotly .hoverlayer .hovertext")
+    readout.wait_for(timeout=5000)
+    text = readout.text_content()
+    p = probe.state(page, "latent_points")
+    assert p["id"][target] in text and p["class_names"][p["cls"][target]] in text and p["pair"][target] in text
+    assert ("held out" if p["held"][target] else "seen in training") in text and f"AFD {p['afd'][target]:.3f}" in text
+    page.mouse.click(x, y)
+    probe.wait_state(page, f"s.get('sequence_index') === {target} && s.get('playing') === true")
+    probe.wait_state(page, "s.get('frame') >= 2")  # it plays
+    page.click("#play-button")
+    probe.wait_state(page, "s.get('playing') === false")
     probe.shot(page, "studio-picked")
+
+
+def test_box_selection_lists_the_sequences_and_a_row_opens_one(page):
+    wait_for_map(page, afd=True)
+    plot = page.locator("#latent-plotly .nsewdrag").first.bounding_box()
+    page.mouse.move(plot["x"] + plot["width"] / 2, plot["y"] + plot["height"] / 2)  # the figure's tool bar shows on hover
+    page.locator('#latent-plotly .modebar-btn[data-val="select"]').click()
+    x0, x1 = plot["x"] + plot["width"] * 0.2, plot["x"] + plot["width"] * 0.8
+    y0, y1 = plot["y"] + plot["height"] * 0.2, plot["y"] + plot["height"] * 0.8
+    points = np.array(page.evaluate(POINT_PIXELS_JS))
+
+    def within(margin):
+        x_in = (points[:, 0] > x0 - margin) & (points[:, 0] < x1 + margin)
+        return {int(i) for i in np.flatnonzero(x_in & (points[:, 1] > y0 - margin) & (points[:, 1] < y1 + margin))}
+
+    assert len(within(-2)) > 5
+    page.mouse.move(x0, y0)
+    page.mouse.down()
+    for k in range(1, 11):
+        page.mouse.move(x0 + (x1 - x0) * k / 10, y0 + (y1 - y0) * k / 10)
+    page.mouse.up()
+    probe.wait_state(page, "s.get('latent_rows').length > 0")
+    selected = set(probe.state(page, "latent_selection"))
+    assert within(-2) <= selected <= within(2), (sorted(within(-2) ^ selected), sorted(selected ^ within(2)))
+    rows = probe.state(page, "latent_rows")
+    assert sorted(r["i"] for r in rows) == sorted(selected)
+    assert [r["afd"] for r in rows] == sorted((r["afd"] for r in rows), reverse=True)  # the worst first
+    assert page.locator("#latent-selection .latent-row").count() == len(selected)
+    probe.shot(page, "studio-map-selection")
+    pick = rows[1]["i"] if rows[0]["i"] == probe.state(page, "sequence_index") else rows[0]["i"]
+    page.locator("#latent-selection .latent-row").nth([r["i"] for r in rows].index(pick)).click()
+    probe.wait_state(page, f"s.get('sequence_index') === {pick}")
+    page.locator('#latent-plotly .modebar-btn[data-val="zoom"]').click()
+    probe.set_state(page, "latent_selection", [])
+    probe.wait_state(page, "s.get('latent_rows').length === 0")
+
+
+def test_the_map_colours_by_afd_and_the_star_follows_the_sliders(page):
+    wait_for_map(page, afd=True)
+    page.locator("#latent-color-afd").click()
+    page.wait_for_selector("#latent-plotly .colorbar", timeout=10000)
+    page.locator("#latent-color").get_by_role("button", name="class").click()
+    page.wait_for_function("() => document.querySelector('#latent-plotly').dataset.mode === 'class'", timeout=10000)
+    assert page.locator("#latent-plotly .colorbar").count() == 0
+    star_js = "() => { const t = document.getElementById('latent-plotly').data.find((t) => t.meta === 'star'); return [t.x[0], t.y[0]]; }"
+    before = page.evaluate(star_js)
+    names = probe.state(page, "class_names")
+    own = [i for i in range(len(names)) if probe.state(page, f"w_{i}") == 1.0][0]
+    probe.set_state(page, f"w_{own}", -1.0)  # the opposite of its own class: the mix's latent moves
+    page.wait_for_function(f"(b) => {{ const a = ({star_js})(); return a[0] !== b[0] || a[1] !== b[1]; }}", arg=before, timeout=10000)
+    assert page.evaluate(star_js) == pytest.approx(probe.state(page, "latent_marks")["star"], abs=1e-6)
+    page.click("#match-label")
+    probe.wait_state(page, f"s.get('w_{own}') === 1")
 
 
 def test_distance_chart_click_seeks_and_cursor_follows(page):
@@ -157,10 +224,11 @@ def test_umap_fits_while_the_page_keeps_working(page):
     probe.set_state(page, "w_1", 0.5 if probe.state(page, "w_1") != 0.5 else -0.5)
     probe.wait_state(page, f"s.get('mix_count') > {n}")
     assert probe.state(page, "projection_busy")  # the page answered while the fit ran (importing numba alone takes longer)
-    probe.wait_state(page, "s.get('projection_busy') === false && s.get('latent_chart').includes('UMAP')", timeout_ms=240000)
-    assert page.locator("#latent-plot .imm-pt").count() > 10 and page.locator("#latent-busy").count() == 0
+    probe.wait_state(page, "s.get('projection_busy') === false && s.get('latent_points').method === 'umap'", timeout_ms=240000)
+    page.wait_for_function("() => document.querySelector('#latent-plotly').dataset.method === 'umap'", timeout=10000)
+    assert page.locator(probe.LATENT_POINTS).count() > 10 and page.locator("#latent-busy").count() == 0
     page.get_by_role("button", name="t-SNE").click()
-    probe.wait_state(page, "s.get('latent_chart').includes('t-SNE')")
+    page.wait_for_function("() => document.querySelector('#latent-plotly').dataset.method === 'tsne'", timeout=10000)
 
 
 def test_dragging_the_view_turns_the_camera_and_keys_stay_out_of_vtk(page):
@@ -358,7 +426,7 @@ def test_the_view_chart_and_map_fit_the_window(browser, studio, width, height):
     or wraps a panel off the right edge."""
     page = probe.open_studio(browser, studio.url, width, height)
     try:
-        page.wait_for_selector("#latent-plot .imm-pt", timeout=30000)
+        wait_for_map(page)
         body = page.evaluate("() => [document.documentElement.scrollWidth, document.documentElement.scrollHeight]")
         assert body[0] <= width and body[1] <= height, body
         boxes = page.evaluate(PANEL_BOXES_JS, PANELS)

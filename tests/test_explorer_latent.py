@@ -137,3 +137,53 @@ def test_the_fit_command_answers_bad_arguments_in_one_line(tmp_path):
                          ([str(tmp_path / "missing.npz"), "umap"], "cannot be read")):  # fmt: skip
         proc = subprocess.run([sys.executable, "-m", "explorer.latent", *args], capture_output=True, text=True, timeout=60)
         assert proc.returncode == 2 and needle in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+
+
+def test_per_sequence_afd_is_scored_once_and_cached(tmp_path, sample_data):
+    """Each sequence's AFD under its own label (the map's hover and AFD colouring), saved beside the projections: a
+    second map on the same cache reads it back instead of re-synthesizing; a follower equal to the real one scores 0."""
+    from explorer import latent
+
+    class Copier(TinyModel):
+        """Synthesizes the real follower exactly for odd sequences and a shifted one for even ones."""
+
+        def __init__(self, data):
+            super().__init__(data)
+            self.data, self.synths = data, 0
+
+        def synthesize_canonical(self, leader, label_vector):
+            self.synths += 1
+            i = next(j for j in range(len(self.data)) if self.data.canonical(j)[0] is leader or
+                     np.array_equal(self.data.canonical(j)[0], leader))
+            real = self.data.canonical(i)[1]
+            return real if i % 2 else real + np.float32(0.1)
+
+    subset = sample_data.subset(list(range(6)))
+    model = Copier(subset)
+    lm = latent.LatentMap.build(model, subset, tmp_path, "afd", methods=())
+    assert lm.afd is None
+    scores = lm.score_afd(model, subset)
+    assert model.synths == 6 and scores.shape == (6,)
+    assert np.all(scores[1::2] == 0) and np.all(scores[0::2] > 0)
+    again = latent.LatentMap.build(model, subset, tmp_path, "afd", methods=())
+    np.testing.assert_array_equal(again.score_afd(model, subset), scores)
+    assert model.synths == 6  # read from the cache file
+
+
+def test_the_selection_list_sorts_worst_first_by_id_or_class(sample_data):
+    from types import SimpleNamespace
+
+    from explorer.latent import LatentMap
+    from explorer.latent_panel import LatentPanel
+
+    panel = LatentPanel.__new__(LatentPanel)  # rows() needs only the session's data and the map's AFDs
+    panel.studio = SimpleNamespace(session=SimpleNamespace(data=sample_data, class_names=sample_data.class_names))
+    panel.latent = LatentMap(np.zeros((len(sample_data), 2), np.float32))
+    picked = [40, 3, 120, 3, 9999, -1]  # a repeat and indices off the map are dropped
+    assert [r["i"] for r in panel.rows(picked, "afd")] == [3, 40, 120] and panel.rows(picked, "afd")[0]["afd"] is None
+    panel.latent.afd = np.arange(len(sample_data), dtype=np.float32) % 50
+    assert [r["afd"] for r in panel.rows(picked, "afd")] == [40.0, 20.0, 3.0]
+    by_id = [r["id"] for r in panel.rows(picked, "id")]
+    assert by_id == sorted(by_id)
+    by_class = [r["cls"] for r in panel.rows(picked, "class")]
+    assert by_class == sorted(by_class) and {r["held"] for r in panel.rows(range(len(sample_data)), "id")} == {True, False}

@@ -1,4 +1,4 @@
-"""The page's shell (explorer/page_shell.py): trame's index.html plus the websocket script."""
+"""The page's shell (explorer/page_shell.py): trame's index.html plus the websocket and latent map scripts."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ def test_the_shell_runs_the_websocket_script_before_trames_scripts():
     trame_index = f"<head><title>t</title>{page_shell.ANCHOR}<script src='x.js'></script></head>"
     index = page_shell.shell_index(trame_index)
     assert index.index("BytesWebSocket") < index.index(page_shell.ANCHOR)
+    assert index.index("window.immLatent") < index.index(page_shell.ANCHOR)  # the latent map's figure code
     assert page_shell.shell_index("<head>another client</head>") == "<head>another client</head>"
 
 
@@ -18,3 +19,9 @@ def test_the_shell_is_built_once_and_keeps_trames_files(tmp_path):
     stamp = (first / "index.html").stat().st_mtime_ns
     assert page_shell.page_shell(tmp_path) == first and (first / "index.html").stat().st_mtime_ns == stamp
     assert [p.name for p in tmp_path.iterdir()] == [first.name]  # no half-built copy left behind
+
+
+def test_the_studio_serves_plotly_js_from_the_plotly_package():
+    """static/latent_map.js loads imm_plotly/plotly.min.js; the studio serves that folder."""
+    assert (page_shell.plotly_js_dir() / "plotly.min.js").stat().st_size > 1_000_000
+    assert f"'{page_shell.PLOTLY_URL}/plotly.min.js'" in page_shell.LATENT_SCRIPT.read_text()

@@ -255,16 +255,10 @@ def test_contact_marks_the_interpenetrating_frames_and_bones(session):
 
 
 def test_chart_ticks_and_markup():
-    from explorer.charts import latent_chart, map_position, nice_ticks
+    from explorer.charts import distance_chart, nice_ticks
 
     assert nice_ticks(0.83) == [0, 0.25, 0.5, 0.75] and nice_ticks(0.7) == [0, 0.2, 0.4, 0.6] and nice_ticks(95, 6) == [0, 20, 40, 60, 80]
     assert nice_ticks(0.0) == [0.0]
-    coords = np.array([[0.0, 0.0], [2.0, 4.0], [1.0, 1.0]])
-    assert map_position(coords, [1.0, 1.0]) == [50.0, 75.0] and map_position(coords, [9.0, -9.0]) == [100.0, 100.0]
-    html = latent_chart(coords, np.array([0, 1, 1]), np.array([False, True, False]), ["a", "<b>&", "c"], ["x_y", "z"], "tsne")
-    assert html.count("imm-pt") == 3 and "&lt;b&gt;&amp; (held out) · z" in html and "<b>" not in html
-    assert "x y" in html  # class names as displayed
-    from explorer.charts import distance_chart
 
     assert distance_chart(np.array([0.1, 0.2]), 15.0).count("imm-tick-x") == 2  # frames 0 and 1, no 0.5
     assert "<polyline" not in distance_chart(np.zeros(0), 15.0)  # an upload without ground truth or contact yet

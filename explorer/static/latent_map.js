@@ -1,0 +1,143 @@
+// The studio's latent map as a Plotly figure. explorer/latent_panel.py sends the points (`latent_points`), the
+// current sequence's ring and the current mix's star (`latent_marks`) and the colouring (`latent_color`) through
+// trame's state; the layout calls immLatent.draw / immLatent.marks when they change. A click on a point asks the
+// server to open and play it (trigger `latent_pick`); a box or lasso selection sets `latent_selection`.
+//
+// plotly.js is 4.8 MB: it is fetched and evaluated only once the 3D view shows its first picture, so the page
+// opens as fast as it does without it (benchmarks/explorer_startup.py); the browser caches the file.
+(() => {
+  const PLOTLY_SRC = 'imm_plotly/plotly.min.js';  // served by the studio (explorer/page_shell.py)
+  const VIEW_IMG = '.imm-scene img';
+  const PLOT_ID = 'latent-plotly';
+  const FIRST_PICTURE_WAIT_MS = 8000;  // load it anyway after this long (a page with no picture still gets its map)
+  let loading = null;
+  let plotted = null;  // the element the figure lives in
+  let last = {points: null, marks: null, mode: 'class', colors: null};
+
+  function afterFirstPicture() {
+    return new Promise((resolve) => {
+      const start = performance.now();
+      const poll = () => {
+        const img = document.querySelector(VIEW_IMG);
+        if ((img && img.complete && img.naturalWidth > 100) || performance.now() - start > FIRST_PICTURE_WAIT_MS) resolve();
+        else setTimeout(poll, 50);
+      };
+      poll();
+    });
+  }
+
+  function plotly() {
+    if (!loading) {
+      loading = afterFirstPicture().then(() => new Promise((resolve, reject) => {
+        const script = document.createElement('script');
+        script.src = PLOTLY_SRC;
+        script.async = true;
+        script.onload = () => resolve(window.Plotly);
+        script.onerror = () => reject(new Error('the latent map could not load plotly.js'));
+        document.head.appendChild(script);
+      }));
+    }
+    return loading;
+  }
+
+  function hoverRow(p, i) {
+    return [i, p.id[i], p.class_names[p.cls[i]], p.pair[i], p.held[i] ? 'held out' : 'seen in training',
+            p.afd ? p.afd[i].toFixed(3) : '(computing)'];
+  }
+
+  const HOVER = '<b>%{customdata[1]}</b><br>%{customdata[2]} · subjects %{customdata[3]}<br>%{customdata[4]}'
+    + ' · AFD %{customdata[5]}<extra></extra>';
+
+  function group(p, name, members, marker) {
+    return {type: 'scatter', mode: 'markers', name, meta: 'points', hovertemplate: HOVER,
+            x: members.map((i) => p.x[i]), y: members.map((i) => p.y[i]),
+            customdata: members.map((i) => hoverRow(p, i)), marker: {size: 9, ...marker}};
+  }
+
+  function mark(name, meta, xy, marker) {
+    return {type: 'scatter', mode: 'markers', name, meta, hoverinfo: 'skip', x: xy ? [xy[0]] : [], y: xy ? [xy[1]] : [],
+            marker};
+  }
+
+  function traces(p, marks, mode, colors) {
+    const all = p.x.map((_, i) => i);
+    const symbols = (members) => members.map((i) => (p.held[i] ? 'circle-open' : 'circle'));
+    let points;
+    if (mode === 'afd' && p.afd) {
+      points = [group(p, 'AFD', all, {color: all.map((i) => p.afd[i]), colorscale: 'Viridis', showscale: true,
+                                      symbol: symbols(all), line: {width: 2},
+                                      colorbar: {title: {text: 'AFD'}, thickness: 10, len: 0.9}})];
+      points[0].showlegend = false;
+    } else if (mode === 'held') {
+      points = [group(p, 'seen in training', all.filter((i) => !p.held[i]), {color: '#78909c'}),
+                group(p, 'held out', all.filter((i) => p.held[i]), {color: '#ff8f00'})];
+    } else {
+      points = p.class_names.map((name, c) => {
+        const members = all.filter((i) => p.cls[i] === c);
+        return group(p, name, members, {color: colors.classes[c], symbol: symbols(members), line: {width: 2, color: colors.classes[c]}});
+      });
+    }
+    return points.concat([
+      mark('this sequence', 'ring', marks && marks.ring, {size: 17, symbol: 'circle-open', color: '#111', line: {width: 2.5}}),
+      mark('current mix', 'star', marks && marks.star, {size: 17, symbol: 'star', color: colors.star, line: {width: 1, color: '#111'}}),
+    ]);
+  }
+
+  function layout(p) {
+    const axis = {showticklabels: false, zeroline: false, showgrid: true, gridcolor: '#eee'};
+    return {uirevision: p.method, margin: {l: 8, r: 4, t: 4, b: 8}, hovermode: 'closest', dragmode: 'zoom', font: {size: 10},
+            xaxis: axis, yaxis: {...axis}, legend: {font: {size: 10}, itemsizing: 'constant'}, autosize: true};
+  }
+
+  const CONFIG = {displaylogo: false, responsive: true, scrollZoom: true,
+                  modeBarButtonsToRemove: ['toImage', 'sendDataToCloud', 'autoScale2d', 'hoverClosestCartesian', 'hoverCompareCartesian']};
+
+  function listen(el) {
+    el.on('plotly_click', (e) => {
+      const pt = e.points.find((q) => q.data.meta === 'points');
+      if (pt) window.trame.trigger('latent_pick', [pt.customdata[0]]);
+    });
+    el.on('plotly_selected', (e) => {
+      const picked = e ? e.points.filter((q) => q.data.meta === 'points').map((q) => q.customdata[0]) : [];
+      window.trame.state.set('latent_selection', picked);
+    });
+    el.on('plotly_deselect', () => window.trame.state.set('latent_selection', []));
+    new ResizeObserver(() => window.Plotly.Plots.resize(el)).observe(el);
+  }
+
+  async function render() {
+    const {points, marks, mode, colors} = last;
+    if (!points || !colors) return;
+    const Plotly = await plotly();
+    const el = document.getElementById(PLOT_ID);
+    if (!el) return;
+    await Plotly.react(el, traces(points, marks, mode, colors), layout(points), CONFIG);
+    if (plotted !== el) {
+      plotted = el;
+      listen(el);
+    }
+    el.dataset.method = points.method;
+    el.dataset.mode = mode;
+  }
+
+  async function moveMarks() {
+    const el = plotted;
+    if (!el || !el.data || document.getElementById(PLOT_ID) !== el) return render();
+    const {marks} = last;
+    const at = (meta) => el.data.findIndex((t) => t.meta === meta);
+    const xy = (m) => (m ? [[m[0]], [m[1]]] : [[], []]);
+    const [ring, star] = [xy(marks && marks.ring), xy(marks && marks.star)];
+    return window.Plotly.restyle(el, {x: [ring[0], star[0]], y: [ring[1], star[1]]}, [at('ring'), at('star')]);
+  }
+
+  window.immLatent = {
+    draw(points, marks, mode, colors) {
+      last = {points, marks, mode: mode || 'class', colors};
+      return render().catch((err) => window.trame.state.set('error', String(err.message || err)));
+    },
+    marks(marks) {
+      last.marks = marks;
+      return (plotted ? moveMarks() : render()).catch(() => {});
+    },
+  };
+})();
