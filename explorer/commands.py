@@ -88,6 +88,9 @@ def run_explore(args: argparse.Namespace) -> int:
         if not Path(path).is_file():
             print(f"imm explore: error: {what} not found: {path}", file=sys.stderr)
             return 2
+    if args.max_clients < 1:
+        print(f"imm explore: error: --max-clients must be at least 1 (one browser tab), not {args.max_clients}", file=sys.stderr)
+        return 2
     if not 0 <= args.port <= 65535:
         print(f"imm explore: error: --port must be 0..65535, not {args.port}", file=sys.stderr)
         return 2
@@ -104,7 +107,7 @@ def run_explore(args: argparse.Namespace) -> int:
         token=token, no_auth=no_auth, base_url=base_url,
         data=Path(data).resolve(), checkpoint=Path(checkpoint).resolve(), host=args.host, port=args.port,
         cache_dir=args.cache_dir.resolve() if args.cache_dir else None, export_dir=args.export_dir.resolve(),
-        max_clients=max(1, args.max_clients), open_browser=not args.no_browser, sequence=args.sequence, render=args.render,
+        max_clients=args.max_clients, open_browser=not args.no_browser, sequence=args.sequence, render=args.render,
         judge=str(judge.resolve()) if judge else args.judge,
     )  # fmt: skip
     try:

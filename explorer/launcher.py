@@ -4,8 +4,9 @@ A trame server shares one state among all its clients, so two people on one serv
 other's sliders. The launcher listens on the public port; each visit to `/` takes a warm studio
 process (explorer/worker.py, forked by explorer/zygote.py and listening on its own loopback port) when the
 front page's script claims one (a same-origin POST: a bare GET or another web page cannot), forwards the tab
-to it (proxy.py) and forks the next spare in the background. Studio processes exit when their user has gone,
-or when no browser connects to them within worker.CLAIM_TIMEOUT_S of the claim.
+to it (proxy.py) and forks the next spare in the background. A tab's studio process is ended (by the zygote, with
+SIGKILL if it is too busy to stop) RECONNECT_GRACE_S after its last websocket closed, or CLAIM_TIMEOUT_S after a claim
+that no browser connected to, so a closed tab frees its client slot within seconds.
 """
 
 from __future__ import annotations
@@ -23,10 +24,25 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
+from urllib.parse import urlsplit
 
 from explorer.worker import PREFIX
 
+if TYPE_CHECKING:
+    from explorer.proxy import InboundBudget  # imports aiohttp, which loads beside the zygote (run)
+
 TOKEN_COOKIE = "imm_studio_token"
+PAGE_COOKIE = "imm_studio_page"  # set by the front page: a claim without an Origin header must carry it
+# A tab's process outlives its last websocket by this long, counted from the tab's last request: a reload (page,
+# scripts, then ~2 s of module evaluation here before its websocket opens) finds its own session again.
+RECONNECT_GRACE_S = 2.0
+# a claimed studio process whose browser never connects is ended after this ($IMM_STUDIO_CLAIM_TIMEOUT: tests)
+CLAIM_TIMEOUT_S = float(os.environ.get("IMM_STUDIO_CLAIM_TIMEOUT", "20"))
+# Claims are rate-limited (a token bucket): CLAIM_BURST at once, then one per CLAIM_EVERY_S. Each claim forks a studio
+# process (~0.5 s of CPU), so a script posting claims in a loop would otherwise keep the machine forking.
+CLAIM_BURST = 4
+CLAIM_EVERY_S = 1.0
 # A claimed spare is replaced once the tabs have been quiet (no websocket message through the proxy) for SPARE_QUIET_S,
 # and no sooner than SPARE_DELAY_S after the claim; at once when another tab asks first, and at the latest after
 # SPARE_LATEST_S (playback never goes quiet). Why: forking and starting a studio process takes ~0.5 s of CPU, which on
@@ -47,6 +63,11 @@ class Worker:
     secret: str  # its wslink secret (proxy.py puts it into the browser's hello)
     port: int = 0
     exited: bool = False
+    retired: bool = False  # asked to stop: its slot is free already
+    sockets: int = 0  # open websockets of its tab
+    connected: bool = False  # a websocket has reached it since its claim
+    last_seen: float = 0.0  # time.monotonic() of its tab's last request or closed websocket
+    budget: InboundBudget | None = None  # what its websockets may claim (made when the first one opens)
     ready: asyncio.Future = field(default_factory=lambda: asyncio.get_running_loop().create_future())
 
 
@@ -60,7 +81,6 @@ class LaunchConfig:
     export_dir: Path = Path("imm-exports")
     max_clients: int = 8
     spares: int = 1
-    idle_exit: float = 60.0
     open_browser: bool = True
     sequence: str | None = None
     render: str = "remote"
@@ -102,6 +122,8 @@ class Launcher:
         self.url = ""
         self.spare_wanted = asyncio.Event()  # a tab is waiting: a delayed spare starts now
         self.last_traffic = 0.0  # time.monotonic() of the last websocket message through the proxy
+        self.page_secret = secrets.token_urlsafe(18)  # the front page's cookie (PAGE_COOKIE)
+        self.claim_tokens, self.claim_refilled = float(CLAIM_BURST), time.monotonic()
 
     # ---- workers -------------------------------------------------------------------------
     async def spawn(self) -> Worker:
@@ -121,8 +143,7 @@ class Launcher:
     async def _start_zygote(self) -> None:
         c = self.config
         cmd = [sys.executable, "-m", "explorer.zygote", "--data", str(c.data), "--checkpoint", str(c.checkpoint),
-               "--host", "127.0.0.1", "--port", "0", "--export-dir", str(c.export_dir), "--idle-exit", str(c.idle_exit),
-               "--render", c.render]  # fmt: skip
+               "--host", "127.0.0.1", "--port", "0", "--export-dir", str(c.export_dir), "--render", c.render]  # fmt: skip
         cmd += ["--cache-dir", str(c.cache_dir)] if c.cache_dir else []
         cmd += ["--sequence", c.sequence] if c.sequence else []
         cmd += ["--judge", c.judge] if c.judge else []
@@ -173,6 +194,33 @@ class Launcher:
                     pool.remove(w)
             for token in [t for t, s in self.sessions.items() if s is w]:
                 del self.sessions[token]
+
+    def retire(self, w: Worker) -> None:
+        """End a studio process whose tab has gone and free its slot now: the zygote stops it, with SIGKILL when it is
+        too busy to stop by itself (explorer/zygote.py)."""
+        if w.exited or w.retired:
+            return
+        w.retired = True
+        self._tell(f"retire {w.id}")
+        if w in self.busy:
+            self.busy.remove(w)
+        for token in [t for t, s in self.sessions.items() if s is w]:
+            del self.sessions[token]
+        self._top_up()
+
+    def _retire_if_unconnected(self, w: Worker) -> None:
+        if not w.connected:
+            self.retire(w)
+
+    def _retire_if_gone(self, w: Worker) -> None:
+        """Called after a tab's last websocket closed: retire it unless the tab came back or is coming back."""
+        if w.sockets or w.exited or w.retired:
+            return
+        quiet = time.monotonic() - w.last_seen
+        if quiet < RECONNECT_GRACE_S:  # a reload is loading its page: look again when it should have connected
+            asyncio.get_running_loop().call_later(RECONNECT_GRACE_S - quiet, self._retire_if_gone, w)
+        else:
+            self.retire(w)
 
     def _top_up(self) -> None:
         want = min(self.config.spares, self.config.max_clients - len(self.busy)) - len(self.spares)
@@ -235,49 +283,94 @@ class Launcher:
         page = web.Response(content_type="text/html", text=CLAIM_PAGE)
         if self.config.token and "token" in request.query:  # later requests (claim, studio) carry it as a cookie
             page.set_cookie(TOKEN_COOKIE, self.config.token, httponly=True, samesite="Strict", path="/")
+        page.set_cookie(PAGE_COOKIE, self.page_secret, httponly=True, samesite="Strict", path="/")
         return page
 
     async def claim(self, request):
         """POST /claim from the front page -> {"url": the studio process for this tab}. Refused for a request from
-        another web origin or addressed to a host name this studio does not serve (DNS rebinding)."""
+        another web origin or addressed to a host name this studio does not serve (DNS rebinding), and for one that
+        shows no sign of the page (a bare POST); rate-limited."""
         from aiohttp import web
 
-        if not self.authorized(request):
+        if not self.authorized(request) or not self.from_the_page(request):
             return web.Response(status=403, text="refused: the studio only answers its own page")
+        if not self._claim_allowed():
+            return web.Response(status=429, content_type="text/html",
+                                text=_error_page("too many new tabs at once: wait a second and reload"))
         try:
             w = await self.take()
         except LaunchError as err:
             return web.Response(status=503, content_type="text/html", text=_error_page(str(err)))
-        self._tell(f"claimed {w.id}")  # the process exits if no browser connects to it soon
+        w.last_seen = time.monotonic()
+        asyncio.get_running_loop().call_later(CLAIM_TIMEOUT_S, self._retire_if_unconnected, w)
         token = secrets.token_urlsafe(18)
         self.sessions[token] = w
         return web.json_response({"url": f"s/{token}/"})  # relative: a reverse proxy's path prefix is kept
+
+    def _claim_allowed(self) -> bool:
+        now = time.monotonic()
+        self.claim_tokens = min(CLAIM_BURST, self.claim_tokens + (now - self.claim_refilled) / CLAIM_EVERY_S)
+        self.claim_refilled = now
+        if self.claim_tokens < 1:
+            return False
+        self.claim_tokens -= 1
+        return True
 
     async def studio(self, request):
         """/s/<token>/<path>: the tab's page, assets and websocket, forwarded to its studio process."""
         from aiohttp import web
 
-        from explorer.proxy import forward_http, forward_websocket
+        from explorer.proxy import InboundBudget, forward_http, forward_websocket
 
         if not self.authorized(request):
             return web.Response(status=403, text="refused: the studio only answers its own page")
         w = self.sessions.get(request.match_info["token"])
         if w is None or w.exited:
             self.sessions.pop(request.match_info["token"], None)
-            raise web.HTTPFound("../../")  # an old or unknown link: back to the front page for a fresh studio
+            # an old or unknown link: back to the front page for a fresh studio, with the view the link names
+            raise web.HTTPFound("../../" + (f"?{request.query_string}" if request.query_string else ""))
         tail = request.match_info["tail"]
-        if request.headers.get("Upgrade", "").lower() == "websocket":
-            return await forward_websocket(request, w.port, tail, w.secret, on_message=self.note_traffic)
-        return await forward_http(request, w.port, tail)
+        w.last_seen = time.monotonic()
+        if request.headers.get("Upgrade", "").lower() != "websocket":
+            return await forward_http(request, w.port, tail)
+        w.sockets += 1
+        w.connected = True
+        w.budget = w.budget or InboundBudget()
+        try:
+            return await forward_websocket(request, w.port, tail, w.secret, w.budget, on_message=self.note_traffic)
+        finally:
+            w.sockets -= 1
+            w.last_seen = time.monotonic()
+            if not w.sockets:
+                asyncio.get_running_loop().call_later(RECONNECT_GRACE_S, self._retire_if_gone, w)
 
     def allowed_hosts(self) -> set[str]:
         return {"localhost", "127.0.0.1", "::1", "[::1]", self.config.host} - {"0.0.0.0", "::"}
 
+    def origins(self, request) -> set[str]:
+        """The page's own origin as a browser names it: the host it asked for, over the scheme it used (a TLS reverse
+        proxy says which in X-Forwarded-Proto), and the public address --base-url names."""
+        forwarded = request.headers.get("X-Forwarded-Proto", "").split(",")[0].strip().lower()
+        schemes = {request.scheme} | ({forwarded} if forwarded in ("http", "https") else set())
+        mine = {f"{scheme}://{request.host}".lower() for scheme in schemes}
+        if self.config.base_url:
+            public = urlsplit(self.config.base_url)
+            mine |= {f"{public.scheme}://{public.netloc}".lower(), f"{public.scheme}://{request.host}".lower()}
+        return mine
+
+    def from_the_page(self, request) -> bool:
+        """A claim names the page's origin (browsers send Origin with every POST; authorized() compared it), or,
+        where a browser's privacy settings withhold it, carries the cookie the front page set. A bare POST does neither."""
+        if request.headers.get("Origin", "null") != "null":
+            return True
+        return hmac.compare_digest(request.cookies.get(PAGE_COOKIE, "").encode(), self.page_secret.encode())
+
     def authorized(self, request) -> bool:
-        """Another web origin is always refused. Then: the access token (first URL or cookie) if there is one;
-        without one, a host name this studio serves (a DNS-rebinding page names its own)."""
-        origin = request.headers.get("Origin")
-        if origin is not None and origin != f"http://{request.host}":
+        """Another web origin is always refused ("null", an origin a browser withholds, counts as none: a claim then
+        needs the page's cookie, and a studio's pages its unguessable session path). Then: the access token (first URL
+        or cookie) if there is one; without one, a host name this studio serves (a DNS-rebinding page names its own)."""
+        origin = request.headers.get("Origin", "null")
+        if origin != "null" and origin.lower() not in self.origins(request):
             return False
         if self.config.no_auth:
             return True

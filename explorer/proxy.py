@@ -3,19 +3,23 @@ only the launcher's one port needs to be reachable (an SSH tunnel, a reverse pro
 
 A tab's studio lives under /s/<token>/ on the launcher's port. trame's page uses relative asset URLs
 (<base href=".">) and opens its websocket at <page path>/ws, so nothing in the page needs rewriting. The
-token is random and unguessable; the websocket also has to come from the studio's own origin, and its messages
-are capped in size. Each studio process has its own random wslink secret (not wslink's default): the proxy puts
-it into the browser's hello, so the page never knows it and another local user who finds a studio's loopback
-port cannot log in to it.
+token is random and unguessable; the websocket also has to come from the studio's own origin, and what its
+messages claim is capped before the studio allocates it (InboundBudget). Each studio process has its own random
+wslink secret (not wslink's default): the proxy puts it into the browser's hello, so the page never knows it and
+another local user who finds a studio's loopback port cannot log in to it.
 """
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 from collections.abc import Callable
 
-from aiohttp import ClientSession, WSMsgType, web
+from aiohttp import ClientSession, WSCloseCode, WSMsgType, web
 
 MAX_MESSAGE_BYTES = 32 * 1024 * 1024  # an upload is at most 20 MB (explorer/session.py) plus framing
+MAX_PENDING_BYTES = 32 * 1024 * 1024  # all messages a studio process is still receiving, over all its websockets
+HEARTBEAT_S = 20.0  # a browser that vanished without closing (network lost) is noticed within 1.5x this
 HOP_HEADERS = {"connection", "keep-alive", "transfer-encoding", "upgrade", "host", "content-length", "content-encoding"}
 
 
@@ -39,6 +43,46 @@ async def forward_http(request: web.Request, port: int, tail: str) -> web.Stream
 HEADER = 12  # wslink's chunk header: message id, offset, total size (uint32 little-endian each)
 
 
+class InboundBudget:
+    """What a browser's messages may make one studio process allocate. wslink's receiver (wslink/chunking.py
+    UnChunker) allocates a message's whole claimed size at its first chunk, up to 4 GiB once a client has logged in,
+    so a 13-byte frame could claim a gigabyte: each chunk's claim is checked here before it is forwarded."""
+
+    def __init__(self):
+        self.pending: dict[tuple[int, int], list[int]] = {}  # (websocket, message id) -> [claimed size, bytes received]
+
+    def admit(self, websocket: int, frame: bytes) -> str | None:
+        """None if `frame` may go on; else why not (the websocket is then closed)."""
+        if len(frame) < HEADER:
+            return f"a {len(frame)}-byte frame, shorter than a chunk header"
+        key = (websocket, int.from_bytes(frame[0:4], "little"))
+        offset, total = int.from_bytes(frame[4:8], "little"), int.from_bytes(frame[8:12], "little")
+        size = len(frame) - HEADER
+        entry = self.pending.get(key)
+        if entry is None:
+            if total > MAX_MESSAGE_BYTES:
+                return f"a message claiming {total} bytes (at most {MAX_MESSAGE_BYTES})"
+            owed = sum(claimed for claimed, _ in self.pending.values())
+            if owed + total > MAX_PENDING_BYTES:
+                return f"messages claiming {owed + total} bytes at once (at most {MAX_PENDING_BYTES})"
+            entry = [total, 0]
+        elif entry[0] != total:
+            return "a chunk whose message size differs from its first chunk's"
+        if offset + size > total:
+            return "a chunk beyond the end of its message"
+        entry[1] += size
+        if entry[1] >= total:
+            self.pending.pop(key, None)
+        else:
+            self.pending[key] = entry
+        return None
+
+    def forget(self, websocket: int) -> None:
+        """A websocket closed: the studio dropped its unfinished messages."""
+        for key in [k for k in self.pending if k[0] == websocket]:
+            del self.pending[key]
+
+
 def with_secret(frame: bytes, secret: str) -> bytes:
     """A browser's wslink hello (one msgpack chunk) with the studio's secret in it; any other frame unchanged."""
     import msgpack
@@ -58,29 +102,40 @@ def with_secret(frame: bytes, secret: str) -> bytes:
 
 
 async def forward_websocket(request: web.Request, port: int, tail: str, secret: str | None = None,
+                            budget: InboundBudget | None = None,
                             on_message: Callable[[], None] = lambda: None) -> web.WebSocketResponse:
     """Relay a websocket between the browser and the studio process, both directions, text and binary; the
-    browser's hello carries the studio's secret; `on_message` is called for every message relayed."""
-    import asyncio
-
-    browser = web.WebSocketResponse(max_msg_size=MAX_MESSAGE_BYTES, autoping=True)
+    browser's hello carries the studio's secret; the browser's chunks are checked against `budget`; `on_message` is
+    called for every message relayed."""
+    budget = budget or InboundBudget()
+    browser = web.WebSocketResponse(max_msg_size=MAX_MESSAGE_BYTES, autoping=True, heartbeat=HEARTBEAT_S)
     await browser.prepare(request)
+    connection = id(browser)
     async with ClientSession() as session:
         async with session.ws_connect(f"http://127.0.0.1:{port}/{tail}", max_msg_size=0, autoping=True) as studio:
 
             async def pump(source, sink) -> None:
-                async for msg in source:
-                    on_message()
-                    if msg.type == WSMsgType.TEXT:
-                        await sink.send_str(msg.data)
-                    elif msg.type == WSMsgType.BINARY:
-                        await sink.send_bytes(with_secret(msg.data, secret) if secret and sink is studio else msg.data)
-                    else:  # close or error: the other side is closed too
-                        break
-                await sink.close()
+                inbound = sink is studio
+                # a tab closing mid-message resets its connection: that ends the relay, it is not an error
+                with contextlib.suppress(ConnectionResetError):
+                    async for msg in source:
+                        on_message()
+                        if msg.type == WSMsgType.TEXT:
+                            await sink.send_str(msg.data)
+                        elif msg.type == WSMsgType.BINARY:
+                            if inbound and (refused := budget.admit(connection, msg.data)) is not None:
+                                await browser.close(code=WSCloseCode.MESSAGE_TOO_BIG, message=f"refused: {refused}".encode()[:120])
+                                break
+                            await sink.send_bytes(with_secret(msg.data, secret) if secret and inbound else msg.data)
+                        else:  # close or error: the other side is closed too
+                            break
+                    await sink.close()
 
             tasks = [asyncio.ensure_future(pump(browser, studio)), asyncio.ensure_future(pump(studio, browser))]
-            _, pending = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
-            for task in pending:
-                task.cancel()
+            try:
+                _, pending = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+                for task in pending:
+                    task.cancel()
+            finally:
+                budget.forget(connection)
     return browser

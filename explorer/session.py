@@ -5,7 +5,7 @@ unit-testable without a browser.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
@@ -49,9 +49,9 @@ def read_upload(name: str, content: bytes, model: ReactionModelLike, skeleton) -
         path.write_bytes(content)
         try:
             world = read_leader_file(path)
+            world = model.check_leader(world) if hasattr(model, "check_leader") else np.asarray(world, np.float64)
         except IMMError as err:
             raise DataFormatError(f"{name}: {str(err).replace(str(path), '').lstrip(': ')}") from None
-    world = model.check_leader(world) if hasattr(model, "check_leader") else np.asarray(world, np.float64)
     frame = CanonicalFrame.from_leader(world, skeleton, getattr(model, "canonical_mode", "first_frame"))
     return frame.to_canonical(world, skeleton).astype(np.float32), frame
 
@@ -121,6 +121,8 @@ class Session:
         self.model = model
         self.reader = reader
         self.upload: Upload | None = None
+        # reads an upload out of this process, within a time and memory budget (explorer/upload_reader.py); None: here
+        self.upload_reader: Callable[[str, bytes], tuple[np.ndarray, CanonicalFrame]] | None = None
         self.class_names = tuple(data.class_names)
         self.weights = np.zeros(len(self.class_names), np.float32)
         self.scale = 1.0
@@ -168,7 +170,10 @@ class Session:
 
     def load_upload(self, name: str, content: bytes) -> None:
         """Make an uploaded leader the current one (label kept). On any error nothing changes."""
-        leader, frame = read_upload(name, content, self.model, self.data.skeleton)
+        if self.upload_reader is None:
+            leader, frame = read_upload(name, content, self.model, self.data.skeleton)
+        else:
+            leader, frame = self.upload_reader(name, content)
         previous = (self.upload, self.leader, self.ground_truth, self.synth)
         self.upload, self.leader, self.ground_truth = Upload(Path(name).name, frame), leader, None
         try:

@@ -2,9 +2,8 @@
 loopback port.
 
 Forked per browser tab by the zygote (explorer/zygote.py), which loaded everything once. It says
-`IMM-WORKER READY <id> <port>` (or `ERROR <id> <message>`) to the launcher and exits when its user has been gone
-for `--idle-exit` seconds, when no browser connects within CLAIM_TIMEOUT_S of being handed out, or when the
-launcher goes away (its stdin closes).
+`IMM-WORKER READY <id> <port>` (or `ERROR <id> <message>`) to the launcher. The launcher ends it when its tab has
+gone (through the zygote: explorer/launcher.py); it exits by itself when the zygote goes away (its stdin closes).
 """
 
 from __future__ import annotations
@@ -14,12 +13,9 @@ import gc
 import os
 import sys
 import threading
-import time
 from pathlib import Path
 from typing import TextIO
 
-# a claimed studio process whose browser never connects exits after this ($IMM_STUDIO_CLAIM_TIMEOUT: tests)
-CLAIM_TIMEOUT_S = float(os.environ.get("IMM_STUDIO_CLAIM_TIMEOUT", "20"))
 PREFIX = "IMM-WORKER"
 
 
@@ -51,7 +47,6 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--render", choices=("remote", "local"), default="remote")
     p.add_argument("--sequence", default=None, help="sequence id or index to open first")
     p.add_argument("--judge", type=Path, default=None, help="'reads as' classifier (default: the bundled one; 'none' hides the panel)")
-    p.add_argument("--idle-exit", type=float, default=60.0, help="seconds without a client before exiting (after the first one)")
     return p.parse_args(argv)
 
 
@@ -92,9 +87,9 @@ def start_index(data, sequence: str | None) -> int:
     raise ValueError(f"--sequence {sequence!r}: no such sequence (an id such as {data.sequence_ids[0]}, or an index 0..{len(data) - 1})")
 
 
-def serve(data, model, latent, reader, args: argparse.Namespace, *, secret: str, say: Channel) -> int:
+def serve(data, model, latent, reader, args: argparse.Namespace, *, secret: str, say: Channel, uploads=None) -> int:
+    """Serve one tab; `uploads` reads its uploaded files out of this process (explorer/upload_reader.py)."""
     from trame.app import get_server
-    from wslink.websocket import LinkProtocol
 
     from explorer.app import Studio
     from explorer.latent import default_cache_dir
@@ -104,42 +99,14 @@ def serve(data, model, latent, reader, args: argparse.Namespace, *, secret: str,
     server = get_server("imm-studio", client_type="vue3")
     server.cli.set_defaults(authKey=secret)  # wslink's default secret is public: every process gets its own
     session = Session(data, model, args.start, reader)
+    session.upload_reader = uploads
     Studio(server, session, latent, export_dir=args.export_dir, render=args.render)
     use_page_shell(server, args.cache_dir or default_cache_dir())
 
-    clients: set[str] = set()
-    last_seen = [time.monotonic()]
-    ever = [False]
-
-    class ClientTracker(LinkProtocol):
-        def onConnect(self, request, client_id):
-            clients.add(client_id)
-            ever[0] = True
-
-        def onClose(self, client_id):
-            clients.discard(client_id)
-            last_seen[0] = time.monotonic()
-
-    server.add_protocol_to_configure(lambda protocol: protocol.registerLinkProtocol(ClientTracker()))
-
-    claimed_at: list[float | None] = [None]
-
-    def idle_watch():
-        while True:
-            time.sleep(1.0)
-            if ever[0] and not clients and time.monotonic() - last_seen[0] > args.idle_exit:
-                os._exit(0)
-            # handed to a browser that never connected (a bare request, a closed tab): free the slot soon
-            if claimed_at[0] is not None and not ever[0] and time.monotonic() - claimed_at[0] > CLAIM_TIMEOUT_S:
-                os._exit(0)
-
     def stdin_watch():
-        for line in sys.stdin:  # the launcher writes "claimed" when it hands this process to a browser
-            if line.strip() == "claimed" and claimed_at[0] is None:
-                claimed_at[0] = time.monotonic()
-        os._exit(0)  # EOF: the launcher is gone
+        sys.stdin.read()  # the zygote writes nothing: end of file means it is gone
+        os._exit(0)
 
-    threading.Thread(target=idle_watch, daemon=True).start()
     threading.Thread(target=stdin_watch, daemon=True).start()
 
     def ready(**_) -> None:

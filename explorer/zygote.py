@@ -8,8 +8,9 @@ siblings; `gc.freeze` keeps the collector from touching, and so copying, the inh
 
 The launcher (launcher.py) talks to it with lines on its stdin and stdout:
   launcher -> zygote   "spawn <id> <secret>"   fork studio process <id> with its own wslink secret
-                       "claimed <id>"          handed to a browser (it exits if none connects soon)
-                       end of file             the launcher is gone: every studio process exits, then this one
+                       "retire <id>"           its tab has gone: SIGTERM, and SIGKILL RETIRE_GRACE_S later if it is
+                                               still there (busy: its server's signal handler runs on its event loop)
+                       end of file             the launcher is gone: every studio process ends, then this one
   zygote -> launcher   "IMM-WORKER LOADED" or "IMM-WORKER ERROR - <message>" once, after loading
                        "IMM-WORKER READY <id> <port>", "IMM-WORKER ERROR <id> <message>", "IMM-WORKER EXIT <id> <code>"
 This process stays single-threaded (a select loop): forking a process with threads is unsafe.
@@ -22,9 +23,12 @@ import os
 import select
 import signal
 import sys
+import time
 
 from explorer import worker
 from explorer.exports import one_line
+
+RETIRE_GRACE_S = 1.0
 
 
 def preload() -> None:
@@ -35,18 +39,21 @@ def preload() -> None:
 
     import explorer.app  # noqa: F401 - the page, the scene (VTK), the charts, the view stream
     import explorer.page_shell  # noqa: F401
+    import explorer.upload_reader  # noqa: F401 - not the file readers it runs (bvh: 0.5 s here), which uploads import
 
 
 class ForkServer:
     def __init__(self, loaded: tuple, args):
         self.loaded, self.args = loaded, args
         self.children: dict[int, tuple[str, int]] = {}  # pid -> (worker id, write end of its stdin pipe)
+        self.killing: dict[int, float] = {}  # pid -> time.monotonic() when a retired process gets SIGKILL
 
     def run(self) -> int:
         pending = b""
         while True:
-            readable, _, _ = select.select([0], [], [], 0.5)
+            readable, _, _ = select.select([0], [], [], 0.1 if self.killing else 0.5)
             self.reap()
+            self.kill_overdue()
             if not readable:
                 continue
             chunk = os.read(0, 4096)
@@ -56,18 +63,40 @@ class ForkServer:
             while b"\n" in pending:
                 line, pending = pending.split(b"\n", 1)
                 self.command(line.decode(errors="replace").split())
-        for pid, (_, fd) in self.children.items():
-            os.close(fd)  # their stdin ends: each exits by itself (worker.serve's stdin watch)
-            os.kill(pid, signal.SIGTERM)
+        for pid in list(self.children):
+            self.retire(pid)
+        deadline = time.monotonic() + RETIRE_GRACE_S + 1.0
+        while self.children and time.monotonic() < deadline:
+            time.sleep(0.05)
+            self.reap()
+            self.kill_overdue()
         return 0
 
     def command(self, words: list[str]) -> None:
         if len(words) == 3 and words[0] == "spawn":
             self.fork(words[1], words[2])
-        elif len(words) == 2 and words[0] == "claimed":
-            for wid, fd in self.children.values():
+        elif len(words) == 2 and words[0] == "retire":
+            for pid, (wid, _) in list(self.children.items()):
                 if wid == words[1]:
-                    os.write(fd, b"claimed\n")
+                    self.retire(pid)
+
+    def retire(self, pid: int) -> None:
+        if pid in self.killing:
+            return
+        self.killing[pid] = time.monotonic() + RETIRE_GRACE_S
+        try:
+            os.kill(pid, signal.SIGTERM)
+        except ProcessLookupError:
+            pass
+
+    def kill_overdue(self) -> None:
+        now = time.monotonic()
+        for pid in [p for p, due in self.killing.items() if due <= now]:
+            del self.killing[pid]
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
 
     def fork(self, wid: str, secret: str) -> None:
         read_end, write_end = os.pipe()
@@ -89,11 +118,19 @@ class ForkServer:
         gc.enable()
         code = 2
         try:
-            code = worker.serve(*self.loaded, self.args, secret=secret, say=worker.Channel(channel, wid))
+            uploads = self.upload_reader()  # forks its helper while this process has one thread
+            code = worker.serve(*self.loaded, self.args, secret=secret, say=worker.Channel(channel, wid), uploads=uploads)
         except BaseException as err:  # one line for the launcher, never a traceback
             worker.Channel(channel, wid)("ERROR", one_line(err))
         finally:
             os._exit(code)
+
+    def upload_reader(self):
+        from explorer.session import read_upload
+        from explorer.upload_reader import UploadReader
+
+        data, model = self.loaded[0], self.loaded[1]
+        return UploadReader(lambda name, content: read_upload(name, content, model, data.skeleton))
 
     def reap(self) -> None:
         while self.children:
@@ -103,6 +140,7 @@ class ForkServer:
                 return
             if pid == 0:
                 return
+            self.killing.pop(pid, None)
             wid, fd = self.children.pop(pid, ("?", -1))
             if fd >= 0:
                 os.close(fd)
