@@ -18,14 +18,14 @@ from tests.test_training_terms import quick_follower_classifier
 
 pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
 
-# every generator term on: adversarial and class heads, label critic, motion energy, penetration, rigid output
-EVERY_TERM = replace(TINY, lambda_critic=0.1, critic_mix_prob=0.5, lambda_energy=0.5, lambda_penetration=0.5,
+# every generator term on: adversarial and class heads, label critic, motion energy
+EVERY_TERM = replace(TINY, lambda_critic=0.1, critic_mix_prob=0.5, lambda_energy=0.5,
                      adv_warmup_epochs=0, adv_ramp_epochs=0, model=TINY.model | {"dropout_per_sequence": True})
 
 
-@pytest.mark.parametrize("cfg", [EVERY_TERM, replace(EVERY_TERM, rigid_output=True),
+@pytest.mark.parametrize("cfg", [EVERY_TERM,
                                  replace(TINY, model=TINY.model | {"label_input": False}, discriminator="binary+class")],
-                         ids=["every-term", "rigid-output", "label-free"])
+                         ids=["every-term", "label-free"])
 def test_a_training_epoch_runs_on_cuda(cfg, sample_data, tmp_path, monkeypatch):
     from imm_model import cache
 
