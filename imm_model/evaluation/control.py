@@ -55,12 +55,33 @@ def mix_table(judge: Judge, num_leaders: int, class_names: tuple[str, ...]) -> l
     return rows
 
 
+PART_SHARE = 0.4  # a body-part judge's probability at which that part reads as a class
+
+
+def part_mix_table(whole: Judge, upper: Judge, lower: Judge, num_leaders: int, class_names: tuple[str, ...]) -> list[dict]:
+    """One row per pair of classes at +1 each: the share of leaders whose reaction reads as mixed, by the whole-body
+    judge (each member at MIX_SHARE or more), by the body-part judges (one member on the trunk and arms, the other on the
+    legs and placement, each at PART_SHARE or more), and by either."""
+    rows = []
+    for i, j in combinations(range(len(class_names)), 2):
+        labels = np.zeros((num_leaders, len(class_names)), np.float32)
+        labels[:, [i, j]] = 1.0
+        p, pu, pl = whole(labels), upper(labels), lower(labels)
+        by_whole = (p[:, i] >= MIX_SHARE) & (p[:, j] >= MIX_SHARE)
+        by_parts = ((pu[:, i] >= PART_SHARE) & (pl[:, j] >= PART_SHARE)) | ((pu[:, j] >= PART_SHARE) & (pl[:, i] >= PART_SHARE))
+        rows.append({"pair": [class_names[i], class_names[j]], "whole": float(by_whole.mean()), "parts": float(by_parts.mean()),
+                     "mixed": float((by_whole | by_parts).mean())})
+    return rows
+
+
 def avoid_effect(judge: Judge, leader_classes: np.ndarray, num_classes: int) -> dict[str, float]:
-    """Mean over leaders of P(own class | -1 on it) - P(own class | all zero), and the two probabilities."""
+    """Mean over leaders of P(own class | -1 on it) - P(own class | all zero), the two probabilities, and the share of
+    leaders for whom -1 lowers it."""
     n = len(leader_classes)
     own = np.arange(n), leader_classes
     zero = judge(np.zeros((n, num_classes), np.float32))[own]
     avoid_labels = np.zeros((n, num_classes), np.float32)
     avoid_labels[own] = -1.0
     avoid = judge(avoid_labels)[own]
-    return {"p_zero": float(zero.mean()), "p_avoid": float(avoid.mean()), "change": float((avoid - zero).mean())}
+    return {"p_zero": float(zero.mean()), "p_avoid": float(avoid.mean()), "change": float((avoid - zero).mean()),
+            "share_lowered": float((avoid < zero).mean())}

@@ -46,6 +46,8 @@ class EvalOptions:
     interaction: classifier_configs.ClassifierConfig = classifier_configs.INTERACTION
     follower: classifier_configs.ClassifierConfig = classifier_configs.FOLLOWER
     judge: classifier_configs.ClassifierConfig = classifier_configs.FOLLOWER_JUDGE
+    upper: classifier_configs.ClassifierConfig = classifier_configs.UPPER_JUDGE
+    lower: classifier_configs.ClassifierConfig = classifier_configs.LOWER_JUDGE
     progress: bool = True
     raw: bool = False  # score the network's own followers, without the inference clean-up (cleanup.py)
     average_placement: bool = False  # place the models' followers as inference.ReactionModel.average_placement does
@@ -73,6 +75,7 @@ class FoldJudges:
         self.interaction = cache.fold_classifier(opts.interaction, data, subject, opts.progress)
         self.follower = cache.fold_classifier(opts.follower, data, subject, opts.progress)
         self.judge = cache.fold_classifier(opts.judge, data, subject, opts.progress)
+        self.parts = {part: cache.fold_classifier(getattr(opts, part), data, subject, opts.progress) for part in ("upper", "lower")}
         self.leaders = [data.canonical(int(i))[0] for i in self.test]
         reals = [data.canonical(int(i))[1] for i in self.test]
         self.real_probs, self.real_features = self.interaction_view(reals)
@@ -81,6 +84,7 @@ class FoldJudges:
             "interaction": distribution.accuracy(self.real_probs, y),
             "follower": distribution.accuracy(self.follower_view(self.follower, reals), y),
             "follower_judge": distribution.accuracy(self.follower_view(self.judge, reals), y),
+            **{f"{part}_judge": distribution.accuracy(self.part_view(part, reals), y) for part in self.parts},
         }
 
     def interaction_view(self, followers: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -88,6 +92,9 @@ class FoldJudges:
 
     def follower_view(self, clf, followers: list[np.ndarray]) -> np.ndarray:
         return classifiers.classify(clf, classifiers.motion_inputs(self.leaders, followers, "follower"))[0]
+
+    def part_view(self, part: str, followers: list[np.ndarray]) -> np.ndarray:
+        return classifiers.classify(self.parts[part], classifiers.motion_inputs(self.leaders, followers, part))[0]
 
 
 def _per_class(values: np.ndarray, test: np.ndarray, data: InteractionDataset) -> dict[str, float]:
@@ -138,6 +145,16 @@ def label_control(model, data: InteractionDataset, judges: FoldJudges) -> dict:
         out[f"adherence_off_diagonal{name}"] = control.off_diagonal_mean(matrix)
         out[f"mix{name}"] = control.mix_table(judge, len(y), data.class_names)
         out[f"avoid{name}"] = control.avoid_effect(judge, y, c)
+    def whole(labels: np.ndarray) -> np.ndarray:
+        return judges.follower_view(judges.judge, followers(labels))
+
+    def upper(labels: np.ndarray) -> np.ndarray:
+        return judges.part_view("upper", followers(labels))
+
+    def lower(labels: np.ndarray) -> np.ndarray:
+        return judges.part_view("lower", followers(labels))
+
+    out["mix_parts"] = control.part_mix_table(whole, upper, lower, len(y), data.class_names)
     return out
 
 

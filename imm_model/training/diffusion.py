@@ -22,6 +22,7 @@ import imm_model
 from imm_model.checkpoint import load_checkpoint, load_module_state, optimizer_from_tensors, optimizer_to_tensors, prefixed, save_checkpoint
 from imm_model.cleanup import follower_bone_lengths
 from imm_model.data.dataset import InteractionDataset
+from imm_model.data.sequence import MAX_COORDINATE_M
 from imm_model.data.splits import loso_fold
 from imm_model.errors import CheckpointError, TrainingError
 from imm_model.model.diffusion import DiffusionConfig, Guidance, ReactionDenoiser, cosine_alpha_bar, q_sample
@@ -126,7 +127,12 @@ class DiffusionTrainer:
         self.guidance = Guidance.from_dict(dict(cfg.guidance))
         self.net = ReactionDenoiser(self.model_cfg)
         frames = np.concatenate([np.arange(data.frames(i).start, data.frames(i).stop) for i in self.train_idx])
-        self.net.set_normalization(data.leader[frames].reshape(len(frames), -1), data.follower[frames].reshape(len(frames), -1))
+        leaders, followers = (np.asarray(x[frames], np.float64).reshape(len(frames), -1) for x in (data.leader, data.follower))
+        largest = max(np.abs(leaders).max(initial=0), np.abs(followers).max(initial=0))
+        if not largest <= MAX_COORDINATE_M:  # also NaN: such a pose would swamp the normalization and train on noise
+            raise TrainingError(f"training stopped before step 0: a training joint {largest:.3g} m from the origin "
+                                f"(positions within {MAX_COORDINATE_M:g} m)")
+        self.net.set_normalization(leaders, followers)
         self.net = self.net.to(self.device)
         self.ema = copy.deepcopy(self.net).requires_grad_(False).eval()
         self.opt = torch.optim.AdamW(self.net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)

@@ -1,0 +1,187 @@
+"""The reaction diffusion model: training, checkpoints, the sampler's label composition and seeds, the one API both
+model families share. A tiny network trained for a few steps on the bundled SBU data (real data; the numbers it
+produces are not results, only behaviour)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+
+from imm_model.checkpoint import load_checkpoint
+from imm_model.cli import main
+from imm_model.errors import LabelError, TrainingError
+from imm_model.inference import DiffusionReactionModel, ReactionModel
+from imm_model.model.diffusion import DiffusionConfig, Guidance, ReactionDenoiser, cosine_alpha_bar
+from imm_model.paths import SAMPLE_CHECKPOINT
+from imm_model.training.diffusion import IMM_DIFFUSION, DiffusionTrainConfig, DiffusionTrainer, diffusion_recipe
+
+TINY = replace(IMM_DIFFUSION, name="tiny-diffusion", model=dict(width=16, layers=1, heads=2, ff_mult=1, dropout=0.0),
+               guidance=dict(label_scale=2.5, sample_steps=4), steps=12, batch_size=8, warmup_steps=2, checkpoint_every=6)
+
+
+@pytest.fixture(scope="module")
+def tiny_model(tmp_path_factory):
+    from imm_model.data.dataset import InteractionDataset
+    from imm_model.paths import SAMPLE_DATA
+
+    torch.set_num_threads(1)
+    out = tmp_path_factory.mktemp("diffusion")
+    trainer = DiffusionTrainer(TINY, InteractionDataset.load(SAMPLE_DATA), "s04", out / "fold-s04")
+    path = trainer.fit(progress=False)
+    return path
+
+
+@pytest.fixture(scope="module")
+def leader(sample_data):
+    return sample_data.world(0)[0]
+
+
+def test_schedule_and_config_checks():
+    alpha_bar = cosine_alpha_bar(100)
+    assert alpha_bar.shape == (100,) and np.all(np.diff(alpha_bar) < 0) and 0 < alpha_bar[-1] < 0.01 < 0.99 < alpha_bar[0]
+    for bad in ({"width": 30, "heads": 4}, {"layers": 0}, {"dropout": 1.0}, {"width": 10**6}):
+        with pytest.raises(ValueError, match="diffusion config"):
+            DiffusionConfig(**bad)
+    for bad in ({"label_scale": -1.0}, {"sample_steps": 0}, {"clip": float("nan")}):
+        with pytest.raises(ValueError, match="guidance"):
+            Guidance(**bad)
+    for bad in ({"label_drop": 1.0}, {"steps": 0}, {"family": "gan"}, {"seed": -1}):
+        with pytest.raises(ValueError, match="training config"):
+            replace(TINY, **bad)
+    with pytest.raises(ValueError, match="unknown training config keys"):
+        DiffusionTrainConfig.from_dict({"epochs": 3})
+
+
+def test_adaln_blocks_start_as_identity():
+    """Zero-initialized modulation: before training every block passes its input through, so depth costs nothing at
+    the first step (DiT's adaLN-zero)."""
+    net = ReactionDenoiser(DiffusionConfig(width=16, layers=3, heads=2)).eval()
+    x = torch.randn(2, 7, 16)
+    cond = torch.randn(2, 16)
+    for block in net.blocks:
+        assert torch.equal(block(x, cond, None), x)
+
+
+def test_trained_model_loads_as_the_diffusion_family(tiny_model):
+    model = ReactionModel.load(tiny_model)
+    assert isinstance(model, DiffusionReactionModel) and model.stochastic and model.family == "diffusion"
+    assert model.class_names[0] == "kicking" and model.guidance.sample_steps == 4
+    meta = load_checkpoint(tiny_model)[1]
+    assert meta["family"] == "diffusion" and meta["training"]["step"] == TINY.steps
+    gan = ReactionModel.load(SAMPLE_CHECKPOINT)
+    assert not gan.stochastic and gan.family == "gan"
+
+
+def test_seeds_give_variations_and_repeat_exactly(tiny_model, leader):
+    model = ReactionModel.load(tiny_model)
+    a = model.synthesize(leader, {"kicking": 1}, seed=3)
+    assert a.shape == leader.shape and a.dtype == np.float32 and np.isfinite(a).all()
+    assert np.array_equal(a, model.synthesize(leader, {"kicking": 1}, seed=3))
+    draws = model.synthesize(leader, {"kicking": 1}, seed=3, samples=4)
+    assert draws.shape == (4, *leader.shape)
+    assert np.allclose(draws[0], a, atol=1e-5)  # samples=N starts at `seed`
+    spread = [np.abs(draws[0] - d).mean() for d in draws[1:]]
+    assert min(spread) > 1e-3  # other seeds are other reactions
+
+
+def test_a_moved_slider_moves_the_reaction_smoothly(tiny_model, leader):
+    """Same seed, label 1.0 -> 1.05 -> 1.10: the reaction changes by small, similar steps, far less than another
+    seed changes it (DDIM with eta 0 is a continuous function of the label)."""
+    model = ReactionModel.load(tiny_model)
+    model.raw = True  # the clean-up's foot planting is a threshold: judge the sampler's own output
+    steps = [model.synthesize(leader, {"pushing": v}, seed=0) for v in (1.0, 1.05, 1.10)]
+    small = [np.abs(steps[k + 1] - steps[k]).mean() for k in range(2)]
+    other_seed = np.abs(model.synthesize(leader, {"pushing": 1.0}, seed=1) - steps[0]).mean()
+    assert max(small) < 0.2 * other_seed and max(small) < 2.5 * min(small) + 1e-6
+
+
+def test_signed_composition(tiny_model, sample_data):
+    """All-zero labels are the leader-only term; -1 moves the other way from +1 (a negation); a class no row asks about
+    costs no network term."""
+    from imm_model.model.diffusion import initial_noise, sample
+
+    model = ReactionModel.load(tiny_model)
+    net = model.net
+    leader = torch.from_numpy(sample_data.canonical(0)[0].reshape(1, -1, 45))
+    mask = torch.ones(1, leader.shape[1], dtype=torch.bool)
+    noise = torch.from_numpy(initial_noise(0, leader.shape[1], 45))[None]
+    one_step = replace(model.guidance, sample_steps=1)
+    label = lambda v: torch.tensor([[0, v, 0, 0, 0, 0]], dtype=torch.float32)  # noqa: E731
+    base, plus, minus = (sample(net, leader, mask, label(v), noise, one_step) for v in (0.0, 1.0, -1.0))
+    assert torch.allclose(plus - base, base - minus, atol=1e-4)  # one step: exactly linear in the weight
+    assert (plus - base).abs().mean() > 1e-4
+
+
+def test_resume_continues_exactly(sample_data, tmp_path):
+    cfg = replace(TINY, steps=8, checkpoint_every=4)
+    whole = DiffusionTrainer(cfg, sample_data, "s04", tmp_path / "whole")
+    whole.fit(progress=False)
+    half = DiffusionTrainer(cfg, sample_data, "s04", tmp_path / "half")
+    for _ in range(4):  # as if killed right after the checkpoint at step 4
+        half.train_step()
+    half.save_last()
+    resumed = DiffusionTrainer(cfg, sample_data, "s04", tmp_path / "half")
+    resumed.resume()
+    assert resumed.step == 4
+    resumed.fit(progress=False)
+    a = load_checkpoint(tmp_path / "whole" / "final.safetensors")[0]
+    b = load_checkpoint(tmp_path / "half" / "final.safetensors")[0]
+    assert all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_non_finite_loss_stops_training(sample_data, tmp_path):
+    import copy
+
+    poisoned = copy.deepcopy(sample_data)
+    poisoned.follower[poisoned.frames(0).start + 3] = 1e30
+    with pytest.raises(TrainingError, match=r"before step 0: a training joint 1e\+30 m"):
+        DiffusionTrainer(replace(TINY, steps=3), poisoned, "s04", tmp_path / "poisoned")
+    blown = DiffusionTrainer(replace(TINY, steps=3, lr=1.0, warmup_steps=0), sample_data, "s04", tmp_path / "blown")
+    for p in blown.net.parameters():  # weights already beyond float range: the first loss is not a number
+        p.data.fill_(1e38)
+    with pytest.raises(TrainingError, match="not finite at step 0"):
+        blown.fit(progress=False)
+    assert not (tmp_path / "poisoned").exists() and not (tmp_path / "blown" / "final.safetensors").exists()
+
+
+def test_seed_and_samples_checked_in_one_line(tiny_model, leader):
+    model = ReactionModel.load(tiny_model)
+    for kwargs, message in (({"seed": -1}, "seed must be"), ({"seed": 1.5}, "seed must be"), ({"samples": 0}, "samples must be"),
+                            ({"samples": 10_000}, "samples must be"), ({"seed": 2**31 - 1, "samples": 2}, "runs past")):
+        with pytest.raises(LabelError, match=message):
+            model.synthesize(leader, {"kicking": 1}, **kwargs)
+
+
+def test_the_gan_answers_the_same_api_with_one_reaction(leader):
+    gan = ReactionModel.load(SAMPLE_CHECKPOINT)
+    draws = gan.synthesize(leader, {"kicking": 1}, seed=5, samples=3)
+    assert draws.shape == (3, *leader.shape) and np.array_equal(draws[0], draws[2])
+    assert np.array_equal(draws[0], gan.synthesize(leader, {"kicking": 1}))
+
+
+def test_latent_embeddings(tiny_model, sample_data):
+    model = ReactionModel.load(tiny_model)
+    leaders = [sample_data.canonical(i)[0] for i in range(3)]
+    z = model.latent_canonical_batch(leaders, np.eye(6, dtype=np.float32)[:3])
+    assert z.shape == (3, 16) and np.isfinite(z).all()
+
+
+def test_cli_trains_a_diffusion_recipe(tmp_path, capsys):
+    cfg = tmp_path / "tiny.json"
+    cfg.write_text(json.dumps({"base": "imm-diffusion", "model": TINY.model, "guidance": TINY.guidance, "steps": 3,
+                               "batch_size": 4, "checkpoint_every": 2}))
+    assert diffusion_recipe(str(cfg)) and diffusion_recipe("imm-diffusion") and not diffusion_recipe("imm-steer")
+    out = tmp_path / "run"
+    base = ["train", "--config", str(cfg), "--fold", "s04", "--out", str(out), "--quiet"]
+    assert main(base + ["--export", str(tmp_path / "exp.safetensors")]) == 0
+    assert "3 steps" in capsys.readouterr().out
+    exported = ReactionModel.load(tmp_path / "exp.safetensors")
+    assert isinstance(exported, DiffusionReactionModel)
+    assert main(base + ["--resume", "--steps", "4"]) == 0
+    assert load_checkpoint(out / "fold-s04" / "final.safetensors")[1]["training"]["step"] == 4
+    assert main(base + ["--overwrite", "--epochs", "2"]) == 2
+    assert "--epochs does not apply" in capsys.readouterr().err
