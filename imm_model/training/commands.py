@@ -11,11 +11,13 @@ from imm_model.device import add_device_argument
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("train", help="train the reaction model (one LOSO fold, all folds, or all data)")
     p.add_argument("--config", default="imm",
-                   help="named recipe (imm, imm-steer, imm-move, imm-control, imm-critic, men, paper) or a JSON file of overrides")
+                   help="named recipe (imm, imm-steer, imm-move, imm-control, imm-critic, men, paper, imm-diffusion) "
+                        "or a JSON file of overrides")
     p.add_argument("--fold", default="s04", help="held-out subject sXX, 'all' (the 7 LOSO folds) or 'none' (all data)")
     p.add_argument("--out", type=Path, required=True, help="run directory (fold-sXX/ subfolders are created in it)")
     p.add_argument("--data", type=Path, default=None, help="dataset bundle (default: the bundled SBU sample)")
-    p.add_argument("--epochs", type=int, default=None, help="override the recipe's number of epochs")
+    p.add_argument("--epochs", type=int, default=None, help="override the recipe's number of epochs (GAN recipes)")
+    p.add_argument("--steps", type=int, default=None, help="override the recipe's number of optimizer steps (diffusion recipes)")
     p.add_argument("--seed", type=int, default=None, help="override the recipe's seed")
     p.add_argument("--resume", action="store_true", help="continue from each fold's last.safetensors")
     p.add_argument("--overwrite", action="store_true", help="replace the runs already in --out (default: refuse)")
@@ -41,6 +43,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from imm_model.device import resolve_device
     from imm_model.paths import SAMPLE_DATA
     from imm_model.training.config import load_config
+    from imm_model.training.diffusion import DiffusionTrainer, diffusion_recipe
+    from imm_model.training.diffusion import load_config as load_diffusion_config
     from imm_model.training.refit import refit
     from imm_model.training.trainer import Trainer
 
@@ -52,7 +56,16 @@ def _cmd_train(args: argparse.Namespace) -> int:
         raise ValueError("--resume and --overwrite contradict each other: choose one")
     torch.set_num_threads(args.threads)
     device = resolve_device(args.device)
-    cfg = load_config(args.config, epochs=args.epochs, seed=args.seed)
+    diffusion = diffusion_recipe(args.config)
+    if (args.steps if not diffusion else args.epochs) is not None:
+        raise ValueError(f"--{'epochs' if diffusion else 'steps'} does not apply to {args.config!r}: "
+                         f"use --{'steps' if diffusion else 'epochs'}")
+    if args.steps is not None and args.steps < 1:
+        raise ValueError(f"--steps must be >= 1, not {args.steps}")
+    if diffusion:
+        cfg = load_diffusion_config(args.config, steps=args.steps, seed=args.seed)
+    else:
+        cfg = load_config(args.config, epochs=args.epochs, seed=args.seed)
     data = InteractionDataset.load(args.data or SAMPLE_DATA)
     subjects = all_subjects(data.subject_pairs)
     args.fold = normalize_fold(args.fold)
@@ -65,18 +78,26 @@ def _cmd_train(args: argparse.Namespace) -> int:
     else:
         raise ValueError(f"--fold {args.fold!r}: expected one of {subjects}, 'all' or 'none'")
     if args.export:
-        check_export_path(args.export, len(folds), args.overwrite)
+        config_file = [Path(args.config)] if Path(args.config).is_file() else []
+        reads = [args.data or SAMPLE_DATA, *config_file, *(fold_dir(args.out, s) / f for s in folds for f in RUN_OWNS)]
+        check_export_path(args.export, len(folds), args.overwrite, reads)
     check_run_dirs(args.out, folds, cfg.to_dict(), args.resume, args.overwrite)
+    if args.overwrite:  # so that no model of the replaced run is shipped, exported or evaluated as this one's
+        for subject in folds:
+            clear_run(fold_dir(args.out, subject))
     args.out.mkdir(parents=True, exist_ok=True)  # written only once every check has passed
     (args.out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=1) + "\n")
     for subject in folds:
-        trainer = Trainer(cfg, data, subject, fold_dir(args.out, subject), device)
+        trainer = (DiffusionTrainer if diffusion else Trainer)(cfg, data, subject, fold_dir(args.out, subject), device)
         if args.resume and (trainer.out / "last.safetensors").exists():
             trainer.resume()
-        state = trainer.fit(progress=not args.quiet)
-        print(f"fold {subject or 'none'}: best validation AFD {state.best_val:.4f} m at epoch {state.best_epoch} "
-              f"({state.epoch} epochs) -> {trainer.out / 'best.safetensors'}")
-        if cfg.refit:
+        if diffusion:
+            print(f"fold {subject or 'none'}: {cfg.steps} steps -> {trainer.fit(progress=not args.quiet)}")
+        else:
+            state = trainer.fit(progress=not args.quiet)
+            print(f"fold {subject or 'none'}: best validation AFD {state.best_val:.4f} m at epoch {state.best_epoch} "
+                  f"({state.epoch} epochs) -> {trainer.out / 'best.safetensors'}")
+        if not diffusion and cfg.refit:
             path = refit(trainer, progress=not args.quiet)
             print(f"fold {subject or 'none'}: refit on training + validation for {state.best_epoch + 1} epochs -> {path}")
         if args.export:
@@ -86,6 +107,13 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 RUN_FILES = ("last.safetensors", "best.safetensors", "final.safetensors", "log.csv")
+# everything a run writes in its fold directory: what --overwrite removes (nothing else there is touched)
+RUN_OWNS = (*RUN_FILES, "last.json", "best.json", "final.json", "curves.png")
+
+
+def clear_run(fold: Path) -> None:
+    for name in RUN_OWNS:
+        (fold / name).unlink(missing_ok=True)
 
 
 def check_run_dirs(out: Path, folds: list, config: dict, resume: bool, overwrite: bool) -> None:
@@ -111,16 +139,20 @@ def check_run_dirs(out: Path, folds: list, config: dict, resume: bool, overwrite
             raise ValueError(f"--resume: {fold} has no last.safetensors to continue from; --overwrite starts it again")
 
 
-def check_export_path(path: Path, num_folds: int, overwrite: bool) -> None:
-    """An --export destination that would fail or destroy something is refused before training starts."""
+def check_export_path(path: Path, num_folds: int, overwrite: bool, inputs: list[Path]) -> None:
+    """An --export destination that would fail or destroy something (an existing file without --overwrite, the
+    run's own checkpoints, the data) is refused before training starts."""
     import os
+
+    from imm_model.checkpoint import sidecar_path
+    from imm_model.outputs import Output, plan_outputs
 
     if num_folds != 1:
         raise ValueError("--export needs a single fold")
     if path.suffix != ".safetensors":
         raise ValueError(f"--export {path}: expected a .safetensors file name")
-    if path.exists() and not overwrite:
-        raise ValueError(f"--export {path}: the file exists; pass --overwrite to replace it")
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir() or not os.access(parent, os.W_OK):
         raise ValueError(f"--export {path}: {parent} is not a writable directory")
+    plan_outputs([Output(path, "--export"), Output(sidecar_path(path), "--export's sidecar")], inputs, overwrite,
+                 force_option="--overwrite")

@@ -128,13 +128,13 @@ def without_retired(d: Any) -> Any:
 
 
 def same_recipe(saved: Any, current: dict) -> bool:
-    """Whether a run saved with config dict `saved` continues under config dict `current`: more epochs is fine, and so
-    are retired options at their off values."""
+    """Whether a run saved with config dict `saved` continues under config dict `current`: more epochs (or a diffusion
+    recipe's steps) is fine, and so are retired options at their off values."""
     try:
         saved = without_retired(saved)
     except ValueError:
         return False
-    same = lambda d: {k: v for k, v in d.items() if k != "epochs"}  # noqa: E731
+    same = lambda d: {k: v for k, v in d.items() if k not in ("epochs", "steps")}  # noqa: E731
     return isinstance(saved, dict) and same(saved) == same(current)
 
 
