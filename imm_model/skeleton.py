@@ -6,51 +6,83 @@ indices, so a second skeleton (e.g. a BVH rig) plugs in by describing itself her
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from typing import Any, ClassVar
 
 import numpy as np
 
-from imm_model.typed_config import checked_kwargs
+from imm_model.typed_config import Interval, ListOf, Name, checked_kwargs, param, validate
 
 MAX_JOINTS = 1000
+JOINT = Interval(int, 0, MAX_JOINTS - 1)
+
+
+@dataclass(frozen=True)
+class Joints(ListOf):
+    """A ListOf described with both of its length bounds (a skeleton's are part of what it must be)."""
+
+    def __str__(self) -> str:
+        size = str(self.min_length) if self.min_length == self.max_length else f"{self.min_length} to {self.max_length}"
+        return f"a list of {size} {'distinct ' if self.unique else ''}items, each {self.item}"
+
+
+@dataclass(frozen=True)
+class NamedJointLists:
+    """A JSON object of names, each a non-empty list of joint indices (a skeleton's body parts)."""
+
+    def accepts(self, value: Any) -> bool:
+        return isinstance(value, Mapping) and len(value) <= MAX_JOINTS and all(
+            Name().accepts(k) and ListOf(JOINT, min_length=1, max_length=MAX_JOINTS).accepts(v) for k, v in value.items())
+
+    def __str__(self) -> str:
+        return "an object of part names, each a non-empty list of joint indices"
+
+
+def _is_tree(skeleton: Skeleton) -> bool:
+    """Following parents, every joint reaches the root: no cycle (each joint is walked once)."""
+    reaches_root: set[int] = set()
+    for j in range(skeleton.num_joints):
+        path: set[int] = set()
+        while j not in reaches_root and skeleton.parents[j] >= 0:
+            if j in path:
+                return False
+            path.add(j)
+            j = skeleton.parents[j]
+        reaches_root |= path | {j}
+    return True
+
+
+def _within(joints, skeleton: Skeleton) -> bool:
+    return all(j < skeleton.num_joints for j in joints)
 
 
 @dataclass(frozen=True)
 class Skeleton:
-    name: str
-    joint_names: tuple[str, ...]
-    parents: tuple[int, ...]  # parent joint index per joint, -1 for the root
+    """Checked as a whole when built (ValueError naming the field): whatever reads a skeleton indexes with it and walks
+    its tree, so an index out of range would fail far from here and a cycle would never return."""
+
+    name: str = param(check=Name())
+    joint_names: tuple[str, ...] = param(check=Joints(Name(), min_length=1, max_length=MAX_JOINTS, unique=True))
+    # parent joint index per joint, -1 for the root
+    parents: tuple[int, ...] = param(check=Joints(Interval(int, -1, MAX_JOINTS - 1), min_length=1, max_length=MAX_JOINTS))
     # The model's hierarchical streams: five body parts (whole body is implicit = all joints).
-    body_parts: dict[str, tuple[int, ...]] = field(default_factory=dict)
-    vertical_axis: int = 1  # index of the "up" coordinate (Y for Kinect)
+    body_parts: dict[str, tuple[int, ...]] = param(check=NamedJointLists(), factory=dict)
+    vertical_axis: int = param(1, Interval(int, 0, 2))  # index of the "up" coordinate (Y for Kinect)
     # Joints used to derive facing: (left_hip, right_hip, left_shoulder, right_shoulder).
-    facing_joints: tuple[int, int, int, int] = (0, 0, 0, 0)
+    facing_joints: tuple[int, int, int, int] = param((0, 0, 0, 0), Joints(JOINT, min_length=4, max_length=4))
+
+    RULES: ClassVar = (
+        ("parents", lambda s: len(s.parents) == s.num_joints, "one per joint"),
+        ("parents", lambda s: _within(s.parents, s) and s.parents.count(-1) == 1,
+         "joint indices below the joint count, with -1 for exactly one root"),
+        ("parents", _is_tree, "a tree: every joint reaches the root (these form a cycle)"),
+        ("body_parts", lambda s: all(_within(js, s) for js in s.body_parts.values()), "joint indices below the joint count"),
+        ("facing_joints", lambda s: _within(s.facing_joints, s), "joint indices below the joint count"),
+    )
 
     def __post_init__(self) -> None:
-        """The description checked as a whole (ValueError naming the field): whatever reads a skeleton indexes with it
-        and walks its tree, so an index out of range or a cycle would fail far from here, or never return."""
-        n, where = len(self.joint_names), f"skeleton {str(self.name)[:40]}"
-        if not 1 <= n <= MAX_JOINTS:
-            raise ValueError(f"{where}: {n} joints; 1 to {MAX_JOINTS} are accepted")
-        if not all(isinstance(j, str) and j for j in self.joint_names):
-            raise ValueError(f"{where}: joint_names must be non-empty strings")
-        if len(set(self.joint_names)) != n:
-            raise ValueError(f"{where}: joint name {_first_repeat(self.joint_names)!r} is used twice")
-        if len(self.parents) != n:
-            raise ValueError(f"{where}: {len(self.parents)} parents for {n} joints")
-        _check_indices(self.parents, n, f"{where}: parents", allow_root=True)
-        if sum(p < 0 for p in self.parents) != 1:
-            raise ValueError(f"{where}: exactly one root joint (parent -1) is required")
-        _check_tree(self.parents, where)
-        for part, joints in self.body_parts.items():
-            if not isinstance(part, str) or not joints:
-                raise ValueError(f"{where}: body part {part!r} must be named and list at least one joint")
-            _check_indices(joints, n, f"{where}: body part {part}")
-        if isinstance(self.vertical_axis, bool) or self.vertical_axis not in (0, 1, 2):
-            raise ValueError(f"{where}: vertical_axis must be 0, 1 or 2 (x, y, z), not {self.vertical_axis!r}")
-        if len(self.facing_joints) != 4:
-            raise ValueError(f"{where}: facing_joints must be 4 joints (left hip, right hip, left shoulder, right shoulder)")
-        _check_indices(self.facing_joints, n, f"{where}: facing_joints")
+        validate(self, "skeleton")
 
     @property
     def num_joints(self) -> int:
@@ -131,47 +163,14 @@ class Skeleton:
         missing = [f.name for f in fields(cls) if f.name not in d]
         if missing:
             raise ValueError(f"skeleton lacks {', '.join(missing)}")
-        parts = d["body_parts"]
-        if not all(isinstance(v, list) and all(isinstance(j, int) and not isinstance(j, bool) for j in v) for v in parts.values()):
-            raise ValueError("skeleton: body_parts must map each part's name to a list of joint indices")
         return cls(
             name=d["name"],
             joint_names=tuple(d["joint_names"]),
             parents=tuple(d["parents"]),
-            body_parts={k: tuple(v) for k, v in parts.items()},
+            body_parts={k: tuple(v) for k, v in d["body_parts"].items()},
             vertical_axis=d["vertical_axis"],
             facing_joints=tuple(d["facing_joints"]),
         )
-
-
-def _check_indices(joints: tuple[int, ...], n: int, what: str, allow_root: bool = False) -> None:
-    low = -1 if allow_root else 0
-    bad = next((j for j in joints if isinstance(j, bool) or not isinstance(j, int | np.integer) or not low <= j < n), None)
-    if bad is not None:
-        raise ValueError(f"{what} names joint {bad!r}; the indices are {low}..{n - 1}")
-
-
-def _check_tree(parents: tuple[int, ...], where: str) -> None:
-    """Every joint reaches the root by following parents (no cycle); each joint is walked once."""
-    reaches: set[int] = set()
-    for j in range(len(parents)):
-        path = []
-        while j not in reaches and parents[j] >= 0:
-            if j in path:
-                raise ValueError(f"{where}: parents form a cycle through joint {j}")
-            path.append(j)
-            j = parents[j]
-        reaches.update(path)
-        reaches.add(j)
-
-
-def _first_repeat(names: tuple[str, ...]) -> str:
-    seen: set[str] = set()
-    for n in names:
-        if n in seen:
-            return n
-        seen.add(n)
-    return ""
 
 
 # SBU Kinect Interaction joint order (dataset README, 1-based there, 0-based here).

@@ -327,7 +327,7 @@ def test_the_messages_name_the_field(outcomes):
     assert "allow_pickle" not in message("bundle: bvh given as --data") + message("npz: text named .npz")
     assert "16 MB" in message("npz: 3e6 zero frames") and "dtype object" in message("npz: pickled objects")
     assert "cycle" in message("bundle: skeleton parents cycle") and "vertical_axis" in message("bundle: skeleton vertical axis 7")
-    assert "facing_joints names joint 99" in message("bundle: skeleton joint 99")
+    assert "facing_joints must be joint indices below the joint count" in message("bundle: skeleton joint 99")
     assert "class_names names" in message("bundle: class names twice")
     assert "MB uncompressed; interaction bundle files up to 256 MB" in message("bundle: a member declares 4 GB")
     assert "declares shape (17000000, 15, 3)" in message("npz: header claims shape x 1e6")
@@ -352,21 +352,22 @@ def _set(path: tuple, value):
 
 
 SKELETON_CASES = {
-    "parent 99": (_set(("parents", 0), 99), "parents names joint 99"),
+    "parent 99": (_set(("parents", 0), 99), "parents must be joint indices below the joint count"),
     "parents cycle": (_set(("parents", 1), 0), "cycle"),
-    "no root": (_set(("parents", 2), 1), "exactly one root"),
-    "two roots": (_set(("parents", 0), -1), "exactly one root"),
-    "facing joint 99": (_set(("facing_joints", 3), 99), "facing_joints names joint 99"),
-    "facing joint -1": (_set(("facing_joints", 0), -1), "facing_joints names joint -1"),
-    "three facing joints": (_set(("facing_joints",), [9, 12, 3]), "facing_joints must be 4"),
-    "body part joint 99": (_set(("body_parts", "trunk"), [0, 99]), "body part trunk names joint 99"),
-    "empty body part": (_set(("body_parts", "trunk"), []), "at least one joint"),
-    "vertical axis 7": (_set(("vertical_axis",), 7), "vertical_axis must be 0, 1 or 2"),
-    "vertical axis 1.0": (_set(("vertical_axis",), 1.0), "vertical_axis must be an integer"),
-    "duplicate joint names": (_set(("joint_names", 3), "head"), "'head' is used twice"),
+    "no root": (_set(("parents", 2), 1), "with -1 for exactly one root"),
+    "two roots": (_set(("parents", 0), -1), "with -1 for exactly one root"),
+    "facing joint 99": (_set(("facing_joints", 3), 99), "facing_joints must be joint indices below the joint count"),
+    "facing joint -1": (_set(("facing_joints", 0), -1), "facing_joints must be a list of 4 items, each an integer in 0..999"),
+    "three facing joints": (_set(("facing_joints",), [9, 12, 3]), "facing_joints must be a list of 4 items"),
+    "body part joint 99": (_set(("body_parts", "trunk"), [0, 99]), "body_parts must be joint indices below the joint count"),
+    "empty body part": (_set(("body_parts", "trunk"), []), "each a non-empty list of joint indices"),
+    "vertical axis 7": (_set(("vertical_axis",), 7), "vertical_axis must be an integer in 0..2, not 7"),
+    "vertical axis 1.0": (_set(("vertical_axis",), 1.0), "vertical_axis must be an integer in 0..2"),
+    "duplicate joint names": (_set(("joint_names", 3), "head"), "joint_names must be a list of 1 to 1000 distinct items"),
     "parents a string": (_set(("parents",), "1,2"), "parents must be a list"),
-    "joint index true": (_set(("parents", 0), True), "parents must be a list of items each an integer"),
-    "100000 joints": (_set(("joint_names",), [f"j{i}" for i in range(100_000)]), "1 to 1000 are accepted"),
+    "joint index true": (_set(("parents", 0), True), "parents must be a list of 1 to 1000 items, each an integer"),
+    "100000 joints": (_set(("joint_names",), [f"j{i}" for i in range(100_000)]), "a list of 1 to 1000 distinct items"),
+    "missing field": (lambda d: d.pop("facing_joints"), "skeleton lacks facing_joints"),
     "unknown key": (_set(("hands",), 2), "unknown skeleton keys"),
 }
 
@@ -391,7 +392,7 @@ def test_a_long_cycle_is_found_at_once():
 
 SIDECAR_CASES = {
     "skeleton parents cycle": (_set(("skeleton", "parents", 1), 0), "cycle"),
-    "skeleton joint 99": (_set(("skeleton", "body_parts", "left_arm"), [3, 4, 99]), "names joint 99"),
+    "skeleton joint 99": (_set(("skeleton", "body_parts", "left_arm"), [3, 4, 99]), "body_parts must be joint indices below"),
     "vertical axis 7": (_set(("skeleton", "vertical_axis"), 7), "vertical_axis"),
     "max_train_length -5": (_set(("max_train_length",), -5), "max_train_length must be a frame count in 1..100000"),
     "max_train_length 1e9": (_set(("max_train_length",), 10**9), "max_train_length"),
