@@ -28,8 +28,7 @@ CLASS_NAMES = ListOf(Name())
 @dataclass(frozen=True)
 class TrainConfig:
     name: str = param("imm", Name())  # the recipe's name (run and cache directories are named after it)
-    # model sizes: ModelConfig fields other than joints, classes and body parts, which come from the data
-    model: dict[str, Any] = param(check=FieldsOf(ModelConfig), factory=dict)
+    model: dict[str, Any] = param(check=FieldsOf(ModelConfig), factory=dict)  # ModelConfig sizes (joints, classes: from the data)
     optimizer: str = param("adam", OneOf(("adam", "rmsprop")))  # for both networks
     lr_g: float = param(1e-3, POSITIVE)  # the generator's learning rate
     lr_d: float = param(1e-3, POSITIVE)  # the discriminator's learning rate
@@ -41,26 +40,17 @@ class TrainConfig:
     lambda_l1: float = param(1.0, NON_NEGATIVE)  # L1 between generated and real follower
     lambda_bone: float = param(0.01, NON_NEGATIVE)  # bone lengths of generated vs real follower
     lambda_cont: float = param(1.0, NON_NEGATIVE)  # frame-to-frame velocities of generated vs real follower
-    # "mean": L1 averaged over valid frames and coordinates; "sum": summed over batch x valid frames x coordinates, as
-    # the authors' released code does, which makes every other term (adversarial weight 1) ~1e-4 as strong
-    l1_reduction: str = param("mean", OneOf(("mean", "sum")))
-    # the label critic (training/critic.py): a frozen follower classifier scores the follower for the true label and for
-    # a drawn other label; its weight follows the adversarial warm-up and ramp (0: off)
-    lambda_critic: float = param(0.0, NON_NEGATIVE)
+    l1_reduction: str = param("mean", OneOf(("mean", "sum")))  # L1 averaged, or summed over batch x frames x coordinates
+    lambda_critic: float = param(0.0, NON_NEGATIVE)  # the label critic (training/critic.py), ramped like lambda_adv (0: off)
     critic_mix_prob: float = param(0.0, PROBABILITY)  # probability that a drawn label is a two-class mix
-    # motion energy (training/energy.py): per-joint limb speed of generated vs real follower (for a drawn label, vs the
-    # label's mix of per-class speeds); its weight follows the adversarial warm-up and ramp (0: off)
-    lambda_energy: float = param(0.0, NON_NEGATIVE)
-    # what limb speed is measured from: "root" (the root joint) or "body" (the centre of the root's neighbours)
-    energy_reference: str = param("root", OneOf(("root", "body")))
+    lambda_energy: float = param(0.0, NON_NEGATIVE)  # motion energy (training/energy.py), ramped like lambda_adv (0: off)
+    energy_reference: str = param("root", OneOf(("root", "body")))  # limb speed relative to the root joint or the body centre
     adv_warmup_epochs: int = param(0, EPOCHS)  # adversarial weight 0 for these epochs (reconstruction warm-up) ...
     adv_ramp_epochs: int = param(0, EPOCHS)  # ... then ramped linearly to lambda_adv over these epochs
     label_smoothing: float = param(0.0, FRACTION_BELOW_1)  # on the discriminator's real-class targets
     d_spectral_norm: bool = param(False, Flag())  # spectral normalization of the discriminator's layers
     d_every: int = param(1, Interval(int, 1, 1000))  # update the discriminator on every k-th batch only (G on all)
-    # "multiclass": the paper's N classes + 1 fake; "binary+class": Men et al. 2022's real/fake head beside a class
-    # head (training/losses.py)
-    discriminator: str = param("multiclass", OneOf(DISCRIMINATORS))
+    discriminator: str = param("multiclass", OneOf(DISCRIMINATORS))  # N classes + fake (paper), or Men et al.'s heads (losses.py)
     # Augmentation of training batches.
     mirror_prob: float = param(0.0, PROBABILITY)  # swap left/right joints and flip the lateral axis
     mirror_exclude_classes: tuple[str, ...] = param((), CLASS_NAMES)  # handed interactions, never mirrored
@@ -69,21 +59,15 @@ class TrainConfig:
     time_warp: float = param(0.0, FRACTION_BELOW_1)  # resample each sequence to length * U(1 - w, 1 + w)
     role_swap_prob: float = param(0.0, PROBABILITY)  # B becomes the leader (re-canonicalized), role_swap_classes only
     role_swap_classes: tuple[str, ...] = param((), CLASS_NAMES)  # the symmetric interactions
-    # > 0: validate, select and ship an exponential moving average of G's weights, with this decay
-    ema_decay: float = param(0.0, FRACTION_BELOW_1)
+    ema_decay: float = param(0.0, FRACTION_BELOW_1)  # > 0: validate, select and ship a moving average of G's weights
     # Model selection.
     val_fraction: float = param(0.15, Interval(float, 0, 1, closed="neither"))  # of the fold's training sequences
     patience: int = param(0, EPOCHS)  # stop after this many epochs without a better validation AFD (0: never) ...
     min_epochs: int = param(0, EPOCHS)  # ... but not before this epoch
-    # multiply both learning rates by lr_decay_factor each time the validation AFD has not improved for this many
-    # epochs (counted once the best epoch may be selected; 0: off)
-    lr_decay_patience: int = param(0, EPOCHS)
-    lr_decay_factor: float = param(0.5, Interval(float, 0, 1, closed="right"))
-    # the best epoch is chosen from this epoch on (-1: once the adversarial weight is at full strength)
-    select_from_epoch: int = param(-1, Interval(int, -1, 100_000))
-    # after selection, train a fresh model (same seed) on training + validation sequences for the selected number of
-    # epochs, replaying the selection run's learning-rate decays, and ship it as final.safetensors
-    refit: bool = param(False, Flag())
+    lr_decay_patience: int = param(0, EPOCHS)  # decay both learning rates after this many epochs without a better AFD (0: off)
+    lr_decay_factor: float = param(0.5, Interval(float, 0, 1, closed="right"))  # ... multiplying them by this each time
+    select_from_epoch: int = param(-1, Interval(int, -1, 100_000))  # first selectable epoch (-1: once lambda_adv is at full strength)
+    refit: bool = param(False, Flag())  # then retrain on training + validation for the selected epochs (training/refit.py)
     checkpoint_every: int = param(25, Interval(int, 1, 100_000))  # save last.safetensors every this many epochs ...
     checkpoint_minutes: float = param(5.0, POSITIVE)  # ... and whenever this much time has passed since the last save
     seed: int = param(0, Interval(int, 0, 2**31 - 1))  # initial weights, validation split, batches, augmentation
@@ -140,7 +124,8 @@ def same_recipe(saved: Any, current: dict) -> bool:
 
 # The paper's recipe, translated faithfully: RMSprop, batch 16, adversarial weight 1 from the start, paper loss
 # weights, 1600 epochs on SBU (paper, Implementation details), the attention query being the decoder's previous
-# state (Eq. 3), and the L1 term summed over batch x frames x coordinates as in the authors' released code. The
+# state (Eq. 3), and the L1 term summed over batch x frames x coordinates as in the authors' released code (which makes
+# every other term ~1e-4 as strong as with the mean). The
 # paper states lr 0.01; the released code uses 0.001, which we take (0.01 diverges with RMSprop on these LSTMs).
 # The best epoch is chosen on our validation split, never on the test fold (the released code uses the test fold).
 PAPER = TrainConfig(
