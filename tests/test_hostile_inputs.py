@@ -110,6 +110,8 @@ def bvh_variants() -> dict[str, str]:
         "unknown channel": text.replace("Zrotation", "Wrotation", 1),
         "binary": "\x00\x01HIERARCHY\x02" * 100,
         "no motion rows at all, frames 1e9": text[:rows_at].replace("Frames: 240", "Frames: 1000000000"),
+        "6 million blank lines before the motion": text.replace("MOTION", " \t\n" * 6_000_000 + "MOTION", 1),
+        "a row of 3 million values": text[:rows_at] + "0 " * 3_000_000 + "\n" + text[rows_at:],
     }
     for bad in ("nan", "inf", "-inf", "1e30", "-1e30", "0", "-0.0083"):
         out[f"frame time {bad}"] = text.replace("Frame Time: .0083333", f"Frame Time: {bad}")
@@ -276,7 +278,8 @@ def bundle_variants(tmp: Path) -> dict[str, tuple[str, Path]]:
     return out
 
 
-ACCEPTED = {"leader (T, 45) flattened", "upper-case suffix", "bundle: as saved"}
+# valid files among them, still read within the bounds (bvhio skips blank lines)
+ACCEPTED = {"leader (T, 45) flattened", "upper-case suffix", "bundle: as saved", "bvh: 6 million blank lines before the motion"}
 
 
 @pytest.fixture(scope="module")
@@ -331,6 +334,7 @@ def test_the_messages_name_the_field(outcomes):
     assert "class_names names" in message("bundle: class names twice")
     assert "MB uncompressed; interaction bundle files up to 256 MB" in message("bundle: a member declares 4 GB")
     assert "declares shape (17000000, 15, 3)" in message("npz: header claims shape x 1e6")
+    assert "characters for 96 channels" in message("bvh: a row of 3 million values")
     assert "a line of" in message("sbu: a row of 180,000 values") and "inflates past" in message("k3hi: 200000 frames of zeros")
 
 
