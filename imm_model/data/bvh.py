@@ -212,7 +212,7 @@ def _check_layout(path: Path, text: str) -> None:
             lines.expect("{", f"'{{' opening joint {pending}", 0)
             lines.offset(pending)
             declared = lines.expect("CHANNELS", f"the CHANNELS of {pending}")
-            if len(declared) < 2 or declared[1] != str(len(declared) - 2) or not declared[2:]:
+            if len(declared) < 2 or not declared[1].isdigit() or int(declared[1]) != len(declared) - 2:
                 raise lines.fail(f"CHANNELS of {pending}: a count followed by that many channel names is expected")
             unknown = [c for c in declared[2:] if c not in CHANNEL_NAMES]
             if unknown:
