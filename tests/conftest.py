@@ -55,7 +55,7 @@ def browser():
 def studio(browser, tmp_path_factory):
     from tests import studio_probe as probe
 
-    # closed tabs keep their process for a minute (--idle-exit): room for the tabs earlier tests opened and closed
+    # room for the tabs a module opens at once (five) and those still closing (a closed tab's process ends ~2 s later)
     with probe.StudioProcess("--max-clients", "12", cache_dir=tmp_path_factory.mktemp("studio-cache")) as s:
         yield s
 

@@ -162,3 +162,38 @@ def test_five_clients_are_independent(studio, browser):
     finally:
         for pg in pages:
             pg.close()
+
+
+def test_a_hostile_upload_is_one_red_line_and_closed_tabs_leave_no_error(studio, browser, tmp_path):
+    """Through the page: an .npz of 0.5 MB that unpacks to 540 MB is read within the upload's budget (its own
+    process, explorer/upload_reader.py) and answered by the red one-line alert; the view and the slider keep
+    working. Tabs closed while playing (pictures in flight) leave no error in the studio's log."""
+    from tests.test_studio_hardening import hostile_uploads
+
+    pg = probe.open_studio(browser, studio.url, timeout_ms=90000)
+    try:
+        title = probe.state(pg, "sequence_title")
+        hostile = tmp_path / "zero_frames.npz"
+        hostile.write_bytes(hostile_uploads()["zero_frames.npz"])
+        t0 = time.monotonic()
+        pg.locator("input[type=file]").set_input_files(str(hostile))
+        probe.wait_state(pg, "(s.get('error') || '').includes('zero_frames.npz')", timeout_ms=20000)
+        assert time.monotonic() - t0 < 15.0
+        alert = pg.locator("#error-alert")
+        assert alert.is_visible() and "zero_frames.npz" in alert.inner_text()
+        assert "\n" not in probe.state(pg, "error") and probe.state(pg, "sequence_title") == title
+        names = probe.state(pg, "class_names")
+        n_mix = probe.state(pg, "mix_count")
+        probe.press_slider(pg, f".slider-{names[1].replace(' ', '_')}", "End")
+        pg.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=15000)
+        probe.press_key(pg, " ") if not probe.state(pg, "playing") else None
+        time.sleep(1.0)
+    finally:
+        pg.close()
+    for _ in range(2):
+        other = probe.open_studio(browser, studio.url, timeout_ms=90000)
+        probe.press_key(other, " ") if not probe.state(other, "playing") else None
+        time.sleep(1.0)
+        other.close()
+    time.sleep(1.0)
+    assert not [ln for ln in studio.lines if "Traceback" in ln or "never retrieved" in ln], studio.lines[-20:]
