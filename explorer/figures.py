@@ -1,72 +1,51 @@
-"""The pieces of the 3D scene in plain VTK: stick figures (tubes and spheres around one persistent polydata whose
-points are overwritten in place), the interpenetration overlay, and the helpers that build them (explorer/scene.py
-puts them together)."""
+"""The pieces of the 3D scene as PyVista meshes and actors: stick figures (tubes and spheres around one persistent
+PyVista mesh whose points are overwritten in place), the interpenetration overlay, and the helpers that build them
+(explorer/scene.py puts them together in a PyVista Plotter).
+
+The tubes and spheres are VTK filters fed by the PyVista mesh (vtkTubeFilter, vtkGlyph3D), which the Plotter draws
+as a pipeline: PyVista's own `tube()` and `glyph()` return a new mesh on every call, and a frame change here must
+only move points, never rebuild geometry."""
 
 from __future__ import annotations
 
 import numpy as np
-from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray, vtk_to_numpy
-from vtkmodules.vtkCommonCore import vtkPoints
-from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+import pyvista as pv
 from vtkmodules.vtkFiltersCore import vtkGlyph3D, vtkTubeFilter
-from vtkmodules.vtkFiltersSources import vtkSphereSource
-from vtkmodules.vtkRenderingCore import vtkActor, vtkPolyDataMapper, vtkRenderer
 
-from explorer.palette import WARNING, rgb
+from explorer.palette import WARNING
 from imm_model.skeleton import Skeleton
 
 
-def line_polydata(num_points: int) -> tuple[vtkPolyData, np.ndarray]:
-    """Polydata of `num_points` points (no lines yet) and a numpy view of its coordinates: writes go straight to VTK."""
-    poly = vtkPolyData()
-    points = vtkPoints()
-    points.SetData(numpy_to_vtk(np.zeros((num_points, 3), np.float32), deep=True))
-    poly.SetPoints(points)
-    poly.SetLines(vtkCellArray())
-    return poly, vtk_to_numpy(points.GetData())
+def line_mesh(num_points: int) -> pv.PolyData:
+    """A PyVista mesh of `num_points` points and no cells yet; its `points` are written in place."""
+    mesh = pv.PolyData(np.zeros((num_points, 3), np.float32))
+    mesh.verts = np.empty(0, np.int64)  # PyVista gives bare points a vertex each: only lines are drawn here
+    return mesh
 
 
-def set_lines(poly: vtkPolyData, segments) -> None:
+def set_lines(mesh: pv.PolyData, segments) -> None:
     """Line cells between point pairs [(a, b), ...]."""
-    cells = vtkCellArray()
-    if len(segments):
-        cells.SetData(numpy_to_vtkIdTypeArray(np.arange(0, 2 * len(segments) + 1, 2), deep=True),
-                      numpy_to_vtkIdTypeArray(np.asarray(segments, np.int64).ravel(), deep=True))  # fmt: skip
-    poly.SetLines(cells)
-    poly.Modified()
+    pairs = np.asarray(segments, np.int64).reshape(-1, 2)
+    mesh.lines = np.column_stack([np.full(len(pairs), 2), pairs]).ravel()
 
 
-def add_actor(renderer: vtkRenderer, source, color: str, *, ambient: float = 0.0, diffuse: float = 1.0,
-              specular: float = 0.0, smooth: bool = False, lit: bool = True, wireframe: bool = False) -> vtkActor:
-    """An actor for a VTK algorithm's output (filters re-run when their input changes) or for fixed polydata."""
-    mapper = vtkPolyDataMapper()
-    if isinstance(source, vtkPolyData):
-        mapper.SetInputData(source)
-    else:
-        mapper.SetInputConnection(source.GetOutputPort())
-    actor = vtkActor()
-    actor.SetMapper(mapper)
-    prop = actor.GetProperty()
-    prop.SetColor(*rgb(color))
-    prop.SetAmbient(ambient)
-    prop.SetDiffuse(diffuse)
-    prop.SetSpecular(specular)
-    prop.SetSpecularPower(100.0)
-    if smooth:
-        prop.SetInterpolationToPhong()
-    prop.SetLighting(lit)
-    if wireframe:
-        prop.SetRepresentationToWireframe()
-    renderer.AddActor(actor)
+def add_actor(plotter: pv.Plotter, source, color: str, *, ambient: float = 0.0, diffuse: float = 1.0,
+              specular: float = 0.0, smooth: bool = False, lit: bool = True) -> pv.Actor:
+    """The Plotter's actor for a mesh, or for a VTK filter's output (re-run when its input mesh changes)."""
+    actor = plotter.add_mesh(source, color=color, ambient=ambient, diffuse=diffuse, specular=specular, specular_power=100.0,
+                             lighting=lit, reset_camera=False, render=False)  # fmt: skip
+    if smooth:  # the filters give normals: Phong shading without PyVista's extra normals pass
+        actor.prop.interpolation = "phong"
     return actor
 
 
 class StickFigure:
     """Bones as tubes and joints as spheres around one persistent polydata of J points."""
 
-    def __init__(self, renderer: vtkRenderer, skeleton: Skeleton, color: str, bone_radius: float = 0.022, joint_radius: float = 0.034):
-        self.poly, self._points = line_polydata(skeleton.num_joints)
+    def __init__(self, plotter: pv.Plotter, skeleton: Skeleton, color: str, bone_radius: float = 0.022, joint_radius: float = 0.034):
+        self.poly = line_mesh(skeleton.num_joints)
         set_lines(self.poly, skeleton.bones)
+        self._points = self.poly.points  # a view of the mesh's VTK points: writes go straight to VTK
 
         # 6-sided tubes and 8 x 6 spheres look the same at the view's scale as 10 sides and 12 x 10, and cost llvmpipe
         # ~3 ms less per full-size frame with three figures (docs/explorer.md, session 11)
@@ -75,17 +54,13 @@ class StickFigure:
         tube.SetRadius(bone_radius)
         tube.SetNumberOfSides(6)
         tube.CappingOn()
-        sphere = vtkSphereSource()
-        sphere.SetRadius(joint_radius)
-        sphere.SetThetaResolution(8)
-        sphere.SetPhiResolution(6)
         glyph = vtkGlyph3D()
         glyph.SetInputData(self.poly)
-        glyph.SetSourceConnection(sphere.GetOutputPort())
+        glyph.SetSourceData(pv.Sphere(radius=joint_radius, theta_resolution=8, phi_resolution=6))
         glyph.ScalingOff()
         self.filters = (tube, glyph)
         kw = dict(ambient=0.3, diffuse=0.7, specular=0.25, smooth=True)
-        self.actors = [add_actor(renderer, tube, color, **kw), add_actor(renderer, glyph, color, **kw)]
+        self.actors = [add_actor(plotter, tube, color, **kw), add_actor(plotter, glyph, color, **kw)]
 
     def set_pose(self, joints: np.ndarray) -> None:
         self._points[:] = joints
@@ -106,14 +81,15 @@ class ContactOverlay:
     """The bones of the leader and the synthesized follower that interpenetrate at the current frame, as thicker
     tubes in the warning colour over both figures (overlay layout only: side by side the bodies are apart)."""
 
-    def __init__(self, renderer: vtkRenderer, skeleton: Skeleton):
+    def __init__(self, plotter: pv.Plotter, skeleton: Skeleton):
         self.bones = np.array(skeleton.bones)
-        self.poly, self._points = line_polydata(2 * skeleton.num_joints)
+        self.poly = line_mesh(2 * skeleton.num_joints)
+        self._points = self.poly.points
         self.tube = vtkTubeFilter()
         self.tube.SetInputData(self.poly)
         self.tube.SetRadius(0.032)
         self.tube.SetNumberOfSides(10)
-        self.actor = add_actor(renderer, self.tube, WARNING, ambient=0.4, diffuse=0.6)
+        self.actor = add_actor(plotter, self.tube, WARNING, ambient=0.4, diffuse=0.6)
         self.flags: tuple[np.ndarray, np.ndarray] | None = None  # (T, K) bones of the leader and of the follower
         self.enabled = True
 

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 from trame.ui.vuetify3 import VAppLayout
 from trame.widgets import client, html
-from trame.widgets import vtk as vtk_widgets
 from trame.widgets import vuetify3 as v3
 
 from explorer.charts import CHART_CSS, DISTANCE_BOX
@@ -283,8 +282,10 @@ def scene_view(studio) -> None:
         id="error-alert",
     )
     with html.Div(classes="rounded border imm-scene"):
-        if studio.render_mode == "local":  # vtk.js in the browser (see docs/explorer.md)
-            view = vtk_widgets.VtkLocalView(studio.scene.render_window, ref="view")
+        if studio.render_mode == "local":  # vtk.js in the browser (see docs/explorer.md), through trame's PyVista view
+            from trame.widgets import pyvista as pyvista_widgets  # only here: trame-pyvista's import is for this mode
+
+            view = pyvista_widgets.PyVistaLocalView(studio.scene.plotter)
         else:  # rendered on the server, streamed as pictures (explorer/view_stream.py)
             view = ViewStream(studio.server, studio.scene.render_window)
         studio._view = view

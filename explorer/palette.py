@@ -22,11 +22,5 @@ def class_color(index: int) -> str:
     return CLASS_COLORS[index % len(CLASS_COLORS)]
 
 
-def rgb(hex_color: str) -> tuple[float, float, float]:
-    """'#rrggbb' -> (r, g, b) floats in [0, 1] for VTK."""
-    h = hex_color.lstrip("#")
-    return tuple(int(h[i : i + 2], 16) / 255.0 for i in (0, 2, 4))  # type: ignore[return-value]
-
-
 def display_name(class_name: str) -> str:
     return class_name.replace("_", " ")

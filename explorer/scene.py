@@ -1,13 +1,12 @@
 """The 3D scene: three stick figures (leader, ground truth, synthesized; explorer/figures.py), a floor grid,
-captions, the camera presets and the layouts; plain VTK.
+captions, the camera presets and the layouts, in a PyVista Plotter rendering off screen.
 
 Built once per process. A frame change only overwrites point coordinates of persistent meshes (the
 tube and sphere filters re-run on their inputs); a layout change only moves actors. Nothing is
 rebuilt while the user plays, scrubs or mixes labels.
 
-Plain VTK rather than PyVista: the scene needs a renderer, a few actors and a camera, and importing
-pyvista.plotting (which imports matplotlib) took 1.4 s of the studio's start here on top of the VTK modules
-used below (0.4-0.6 s).
+Importing pyvista.plotting (which imports matplotlib) costs 1.4-2 s here: the zygote pays it once, before it forks
+the studio processes (explorer/zygote.py preload), so a tab's process starts with it loaded.
 """
 
 from __future__ import annotations
@@ -19,21 +18,15 @@ import numpy as np
 # EGL (Mesa llvmpipe on CPU machines) renders off screen without an X server; set before VTK loads.
 os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 
-import vtkmodules.vtkRenderingFreeType  # noqa: E402, F401 - text (the captions)
-import vtkmodules.vtkRenderingOpenGL2  # noqa: E402, F401 - the OpenGL render window behind vtkRenderWindow
+import pyvista as pv  # noqa: E402
+import pyvista.plotting  # noqa: E402, F401 - lazy in pyvista: imported with this module, so the zygote's preload pays it
 from vtkmodules.util.numpy_support import vtk_to_numpy  # noqa: E402
 from vtkmodules.vtkInteractionStyle import vtkInteractorStyleTrackballCamera  # noqa: E402
-from vtkmodules.vtkRenderingCore import (  # noqa: E402
-    vtkBillboardTextActor3D,
-    vtkLight,
-    vtkRenderer,
-    vtkRenderWindow,
-    vtkWindowToImageFilter,
-)
+from vtkmodules.vtkRenderingCore import vtkWindowToImageFilter  # noqa: E402
 from vtkmodules.vtkRenderingUI import vtkGenericRenderWindowInteractor  # noqa: E402
 
-from explorer.figures import ContactOverlay, StickFigure, add_actor, line_polydata, set_lines  # noqa: E402
-from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED, rgb  # noqa: E402
+from explorer.figures import ContactOverlay, StickFigure, add_actor, line_mesh, set_lines  # noqa: E402
+from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED  # noqa: E402
 from imm_model.skeleton import Skeleton  # noqa: E402
 
 CHARACTER_KEYS = ("leader", "ground_truth", "synthesized")
@@ -45,29 +38,25 @@ BACKGROUND = "#f4f5f7"
 
 class Scene:
     def __init__(self, skeleton: Skeleton, floor_y: float, window_size: tuple[int, int] = (1050, 500)):
-        self.renderer = vtkRenderer()
-        self.renderer.SetBackground(*rgb(BACKGROUND))
-        # One camera-following light: a light kit (5 lights) doubled llvmpipe's per-frame cost.
-        self.renderer.AutomaticLightCreationOff()
-        light = vtkLight()
-        light.SetLightTypeToHeadlight()
-        self.renderer.AddLight(light)
-        self.render_window = vtkRenderWindow()
-        self.render_window.SetOffScreenRendering(True)
+        # One camera-following light: a light kit (5 lights, PyVista's default) doubled llvmpipe's per-frame cost.
+        self.plotter = pv.Plotter(off_screen=True, window_size=window_size, lighting="none")
+        self.plotter.add_light(pv.Light(light_type="headlight"))
+        self.plotter.set_background(BACKGROUND)
+        self.renderer = self.plotter.renderer
+        self.render_window = self.plotter.render_window
         self.render_window.SetMultiSamples(0)  # MSAA costs ~3x per frame on llvmpipe (docs/explorer.md)
-        self.render_window.AddRenderer(self.renderer)
-        self.render_window.SetSize(*window_size)
-        # Mouse events from the page (explorer/view_stream.py) turn the camera through this interactor.
+        # Mouse events from the page (explorer/view_stream.py) turn the camera through this interactor (an off-screen
+        # Plotter has none of its own).
         interactor = vtkGenericRenderWindowInteractor()
         interactor.SetRenderWindow(self.render_window)
         interactor.SetInteractorStyle(vtkInteractorStyleTrackballCamera())
         interactor.Initialize()
         self.skeleton = skeleton
         self.floor_y = float(floor_y)
-        self.figures = {k: StickFigure(self.renderer, skeleton, CHARACTERS[k]) for k in CHARACTER_KEYS}
-        self.figures["pinned"] = StickFigure(self.renderer, skeleton, PINNED)  # A/B: shown only while a mix is pinned
+        self.figures = {k: StickFigure(self.plotter, skeleton, CHARACTERS[k]) for k in CHARACTER_KEYS}
+        self.figures["pinned"] = StickFigure(self.plotter, skeleton, PINNED)  # A/B: shown only while a mix is pinned
         self.figures["pinned"].set_visible(False)
-        self.contact = ContactOverlay(self.renderer, skeleton)
+        self.contact = ContactOverlay(self.plotter, skeleton)
         self.captions = {k: self._caption(CHARACTER_TITLES[k], CHARACTERS[k]) for k in CHARACTER_KEYS}
         self.floor = self._floor()
         self.layout = "overlay"
@@ -81,20 +70,17 @@ class Scene:
         self.renderer.AddObserver("StartEvent", lambda *_: self._refit_if_resized())
 
     def close(self) -> None:
-        self.render_window.Finalize()
+        self.plotter.close()
 
     # ---- building blocks ----------------------------------------------------------------
-    def _caption(self, text: str, color: str):
-        actor = vtkBillboardTextActor3D()
-        actor.SetInput(text)
-        prop = actor.GetTextProperty()
-        prop.SetFontSize(18)
-        prop.SetBold(True)
-        prop.SetColor(*rgb(color))
-        prop.SetJustificationToCentered()
-        actor.SetVisibility(False)
-        self.renderer.AddActor(actor)
-        return actor
+    def _caption(self, text: str, color: str) -> pv.Label:
+        label = pv.Label(text, size=18)
+        label.prop.bold = True
+        label.prop.color = color
+        label.prop.justification_horizontal = "center"
+        label.SetVisibility(False)
+        self.plotter.add_actor(label, reset_camera=False, render=False)
+        return label
 
     def _floor(self):
         """The floor as a grid of 2 (n + 1) lines on the background. Why no shaded plane under it: on llvmpipe that
@@ -102,11 +88,11 @@ class Scene:
         n x n plane drawn again as wireframe had cost 2 ms more than these lines (session 10)."""
         size, n, y = 9.0, 18, self.floor_y
         ticks = np.linspace(-size / 2, size / 2, n + 1)
-        poly, points = line_polydata(4 * (n + 1))
-        points[:] = [p for u in ticks for p in ((u, y, 0.5 - size / 2), (u, y, 0.5 + size / 2),
-                                               (-size / 2, y, 0.5 + u), (size / 2, y, 0.5 + u))]
-        set_lines(poly, [(2 * k, 2 * k + 1) for k in range(2 * (n + 1))])
-        return add_actor(self.renderer, poly, "#b9bec8", lit=False)
+        grid = line_mesh(4 * (n + 1))
+        grid.points[:] = [p for u in ticks for p in ((u, y, 0.5 - size / 2), (u, y, 0.5 + size / 2),
+                                                    (-size / 2, y, 0.5 + u), (size / 2, y, 0.5 + u))]
+        set_lines(grid, [(2 * k, 2 * k + 1) for k in range(2 * (n + 1))])
+        return add_actor(self.plotter, grid, "#b9bec8", lit=False)
 
     # ---- content ------------------------------------------------------------------------
     def set_sequence(self, leader: np.ndarray, ground_truth: np.ndarray | None, synthesized: np.ndarray, frame: int = 0) -> None:
@@ -196,7 +182,7 @@ class Scene:
             yaw = 0.0 if k == "leader" else 180.0
             fig.place((float(root[0]), 0.0, float(root[2])), (dx - float(root[0]), 0.0, -float(root[2])), yaw)
             if cap is not None:
-                cap.SetPosition(dx, top, 0.0)
+                cap.position = (dx, top, 0.0)
                 cap.SetVisibility(self.visible[k])
 
     # ---- camera -------------------------------------------------------------------------
@@ -276,6 +262,13 @@ class Scene:
             images.append(self.screenshot())
         self.set_frame(keep)
         return images
+
+
+def warm_up() -> None:
+    """Pay PyVista's first-Plotter costs (its display check, the VTK modules it imports on first use: ~0.2 s) in the
+    process that forks the studio processes. The throwaway Plotter is never rendered, so no OpenGL context exists
+    before a fork."""
+    pv.Plotter(off_screen=True).close()
 
 
 def floor_height(leader: np.ndarray, follower: np.ndarray, skeleton: Skeleton) -> float:

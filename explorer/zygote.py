@@ -37,8 +37,11 @@ def preload() -> None:
     from trame_rca.schedulers import image_scheduler  # noqa: F401
     from wslink.websocket import LinkProtocol  # noqa: F401
 
-    import explorer.app  # noqa: F401 - the page, the scene (VTK), the charts, the view stream
+    import explorer.app  # noqa: F401 - the page, the scene (PyVista), the charts, the view stream
     import explorer.page_shell  # noqa: F401
+    from explorer.scene import warm_up
+
+    warm_up()  # PyVista's first-Plotter costs, paid here once rather than in every tab
     import explorer.upload_reader  # noqa: F401 - not the file readers it runs (bvh: 0.5 s here), which uploads import
 
 

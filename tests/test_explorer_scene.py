@@ -1,11 +1,11 @@
-"""The VTK scene off screen: poses move points in place; layouts, visibility and camera presets."""
+"""The PyVista scene off screen: poses move points in place; layouts, visibility and camera presets."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-pytest.importorskip("vtk")
+pytest.importorskip("pyvista")
 
 
 @pytest.fixture(scope="module")
@@ -73,3 +73,12 @@ def test_export_frames(scene):
     frames = scene.frames()
     assert len(frames) == len(scene.sequences["leader"]) and frames[0].shape[2] == 3
     assert scene.frame == keep
+
+
+def test_the_scene_is_made_of_pyvista_objects(scene):
+    import pyvista as pv
+
+    assert isinstance(scene.plotter, pv.Plotter) and scene.render_window is scene.plotter.render_window
+    assert all(isinstance(f.poly, pv.PolyData) and all(isinstance(a, pv.Actor) for a in f.actors) for f in scene.figures.values())
+    assert isinstance(scene.captions["leader"], pv.Label) and isinstance(scene.floor, pv.Actor)
+    assert scene.figures["leader"].poly.n_verts == 0 and scene.figures["leader"].poly.n_lines == len(scene.skeleton.bones)

@@ -106,9 +106,9 @@
   }
 
   async function render() {
-    const {points, marks, mode, colors} = last;
+    const Plotly = await plotly();  // loading starts after the first picture even while a cold map is still fitted
+    const {points, marks, mode, colors} = last;  // the latest, once plotly.js is there
     if (!points || !colors) return;
-    const Plotly = await plotly();
     const el = document.getElementById(PLOT_ID);
     if (!el) return;
     await Plotly.react(el, traces(points, marks, mode, colors), layout(points), CONFIG);
