@@ -149,17 +149,18 @@ def studio_memory(launcher_pid: int) -> dict:
     kids = _children(launcher_pid)
     zygotes = [k for k in kids if _children(k)]
     tabs = [k for k in kids if k not in zygotes] + [c for z in zygotes for c in _children(z)]  # the former: no zygote
-    return {"zygote": [_smaps_mb(z) for z in zygotes], "tabs": [_smaps_mb(t) for t in tabs]}
+    readers = [h for t in tabs for h in _children(t)]  # each studio process's upload reader (explorer/upload_reader.py)
+    return {"zygote": [_smaps_mb(z) for z in zygotes], "tabs": [_smaps_mb(t) for t in tabs], "readers": [_smaps_mb(h) for h in readers]}
 
 
 def print_memory(memory: dict, tabs: int) -> None:
     procs = memory["tabs"]
-    total_pss = sum(m["pss"] for m in memory["zygote"] + procs)
+    total_pss = sum(m["pss"] for m in memory["zygote"] + procs + memory["readers"])
     col = lambda key, ms=procs: ", ".join(f"{m[key]:.0f}" for m in ms)  # noqa: E731
     print(f"memory with {tabs} tabs open: {len(procs)} studio processes (one per tab + the warm spare) forked from one "
           f"loaded zygote ({col('rss', memory['zygote'])} MB RSS)\n"
           f"  per studio process: RSS {col('rss')} MB; PSS {col('pss')} MB; USS (its own pages) {col('uss')} MB\n"
-          f"  in all (PSS of the zygote and every studio process): {total_pss:.0f} MB = {total_pss / tabs:.0f} MB per tab   "
+          f"  in all (PSS: zygote, studio processes, upload readers): {total_pss:.0f} MB = {total_pss / tabs:.0f} MB per tab   "
           "[goal <= 300 MB per tab]")
 
 
