@@ -301,7 +301,6 @@ class Launcher:
             w = await self.take()
         except LaunchError as err:
             return web.Response(status=503, content_type="text/html", text=_error_page(str(err)))
-        w.last_seen = time.monotonic()
         asyncio.get_running_loop().call_later(CLAIM_TIMEOUT_S, self._retire_if_unconnected, w)
         token = secrets.token_urlsafe(18)
         self.sessions[token] = w
