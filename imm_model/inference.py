@@ -301,28 +301,43 @@ def check_seeds(seed: int, samples: int | None) -> list[int]:
 
 
 class DiffusionReactionModel(ReactionModel):
-    """The reaction diffusion model (model/diffusion.py) behind the ReactionModel API. A seed fixes the sampler's
-    starting noise, so the same seed with a moved label slider moves the reaction continuously; another seed is
-    another reaction. `guidance` (label strength, leader guidance, steps) defaults to what the model shipped with."""
+    """The reaction diffusion model (model/diffusion_sampler.py) behind the ReactionModel API. A seed fixes the
+    sampler's starting noise, so the same seed with a moved label slider moves the reaction continuously; another seed
+    is another reaction. `guidance` (label strength, leader guidance, steps) defaults to what the model shipped with.
+    On a CPU the denoiser runs in numpy (model/diffusion_numpy.py: no `import torch`), on a GPU in torch."""
 
     family = "diffusion"
     stochastic = True
     BATCH = 64  # sequences per sampler batch (bounds memory for `imm evaluate`'s hundreds of reactions)
 
-    def __init__(self, net, guidance, meta: dict[str, Any], path: Path | None = None, device: str = "cpu"):
-        self.net = net
-        self.config = net.cfg
+    def __init__(self, weights: dict[str, np.ndarray], config, guidance, meta: dict[str, Any], path: Path | None = None,
+                 device: str = "cpu"):
+        from imm_model.model.diffusion_numpy import NumpyDenoiser
+
+        self.weights = weights  # the denoiser's state dict, float32 arrays
+        self.config = config
         self.guidance = guidance
         self.device = str(device)
-        self.fast = None
+        self.fast = NumpyDenoiser(weights, config) if self.device == "cpu" else None
         self._read_meta(meta, path)
+
+    @functools.cached_property
+    def net(self):
+        """The torch ReactionDenoiser with these weights, on `device` (built when first needed)."""
+        import torch
+
+        from imm_model.checkpoint import load_module_state
+        from imm_model.model.diffusion import ReactionDenoiser
+
+        net = ReactionDenoiser(self.config)
+        load_module_state(net, {k: torch.from_numpy(v) for k, v in self.weights.items()}, "denoiser", self.path)
+        return net.eval().to(self.device)
 
     @classmethod
     def from_checkpoint(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], path: Path, device: str = "cpu"):
-        import torch
-
-        from imm_model.checkpoint import load_module_state, prefixed
-        from imm_model.model.diffusion import DiffusionConfig, Guidance, ReactionDenoiser
+        from imm_model.checkpoint import check_state, prefixed
+        from imm_model.model.diffusion_numpy import NumpyDenoiser
+        from imm_model.model.diffusion_sampler import DiffusionConfig, Guidance
         from imm_model.skeleton import Skeleton
 
         try:
@@ -338,44 +353,75 @@ class DiffusionReactionModel(ReactionModel):
         bad = sorted(k for k, v in weights.items() if v.dtype.kind != "f" or not np.isfinite(v).all())
         if bad:
             raise CheckpointError(f"{path}: weights that are not finite floats ({', '.join(bad[:3])}{', ...' if len(bad) > 3 else ''})")
-        net = ReactionDenoiser(cfg)
-        load_module_state(net, {k: torch.from_numpy(np.ascontiguousarray(v, np.float32)) for k, v in weights.items()}, "denoiser", path)
-        return cls(net.eval().to(device), guidance, meta, path, device)
+        check_state(weights, NumpyDenoiser.expected_shapes(cfg), "denoiser", path)
+        model = cls({k: np.ascontiguousarray(v, np.float32) for k, v in weights.items()}, cfg, guidance, meta, path, device)
+        if model.fast is None:
+            model.net  # noqa: B018 - built (and moved to the GPU) now, not at the first synthesis
+        return model
+
+    def _denoiser(self, leaders: np.ndarray, mask: np.ndarray):
+        """`sample`'s network call for these (normalized) leaders: numpy on a CPU, torch elsewhere."""
+        if self.fast is None:
+            from imm_model.model.diffusion import torch_denoiser
+
+            return torch_denoiser(self.net, leaders, mask)
+
+        def denoise(x_t, step, leader_on, label, label_on):
+            reps = len(x_t) // len(leaders)
+            return self.fast(x_t, step, np.tile(leaders, (reps, 1, 1)), leader_on, label, label_on, np.tile(mask, (reps, 1)))
+
+        return denoise
+
+    def _padded(self, arrays: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """[(T_i, ...)] -> (B, T_max, D) float32 zero-padded, (B, T_max) bool mask."""
+        d = self.config.pose_dim
+        out = np.zeros((len(arrays), max(len(a) for a in arrays), d), np.float32)
+        mask = np.zeros(out.shape[:2], bool)
+        for i, a in enumerate(arrays):
+            out[i, : len(a)] = np.asarray(a, np.float32).reshape(len(a), d)
+            mask[i, : len(a)] = True
+        return out, mask
+
+    def _normalize_leaders(self, leaders: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        x, mask = self._padded(leaders)
+        mean, std = self.weights["leader_mean"], self.weights["leader_std"]
+        return (x - mean) / std * mask[..., None], mask
 
     def _network(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int]) -> list[np.ndarray]:
-        import torch
+        from imm_model.model.diffusion_sampler import initial_noise, sample
 
-        from imm_model.data.batching import pad_sequences
-        from imm_model.model.diffusion import initial_noise, sample
-
-        d = self.net.cfg.pose_dim
+        d = self.config.pose_dim
         out: list[np.ndarray] = []
         for start in range(0, len(leaders), self.BATCH):
-            rows = range(start, min(start + self.BATCH, len(leaders)))
-            x, mask = pad_sequences([np.asarray(leaders[i], np.float32).reshape(len(leaders[i]), d) for i in rows])
-            noise, _ = pad_sequences([initial_noise(seeds[i], len(leaders[i]), d) for i in rows])
-            dev = self.device
-            followers = sample(self.net, x.to(dev), mask.to(dev), torch.from_numpy(labels[list(rows)]).to(dev), noise.to(dev),
-                               self.guidance).cpu().numpy()
+            rows = list(range(start, min(start + self.BATCH, len(leaders))))
+            x, mask = self._normalize_leaders([leaders[i] for i in rows])
+            noise, _ = self._padded([initial_noise(seeds[i], len(leaders[i]), d) for i in rows])
+            x0 = sample(self._denoiser(x, mask), x, mask, labels[rows], noise, self.guidance, self.config.diffusion_steps)
+            followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
             out += [followers[k, : len(leaders[i])].reshape(len(leaders[i]), -1, 3) for k, i in enumerate(rows)]
         return out
 
     def latent_canonical_batch(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> np.ndarray:
         """N canonical leaders + (N, C) labels -> (N, width): the denoiser's last hidden state, averaged over frames,
         for the leader and label with the follower all noise (the first sampler step's view of the reaction)."""
-        import torch
+        labels = self._label_array(label_vectors, len(leaders))
+        x, mask = self._normalize_leaders(leaders)
+        on = np.ones(len(leaders), bool)
+        step = self.config.diffusion_steps - 1
+        if self.fast is not None:
+            h, tokens = self.fast(np.zeros_like(x), step, x, on, labels, np.abs(labels).sum(1) > 0, mask, return_hidden=True)
+        else:
+            import torch
 
-        from imm_model.data.batching import pad_sequences
-
-        labels = torch.from_numpy(self._label_array(label_vectors, len(leaders)))
-        d, net, steps = self.net.cfg.pose_dim, self.net, self.net.cfg.diffusion_steps
-        x, mask = pad_sequences([np.asarray(a, np.float32).reshape(len(a), d) for a in leaders])
-        on = torch.ones(len(leaders), dtype=torch.bool)
-        with torch.inference_mode():
-            m = mask[..., None].float()
-            h = net(torch.zeros_like(x), torch.full((len(leaders),), steps - 1), net.normalize(x, "leader") * m, on, labels,
-                    labels.abs().sum(1) > 0, mask, return_hidden=True)
-            return ((h * m).sum(1) / m.sum(1)).numpy()
+            dev = self.device
+            with torch.inference_mode():
+                h, tokens = self.net(torch.zeros(x.shape, device=dev), torch.full((len(x),), step, device=dev),
+                                     torch.as_tensor(x, device=dev), torch.as_tensor(on, device=dev),
+                                     torch.as_tensor(labels, device=dev), torch.as_tensor(np.abs(labels).sum(1) > 0, device=dev),
+                                     torch.as_tensor(mask, device=dev), return_hidden=True)
+                h, tokens = h.cpu().numpy(), tokens.cpu().numpy()
+        m = tokens[..., None].astype(np.float32)
+        return (h * m).sum(1) / m.sum(1)
 
 
 def check_compatible(model, data, where: str = "checkpoint") -> None:

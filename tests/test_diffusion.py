@@ -15,7 +15,9 @@ from imm_model.checkpoint import load_checkpoint
 from imm_model.cli import main
 from imm_model.errors import LabelError, TrainingError
 from imm_model.inference import DiffusionReactionModel, ReactionModel
-from imm_model.model.diffusion import DiffusionConfig, Guidance, ReactionDenoiser, cosine_alpha_bar
+from imm_model.model.diffusion import ReactionDenoiser, torch_denoiser
+from imm_model.model.diffusion_numpy import NumpyDenoiser
+from imm_model.model.diffusion_sampler import DiffusionConfig, Guidance, cosine_alpha_bar, initial_noise, sample
 from imm_model.paths import SAMPLE_CHECKPOINT
 from imm_model.training.diffusion import IMM_DIFFUSION, DiffusionTrainConfig, DiffusionTrainer, diffusion_recipe
 
@@ -66,6 +68,25 @@ def test_adaln_blocks_start_as_identity():
         assert torch.equal(block(x, cond, None), x)
 
 
+@pytest.mark.parametrize("frames_per_token", [1, 2])
+def test_every_frame_predicted_and_padding_ignored(frames_per_token):
+    """An odd-length sequence keeps all its frames with two frames a token, and gives the same prediction alone as
+    padded in a batch beside a longer one."""
+    torch.manual_seed(0)
+    net = ReactionDenoiser(DiffusionConfig(width=16, layers=2, heads=2, frames_per_token=frames_per_token)).eval()
+    for block in net.blocks:  # away from the identity start, so that attention across frames matters
+        torch.nn.init.normal_(block.modulation.weight, std=0.3)
+    x, leader = torch.randn(2, 10, 45), torch.randn(2, 10, 45)
+    mask = torch.arange(10)[None] < torch.tensor([[7], [10]])
+    x, leader = x * mask[..., None], leader * mask[..., None]
+    on, label = torch.tensor([True, True]), torch.eye(6)[:2]
+    with torch.no_grad():
+        batch = net(x, torch.tensor([50, 50]), leader, on, label, on, mask)
+        alone = net(x[:1, :7], torch.tensor([50]), leader[:1, :7], on[:1], label[:1], on[:1])
+    assert batch.shape == (2, 10, 45) and alone.shape == (1, 7, 45)
+    assert torch.allclose(batch[0, :7], alone[0], atol=1e-5)
+
+
 def test_trained_model_loads_as_the_diffusion_family(tiny_model):
     model = ReactionModel.load(tiny_model)
     assert isinstance(model, DiffusionReactionModel) and model.stochastic and model.family == "diffusion"
@@ -100,20 +121,36 @@ def test_a_moved_slider_moves_the_reaction_smoothly(tiny_model, leader):
 
 
 def test_signed_composition(tiny_model, sample_data):
-    """All-zero labels are the leader-only term; -1 moves the other way from +1 (a negation); a class no row asks about
-    costs no network term."""
-    from imm_model.model.diffusion import initial_noise, sample
-
+    """All-zero labels are the leader-only term; -1 moves the other way from +1 (a negation), by the same amount after
+    one step; the numpy and torch networks sample the same reaction."""
     model = ReactionModel.load(tiny_model)
-    net = model.net
-    leader = torch.from_numpy(sample_data.canonical(0)[0].reshape(1, -1, 45))
-    mask = torch.ones(1, leader.shape[1], dtype=torch.bool)
-    noise = torch.from_numpy(initial_noise(0, leader.shape[1], 45))[None]
+    leader, mask = model._normalize_leaders([sample_data.canonical(0)[0]])
+    noise = initial_noise(0, leader.shape[1], 45)[None]
     one_step = replace(model.guidance, sample_steps=1)
-    label = lambda v: torch.tensor([[0, v, 0, 0, 0, 0]], dtype=torch.float32)  # noqa: E731
-    base, plus, minus = (sample(net, leader, mask, label(v), noise, one_step) for v in (0.0, 1.0, -1.0))
-    assert torch.allclose(plus - base, base - minus, atol=1e-4)  # one step: exactly linear in the weight
-    assert (plus - base).abs().mean() > 1e-4
+    label = lambda v: np.array([[0, v, 0, 0, 0, 0]], np.float32)  # noqa: E731
+    denoise = model._denoiser(leader, mask)
+    base, plus, minus = (sample(denoise, leader, mask, label(v), noise, one_step, 100) for v in (0.0, 1.0, -1.0))
+    assert np.allclose(plus - base, base - minus, atol=1e-4) and np.abs(plus - base).mean() > 1e-4
+    on_torch = sample(torch_denoiser(model.net, leader, mask), leader, mask, label(1.0), noise, model.guidance, 100)
+    assert np.allclose(on_torch, sample(denoise, leader, mask, label(1.0), noise, model.guidance, 100), atol=1e-4)
+
+
+@pytest.mark.parametrize("frames_per_token", [1, 2])
+def test_numpy_denoiser_matches_torch(frames_per_token):
+    torch.manual_seed(1)
+    cfg = DiffusionConfig(width=16, layers=2, heads=2, frames_per_token=frames_per_token)
+    net = ReactionDenoiser(cfg).eval()
+    for block in net.blocks:
+        torch.nn.init.normal_(block.modulation.weight, std=0.3)
+    state = {k: v.numpy() for k, v in net.state_dict().items()}
+    assert {k: v.shape for k, v in state.items()} == NumpyDenoiser.expected_shapes(cfg)
+    fast = NumpyDenoiser(state, cfg)
+    x, leader = np.random.default_rng(0).standard_normal((2, 2, 9, 45)).astype(np.float32)
+    mask = np.arange(9)[None] < np.array([[9], [6]])
+    on, label = np.array([True, False]), np.eye(6, dtype=np.float32)[:2]
+    with torch.no_grad():
+        ref = net(*map(torch.as_tensor, (x, np.array([30, 30]), leader, on, label, on[::-1].copy(), mask))).numpy()
+    assert np.allclose(fast(x, 30, leader, on, label, on[::-1].copy(), mask)[mask], ref[mask], atol=1e-5)
 
 
 def test_resume_continues_exactly(sample_data, tmp_path):

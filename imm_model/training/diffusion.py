@@ -25,7 +25,8 @@ from imm_model.data.dataset import InteractionDataset
 from imm_model.data.sequence import MAX_COORDINATE_M
 from imm_model.data.splits import loso_fold
 from imm_model.errors import CheckpointError, TrainingError
-from imm_model.model.diffusion import DiffusionConfig, Guidance, ReactionDenoiser, cosine_alpha_bar, q_sample
+from imm_model.model.diffusion import ReactionDenoiser, q_sample
+from imm_model.model.diffusion_sampler import DiffusionConfig, Guidance, cosine_alpha_bar
 from imm_model.training.data import Augmenter, PaddedData
 from imm_model.typed_config import checked_kwargs
 

@@ -1,0 +1,64 @@
+"""Diffusion sampling speed: one 46-frame reaction with 0-3 classes composed, against the GAN in the same run.
+
+    .venv/bin/python benchmarks/diffusion_speed.py --checkpoint sample_data/imm_diffusion.safetensors [--threads 1]
+        [--repeats 30] [--device cpu|cuda] [--gan sample_data/imm_sbu.safetensors]
+
+Prints the median and p90 of `ReactionModel.synthesize_canonical` (clean-up included) for each number of classes
+composed (each class is one more network term per sampler step), the sampler's steps, and the GAN's median on the same
+leader, interleaved so that both see the same machine load.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+import torch
+
+from imm_model.data.dataset import InteractionDataset
+from imm_model.device import add_device_argument, resolve_device
+from imm_model.inference import ReactionModel
+from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA
+
+
+def timed(fn, repeats: int) -> list[float]:
+    fn()  # warm-up
+    out = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        out.append((time.perf_counter() - t) * 1000)
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--checkpoint", required=True)
+    ap.add_argument("--gan", default=str(SAMPLE_CHECKPOINT))
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--repeats", type=int, default=30)
+    add_device_argument(ap, default="cpu")
+    args = ap.parse_args()
+    torch.set_num_threads(args.threads)
+    device = str(resolve_device(args.device))
+    data = InteractionDataset.load(SAMPLE_DATA)
+    model, gan = ReactionModel.load(args.checkpoint, device=device), ReactionModel.load(args.gan, device=device)
+    leader = data.canonical(int(np.argmax(data.lengths)))[0]
+    print(f"checkpoint {args.checkpoint}; {len(leader)} frames; torch threads {torch.get_num_threads()}; device {device}; "
+          f"{model.guidance.sample_steps} sampler steps")
+    for k in range(4):
+        label = np.zeros(len(model.class_names), np.float32)
+        label[:k] = 1.0
+        times, gan_times = [], []
+        for _ in range(args.repeats):  # interleaved: both models meet the same load
+            times += timed(lambda label=label: model.synthesize_canonical(leader, label), 1)
+            gan_times += timed(lambda label=label: gan.synthesize_canonical(leader, label), 1)
+        p90 = statistics.quantiles(times, n=10)[-1]
+        print(f"{k} classes composed: median {statistics.median(times):.1f} ms, p90 {p90:.1f} ms "
+              f"(GAN median {statistics.median(gan_times):.1f} ms; ratio {statistics.median(times) / statistics.median(gan_times):.1f}x)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,152 @@
+"""The reaction diffusion model without its network: sizes, noise schedule, guidance and the DDIM sampler that
+composes the signed multi-hot label. numpy only, so that the studio samples without importing torch.
+
+The network (model/diffusion.py in torch for training and GPUs, model/diffusion_numpy.py in numpy for one CPU) predicts
+the clean follower x0 from a noised one x_t, given per frame the leader's pose and, for the whole sequence, the
+diffusion step and a label. Training drops the label and the leader independently (each replaced by a learned
+"absent" input), so one network gives every term the sampler composes:
+
+    x0(A, {w_c}) = x0(A, -) + s * sum_c w_c * (x0(A, e_c) - x0(A, -))
+
+the composable-diffusion rule (Liu et al., ECCV 2022) on top of the leader-conditioned, label-free reaction: a
+class at +1 is a conjunction, at -1 a negation, fractions weigh it, the studio's scale multiplies every w_c and
+`s` is the model's guidance strength. All-zero labels give the label-free reaction. The leader term itself can be
+guided too (x0(-, -) + g * (x0(A, -) - x0(-, -))) when g != 1.
+
+A sampler seed fixes the starting noise and nothing else, and DDIM (eta = 0) is deterministic given it, so the
+reaction is a continuous function of the label: a moved slider moves the reaction, it does not jump to another
+sample.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from imm_model.typed_config import checked_kwargs
+
+MAX_WIDTH = 2048
+
+
+@dataclass(frozen=True)
+class DiffusionConfig:
+    num_joints: int = 15
+    num_classes: int = 6
+    width: int = 128  # transformer token width
+    layers: int = 4  # transformer blocks
+    heads: int = 4  # attention heads per block (width must divide by it)
+    ff_mult: int = 2  # the blocks' MLP is ff_mult * width wide
+    dropout: float = 0.1  # on attention and MLP outputs, training only
+    diffusion_steps: int = 100  # T of the cosine noise schedule the network is trained on
+    frames_per_token: int = 1  # consecutive frames one transformer token carries (2 halves the sampler's cost)
+
+    def __post_init__(self) -> None:
+        for name, lo, hi in (("num_joints", 1, 512), ("num_classes", 1, 512), ("width", 8, MAX_WIDTH), ("layers", 1, 64),
+                             ("heads", 1, 64), ("ff_mult", 1, 16), ("diffusion_steps", 2, 10_000),
+                             ("frames_per_token", 1, 8)):
+            if not lo <= getattr(self, name) <= hi:
+                raise ValueError(f"diffusion config: {name} must be in {lo}..{hi}, not {getattr(self, name)!r}")
+        if self.width % self.heads:
+            raise ValueError(f"diffusion config: width {self.width} must be a multiple of heads {self.heads}")
+        if not 0 <= self.dropout < 1:
+            raise ValueError(f"diffusion config: dropout must be in [0, 1), not {self.dropout!r}")
+
+    @property
+    def pose_dim(self) -> int:
+        return 3 * self.num_joints
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> DiffusionConfig:
+        return cls(**checked_kwargs(cls, d, "diffusion config"))
+
+
+# ---- noise schedule -------------------------------------------------------------------------------------------
+def cosine_alpha_bar(steps: int) -> np.ndarray:
+    """(steps,) cumulative signal fraction alpha_bar_t for t = 0..steps-1 (Nichol & Dhariwal 2021), float64."""
+    s = 0.008
+    t = np.arange(steps + 1, dtype=np.float64) / steps
+    f = np.cos((t + s) / (1 + s) * math.pi / 2) ** 2
+    alpha_bar = f[1:] / f[0]
+    betas = np.clip(1 - alpha_bar / np.concatenate([[1.0], alpha_bar[:-1]]), 0, 0.999)
+    return np.cumprod(1 - betas)
+
+
+# ---- sampling ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Guidance:
+    """How the sampler composes its terms; stored with each trained model as its defaults."""
+
+    label_scale: float = 2.5  # s: the strength of each class term (times the label value)
+    leader_scale: float = 1.0  # g: guidance on the leader term; 1 = the leader-conditioned term alone
+    sample_steps: int = 20  # DDIM steps
+    clip: float = 6.0  # x0 predictions clamped to this many training standard deviations per coordinate
+
+    def __post_init__(self) -> None:
+        for name, lo, hi in (("label_scale", 0.0, 20.0), ("leader_scale", 0.0, 20.0), ("clip", 0.5, 100.0)):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and lo <= value <= hi):
+                raise ValueError(f"guidance: {name} must be in [{lo}, {hi}], not {value!r}")
+        if not (isinstance(self.sample_steps, int) and 1 <= self.sample_steps <= 1000):
+            raise ValueError(f"guidance: sample_steps must be an integer in 1..1000, not {self.sample_steps!r}")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Guidance:
+        return cls(**checked_kwargs(cls, d, "guidance"))
+
+
+def initial_noise(seed: int, frames: int, dim: int) -> np.ndarray:
+    """The sampler's starting point for one sequence: a function of the seed and the shape only (float32)."""
+    return np.random.default_rng(int(seed)).standard_normal((frames, dim)).astype(np.float32)
+
+
+def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, noise: np.ndarray, guidance: Guidance,
+           diffusion_steps: int) -> np.ndarray:
+    """DDIM (eta 0) from `noise` (B, T, D) -> normalized followers x0 (B, T, D), numpy float32.
+
+    `denoise(x_t, step, leader_on, label, label_on)` is the network on a batch of the same rows repeated per term:
+    x_t (N, T, D), step int, leader_on (N,) bool, label (N, C) one-hot, label_on (N,) bool -> x0 (N, T, D); it reads
+    `leaders` (normalized, B rows, repeated alike) and `mask` from its closure. labels (B, C) are signed weights
+    (already times the scale). Each step evaluates, in one batch, the leader-only term, one term per class any row
+    weighs, and (with leader_scale != 1) the unconditioned term."""
+    b, t, d = noise.shape
+    c = labels.shape[1]
+    classes = np.flatnonzero(np.abs(labels).sum(0) > 0).tolist()  # classes some row asks about
+    n_terms = 1 + len(classes) + (guidance.leader_scale != 1.0)
+    one_hot = np.zeros((n_terms, b, c), np.float32)
+    label_on = np.zeros((n_terms, b), bool)
+    for k, cls in enumerate(classes, start=1):
+        one_hot[k, :, cls] = 1.0
+        label_on[k] = True
+    leader_on = np.ones((n_terms, b), bool)
+    if guidance.leader_scale != 1.0:
+        leader_on[-1] = False
+    one_hot, label_on, leader_on = one_hot.reshape(-1, c), label_on.reshape(-1), leader_on.reshape(-1)
+    weights = (labels[:, classes].T * guidance.label_scale)[..., None, None].astype(np.float32)  # (K, B, 1, 1)
+
+    alpha_bar = cosine_alpha_bar(diffusion_steps)
+    steps = np.linspace(diffusion_steps - 1, 0, guidance.sample_steps).round().astype(int)
+    m = mask[..., None].astype(np.float32)
+    x = noise.astype(np.float32)
+    for i, step in enumerate(steps):
+        terms = denoise(np.tile(x, (n_terms, 1, 1)), int(step), leader_on, one_hot, label_on).reshape(n_terms, b, t, d)
+        base = terms[0]
+        x0 = base
+        if classes:
+            x0 = x0 + (weights * (terms[1:1 + len(classes)] - base)).sum(0)
+        if guidance.leader_scale != 1.0:
+            x0 = terms[-1] + guidance.leader_scale * (x0 - terms[-1])
+        x0 = np.clip(x0, -guidance.clip, guidance.clip) * m
+        if i + 1 == len(steps):
+            return x0.astype(np.float32)
+        a, a_next = alpha_bar[step], alpha_bar[steps[i + 1]]
+        eps = (x - np.sqrt(a) * x0) / np.sqrt(1 - a)
+        x = ((np.sqrt(a_next) * x0 + np.sqrt(1 - a_next) * eps) * m).astype(np.float32)
+    raise AssertionError("unreachable: sample_steps >= 1")
