@@ -6,11 +6,15 @@ They are trame triggers, not controllers: the page awaits the returned bytes to 
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
 
 from explorer.session import FPS
+
+CHARACTERS = ("follower", "leader")
+VIDEO_FORMATS = ("gif", "mp4")
 
 
 def one_line(err: BaseException) -> str:
@@ -36,6 +40,8 @@ class Exports:
         return self._send(self.session.export_name("npz"), self.session.export_npz())
 
     def export_bvh(self, character: str = "follower"):
+        if character not in CHARACTERS:
+            raise ValueError(f"unknown character {character!r}: {' or '.join(CHARACTERS)}")
         data = self.session.export_bvh(character)
         return self._send(self.session.export_name("bvh").replace(".bvh", f".{character}.bvh"), data)
 
@@ -48,6 +54,9 @@ class Exports:
     def export_video(self, fmt: str = "gif"):
         import imageio.v3 as iio
 
+        if fmt not in VIDEO_FORMATS:
+            raise ValueError(f"unknown video format {fmt!r}: {' or '.join(VIDEO_FORMATS)}")
+
         images = self.studio.scene.frames()
         self.studio.ctrl.view_update()
         if fmt == "mp4":
@@ -58,10 +67,21 @@ class Exports:
         return self._send(self.session.export_name(fmt), data)
 
     def _save_copy(self, name: str, data: bytes) -> None:
+        """Saved under a name made of safe characters only (it comes partly from an upload's file name), beside
+        and never over earlier exports (NAME-2.EXT, ...)."""
+        from imm_model.errors import IMMError
+        from imm_model.outputs import write_new
+
         state = self.studio.state
         try:
-            self.export_dir.mkdir(parents=True, exist_ok=True)
-            (self.export_dir / name).write_bytes(data)
-            state.notice = f"saved {self.export_dir / name}"
-        except OSError as err:
+            path = write_new(self.export_dir / safe_file_name(name), data)
+            state.notice = f"saved {path}"
+        except (OSError, IMMError) as err:
             state.notice = f"download only (could not save a copy: {one_line(err)})"
+
+
+def safe_file_name(name: str) -> str:
+    """NAME.EXT with letters, digits and . _ + - only (anything else becomes _), no leading dot, bounded length."""
+    stem, _, ext = name.rpartition(".")
+    stem = re.sub(r"[^A-Za-z0-9._+-]", "_", stem).lstrip(".")[:100] or "export"
+    return f"{stem}.{re.sub(r'[^A-Za-z0-9]', '', ext)[:5] or 'bin'}"

@@ -2,52 +2,103 @@
 
 `NAME.safetensors` holds tensors only (model weights, optimizer moments); `NAME.json` beside it
 holds everything else (model config, skeleton, class names, canonical mode, held-out subject,
-training info, code version, optimizer hyper-parameters). A copy of the JSON is also stored in the
-safetensors header metadata, so a lone .safetensors file still loads. Writes are atomic.
+training info, code version, optimizer hyper-parameters, the weights' digest). A copy of the JSON is also stored in
+the safetensors header metadata, so a lone .safetensors file still loads. Writes are atomic, and a sidecar is only
+accepted beside the weights it was saved with.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
-import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from imm_model.errors import CheckpointError
+import numpy as np
+
+from imm_model.errors import CheckpointError, IMMError
 
 if TYPE_CHECKING:
     import torch
 
 FORMAT = "imm-checkpoint-1"
+DIGEST = "weights_sha256"  # in the sidecar and the header copy: which weights the metadata was saved with
 
 
 def sidecar_path(path: Path | str) -> Path:
     return Path(path).with_suffix(".json")
 
 
-def _atomic_write(path: Path, write) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    write(tmp)
-    os.replace(tmp, path)
+def _raw_bytes(tensor) -> np.ndarray:
+    """A tensor's (or array's) bytes as a flat uint8 array, the same for torch and numpy loads of one file."""
+    if isinstance(tensor, np.ndarray):
+        return np.ascontiguousarray(tensor).reshape(-1).view(np.uint8)
+    import torch
+
+    return tensor.detach().cpu().contiguous().reshape(-1).view(torch.uint8).numpy()
+
+
+def weights_digest(tensors: dict[str, Any]) -> str:
+    """SHA-256 of the tensors' names, shapes and bytes (not of the file, whose header holds the digest itself)."""
+    h = hashlib.sha256()
+    for name in sorted(tensors):
+        data = _raw_bytes(tensors[name])
+        h.update(f"{name}:{tuple(tensors[name].shape)}:{data.size}\n".encode())
+        h.update(data)
+    return h.hexdigest()
 
 
 def save_checkpoint(path: Path | str, tensors: dict[str, torch.Tensor], meta: dict[str, Any]) -> None:
-    """Write `path` (.safetensors) and its JSON sidecar atomically."""
-    from safetensors.torch import save_file
+    """Write `path` (.safetensors) and its JSON sidecar, both carrying the weights' digest. Both are written to
+    temporary files first and then renamed into place; a kill between the two renames leaves a pair whose digests
+    differ, which `load_checkpoint` refuses. A full disk is a one-line error and leaves the old pair."""
+    from safetensors.torch import save
+
+    from imm_model.outputs import write_files
 
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    meta = {"format": FORMAT, **meta}
-    text = json.dumps(meta, indent=1, sort_keys=True)
-    tensors = {k: v.detach().contiguous().clone() for k, v in tensors.items()}
-    _atomic_write(path, lambda tmp: save_file(tensors, str(tmp), metadata={"imm": json.dumps(meta, sort_keys=True)}))
-    _atomic_write(sidecar_path(path), lambda tmp: tmp.write_text(text + "\n"))
-    os.chmod(path, 0o644)
+    tensors = {k: v.detach().cpu().contiguous().clone() for k, v in tensors.items()}
+    meta = {"format": FORMAT, **meta, DIGEST: weights_digest(tensors)}
+    blob = save(tensors, metadata={"imm": json.dumps(meta, sort_keys=True)})
+    try:
+        write_files([(path, blob), (sidecar_path(path), json.dumps(meta, indent=1, sort_keys=True) + "\n")])
+    except IMMError as err:
+        raise CheckpointError(str(err)) from None
+
+
+def _check_pair(path: Path, side: Path, meta: dict, embedded: dict | None, tensors: dict) -> None:
+    """The sidecar must describe these weights: its digest equal to theirs; a sidecar without a digest beside weights
+    with one is from another save. Checkpoints saved before digests (neither has one) are matched by their training
+    record (epoch, best epoch) against the header's copy. Otherwise the sidecar may differ from the header's copy:
+    it is the editable description of the weights, the copy a fallback for a lone .safetensors file."""
+    actual = weights_digest(tensors)
+    header_ok = isinstance(embedded, dict) and embedded.get(DIGEST) == actual
+    advice = f"; {path.name} is whole: delete {side.name} to load it with the metadata saved inside it" if header_ok else ""
+    if DIGEST in meta:
+        if meta[DIGEST] != actual:
+            raise CheckpointError(f"{path}: the weights and {side.name} come from different saves (weights digest "
+                                  f"differs: an interrupted save?){advice}")
+    elif isinstance(embedded, dict) and DIGEST in embedded:
+        raise CheckpointError(f"{path}: {side.name} was not saved with these weights (it has no weights digest){advice}")
+    elif isinstance(embedded, dict) and "training" in embedded and "training" in meta:
+        if json.dumps(embedded["training"], sort_keys=True) != json.dumps(meta["training"], sort_keys=True):
+            raise CheckpointError(f"{path}: the weights and {side.name} come from different saves (their training "
+                                  f"records differ: an interrupted save?)")
+
+
+def _parse_meta(text: str, where: Path) -> dict:
+    try:
+        meta = json.loads(text)
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as err:  # RecursionError: absurdly nested JSON
+        raise CheckpointError(f"{where}: unreadable checkpoint sidecar ({type(err).__name__})") from None
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        raise CheckpointError(f"{where}: not an IMM checkpoint sidecar (format {meta.get('format') if isinstance(meta, dict) else '?'})")
+    return meta
 
 
 def load_checkpoint(path: Path | str, framework: str = "pt") -> tuple[dict[str, Any], dict[str, Any]]:
-    """-> (tensors, meta): torch tensors, or numpy arrays with framework="np" (torch is not imported then). Any
-    problem -> CheckpointError with a one-line message."""
+    """-> (tensors, meta): torch tensors, or numpy arrays with framework="np" (torch is not imported then). The
+    sidecar is checked against the weights (`_check_pair`). Any problem -> CheckpointError with a one-line message."""
     from safetensors import safe_open
 
     path = Path(path)
@@ -63,15 +114,25 @@ def load_checkpoint(path: Path | str, framework: str = "pt") -> tuple[dict[str, 
         reason = str(err).splitlines()[0] if str(err) else type(err).__name__
         raise CheckpointError(f"{path}: not a readable safetensors checkpoint ({reason})") from None
     side = sidecar_path(path)
-    try:
-        text = side.read_text() if side.is_file() else header.get("imm")
-        if text is None:
-            raise CheckpointError(f"{path}: no JSON sidecar ({side.name}) and no embedded metadata")
-        meta = json.loads(text)
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as err:  # RecursionError: absurdly nested JSON
-        raise CheckpointError(f"{side}: unreadable checkpoint sidecar ({type(err).__name__})") from None
-    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
-        raise CheckpointError(f"{side}: not an IMM checkpoint sidecar (format {meta.get('format') if isinstance(meta, dict) else '?'})")
+    embedded = None
+    if header.get("imm") is not None:
+        try:
+            embedded = json.loads(header["imm"])
+        except (json.JSONDecodeError, RecursionError):
+            embedded = None  # judged below only if there is no sidecar to use instead
+    if side.is_file():
+        try:
+            text = side.read_text()
+        except (OSError, UnicodeDecodeError) as err:
+            raise CheckpointError(f"{side}: unreadable checkpoint sidecar ({type(err).__name__})") from None
+        meta = _parse_meta(text, side)
+        _check_pair(path, side, meta, embedded, tensors)
+        return tensors, meta
+    if header.get("imm") is None:
+        raise CheckpointError(f"{path}: no JSON sidecar ({side.name}) and no embedded metadata")
+    meta = _parse_meta(header["imm"], path)
+    if DIGEST in meta and meta[DIGEST] != weights_digest(tensors):
+        raise CheckpointError(f"{path}: the weights do not match the digest saved with them (a damaged file?)")
     return tensors, meta
 
 
@@ -135,7 +196,8 @@ def final_checkpoint(fold_dir: Path | str) -> Path:
 
 
 def export_generator(best: Path | str, out: Path | str) -> None:
-    """Copy a run's checkpoint as a generator-only checkpoint (what inference needs)."""
+    """Copy a run's checkpoint as a generator-only checkpoint (what inference needs: the GAN's generator, or the
+    diffusion model's denoiser)."""
     tensors, meta = load_checkpoint(best)
-    generator = {k: v for k, v in tensors.items() if k.startswith("generator.")}
+    generator = {k: v for k, v in tensors.items() if k.startswith(("generator.", "denoiser."))}
     save_checkpoint(out, generator, {k: v for k, v in meta.items() if k != "format"} | {"kind": "generator"})

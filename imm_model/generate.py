@@ -68,12 +68,12 @@ def label_slug(vec: np.ndarray, class_names) -> str:
     return "_".join(f"{n}{v:+g}" for n, v in zip(class_names, vec, strict=True) if v) or "neutral"
 
 
-def _leaders(args: argparse.Namespace, model) -> list[tuple[str, np.ndarray, str | None]]:
-    """-> (item name, world leader (T, J, 3), dataset sequence id or None) per leader."""
+def _leaders(args: argparse.Namespace) -> list[tuple[str, np.ndarray, str]]:
+    """-> (item name, world leader (T, J, 3), where it came from: a leader file or a dataset sequence id) per leader."""
     from imm_model.inference import read_leader_file
 
     if args.leader:
-        return [(f.stem, read_leader_file(f, args.bvh_map), None) for f in leader_files(args.leader)]
+        return [(f.stem, read_leader_file(f, args.bvh_map), str(f)) for f in leader_files(args.leader)]
     from imm_model.data.dataset import InteractionDataset
     from imm_model.paths import SAMPLE_DATA
 
@@ -89,55 +89,75 @@ def _leaders(args: argparse.Namespace, model) -> list[tuple[str, np.ndarray, str
     return [(sid.replace("/", "-"), data.world(data.index_of(sid))[0], sid) for sid in ids]
 
 
+def leader_copy(path: Path) -> Path:
+    """The leader written beside a .bvh output (a BVH holds one character)."""
+    return path.with_suffix(".leader.bvh")
+
+
+def _inputs(args: argparse.Namespace, model) -> list[Path]:
+    """Every file the command reads: never one of its outputs, even with --force."""
+    from imm_model.checkpoint import sidecar_path
+    from imm_model.paths import SAMPLE_DATA
+
+    files = leader_files(args.leader) if args.leader else [args.data or SAMPLE_DATA]
+    checkpoint = [model.path, sidecar_path(model.path)] if model.path else []
+    return [*files, *checkpoint, *([args.bvh_map] if args.bvh_map else [])]
+
+
 def _cmd_generate(args: argparse.Namespace) -> int:
     import torch
 
     from imm_model.device import resolve_device
     from imm_model.inference import ReactionModel
-    from imm_model.outputs import check_output
+    from imm_model.outputs import Output, plan_outputs
 
     one_leader = bool(args.sequence) or bool(args.leader and len(args.leader) == 1 and args.leader[0].is_file())
     single = one_leader and not args.grid and len(args.label or []) <= 1
-    if single:  # refused before the model is even loaded
-        check_output(args.out, args.force, inputs=(*(args.leader or []), args.checkpoint, args.data))
+    if not single and args.out.suffix.lower() in (".npz", ".bvh"):
+        raise ValueError(f"--out {args.out}: several items need a folder, not a file name")
     torch.set_num_threads(2)
     model = ReactionModel.load(args.checkpoint, resolve_device(args.device))
     model.raw, model.average_placement = args.raw, args.average_placement
-    leaders, labels = _leaders(args, model), label_vectors(args, model)
+    leaders, labels = _leaders(args), label_vectors(args, model)
+    if single:
+        paths = {(0, 0): args.out}
+        outputs = [Output(args.out)]
+    else:
+        paths = {(k, c): args.out / f"{name}_{label_slug(vec, model.class_names)}.{args.format}"
+                 for k, (name, _, _) in enumerate(leaders) for c, vec in enumerate(labels)}
+        outputs = [Output(path, "--out", leaders[k][2]) for (k, _), path in paths.items()]
+    outputs += [Output(leader_copy(out.path), "--out's leader copy", out.source)
+                for out in list(outputs) if out.path.suffix.lower() == ".bvh"]
+    plan_outputs(outputs, _inputs(args, model), args.force)  # all refused before anything is written
     if single:
         return _generate_one(args, model, leaders[0], labels[0])
-    return _generate_batch(args, model, leaders, labels)
+    return _generate_batch(args, model, leaders, labels, paths, len(outputs))
 
 
 def _generate_one(args: argparse.Namespace, model, leader_item, vec: np.ndarray) -> int:
-    _, leader, sid = leader_item
+    _, leader, source = leader_item
     follower = _synthesize(model, [leader], vec)[0]
-    _write(args.out, leader, follower, model, vec, args.scale, sid)
+    _write(args.out, leader, follower, model, vec, args.scale, None if args.leader else source)
     desc = ", ".join(f"{n}={v:g}" for n, v in zip(model.class_names, vec, strict=True) if v != 0) or "all zero"
-    print(f"wrote {args.out}: follower {follower.shape[0]} frames x {follower.shape[1]} joints (label {desc})")
+    beside = f" (the leader in {leader_copy(args.out)})" if args.out.suffix.lower() == ".bvh" else ""
+    print(f"wrote {args.out}{beside}: follower {follower.shape[0]} frames x {follower.shape[1]} joints (label {desc})")
     return 0
 
 
-def _generate_batch(args: argparse.Namespace, model, leaders: list, labels: list[np.ndarray]) -> int:
-    """Every leader x every label, one file each in the --out folder; all leaders in one batch per label."""
+def _generate_batch(args: argparse.Namespace, model, leaders: list, labels: list[np.ndarray], paths: dict,
+                    num_files: int) -> int:
+    """Every leader x every label, one file each in the --out folder (with its leader copy for .bvh); all leaders
+    in one batch per label."""
     from tqdm import tqdm
 
-    from imm_model.outputs import check_output
-
-    if args.out.suffix.lower() in (".npz", ".bvh"):
-        raise ValueError(f"--out {args.out}: {len(leaders) * len(labels)} items need a folder, not a file name")
-    paths = {(k, c): args.out / f"{name}_{label_slug(vec, model.class_names)}.{args.format}"
-             for k, (name, _, _) in enumerate(leaders) for c, vec in enumerate(labels)}
-    for path in paths.values():  # all refused before anything is written
-        check_output(path, args.force, inputs=tuple(args.leader or ()))
-    args.out.mkdir(parents=True, exist_ok=True)
-    with tqdm(total=len(paths), desc="generate", unit="file") as bar:
+    with tqdm(total=len(paths), desc="generate", unit="item") as bar:
         for c, vec in enumerate(labels):
             followers = _synthesize(model, [leader for _, leader, _ in leaders], vec)
-            for k, ((_, leader, sid), follower) in enumerate(zip(leaders, followers, strict=True)):
-                _write(paths[k, c], leader, follower, model, vec, args.scale, sid)
+            for k, ((_, leader, source), follower) in enumerate(zip(leaders, followers, strict=True)):
+                _write(paths[k, c], leader, follower, model, vec, args.scale, None if args.leader else source)
                 bar.update()
-    print(f"wrote {len(paths)} files ({len(leaders)} leaders x {len(labels)} labels) to {args.out}")
+    beside = ", each with its leader copy" if args.format == "bvh" else ""
+    print(f"wrote {num_files} files ({len(leaders)} leaders x {len(labels)} labels{beside}) to {args.out}")
     return 0
 
 
@@ -158,18 +178,18 @@ def _synthesize(model, leaders: list[np.ndarray], vec: np.ndarray) -> list[np.nd
 
 
 def _write(path: Path, leader: np.ndarray, follower: np.ndarray, model, vec: np.ndarray, scale: float, sid: str | None) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
+    from imm_model.outputs import write_atomic, write_files
+
     if path.suffix.lower() == ".bvh":
         from imm_model.data.bvh import write_bvh
 
-        write_bvh(path, follower, model.skeleton)
-        write_bvh(path.with_suffix(".leader.bvh"), leader, model.skeleton)
+        write_files([(path, lambda tmp: write_bvh(tmp, follower, model.skeleton)),
+                     (leader_copy(path), lambda tmp: write_bvh(tmp, leader, model.skeleton))])
         return
     from imm_model.data.canonical import CanonicalFrame
-    from imm_model.interaction_file import interaction_arrays, save_interaction
+    from imm_model.interaction_file import interaction_arrays, interaction_bytes
 
     frame = CanonicalFrame.from_leader(np.asarray(leader, np.float64), model.skeleton, model.canonical_mode)
-    save_interaction(path, interaction_arrays(leader, follower, frame, model.skeleton, class_names=model.class_names, label=vec,
-                                              scale=scale, checkpoint=model.path.name if model.path else "", fps=15.0, sequence_id=sid))
-
-
+    write_atomic(path, interaction_bytes(interaction_arrays(
+        leader, follower, frame, model.skeleton, class_names=model.class_names, label=vec, scale=scale,
+        checkpoint=model.path.name if model.path else "", fps=15.0, sequence_id=sid)))

@@ -1,26 +1,137 @@
-"""Output files: never replace an existing file unless asked to (--force), never an input of the same command,
-and never write numbers that are not finite."""
+"""Output files. A command first plans every file it will write (`plan_outputs`: refused, before anything is
+written, if one exists without --force, is one of the command's inputs, or is named twice), then writes each
+atomically (`write_atomic`: a temporary file in the same folder, renamed over the target), so an interrupted or
+failed write never leaves half a file, and never writes numbers that are not finite."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import os
+import secrets
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from imm_model.errors import IMMError
 
+CHECKPOINT_SUFFIX = ".safetensors"  # a NAME.json beside NAME.safetensors is that checkpoint's sidecar
 
-def check_output(path: Path, force: bool, inputs: Iterable[Path | None] = (), option: str = "--out") -> None:
-    """Refuse (one-line IMMError) an output that is an input, or that exists without `force`."""
-    target = Path(path).resolve()
-    for source in inputs:
-        if source is not None and Path(source).exists() and Path(source).resolve() == target:
-            raise IMMError(f"{option} {path}: that is an input of this command; choose another file")
-    if target.is_dir():
-        raise IMMError(f"{option} {path}: is a directory; give a file name")
-    if target.exists() and not force:
-        raise IMMError(f"{option} {path}: the file exists; pass --force to replace it")
+
+@dataclass(frozen=True)
+class Output:
+    path: Path
+    what: str = "--out"  # how the user named it, for the one-line errors: "--json", "--out's leader copy"
+    source: str = ""  # in a batch, the item it is written for (a leader file, a sequence id)
+
+
+def _identity(path: Path) -> tuple:
+    """Two names of one file compare equal: symlinks resolved, hard links by inode."""
+    try:
+        st = path.stat()
+        return ("inode", st.st_dev, st.st_ino)
+    except OSError:
+        return ("path", str(path.resolve()))
+
+
+def _writable_parent(out: Output) -> None:
+    """The nearest existing folder above the file must be a writable folder (missing ones are created)."""
+    parent = out.path.absolute().parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise IMMError(f"{out.what} {out.path}: {parent} is a file, not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise IMMError(f"{out.what} {out.path}: {parent} is not a writable folder")
+
+
+def plan_outputs(outputs: Sequence[Output], inputs: Iterable[Path | None] = (), force: bool = False,
+                 force_option: str = "--force") -> None:
+    """Refuse (one-line IMMError) the whole plan if any output is a folder, cannot be created, is named twice, is an
+    input of the command (never, even with `force`), is the sidecar of a checkpoint the plan does not rewrite, or
+    exists without `force`. Call it with every file the command will write before writing any."""
+    sources = {_identity(Path(p)): Path(p) for p in inputs if p is not None}  # also those the command makes first
+    planned: dict[tuple, Output] = {}
+    for out in outputs:
+        if out.path.is_dir():
+            raise IMMError(f"{out.what} {out.path}: is a folder; give a file name")
+        _writable_parent(out)
+        key = _identity(out.path)
+        if key in planned:
+            first = planned[key]
+            if first.source and out.source:
+                raise IMMError(f"{out.what} {out.path} would be written twice (for {first.source} and for {out.source}): "
+                               f"give each item its own name")
+            raise IMMError(f"{first.what} and {out.what} are the same file ({out.path}): give each output its own name")
+        planned[key] = out
+        if key in sources:
+            raise IMMError(f"{out.what} {out.path}: that is an input of this command ({sources[key]}); choose another file")
+    for out in planned.values():
+        checkpoint = out.path.with_suffix(CHECKPOINT_SUFFIX)
+        if out.path.suffix.lower() == ".json" and checkpoint.exists() and _identity(checkpoint) not in planned:
+            raise IMMError(f"{out.what} {out.path}: that is the sidecar of the checkpoint {checkpoint}; choose another file")
+        if out.path.exists() and not force:
+            raise IMMError(f"{out.what} {out.path}: the file exists; pass {force_option} to replace it")
+
+
+def _temporary(path: Path) -> Path:
+    """A hidden name beside `path` (same folder, so the rename is atomic) that no other writer uses."""
+    return path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
+
+
+def _failed(path: Path, err: OSError) -> IMMError:
+    return IMMError(f"{path}: could not write it ({err.strerror or type(err).__name__})")
+
+
+def write_atomic(path: Path | str, data: bytes | str | Callable[[Path], None]) -> None:
+    """Write bytes, text, or whatever `data(temporary_path)` writes, under `path` in one rename (`write_files`)."""
+    write_files([(Path(path), data)])
+
+
+def write_files(files: Sequence[tuple[Path, bytes | str | Callable[[Path], None]]]) -> None:
+    """Write each (path, bytes, text or `writer(temporary_path)`) to a temporary file beside its path, then rename
+    them all into place: a failure while writing (a full disk, a refused permission: one-line IMMError) leaves every
+    path as it was and no temporary file behind."""
+    temporaries = [(_temporary(Path(path)), Path(path), data) for path, data in files]
+    current = Path()
+    try:
+        for tmp, path, data in temporaries:
+            current = path
+            path.parent.mkdir(parents=True, exist_ok=True)
+            if callable(data):
+                data(tmp)
+            else:
+                tmp.write_bytes(data.encode() if isinstance(data, str) else data)
+        for tmp, path, _ in temporaries:
+            current = path
+            os.replace(tmp, path)
+    except OSError as err:
+        raise _failed(current, err) from None
+    finally:
+        for tmp, _, _ in temporaries:
+            tmp.unlink(missing_ok=True)
+
+
+def write_new(path: Path | str, data: bytes) -> Path:
+    """Write `data` under `path`, or under NAME-2.EXT, NAME-3.EXT, ... if that exists: never replaces a file, even
+    one another process creates meanwhile (the temporary file is hard-linked to the free name) -> the name used."""
+    path = Path(path)
+    tmp = _temporary(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp.write_bytes(data)
+        for n in range(1, 10_000):
+            target = path if n == 1 else path.with_name(f"{path.stem}-{n}{path.suffix}")
+            try:
+                os.link(tmp, target)
+                return target
+            except FileExistsError:
+                continue
+        raise IMMError(f"{path}: 10000 files of that name exist already; clear the folder")
+    except OSError as err:
+        raise _failed(path, err) from None
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def check_finite(values: np.ndarray, what: str) -> np.ndarray:

@@ -104,18 +104,16 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from imm_model.evaluation.report import summarize
     from imm_model.evaluation.tables import headline, metric_table
     from imm_model.inference import ReactionModel
-    from imm_model.outputs import check_finite, check_output
+    from imm_model.outputs import check_finite
     from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA
 
-    for option in ("json", "markdown"):  # checked before hours of evaluation, not after
-        if getattr(args, option) is not None:
-            check_output(getattr(args, option), args.force, inputs=(args.data, args.checkpoint), option=f"--{option}")
     torch.set_num_threads(2)
     data = InteractionDataset.load(args.data or SAMPLE_DATA)
     if args.run is None and args.checkpoint is None:
         args.checkpoint = SAMPLE_CHECKPOINT
     opts = _options(args)
     jobs = _jobs(args, all_subjects(data.subject_pairs))
+    _plan_outputs(args, jobs)  # refused before hours of evaluation, not after
     results, latent = [], None
     for k, (path, subject) in enumerate(jobs, start=1):
         t0 = time.perf_counter()
@@ -140,17 +138,24 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _plan_outputs(args: argparse.Namespace, jobs: list[tuple[Path, str]]) -> None:
+    from imm_model.checkpoint import sidecar_path
+    from imm_model.outputs import Output, plan_outputs
+    from imm_model.paths import SAMPLE_DATA
+
+    outputs = [Output(getattr(args, option), f"--{option}") for option in ("json", "markdown") if getattr(args, option)]
+    checkpoints = [f for path, _ in jobs for f in (path, sidecar_path(path))]
+    plan_outputs(outputs, [args.data or SAMPLE_DATA, args.classifier_config, *checkpoints], args.force)
+
+
 def _write_outputs(args: argparse.Namespace, summary: dict, latent: dict | None, data) -> None:
     from imm_model.evaluation.figures import write_figures
     from imm_model.evaluation.tables import markdown_report
+    from imm_model.outputs import write_files
 
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(summary, indent=1, allow_nan=True) + "\n")
-    if args.markdown:
-        args.markdown.parent.mkdir(parents=True, exist_ok=True)
-        args.markdown.write_text(markdown_report(summary) + "\n")
+    reports = [(args.json, json.dumps(summary, indent=1, allow_nan=True) + "\n")] if args.json else []
+    reports += [(args.markdown, markdown_report(summary) + "\n")] if args.markdown else []
+    write_files(reports)
     if args.figures:
         paths = write_figures(summary, latent, data.actions, args.figures, progress=lambda m: print(m, file=sys.stderr))
         print(f"figures: {', '.join(str(p) for p in paths)}", file=sys.stderr)
-

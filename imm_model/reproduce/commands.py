@@ -7,6 +7,7 @@ reused, so a killed reproduce is simply started again with the same arguments.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import time
 from pathlib import Path
 
@@ -52,10 +53,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _cmd_reproduce(args: argparse.Namespace) -> int:
     from imm_model.cache import dataset_hash
     from imm_model.data.dataset import InteractionDataset
+    from imm_model.outputs import Output, plan_outputs
     from imm_model.paths import SAMPLE_DATA, k3hi_raw_root
     from imm_model.reproduce.jobs import copy_records
+    from imm_model.reproduce.lock import FolderLock
     from imm_model.reproduce.plan import ReproducePlan
-    from imm_model.reproduce.report import write_report
+    from imm_model.reproduce.report import REPORT_FILES, write_report
     from imm_model.reproduce.runner import Runner
 
     t0 = time.perf_counter()
@@ -69,16 +72,19 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         from imm_model.reproduce.k3hi_table import shared_data
 
         data_hash["k3hi"] = dataset_hash(shared_data()[0])
-    args.out.mkdir(parents=True, exist_ok=True)
     runs = (args.runs or args.out / "runs").resolve()
-    if args.report_only:
-        trained, results = _run_jobs(None, plan, runs, data_path, data_hash, args.cpus_per_task)
-    else:
-        with Runner(args.address, args.cpus_per_task, args.backend) as runner:
-            trained, results = _run_jobs(runner, plan, runs, data_path, data_hash, args.cpus_per_task)
-    wall = time.perf_counter() - t0
-    report = write_report(plan, results, args.out.resolve(), None if args.report_only else wall, runs)
-    records = copy_records(plan.training_jobs(), runs, args.out.resolve() / "records")
+    plan_outputs([Output(args.out / name, "--out") for name in REPORT_FILES], [data_path], force=True)  # rewritten on reruns
+    with contextlib.ExitStack() as locks:
+        locks.enter_context(FolderLock(args.out, "--out"))
+        if args.report_only:  # reads the runs, which another reproduce may be training
+            trained, results = _run_jobs(None, plan, runs, data_path, data_hash, args.cpus_per_task)
+        else:
+            locks.enter_context(FolderLock(runs, "--runs"))
+            with Runner(args.address, args.cpus_per_task, args.backend) as runner:
+                trained, results = _run_jobs(runner, plan, runs, data_path, data_hash, args.cpus_per_task)
+        wall = time.perf_counter() - t0
+        report = write_report(plan, results, args.out.resolve(), None if args.report_only else wall, runs)
+        records = copy_records(plan.training_jobs(), runs, args.out.resolve() / "records")
     failed = len(plan.training_jobs()) - len(trained) + sum(1 for r in results.values() if r is None)
     how = ["report only" if args.report_only else f"{wall / 60:.1f} min wall"]
     how += [f"{failed} jobs {'not done' if args.report_only else 'failed'}"] if failed else []

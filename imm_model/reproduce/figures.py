@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from imm_model.outputs import write_atomic
 from imm_model.reproduce import paper_numbers as paper
 from imm_model.reproduce.plan import ABLATION_RECIPES
 
@@ -72,5 +73,5 @@ def _ablation_means(results: dict, class_names: list[str]) -> dict[str, float]:
 
 def _save(fig, path: Path) -> Path:
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
     return path

@@ -17,6 +17,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import imm_model
+from imm_model.outputs import write_atomic
 
 HALF_SPLIT = "half"  # the recognition study's class-stratified half/half split of SBU (data/splits.py)
 
@@ -81,11 +82,11 @@ def run_status(job: TrainJob, runs: Path, key: str) -> str:
 def stamp_job(job: TrainJob, runs: Path, key: str) -> None:
     d = job.run_dir(runs)
     d.mkdir(parents=True, exist_ok=True)
-    (d / "job.json").write_text(json.dumps({"key": key, "job": asdict(job)}, indent=1) + "\n")
+    write_atomic(d / "job.json", json.dumps({"key": key, "job": asdict(job)}, indent=1) + "\n")
 
 
 def mark_done(job: TrainJob, runs: Path, info: dict) -> None:
-    (job.run_dir(runs) / "done.json").write_text(json.dumps(info, indent=1) + "\n")
+    write_atomic(job.run_dir(runs) / "done.json", json.dumps(info, indent=1) + "\n")
 
 
 def copy_records(jobs: list[TrainJob], runs: Path, dest: Path) -> int:

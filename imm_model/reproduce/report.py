@@ -12,10 +12,12 @@ import numpy as np
 
 from imm_model.evaluation.report import group_summary
 from imm_model.evaluation.tables import BASELINE_TITLES, _pm
+from imm_model.outputs import write_files
 from imm_model.reproduce import paper_numbers as paper
 from imm_model.reproduce.jobs import HALF_SPLIT
 from imm_model.reproduce.plan import ABLATION_RECIPES, ReproducePlan
 
+REPORT_FILES = ("report.md", "summary.json")  # in OUT, beside the figures
 CLASS_TITLES = ("Kick", "Push", "Shake hands", "Hug", "Exchange obj.", "Punch")
 
 
@@ -186,10 +188,10 @@ def write_report(plan: ReproducePlan, results: dict, out: Path, wall_s: float | 
         parts.append("## Missing\n\n" + "\n".join(f"- {m}" for m in missing))
     figures = write_figures(results, summary, class_names, out) if class_names else []
     parts.append("## Figures\n\n" + "\n".join(f"![{p.stem}]({p.name})" for p in figures))
-    path = out / "report.md"
-    path.write_text("\n\n".join(parts) + "\n")
-    (out / "summary.json").write_text(json.dumps({"imm": summary, "seeds": plan.seeds, "folds": plan.folds,
-                                                  "wall_s": wall_s}, indent=1, default=float) + "\n")
+    path, summary_path = (out / name for name in REPORT_FILES)
+    write_files([(path, "\n\n".join(parts) + "\n"),
+                 (summary_path, json.dumps({"imm": summary, "seeds": plan.seeds, "folds": plan.folds, "wall_s": wall_s},
+                                           indent=1, default=float) + "\n")])
     return path
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -41,6 +42,19 @@ def _call(fn: Callable[..., Any], args: tuple) -> tuple[bool, Any]:
 
 def _interrupt(signum: int, frame: Any) -> None:
     raise KeyboardInterrupt
+
+
+def _end_with(parent: int) -> None:
+    """In each local worker: end within a second of the reproduce that started it, even one killed with -9 (which
+    runs no clean-up), so no trainer is left running. A process whose parent dies is given another parent, which a
+    daemon thread watches for. (prctl's PDEATHSIG would fire when the pool's thread that started the worker ends,
+    killing a worker that holds the pool's queue lock.) Ray's own workers end with their raylet."""
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="end-with-reproduce", daemon=True).start()
 
 
 def ray_available() -> bool:
@@ -82,7 +96,7 @@ class Runner:
         else:
             import multiprocessing
 
-            self._pool = multiprocessing.get_context("spawn").Pool(self.width, maxtasksperchild=1)
+            self._pool = multiprocessing.get_context("spawn").Pool(self.width, _end_with, (os.getpid(),), maxtasksperchild=1)
             where = "local processes (Ray is not installed; pip install -e '.[cluster]' to use it)"
         print(f"running on {where}: {self.width} jobs at a time, {self.cpus} CPU each", file=sys.stderr, flush=True)
         return self

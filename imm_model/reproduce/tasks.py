@@ -12,7 +12,9 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from imm_model.outputs import write_atomic
 from imm_model.reproduce.jobs import HALF_SPLIT, TrainJob, mark_done, stamp_job
+from imm_model.reproduce.lock import FolderLock
 
 
 def training_data(data_path: Path, split: str):
@@ -43,14 +45,15 @@ def train_run(job: TrainJob, runs: Path, data_path: Path, key: str, threads: int
     t0 = time.perf_counter()
     data, subject = training_data(data_path, job.split)
     stamp_job(job, runs, key)
-    trainer = Trainer(job.config(), data, subject, job.run_dir(runs))
-    if (trainer.out / "last.safetensors").exists():
-        trainer.resume()
-    state = trainer.fit(progress=False)
-    if trainer.cfg.refit:
-        refit(trainer, progress=False)
-    info = {"key": key, "best_epoch": state.best_epoch, "epochs": state.epoch, "seconds": round(time.perf_counter() - t0, 1)}
-    mark_done(job, runs, info)
+    with FolderLock(job.run_dir(runs), "run"):  # e.g. a trainer of a killed reproduce that is still running
+        trainer = Trainer(job.config(), data, subject, job.run_dir(runs))
+        if (trainer.out / "last.safetensors").exists():
+            trainer.resume()
+        state = trainer.fit(progress=False)
+        if trainer.cfg.refit:
+            refit(trainer, progress=False)
+        info = {"key": key, "best_epoch": state.best_epoch, "epochs": state.epoch, "seconds": round(time.perf_counter() - t0, 1)}
+        mark_done(job, runs, info)
     return info
 
 
@@ -152,7 +155,7 @@ def evaluate_run(job: EvalJob, runs: Path, data_path: Path, threads: int) -> dic
         result = evaluate_fold(model, data, job.run.split, job.options(runs), latents=False)
         result = {k: v for k, v in result.items() if not k.startswith("_")}
     result |= {"seed": job.run.seed}
-    job.result_path(runs).write_text(json.dumps({"key": job.key(runs), "result": result}) + "\n")
+    write_atomic(job.result_path(runs), json.dumps({"key": job.key(runs), "result": result}) + "\n")
     return result
 
 
