@@ -34,9 +34,11 @@ if TYPE_CHECKING:
 
 TOKEN_COOKIE = "imm_studio_token"
 PAGE_COOKIE = "imm_studio_page"  # set by the front page: a claim without an Origin header must carry it
-# A tab's process outlives its last websocket by this long, counted from the tab's last request: a reload (page,
-# scripts, then ~2 s of module evaluation here before its websocket opens) finds its own session again.
+# A tab's process outlives its last websocket by RECONNECT_GRACE_S, or by RELOAD_GRACE_S after the tab's last request
+# once its page has been asked for again: a reload (page, scripts, then ~2 s of module evaluation here before its
+# websocket opens) finds its own session, and a closed tab frees its slot within seconds.
 RECONNECT_GRACE_S = 2.0
+RELOAD_GRACE_S = 10.0
 # a claimed studio process whose browser never connects is ended after this ($IMM_STUDIO_CLAIM_TIMEOUT: tests)
 CLAIM_TIMEOUT_S = float(os.environ.get("IMM_STUDIO_CLAIM_TIMEOUT", "20"))
 # Claims are rate-limited (a token bucket): CLAIM_BURST at once, then one per CLAIM_EVERY_S. Each claim forks a studio
@@ -66,6 +68,7 @@ class Worker:
     retired: bool = False  # asked to stop: its slot is free already
     sockets: int = 0  # open websockets of its tab
     connected: bool = False  # a websocket has reached it since its claim
+    reloading: bool = False  # its page was asked for while it had no websocket
     last_seen: float = 0.0  # time.monotonic() of its tab's last request or closed websocket
     budget: InboundBudget | None = None  # what its websockets may claim (made when the first one opens)
     ready: asyncio.Future = field(default_factory=lambda: asyncio.get_running_loop().create_future())
@@ -216,9 +219,10 @@ class Launcher:
         """Called after a tab's last websocket closed: retire it unless the tab came back or is coming back."""
         if w.sockets or w.exited or w.retired:
             return
+        grace = RELOAD_GRACE_S if w.reloading else RECONNECT_GRACE_S
         quiet = time.monotonic() - w.last_seen
-        if quiet < RECONNECT_GRACE_S:  # a reload is loading its page: look again when it should have connected
-            asyncio.get_running_loop().call_later(RECONNECT_GRACE_S - quiet, self._retire_if_gone, w)
+        if quiet < grace:  # look again when it should have connected
+            asyncio.get_running_loop().call_later(grace - quiet, self._retire_if_gone, w)
         else:
             self.retire(w)
 
@@ -331,9 +335,10 @@ class Launcher:
         tail = request.match_info["tail"]
         w.last_seen = time.monotonic()
         if request.headers.get("Upgrade", "").lower() != "websocket":
+            w.reloading = w.reloading or (w.connected and not w.sockets)
             return await forward_http(request, w.port, tail)
         w.sockets += 1
-        w.connected = True
+        w.connected, w.reloading = True, False
         w.budget = w.budget or InboundBudget()
         try:
             return await forward_websocket(request, w.port, tail, w.secret, w.budget, on_message=self.note_traffic)

@@ -232,8 +232,12 @@ class RawTab:
         self.http = aiohttp.ClientSession()
         async with self.http.post(self.url + "claim", headers={"Origin": self.origin}) as r:
             assert r.status == 200, await r.text()
-            path = (await r.json())["url"]
-        self.ws = await self.http.ws_connect(self.url + path + "ws", headers={"Origin": self.origin}, max_msg_size=0)
+            self.path = (await r.json())["url"]
+        return await self.connect()
+
+    async def connect(self):
+        """The websocket to this tab's studio process (again, after a reload)."""
+        self.ws = await self.http.ws_connect(self.url + self.path + "ws", headers={"Origin": self.origin}, max_msg_size=0)
         hello = await self.call("system:c0:0", "wslink.hello", [{"secret": "the proxy puts the real one in"}])
         self.client = hello["result"]["clientID"]
         self.state = (await self.call(self._id(), "trame.state.get", []))["result"]["state"]
@@ -281,6 +285,11 @@ class RawTab:
     async def close(self) -> None:
         await self.ws.close()
         await self.http.close()
+
+    async def page_status(self, query: str = "") -> tuple[int, str]:
+        """GET this tab's page as a reload does -> (status, where a redirect points)."""
+        async with self.http.get(self.url + self.path + "index.html" + query, allow_redirects=False) as r:
+            return r.status, r.headers.get("Location", "")
 
 
 def _claim_status(url: str) -> int:
@@ -444,6 +453,27 @@ def test_hostile_uploads_get_one_line_and_a_hung_tab_is_ended_within_seconds(sma
 
 async def _upload_all(tab: RawTab, uploads: list[tuple[str, bytes]]) -> list[str]:
     return [await tab.upload(name, content) for name, content in uploads]
+
+
+def test_a_reload_finds_its_own_session_and_an_ended_one_keeps_the_view(small_studio):
+    """A tab whose page is asked for again after its websocket closed (a reload) keeps its process past the close's
+    grace; a tab that only closed loses it, and its link then leads to a fresh studio with the link's view."""
+    from explorer.launcher import RECONNECT_GRACE_S
+
+    async def go():
+        tab, pid = await _open_tab(small_studio)
+        await tab.ws.close()
+        assert (await tab.page_status())[0] == 200  # the reload's page
+        await asyncio.sleep(RECONNECT_GRACE_S + 1.5)  # its scripts load and run
+        await tab.connect()
+        assert pid in _connected(small_studio) and not _gone(pid)  # the same process: the session is kept
+        await tab.ws.close()
+        _assert_ends_within(pid, RECONNECT_GRACE_S + 3.0)
+        status, where = await tab.page_status("?seq=3&frame=7")
+        await tab.http.close()
+        return status, where
+
+    assert asyncio.run(go()) == (302, "../../?seq=3&frame=7")
 
 
 def test_a_closing_tab_leaves_no_traceback_in_the_log(small_studio):
