@@ -170,11 +170,13 @@ class Studio:
         return [{"title": rows[i].title, "value": i} for i in self.filtered_indices()]
 
     def on_filter_change(self, **_):
+        """The filters narrow the sequence list; when they leave out the sequence on screen, the first one they keep
+        opens with the user's mix as it is (a filter is not a pick: the "match" preset is for picking a sequence)."""
         items = self._sequence_items()
         self.state.sequence_items = items
         values = [it["value"] for it in items]
-        if values and self.state.sequence_index not in values:
-            self.state.sequence_index = values[0]
+        if values and (self.session.upload is not None or self.session.index not in values):
+            self.load_sequence(values[0], keep_mix=True)
 
     @_guard
     def on_sequence_picked(self, sequence_index, **_):
@@ -183,10 +185,11 @@ class Studio:
         self.load_sequence(int(sequence_index))
 
     @_guard
-    def load_sequence(self, index: int) -> None:
-        """Pick a sequence: its own class becomes the label ("match"), playback restarts at frame 0."""
+    def load_sequence(self, index: int, keep_mix: bool = False) -> None:
+        """Pick a sequence: its own class becomes the label ("match"; `keep_mix`: the sliders stay as they are),
+        playback restarts at frame 0."""
         ses, s = self.session, self.state
-        ses.select(index)
+        ses.select(index, match_label=not keep_mix)
         with s:
             s.sequence_index = index
             s.sequence_items = self._sequence_items()
@@ -223,6 +226,7 @@ class Studio:
         with s:
             s.sequence_title = f"uploaded: {ses.upload.name} · {ses.num_frames} fr"
             s.sequence_uploaded, s.sequence_held_out = True, False
+            s.sequence_index = None  # the picker shows no bundled sequence: none is on screen
             s.num_frames, s.frame = ses.num_frames, 0
             self._write_label_state()
             self.scene.set_sequence(ses.leader, None, ses.synth, 0)
@@ -290,13 +294,13 @@ class Studio:
         s.reads_as_note = unread_note(s.reads_as)
         self._distances = ses.distances_m()
         self._ab_distances = ses.ab_distances_m()
-        s.ab_text = f"pinned ↔ current: mean {self._ab_distances.mean():.2f} m" if len(self._ab_distances) else ""
+        s.ab_text = f"pinned ↔ current: joints {self._ab_distances.mean():.2f} m apart" if len(self._ab_distances) else ""
         self._closest, leader_bones, follower_bones = ses.contact()
         self._contact_changed = self.scene.set_contact(leader_bones, follower_bones)
         s.contact_text = charts.contact_text(self._closest)
         afd = ses.afd()
         s.afd_text = ("uploaded leader: no ground truth to compare with, so no error chart" if afd is None
-                      else f"AFD {afd:.3f} (SBU units) · mean {self._distances.mean():.2f} m")
+                      else f"AFD {afd:.3f} (SBU units) · joints {self._distances.mean():.2f} m apart on average")
         self._update_time()
         s.distance_chart = charts.distance_chart(self._distances, FPS, self._ab_distances, self._closest)
         self.latent_panel.redraw()

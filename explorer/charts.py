@@ -95,4 +95,4 @@ def distance_chart(distances: np.ndarray, fps: float, ab: np.ndarray | None = No
     return (f'<div class="imm-chart"><div class="imm-legend" style="left: 52px; top: 2px">{legend}</div>'
             f'<div class="imm-plot" style="{DISTANCE_BOX}">'
             f'<svg viewBox="0 0 1000 1000" preserveAspectRatio="none">{"".join(svg)}</svg>{"".join(labels)}</div>'
-            f'<div class="imm-axis-x">frame ({fps:g} fps)</div><div class="imm-axis-y">distance (m)</div></div>')
+            f'<div class="imm-axis-x">frame ({fps:g} fps)</div><div class="imm-axis-y">joints apart (m)</div></div>')

@@ -23,11 +23,18 @@ KEY_HELP = (
 KEYS = (" ", "ArrowLeft", "ArrowRight", "Home", "End", "m", "M", "r", "R", "ArrowUp", "ArrowDown", "?", *map(str, range(1, 10)))
 
 # One JS expression (trame templates take expressions, inside a double-quoted HTML attribute: single quotes only):
-# ignore keys typed into fields and sliders, keep the browser's own use of the handled keys out of the way.
+# ignore keys typed into text fields, sliders and open menus, keep the browser's own use of the handled keys out of
+# the way. A menu's closed field (the speed, a filter: a read-only input) or a check box that keeps the focus after a
+# click does not take typing (read-only, or an input mode of 'none'), so the keys stay the studio's.
 _KEYS_JS = "[" + ", ".join(f"'{k}'" for k in KEYS) + "]"
+_TYPING_JS = (
+    "(e.target.tagName === 'INPUT' && !e.target.readOnly && e.target.inputMode !== 'none'"
+    " && !['checkbox', 'radio', 'button'].includes(e.target.type))"
+    " || ['TEXTAREA', 'SELECT'].includes(e.target.tagName) || e.target.isContentEditable"
+    " || e.target.getAttribute('role') === 'slider' || !!e.target.closest('.v-overlay')"
+)
 LISTENER_JS = (
-    "utils.get('document').addEventListener('keydown', (e) => ("
-    "['INPUT', 'TEXTAREA', 'SELECT'].includes(e.target.tagName) || e.target.getAttribute('role') === 'slider'"
+    f"utils.get('document').addEventListener('keydown', (e) => ({_TYPING_JS}"
     f" || e.ctrlKey || e.metaKey || e.altKey || !{_KEYS_JS}.includes(e.key)"
     " ? 0 : (e.preventDefault(), trigger('key_pressed', [e.key]))))"
 )

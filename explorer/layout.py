@@ -243,6 +243,7 @@ def character_toggles(studio) -> None:
         v3.VCheckbox(
             v_model=(var,),
             label=CHARACTER_TITLES[key],
+            disabled=("sequence_uploaded",) if key == "ground_truth" else False,
             color=CHARACTERS[key],
             density="compact",
             hide_details=True,
@@ -293,8 +294,9 @@ def scene_view(studio) -> None:
         with html.Div(style="position: absolute; left: 8px; top: 6px; pointer-events: none", classes="text-caption"):
             for key in CHARACTER_KEYS:
                 html.Span(
-                    "● " + CHARACTER_TITLES[key], style=f"color: {CHARACTERS[key]}; font-weight: 600; margin-right: 10px"
-                )
+                    "● " + CHARACTER_TITLES[key], style=f"color: {CHARACTERS[key]}; font-weight: 600; margin-right: 10px",
+                    v_if="!sequence_uploaded" if key == "ground_truth" else None, classes=f"legend-{key}",
+                )  # an uploaded leader has no ground truth
             html.Span("● pinned: {{ pinned_text }}", v_if="pinned_text", style=f"color: {PINNED}; font-weight: 600")
 
 
@@ -328,6 +330,7 @@ def playback_bar(studio) -> None:
             hide_details=True,
             style="max-width: 92px",
             variant="outlined",
+            id="speed-select",
         )
         v3.VCheckbox(v_model=("loop",), label="loop", density="compact", hide_details=True, style="flex: 0 0 auto")
 

@@ -165,11 +165,13 @@ class Scene:
         self.set_camera(self.camera_preset)
 
     def _apply_layout(self) -> None:
-        """Overlay: the canonical frame as is. Side by side: each figure on its own spot along X, the
-        followers turned 180° about their first-frame root so that all three face the same way."""
+        """Overlay: the canonical frame as is. Side by side: each figure on its own spot along X (along Z for the side
+        camera, which looks along X and would stack them and their captions), the followers turned 180° about their
+        first-frame root so that all three face the same way."""
         if not self.sequences:
             return
         top = float(max(s[..., 1].max() for s in self.sequences.values())) + 0.25
+        along_z = self.camera_preset == "side"
         for slot, k in (*enumerate(CHARACTER_KEYS), (2, "pinned")):  # the pinned follower shares the synthesized spot
             fig, cap = self.figures[k], self.captions.get(k)
             if k not in self.sequences or self.layout == "overlay":
@@ -178,11 +180,11 @@ class Scene:
                     cap.SetVisibility(False)
                 continue
             root = self.sequences[k][0, self.skeleton.root]
-            dx = (slot - 1) * SIDE_SPACING
+            spot = (0.0, 0.0, (1 - slot) * SIDE_SPACING) if along_z else ((slot - 1) * SIDE_SPACING, 0.0, 0.0)  # left to right
             yaw = 0.0 if k == "leader" else 180.0
-            fig.place((float(root[0]), 0.0, float(root[2])), (dx - float(root[0]), 0.0, -float(root[2])), yaw)
+            fig.place((float(root[0]), 0.0, float(root[2])), (spot[0] - float(root[0]), 0.0, spot[2] - float(root[2])), yaw)
             if cap is not None:
-                cap.position = (dx, top, 0.0)
+                cap.position = (spot[0], top, spot[2])
                 cap.SetVisibility(self.visible[k])
 
     # ---- camera -------------------------------------------------------------------------
@@ -193,8 +195,9 @@ class Scene:
     def _points_of_interest(self) -> np.ndarray:
         """Corners of the box the camera must show: all frames of the three figures as placed."""
         if self.layout == "side_by_side" or not self.sequences:
-            lo = np.array([-SIDE_SPACING - 0.6, self.floor_y, -0.6])
-            hi = np.array([SIDE_SPACING + 0.6, self.floor_y + 2.0, 0.6])
+            spread = [SIDE_SPACING + 0.6, 0.0, 0.6][:: -1 if self.camera_preset == "side" else 1]  # along X, or Z (_apply_layout)
+            lo = np.array([-spread[0], self.floor_y, -spread[2]])
+            hi = np.array([spread[0], self.floor_y + 2.0, spread[2]])
         else:
             pts = np.concatenate([s.reshape(-1, 3) for s in self.sequences.values()])
             lo, hi = pts.min(0), pts.max(0)
@@ -206,6 +209,8 @@ class Scene:
         if preset not in CAMERA_PRESETS:
             raise ValueError(f"camera preset must be one of {CAMERA_PRESETS}")
         self.camera_preset = preset
+        if self.layout == "side_by_side":  # the side camera has the figures apart along another axis
+            self._apply_layout()
         self.fitted_size = tuple(self.render_window.GetSize())
         box = self._points_of_interest()
         center = (box.min(0) + box.max(0)) / 2

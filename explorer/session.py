@@ -16,7 +16,7 @@ from explorer.palette import display_name
 from imm_model.data.canonical import CanonicalFrame
 from imm_model.data.dataset import InteractionDataset
 from imm_model.errors import CheckpointError, DataFormatError, IMMError
-from imm_model.evaluation.metrics import afd, frame_distances
+from imm_model.evaluation.metrics import afd
 from imm_model.inference import check_compatible
 
 FPS = 15.0  # SBU's frame rate
@@ -87,6 +87,11 @@ def label_words(weights: Sequence[float], class_names: Sequence[str], scale: flo
     if abs(scale - 1.0) > 1e-6:
         text += f"  × {scale:.2g}"
     return text
+
+
+def mean_joint_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(T, J, 3) twice -> (T,) the mean over joints of the distance between corresponding joints."""
+    return np.linalg.norm(np.asarray(a, np.float64) - np.asarray(b, np.float64), axis=-1).mean(-1)
 
 
 @dataclass(frozen=True)
@@ -259,8 +264,9 @@ class Session:
         return "" if self.pinned_weights is None else label_words(self.pinned_weights, self.class_names, self.pinned_scale)
 
     def ab_distances_m(self) -> np.ndarray:
-        """(T,) per-frame distance between the pinned and the current follower, metres (empty when none is pinned)."""
-        return np.zeros(0) if self.pinned is None else frame_distances(self.synth, self.pinned)
+        """(T,) per frame, how far the pinned follower's joints are from the current one's on average, metres (empty
+        when none is pinned)."""
+        return np.zeros(0) if self.pinned is None else mean_joint_distances(self.synth, self.pinned)
 
     def contact(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Leader vs synthesized follower -> closest limb distance per frame (T,) in metres, and the leader's and the
@@ -274,8 +280,9 @@ class Session:
         return None if self.reader is None else np.asarray(self.reader.probabilities(self.synth), np.float64)
 
     def distances_m(self) -> np.ndarray:
-        """(T,) per-frame distance between GT and synthesized 45-d pose vectors, metres."""
-        return np.zeros(0) if self.ground_truth is None else frame_distances(self.synth, self.ground_truth)
+        """(T,) per frame, how far the synthesized follower's joints are from the ground truth's on average, metres
+        (a distance one sees in the view, where the 45-d pose-vector norm of the metrics is ~sqrt(15) times larger)."""
+        return np.zeros(0) if self.ground_truth is None else mean_joint_distances(self.synth, self.ground_truth)
 
     def afd(self) -> float | None:
         """The paper's AFD (SBU normalized units) of the synthesized follower against ground truth."""

@@ -286,10 +286,15 @@ def test_upload_a_bvh_leader_then_a_broken_file(page, tmp_path, sample_data):
     leader = tmp_path / "my_leader.bvh"
     write_bvh(leader, sample_data.world(12)[0])
     n_mix = probe.state(page, "mix_count")
+    shown = probe.state(page, "sequence_title").split(" · ")[0]
+    assert shown in page.locator(".v-input:has(#sequence-picker)").inner_text() and page.locator(".legend-ground_truth").count() == 1
     page.locator("input[type=file]").set_input_files(str(leader))
     page.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=20000)
     page.wait_for_selector("#uploaded-chip", timeout=10000)
     assert "my_leader.bvh" in probe.state(page, "sequence_title") and "no ground truth" in probe.state(page, "afd_text")
+    # neither the sequence menu nor the view's legend still names what was on screen before
+    page.wait_for_selector(".legend-ground_truth", state="detached", timeout=5000)
+    assert probe.state(page, "sequence_index") is None and shown not in page.locator(".v-input:has(#sequence-picker)").inner_text()
     assert probe.state(page, "num_frames") == len(sample_data.canonical(12)[0])
     time.sleep(0.5)
     probe.shot(page, "studio-uploaded")
@@ -345,6 +350,45 @@ def test_keyboard_drives_frames_playback_and_sliders(page):
     probe.wait_state(page, "s.get('playing') === false")
 
 
+def test_keys_still_work_after_choosing_a_speed(page):
+    """The speed menu keeps the focus after a choice (a read-only field): the studio's keys must still reach it."""
+    page.locator(".v-select:has(#speed-select)").click()
+    page.locator(".v-overlay .v-list-item", has_text="2×").click()
+    probe.wait_state(page, "s.get('speed') === 2")
+    # the menu closes and hands the focus back to its field, where it stays
+    page.wait_for_function("() => document.activeElement && document.activeElement.id === 'speed-select'"
+                           " && document.activeElement.getAttribute('aria-expanded') === 'false'", timeout=5000)
+    page.keyboard.press(" ")  # not probe.press_key: that would blur the menu's field first
+    probe.wait_state(page, "s.get('playing') === true")
+    page.keyboard.press(" ")
+    probe.wait_state(page, "s.get('playing') === false")
+    probe.set_state(page, "speed", 1.0)  # back to real time for the tests after this one
+
+
+def test_a_class_filter_narrows_the_list_and_keeps_the_mix(page):
+    """Choosing a class in the filter opens the first sequence of that class with the user's mix as it was (only
+    picking a sequence applies "match")."""
+    _load_sequence(page, 2 if probe.state(page, "sequence_index") != 2 else 3)
+    names = probe.state(page, "class_names")
+    current = names.index(probe.state(page, "sequence_title").split(" · ")[1])
+    target = (current + 3) % len(names)
+    n = probe.state(page, "mix_count")
+    probe.set_state(page, "w_1", 0.4)
+    probe.set_state(page, "w_4", -0.6)
+    probe.wait_state(page, f"s.get('mix_count') > {n}")
+    mix = [probe.state(page, f"w_{i}") for i in range(len(names))]
+    assert mix[1] == 0.4 and mix[4] == -0.6
+    page.locator(".v-select", has_text="Class").first.click()
+    page.locator(".v-overlay .v-list-item", has_text=names[target]).first.click()
+    probe.wait_state(page, f"s.get('sequence_title').endsWith({names[target]!r})")
+    assert [probe.state(page, f"w_{i}") for i in range(len(names))] == mix
+    items = probe.state(page, "sequence_items")
+    assert items and all(names[target] in it["title"] for it in items)
+    probe.set_state(page, "class_filter", "")
+    probe.wait_state(page, "s.get('sequence_items').length > 100")
+    page.click("#match-label")
+
+
 def test_screenshot_downloads_the_view_as_png(page, tmp_path):
     from PIL import Image
 
@@ -370,7 +414,7 @@ def test_pin_a_mix_then_compare_swap_and_clear(page):
     probe.wait_state(page, "!!s.get('pinned_text')")
     probe.set_state(page, f"w_{other}", 1.0)
     pinned_line = "s.get('distance_chart').includes('data-series=\"pinned\"')"
-    probe.wait_state(page, f"s.get('ab_text').includes('mean') && {pinned_line}")
+    probe.wait_state(page, f"s.get('ab_text').includes('apart') && {pinned_line}")
     time.sleep(0.5)
     assert probe.count_colors(probe.view_pixels(page), [PINNED])[0] > 300
     page.locator("#swap-mix").click()  # the pinned mix (own class only) back on the sliders

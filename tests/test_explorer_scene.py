@@ -82,3 +82,29 @@ def test_the_scene_is_made_of_pyvista_objects(scene):
     assert all(isinstance(f.poly, pv.PolyData) and all(isinstance(a, pv.Actor) for a in f.actors) for f in scene.figures.values())
     assert isinstance(scene.captions["leader"], pv.Label) and isinstance(scene.floor, pv.Actor)
     assert scene.figures["leader"].poly.n_verts == 0 and scene.figures["leader"].poly.n_lines == len(scene.skeleton.bones)
+
+
+def test_side_by_side_figures_and_captions_stay_apart_from_every_camera(scene):
+    """The three figures stand left to right (leader, ground truth, synthesized) with their captions apart, also for
+    the side camera, which looks along the axis they stand on in the other views."""
+    from explorer.palette import GROUND_TRUTH, LEADER, SYNTHESIZED
+    from explorer.scene import CAMERA_PRESETS
+    from tests.studio_probe import color_mask
+
+    scene.set_layout("side_by_side")
+    try:
+        for preset in ("front", "side", "default"):
+            scene.set_camera(preset)
+            img = scene.screenshot()
+            centres = [np.flatnonzero(color_mask(img, c).any(0)).mean() for c in (LEADER, GROUND_TRUTH, SYNTHESIZED)]
+            assert np.all(np.diff(centres) > 0.15 * img.shape[1]), (preset, centres)
+            captions = []
+            for key in ("leader", "ground_truth", "synthesized"):
+                scene.renderer.SetWorldPoint(*scene.captions[key].position, 1.0)
+                scene.renderer.WorldToDisplay()
+                captions.append(scene.renderer.GetDisplayPoint()[0])
+            assert np.all(np.diff(captions) > 0.15 * img.shape[1]), (preset, captions)
+        assert set(CAMERA_PRESETS) >= {"front", "side", "default"}
+    finally:
+        scene.set_layout("overlay")
+        scene.set_camera("default")
