@@ -485,3 +485,26 @@ def test_the_view_chart_and_map_fit_the_window(browser, studio, width, height):
         assert page.evaluate("() => [window.scrollX, window.scrollY]") == [0, 0]
     finally:
         page.close()
+
+
+def test_side_by_side_from_the_side_keeps_the_three_figures_apart(page):
+    """The side camera in the side-by-side layout shows leader, ground truth and synthesized left to right, apart
+    (it used to look along the line they stand on, stacking them and their captions)."""
+    from explorer.palette import GROUND_TRUTH, LEADER, SYNTHESIZED
+    from tests.studio_probe import color_mask
+
+    n = probe.images_seen(page)
+    probe.set_state(page, "scene_layout", "side_by_side")
+    probe.wait_for_new_image(page, n)
+    n = probe.images_seen(page)
+    page.locator("#camera-side").click()
+    probe.wait_for_new_image(page, n)
+    time.sleep(0.6)  # the still picture after the interactive one
+    img = probe.view_pixels(page)
+    probe.shot(page, "studio-side-by-side-side")
+    try:
+        centres = [np.flatnonzero(color_mask(img, c).any(0)).mean() for c in (LEADER, GROUND_TRUTH, SYNTHESIZED)]
+        assert np.all(np.diff(centres) > 0.12 * img.shape[1]), centres
+    finally:
+        probe.set_state(page, "scene_layout", "overlay")
+        page.locator("#camera-default").click()
