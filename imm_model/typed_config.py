@@ -154,7 +154,7 @@ class FieldsOf:
         return f"a JSON object of {self.config.__name__} fields"
 
 
-def _problem(cls: type, what: str, name: str, value: Any, check: Any) -> str | None:
+def _problem(what: str, name: str, value: Any, check: Any) -> str | None:
     """The one-line error for field `name` holding `value`, or None when `check` accepts it."""
     if not check.accepts(value):
         return f"{what}: {name} must be {check}, not {value!r}"[:300]
@@ -165,12 +165,11 @@ def _problem(cls: type, what: str, name: str, value: Any, check: Any) -> str | N
 def validate(config: Any, what: str) -> None:
     """Check each field of dataclass instance `config` against its declared constraint, then the class's RULES
     (ValueError naming the first field that fails)."""
-    cls = type(config)
-    for f in fields(cls):
+    for f in fields(config):
         check = constraint_of(f)
-        if check is not None and (message := _problem(cls, what, f.name, getattr(config, f.name), check)):
+        if check is not None and (message := _problem(what, f.name, getattr(config, f.name), check)):
             raise ValueError(message)
-    for name, ok, expected in getattr(cls, "RULES", ()):
+    for name, ok, expected in getattr(type(config), "RULES", ()):
         if not ok(config):
             raise ValueError(f"{what}: {name} must be {expected}, not {getattr(config, name)!r}"[:300])
 
