@@ -41,6 +41,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from imm_model.data.dataset import InteractionDataset
     from imm_model.data.splits import all_subjects, normalize_fold
     from imm_model.device import resolve_device
+    from imm_model.outputs import write_atomic
     from imm_model.paths import SAMPLE_DATA
     from imm_model.training.config import load_config
     from imm_model.training.diffusion import DiffusionTrainer, diffusion_recipe
@@ -86,7 +87,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
         for subject in folds:
             clear_run(fold_dir(args.out, subject))
     args.out.mkdir(parents=True, exist_ok=True)  # written only once every check has passed
-    (args.out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=1) + "\n")
+    write_atomic(args.out / "config.json", json.dumps(cfg.to_dict(), indent=1) + "\n")
     for subject in folds:
         trainer = (DiffusionTrainer if diffusion else Trainer)(cfg, data, subject, fold_dir(args.out, subject), device)
         if args.resume and (trainer.out / "last.safetensors").exists():
