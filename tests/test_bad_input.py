@@ -115,7 +115,7 @@ def test_unreadable_and_malformed_mat_files(tmp_path):
 def test_corrupt_bundle_is_a_one_line_error_and_cli_exits_2(tmp_path, capsys):
     bad = tmp_path / "broken.npz"
     bad.write_bytes(b"PK\x03\x04 truncated")
-    with pytest.raises(DataFormatError, match="not an .npz file"):
+    with pytest.raises(DataFormatError, match=r"unreadable .npz \(not a zip"):
         InteractionDataset.load(bad)
     assert main(["data", "summary", "--data", str(bad)]) == 2
     err = capsys.readouterr().err.strip()

@@ -30,7 +30,7 @@ def read_npz(path: Path, names: Iterable[str], max_bytes: int, what: str) -> dic
         if size > max_bytes:
             raise DataFormatError(f"{path}: {size / 1e6:.1f} MB; {what} files up to {max_bytes / 1e6:.0f} MB are read")
         if not zipfile.is_zipfile(path):
-            raise DataFormatError(f"{path}: not an .npz file (a zip of .npy arrays)")
+            raise DataFormatError(f"{path}: unreadable .npz (not a zip of .npy arrays)")
         with zipfile.ZipFile(path) as zf:
             members = {info.filename.removesuffix(".npy"): info for info in zf.infolist() if info.filename.endswith(".npy")}
             names = list(dict.fromkeys(names))
