@@ -55,6 +55,7 @@ MAX_BYTES = 20_000_000
 # bvhio keeps a Python object per joint per frame (measured: 807,000 of them, a 20 MB CMU file, take 10.6 s and 375 MB)
 MAX_KEYFRAMES = 400_000  # frames x joints
 MAX_JOINTS = 1000
+MAX_LINES = 1_000_000  # bvhio reads a line in about a microsecond, blank or not; a real file has frames + ~8 per joint
 MAX_DEPTH = 100  # joints from the root to the deepest leaf; a human rig has about a dozen
 MAX_SECONDS = 600.0  # duration of the motion
 FRAME_TIME_RANGE = (1e-4, 1.0)  # seconds per frame: 1 to 10000 frames per second
@@ -144,6 +145,9 @@ def _read_text(path: Path) -> str:
         raise DataFormatError(f"{path}: cannot read ({err.strerror})") from None
     if not text.lstrip().startswith("HIERARCHY"):
         raise DataFormatError(f"{path}: not a BVH file (it does not begin with HIERARCHY)")
+    lines = text.count("\n")
+    if lines > MAX_LINES:
+        raise DataFormatError(f"{path}: {lines} lines; BVH files of up to {MAX_LINES} lines are read")
     return text
 
 
