@@ -36,6 +36,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--average-placement", action="store_true",
                    help="place the follower at the mean of where the model places it for the leader and, mirrored back, for "
                         "the leader's mirror image (its motion unchanged; docs/evaluation.md)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="sampler seed of a stochastic model (the diffusion model): another seed, another reaction (default 0)")
+    p.add_argument("--samples", type=int, default=1,
+                   help="reactions per leader and label, drawn with seeds --seed, --seed + 1, ... (a stochastic model; "
+                        "more than 1 writes a folder, each file named with its seed)")
     p.add_argument("--force", action="store_true", help="replace outputs that exist")
     add_device_argument(p)
     p.set_defaults(func=_cmd_generate)
@@ -108,35 +113,40 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     import torch
 
     from imm_model.device import resolve_device
-    from imm_model.inference import ReactionModel
+    from imm_model.inference import ReactionModel, check_seeds
     from imm_model.outputs import Output, plan_outputs
 
+    seeds = check_seeds(args.seed, args.samples)
     one_leader = bool(args.sequence) or bool(args.leader and len(args.leader) == 1 and args.leader[0].is_file())
-    single = one_leader and not args.grid and len(args.label or []) <= 1
+    single = one_leader and not args.grid and len(args.label or []) <= 1 and len(seeds) == 1
     if not single and args.out.suffix.lower() in (".npz", ".bvh"):
         raise ValueError(f"--out {args.out}: several items need a folder, not a file name")
     torch.set_num_threads(2)
     model = ReactionModel.load(args.checkpoint, resolve_device(args.device))
     model.raw, model.average_placement = args.raw, args.average_placement
+    if len(seeds) > 1 and not model.stochastic:
+        raise ValueError(f"--samples {args.samples}: {model.path.name if model.path else 'this model'} is deterministic "
+                         "(the paper's GAN): every seed gives the same reaction")
     leaders, labels = _leaders(args), label_vectors(args, model)
     if single:
-        paths = {(0, 0): args.out}
+        paths = {(0, 0, seeds[0]): args.out}
         outputs = [Output(args.out)]
     else:
-        paths = {(k, c): args.out / f"{name}_{label_slug(vec, model.class_names)}.{args.format}"
-                 for k, (name, _, _) in enumerate(leaders) for c, vec in enumerate(labels)}
-        outputs = [Output(path, "--out", leaders[k][2]) for (k, _), path in paths.items()]
+        tag = (lambda seed: f"_seed{seed}") if len(seeds) > 1 else (lambda seed: "")  # noqa: E731
+        paths = {(k, c, seed): args.out / f"{name}_{label_slug(vec, model.class_names)}{tag(seed)}.{args.format}"
+                 for k, (name, _, _) in enumerate(leaders) for c, vec in enumerate(labels) for seed in seeds}
+        outputs = [Output(path, "--out", leaders[k][2]) for (k, _, _), path in paths.items()]
     outputs += [Output(leader_copy(out.path), "--out's leader copy", out.source)
                 for out in list(outputs) if out.path.suffix.lower() == ".bvh"]
     plan_outputs(outputs, _inputs(args, model), args.force)  # all refused before anything is written
     if single:
-        return _generate_one(args, model, leaders[0], labels[0])
-    return _generate_batch(args, model, leaders, labels, paths, len(outputs))
+        return _generate_one(args, model, leaders[0], labels[0], seeds[0])
+    return _generate_batch(args, model, leaders, labels, seeds, paths, len(outputs))
 
 
-def _generate_one(args: argparse.Namespace, model, leader_item, vec: np.ndarray) -> int:
+def _generate_one(args: argparse.Namespace, model, leader_item, vec: np.ndarray, seed: int) -> int:
     _, leader, source = leader_item
-    follower = _synthesize(model, [leader], vec)[0]
+    follower = _synthesize(model, [leader], vec, seed)[0]
     _write(args.out, leader, follower, model, vec, args.scale, None if args.leader else source)
     desc = ", ".join(f"{n}={v:g}" for n, v in zip(model.class_names, vec, strict=True) if v != 0) or "all zero"
     beside = f" (the leader in {leader_copy(args.out)})" if args.out.suffix.lower() == ".bvh" else ""
@@ -144,24 +154,26 @@ def _generate_one(args: argparse.Namespace, model, leader_item, vec: np.ndarray)
     return 0
 
 
-def _generate_batch(args: argparse.Namespace, model, leaders: list, labels: list[np.ndarray], paths: dict,
+def _generate_batch(args: argparse.Namespace, model, leaders: list, labels: list[np.ndarray], seeds: list[int], paths: dict,
                     num_files: int) -> int:
-    """Every leader x every label, one file each in the --out folder (with its leader copy for .bvh); all leaders
-    in one batch per label."""
+    """Every leader x every label x every seed, one file each in the --out folder (with its leader copy for .bvh); all
+    leaders in one batch per label and seed."""
     from tqdm import tqdm
 
     with tqdm(total=len(paths), desc="generate", unit="item") as bar:
         for c, vec in enumerate(labels):
-            followers = _synthesize(model, [leader for _, leader, _ in leaders], vec)
-            for k, ((_, leader, source), follower) in enumerate(zip(leaders, followers, strict=True)):
-                _write(paths[k, c], leader, follower, model, vec, args.scale, None if args.leader else source)
-                bar.update()
+            for seed in seeds:
+                followers = _synthesize(model, [leader for _, leader, _ in leaders], vec, seed)
+                for k, ((_, leader, source), follower) in enumerate(zip(leaders, followers, strict=True)):
+                    _write(paths[k, c, seed], leader, follower, model, vec, args.scale, None if args.leader else source)
+                    bar.update()
     beside = ", each with its leader copy" if args.format == "bvh" else ""
-    print(f"wrote {num_files} files ({len(leaders)} leaders x {len(labels)} labels{beside}) to {args.out}")
+    samples = f" x {len(seeds)} seeds" if len(seeds) > 1 else ""
+    print(f"wrote {num_files} files ({len(leaders)} leaders x {len(labels)} labels{samples}{beside}) to {args.out}")
     return 0
 
 
-def _synthesize(model, leaders: list[np.ndarray], vec: np.ndarray) -> list[np.ndarray]:
+def _synthesize(model, leaders: list[np.ndarray], vec: np.ndarray, seed: int = 0) -> list[np.ndarray]:
     """World leaders -> world followers, one batched forward pass (each leader in its own canonical frame)."""
     from imm_model.data.canonical import CanonicalFrame
     from imm_model.outputs import check_finite
@@ -172,7 +184,7 @@ def _synthesize(model, leaders: list[np.ndarray], vec: np.ndarray) -> list[np.nd
         frame = CanonicalFrame.from_leader(checked, model.skeleton, model.canonical_mode)
         frames.append(frame)
         canonical.append(frame.to_canonical(checked, model.skeleton).astype(np.float32))
-    followers = model.synthesize_batch_canonical(canonical, np.repeat(vec[None], len(leaders), 0))
+    followers = model.synthesize_batch_canonical(canonical, np.repeat(vec[None], len(leaders), 0), [seed] * len(leaders))
     return [check_finite(f.to_world(b.astype(np.float64), model.skeleton), "the synthesized follower (leader coordinates out of range?)")
             for f, b in zip(frames, followers, strict=True)]
 

@@ -222,3 +222,22 @@ def test_cli_trains_a_diffusion_recipe(tmp_path, capsys):
     assert load_checkpoint(out / "fold-s04" / "final.safetensors")[1]["training"]["step"] == 4
     assert main(base + ["--overwrite", "--epochs", "2"]) == 2
     assert "--epochs does not apply" in capsys.readouterr().err
+
+
+def test_generate_draws_variations_with_seeds(tiny_model, sample_data, tmp_path, capsys):
+    sid = sample_data.sequence_ids[0]
+    out = tmp_path / "variations"
+    base = ["generate", "--checkpoint", str(tiny_model), "--sequence", sid, "--label", "hugging"]
+    assert main(base + ["--samples", "3", "--seed", "5", "--out", str(out)]) == 0
+    files = sorted(out.iterdir())
+    assert [f.name.rsplit("_", 1)[1] for f in files] == ["seed5.npz", "seed6.npz", "seed7.npz"]
+    followers = [np.load(f)["follower"] for f in files]
+    assert np.abs(followers[0] - followers[1]).mean() > 1e-3
+    one = tmp_path / "one.npz"
+    assert main(base + ["--seed", "6", "--out", str(one)]) == 0
+    assert np.allclose(np.load(one)["follower"], followers[1], atol=1e-5)  # a seed is the same reaction wherever drawn
+    capsys.readouterr()
+    assert main(["generate", "--sequence", sid, "--label", "hugging", "--samples", "2", "--out", str(tmp_path / "gan")]) == 2
+    assert "deterministic" in capsys.readouterr().err and not (tmp_path / "gan").exists()
+    assert main(base + ["--samples", "0", "--out", str(tmp_path / "none")]) == 2
+    assert "samples must be" in capsys.readouterr().err

@@ -92,6 +92,11 @@ def group_summary(results: list[dict], class_names: tuple[str, ...]) -> dict:
         out[f"mix{judge}"] = _mean_mix(results, f"mix{judge}")
         out[f"mix_pairs_ok{judge}"] = sum(r["first"] >= MIX_SHARE and r["second"] >= MIX_SHARE for r in out[f"mix{judge}"])
         out[f"avoid{judge}"] = {k: _stat([r[f"avoid{judge}"][k] for r in results])[0] for k in results[0][f"avoid{judge}"]}
+    if all("mix_parts" in r for r in results):  # the mixed reading by the whole body or by body parts
+        out["mix_parts"] = _mean_mix(results, "mix_parts")
+        out["mix_mixed_mean"] = float(np.mean([row["mixed"] for row in out["mix_parts"]]))
+    if all("variations" in r for r in results):  # stochastic models: multimodality and best-of-N AFD
+        out["variations"] = {k: _stat([r["variations"][k] for r in results])[0] for k in results[0]["variations"]}
     _with_std(out, "adherence_off_diagonal", [r["adherence_off_diagonal"] for r in results])
     _with_std(out, "adherence_off_diagonal_judge", [r["adherence_off_diagonal_judge"] for r in results])
     out["plausibility"] = out["model_overall"]["plausibility"]

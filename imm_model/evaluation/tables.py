@@ -62,6 +62,31 @@ def mix_table(group: dict) -> str:
     return "\n".join(lines)
 
 
+def part_mix_table(group: dict) -> str:
+    """The share of leaders whose reaction reads as mixed, per pair: by the whole-body judge, by the body-part judges,
+    by either (evaluation/control.py); empty for results recorded without them."""
+    if "mix_parts" not in group:
+        return ""
+    lines = ["| mix (+1 each) | whole body (each >= 0.25) | body parts (one each, >= 0.4) | mixed (either) |", "|---|---:|---:|---:|"]
+    for r in group["mix_parts"]:
+        lines.append(f"| {r['pair'][0]} + {r['pair'][1]} | {r['whole']:.2f} | {r['parts']:.2f} | {r['mixed']:.2f} |")
+    lines.append(f"| **mean** | {np.mean([r['whole'] for r in group['mix_parts']]):.2f} | "
+                 f"{np.mean([r['parts'] for r in group['mix_parts']]):.2f} | **{group['mix_mixed_mean']:.2f}** |")
+    return "\n".join(lines)
+
+
+def variations_table(group: dict) -> str:
+    """A stochastic model's spread and best-of-N AFD; empty for a deterministic model."""
+    v = group.get("variations")
+    if not v:
+        return ""
+    return "\n".join([
+        f"| reactions per leader | multimodality (features) | real within-class diversity | multimodality (m) | AFD, one sample "
+        f"| AFD, best of {v['samples']:.0f} |", "|---:|---:|---:|---:|---:|---:|",
+        f"| {v['samples']:.0f} | {v['multimodality']:.3f} | {v['real_class_diversity']:.3f} | {v['multimodality_m']:.3f} "
+        f"| {v['afd_single']:.3f} | {v['afd_best_of_n']:.3f} |"])
+
+
 def plausibility_table(group: dict) -> str:
     cols = ("bone_error_cm", "interpenetration", "foot_skate_mps", "speed_ratio", "limb_speed_ratio", "smooth_limb_speed_ratio",
             "body_limb_speed_ratio", "interior_limb_speed_ratio", "root_sway_mps", "lean_error_deg")
@@ -135,5 +160,8 @@ def markdown_report(summary: dict) -> str:
                   f"Avoid (-1 on the leader's class vs all zero): P(leader's class) {s['avoid']['p_zero']:.2f} -> "
                   f"{s['avoid']['p_avoid']:.2f} (change {s['avoid']['change']:+.2f}); independent judge "
                   f"{s['avoid_judge']['p_zero']:.2f} -> {s['avoid_judge']['p_avoid']:.2f}.", "",
-                  "### Mix", "", mix_table(s), "", "### Plausibility", "", plausibility_table(s), ""]
+                  "### Mix", "", mix_table(s), "",
+                  *_section("Mixed, by the whole body or by body parts (share of leaders)", part_mix_table(s)),
+                  *_section("Variations (stochastic models)", variations_table(s)),
+                  "### Plausibility", "", plausibility_table(s), ""]
     return "\n".join(parts)
