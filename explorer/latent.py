@@ -18,6 +18,7 @@ import os
 import sys
 import tempfile
 import threading
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -68,16 +69,6 @@ def embed_all(model, data: InteractionDataset) -> np.ndarray:
     return np.asarray(model.latent_canonical_batch(leaders, one_hot_labels(model, data)), np.float32)
 
 
-def afd_all(model, data: InteractionDataset) -> np.ndarray:
-    """(N,) each sequence's AFD (SBU normalized units) with its own one-hot label, as the studio opens it."""
-    labels = one_hot_labels(model, data)
-    scores = []
-    for i in range(len(data)):
-        leader, real = data.canonical(i)
-        scores.append(afd(model.synthesize_canonical(leader, labels[i]), real, data.frame_of(i), data.skeleton, units="normalized"))
-    return np.asarray(scores, np.float32)
-
-
 def project(latents: np.ndarray, method: str, seed: int = 0) -> np.ndarray:
     """(N, D) -> (N, 2), standardized features, deterministic for a seed."""
     from threadpoolctl import threadpool_limits
@@ -113,7 +104,7 @@ class LatentMap:
     latents: np.ndarray  # (N, D) embeddings with each sequence's own one-hot label
     coords: dict[str, np.ndarray] = field(default_factory=dict)  # method -> (N, 2)
     path: Path | None = None  # cache file, when cached
-    afd: np.ndarray | None = None  # (N,) per-sequence AFD under its own label; None until scored (score_afd)
+    afd: np.ndarray | None = None  # (N,) per-sequence AFD under its own label; None until scored (afd_scores)
     # one fit per method at a time: a second request for a method being fitted waits for that fit
     _locks: dict[str, threading.Lock] = field(default_factory=lambda: {m: threading.Lock() for m in METHODS}, repr=False)
     _save_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
@@ -187,16 +178,21 @@ class LatentMap:
                 np.savez(f, latents=self.latents, **dict(self.coords), **extra)
             Path(f.name).replace(self.path)  # atomic
 
-    def score_afd(self, model, data: InteractionDataset) -> np.ndarray:
-        """Every sequence's AFD: from memory, from the cache file, or computed here (~2 s for 197 sequences on a
-        busy core, so the studio does it in a thread once the page is up) and saved for every later process."""
-        with self._file_lock():
-            if self.afd is None:
-                self.reload()
-            if self.afd is None or len(self.afd) != len(data):
-                self.afd = afd_all(model, data)
-                self.save()
-        return self.afd
+    def afd_scores(self, model, data: InteractionDataset) -> Iterator[None]:
+        """Score every sequence's AFD under its own one-hot label, one sequence per step (a generator: the studio runs
+        a step between its other work, so a slider move waits for one synthesis at most, not for all 197: ~2 s on a
+        busy core), then save them for every later process. No steps when the cache file has them already."""
+        self.reload()
+        if self.afd is not None and len(self.afd) == len(data):
+            return
+        labels = one_hot_labels(model, data)
+        scores = []
+        for i in range(len(data)):
+            leader, real = data.canonical(i)
+            scores.append(afd(model.synthesize_canonical(leader, labels[i]), real, data.frame_of(i), data.skeleton, units="normalized"))
+            yield
+        self.afd = np.asarray(scores, np.float32)
+        self.save()
 
     async def fit_elsewhere(self, method: str) -> None:
         """Fit in a separate process (`python -m explorer.latent`), then take its result: a fit holds the GIL for

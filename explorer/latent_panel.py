@@ -6,7 +6,8 @@ out, and a click on a point that opens that sequence and plays it.
 
 A method not fitted yet (UMAP until asked for; t-SNE too on a cold cache) is fitted in a separate process while
 the page works, with a progress message (explorer/latent.py keeps one fit per method at a time, across the
-studio's processes). The per-sequence AFDs are computed once, in a thread after the page is up, and cached.
+studio's processes). The per-sequence AFDs are computed once, a sequence at a time between the page's own work
+once it is up, and cached.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from explorer.palette import SYNTHESIZED, class_color, display_name
 COLOR_MODES = ("class", "afd", "held")
 SORT_KEYS = ("afd", "id", "class")
 AFD_DELAY_S = 2.0  # the per-sequence AFDs wait this long after the page opens: its first picture goes first
+AFD_STEP_S = 0.01  # ... and leave the event loop this long after each sequence's synthesis
 
 
 class LatentPanel:
@@ -114,7 +116,8 @@ class LatentPanel:
         await asyncio.sleep(AFD_DELAY_S)
         ses = self.studio.session
         try:
-            await asyncio.to_thread(self.latent.score_afd, ses.model, ses.data)
+            for _ in self.latent.afd_scores(ses.model, ses.data):
+                await asyncio.sleep(AFD_STEP_S)  # one sequence at a time, between the page's own work
         except Exception as err:
             with self.studio.state:
                 self.studio.state.error = f"AFD of the sequences failed: {one_line(err)}"

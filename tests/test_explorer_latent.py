@@ -162,12 +162,15 @@ def test_per_sequence_afd_is_scored_once_and_cached(tmp_path, sample_data):
     model = Copier(subset)
     lm = latent.LatentMap.build(model, subset, tmp_path, "afd", methods=())
     assert lm.afd is None
-    scores = lm.score_afd(model, subset)
-    assert model.synths == 6 and scores.shape == (6,)
-    assert np.all(scores[1::2] == 0) and np.all(scores[0::2] > 0)
+    steps = lm.afd_scores(model, subset)
+    next(steps)
+    assert model.synths == 1 and lm.afd is None  # one sequence per step
+    assert len(list(steps)) == 5 and model.synths == 6
+    scores = lm.afd
+    assert scores.shape == (6,) and np.all(scores[1::2] == 0) and np.all(scores[0::2] > 0)
     again = latent.LatentMap.build(model, subset, tmp_path, "afd", methods=())
-    np.testing.assert_array_equal(again.score_afd(model, subset), scores)
-    assert model.synths == 6  # read from the cache file
+    assert list(again.afd_scores(model, subset)) == [] and model.synths == 6  # read from the cache file
+    np.testing.assert_array_equal(again.afd, scores)
 
 
 def test_the_selection_list_sorts_worst_first_by_id_or_class(sample_data):
