@@ -38,7 +38,8 @@ def _sample_dir() -> Path:
 
 SAMPLE_DIR = _sample_dir()
 SAMPLE_DATA = SAMPLE_DIR / "sbu_interactions.npz"
-SAMPLE_CHECKPOINT = SAMPLE_DIR / "imm_sbu.safetensors"
+SAMPLE_CHECKPOINT = SAMPLE_DIR / "imm_sbu.safetensors"  # the paper's GAN (`imm-steer`): the studio's default model
+SAMPLE_DIFFUSION = SAMPLE_DIR / "imm_diffusion.safetensors"  # the reaction diffusion model (`imm-diffusion`)
 SAMPLE_JUDGE = SAMPLE_DIR / "follower_judge.safetensors"  # the studio's "reads as" classifier (imm_model/reads_as.py)
 
 
