@@ -146,6 +146,8 @@ def test_evaluate_reports_never_replace_the_checkpoint_sidecar_or_each_other(tmp
     _refused(capsys, "X.json", "an input of this command")
     assert main(["evaluate", "--json", str(tmp_path / "r.out"), "--markdown", str(tmp_path / "r.out"), "--quiet"]) == 2
     _refused(capsys, "--json and --markdown are the same file")
+    assert main(["evaluate", "--figures", str(tmp_path / "X.json"), "--quiet"]) == 2
+    _refused(capsys, "X.json is a file, not a folder")
     assert _files(tmp_path) == before
 
 

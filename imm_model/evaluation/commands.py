@@ -146,6 +146,8 @@ def _plan_outputs(args: argparse.Namespace, jobs: list[tuple[Path, str]]) -> Non
     outputs = [Output(getattr(args, option), f"--{option}") for option in ("json", "markdown") if getattr(args, option)]
     checkpoints = [f for path, _ in jobs for f in (path, sidecar_path(path))]
     plan_outputs(outputs, [args.data or SAMPLE_DATA, args.classifier_config, *checkpoints], args.force)
+    if args.figures:  # a folder whose figures each evaluation replaces: it only has to be one, and writable
+        plan_outputs([Output(args.figures / "figure.png", "--figures")], force=True)
 
 
 def _write_outputs(args: argparse.Namespace, summary: dict, latent: dict | None, data) -> None:
