@@ -76,7 +76,7 @@ def plan_outputs(outputs: Sequence[Output], inputs: Iterable[Path | None] = (), 
 
 def _temporary(path: Path) -> Path:
     """A hidden name beside `path` (same folder, so the rename is atomic) that no other writer uses."""
-    return path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
+    return path.with_name(f".{path.name[:200]}.{os.getpid()}-{secrets.token_hex(4)}.tmp")  # within NAME_MAX (255)
 
 
 def _failed(path: Path, err: OSError) -> IMMError:
