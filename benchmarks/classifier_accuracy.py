@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/classifier_accuracy.py [--inputs interaction,follower] [--seeds 0] [--threads 1]
 
-How the evaluation's classifiers were chosen (docs/evaluation.md): each candidate ClassifierConfig is
+How the evaluation's classifiers were chosen (docs/evaluation-protocol.md): each candidate ClassifierConfig is
 trained on every fold's training subjects (real motion only) and scored on the fold's held-out subject;
 prints per-fold accuracies and the mean, one line per candidate and seed. Not a speed benchmark: it lives
 here because, like the speed scripts, it prints figures that the docs quote.

@@ -17,7 +17,7 @@ Measures, and prints with the machine's thread count and load:
   5. memory with 5 tabs: RSS, PSS and USS of each studio process (one per tab, plus the warm spare) and of the
      zygote they are forked from, and the PSS of all of them together (`--memory-only`: just this).
 Bars: slider p95 <= 60 ms idle, <= 100 ms with A/B or the 'reads as' panel, <= 150 ms with 5 tabs (issues 9, 12);
-warm start <= 4 s, cold <= 6 s (issue 12); >= 30 fps render capability; RSS per tab <= 300 MB (issue 13).
+warm start <= 4 s, cold <= 6 s; >= 30 fps render capability; RSS per tab <= 300 MB.
 """
 
 from __future__ import annotations

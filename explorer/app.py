@@ -259,7 +259,7 @@ class Studio:
                 await asyncio.sleep(PICTURE_S)  # the picture is rendered, encoded and sent before anything else
                 continue
             # The panels change once the page has shown the picture: their state messages, processed by the page
-            # while it decodes the picture, delayed it by ~30 ms at p95 (docs/explorer.md).
+            # while it decodes the picture, delayed it by ~30 ms at p95 (docs/experiments/studio-performance.md).
             await asyncio.sleep(REVIEW_DELAY_S - PICTURE_S)
             if not self._mix_pending:
                 review_due = False

@@ -48,7 +48,7 @@ class StickFigure:
         self._points = self.poly.points  # a view of the mesh's VTK points: writes go straight to VTK
 
         # 6-sided tubes and 8 x 6 spheres look the same at the view's scale as 10 sides and 12 x 10, and cost llvmpipe
-        # ~3 ms less per full-size frame with three figures (docs/explorer.md, session 11)
+        # ~3 ms less per full-size frame with three figures (docs/experiments/studio-performance.md)
         tube = vtkTubeFilter()
         tube.SetInputData(self.poly)
         tube.SetRadius(bone_radius)

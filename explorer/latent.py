@@ -5,7 +5,7 @@ Points are the model's per-sequence embeddings of each leader with the sequence'
 ("real / match"). The current mix (leader + mixed label) is placed on the existing map by
 inverse-distance-weighted k-nearest neighbours in latent space: t-SNE cannot embed new points, UMAP's
 `transform` costs tens of ms and a numba warm-up, while the kNN placement costs well under 1 ms, is
-the same for both methods and never moves the map under the user (docs/explorer.md).
+the same for both methods and never moves the map under the user (docs/architecture.md).
 """
 
 from __future__ import annotations

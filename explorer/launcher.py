@@ -48,7 +48,7 @@ CLAIM_EVERY_S = 1.0
 # A claimed spare is replaced once the tabs have been quiet (no websocket message through the proxy) for SPARE_QUIET_S,
 # and no sooner than SPARE_DELAY_S after the claim; at once when another tab asks first, and at the latest after
 # SPARE_LATEST_S (playback never goes quiet). Why: forking and starting a studio process takes ~0.5 s of CPU, which on
-# a small machine competes with the new tab's page as it loads and with its first slider moves (docs/explorer.md).
+# a small machine competes with the new tab's page as it loads and with its first slider moves (docs/experiments/studio-performance.md).
 SPARE_DELAY_S = 3.0
 SPARE_QUIET_S = 1.0
 SPARE_LATEST_S = 60.0
@@ -402,7 +402,7 @@ class Launcher:
         await runner.setup()
         await web.SockSite(runner, sock).start()
         # What is loaded now stays: out of the collector's sight, a full collection no longer walks aiohttp's and the
-        # launcher's objects (33 ms here, in the middle of relaying a picture: docs/explorer.md, session 11).
+        # launcher's objects (33 ms here, in the middle of relaying a picture: docs/experiments/studio-performance.md).
         gc.freeze()
         port = sock.getsockname()[1]
         wildcard = {"0.0.0.0": socket.gethostname(), "::": socket.gethostname()}

@@ -19,7 +19,7 @@ from explorer.view_stream import ViewStream
 SPEEDS = [0.25, 0.5, 1.0, 1.5, 2.0]
 # Sliders jump to a new value at once, as Vuetify's already do while dragged (a key or a click glides for 0.3 s), and
 # the 'reads as' bars change without a 0.2 s glide: repainting those animations took the CPU that the new picture is
-# made with on a small machine (slider p95 71-77 -> 52-53 ms in one back-to-back run, docs/explorer.md, session 11).
+# made with on a small machine (slider p95 71-77 -> 52-53 ms in one back-to-back run, docs/experiments/studio-performance.md).
 STILL_CONTROLS_CSS = """
 .v-slider .v-slider-thumb, .v-slider .v-slider-track__fill, .v-slider .v-slider-track__background { transition: none; }
 .reads-as-bar, .reads-as-bar .v-progress-linear__determinate { transition: none; }
@@ -283,7 +283,7 @@ def scene_view(studio) -> None:
         id="error-alert",
     )
     with html.Div(classes="rounded border imm-scene"):
-        if studio.render_mode == "local":  # vtk.js in the browser (see docs/explorer.md), through trame's PyVista view
+        if studio.render_mode == "local":  # vtk.js in the browser (docs/experiments/studio-performance.md), through trame's PyVista view
             from trame.widgets import pyvista as pyvista_widgets  # only here: trame-pyvista's import is for this mode
 
             view = pyvista_widgets.PyVistaLocalView(studio.scene.plotter)

@@ -1,6 +1,6 @@
 """The page's shell: trame's index.html with static/websocket_bytes.js run before trame's client, served by every
 studio process as its main web content. Binary websocket messages then reach wslink as bytes instead of Blobs that
-it reads back asynchronously (~20 ms between a picture's arrival and its display, measured in docs/explorer.md).
+it reads back asynchronously (~20 ms between a picture's arrival and its display, measured in docs/experiments/studio-performance.md).
 The shell also carries static/latent_map.js, the latent map's Plotly figure, and serves plotly.js (from the plotly
 package) under imm_plotly/, which that script loads after the page's first picture.
 

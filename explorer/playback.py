@@ -11,7 +11,7 @@ from explorer.session import FPS
 
 MIN_YIELD_S = 0.005  # even when late, give the image delivery and incoming messages a turn
 # Pictures per second at most. On a 2-core machine the browser and the server share the cores: asked for 30/s (2x),
-# the page showed 6-8 of them a second, asked for 15/s it showed 12-13 (docs/explorer.md).
+# the page showed 6-8 of them a second, asked for 15/s it showed 12-13 (docs/experiments/studio-performance.md).
 MAX_PICTURES_PER_S = 30 if (os.cpu_count() or 1) >= 4 else 15
 
 

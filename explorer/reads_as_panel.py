@@ -1,7 +1,7 @@
 """The "reads as" panel: which interaction the synthesized reaction on screen reads as, per the follower-only
 classifier (imm_model/reads_as.py), one bar per class, the asked-for classes marked. Updated with every slider
 move, so a user sees whether a mix reads as intended; an asked-for class the classifier barely sees is named under
-the bars (the mixes that fail issue 9's bar show this way, docs/explorer.md "Mixes that do not read")."""
+the bars (the mixes that fail the mix target show this way, docs/user-guide.md "Mixes that do not read")."""
 
 from __future__ import annotations
 

@@ -44,7 +44,7 @@ class Scene:
         self.plotter.set_background(BACKGROUND)
         self.renderer = self.plotter.renderer
         self.render_window = self.plotter.render_window
-        self.render_window.SetMultiSamples(0)  # MSAA costs ~3x per frame on llvmpipe (docs/explorer.md)
+        self.render_window.SetMultiSamples(0)  # MSAA costs ~3x per frame on llvmpipe (docs/experiments/studio-performance.md)
         # Mouse events from the page (explorer/view_stream.py) turn the camera through this interactor (an off-screen
         # Plotter has none of its own).
         interactor = vtkGenericRenderWindowInteractor()
@@ -84,8 +84,8 @@ class Scene:
 
     def _floor(self):
         """The floor as a grid of 2 (n + 1) lines on the background. Why no shaded plane under it: on llvmpipe that
-        one quad's pixels were ~3 ms of a full-size frame and ~1 ms of a draft (docs/explorer.md, session 11); an
-        n x n plane drawn again as wireframe had cost 2 ms more than these lines (session 10)."""
+        one quad's pixels were ~3 ms of a full-size frame and ~1 ms of a draft (docs/experiments/studio-performance.md); an
+        n x n plane drawn again as wireframe had cost 2 ms more than these lines."""
         size, n, y = 9.0, 18, self.floor_y
         ticks = np.linspace(-size / 2, size / 2, n + 1)
         grid = line_mesh(4 * (n + 1))

@@ -3,13 +3,13 @@
 Why trame-rca and not trame-vtk's VtkRemoteView: the page then loads 0.09 MB of JavaScript for the view instead of
 trame-vtk's 1.8 MB (all of vtk.js, which remote rendering does not use), and a picture goes out as soon as it is
 rendered and encoded (Pillow, ~2-3 ms for the view), where trame-vtk's image delivery encoded asynchronously and
-polled for the result. Measured in docs/explorer.md. `--render local` (vtk.js in the browser) still uses trame-vtk.
+polled for the result. Measured in docs/experiments/studio-performance.md. `--render local` (vtk.js in the browser) still uses trame-vtk.
 
 Each render is sent at INTERACTIVE_QUALITY at once, then, when no new picture was asked for during five frame
 periods, again at STILL_QUALITY: a slider move or a drag shows at once, and what the user stops on is sharp.
 A label change's first picture (`update(draft=True)`) is also rendered at DRAFT_SCALE of the view's width and
 height, which the page stretches: on a CPU renderer that is ~5 ms less to render, encode and decode, and the full
-picture follows when the sliders rest (docs/explorer.md, session 10).
+picture follows when the sliders rest (docs/experiments/studio-performance.md).
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 one studio process (explorer/worker.py `serve`) per browser tab.
 
 Why a fork server: a studio process that starts from scratch imports VTK and trame and loads everything itself
-(in session 5, with torch then: ~5-10 s before a tab could open and ~350 MB of private memory each). A process
+(before the zygote, with torch then: ~5-10 s before a tab could open and ~350 MB of private memory each). A process
 forked from this loaded parent is serving in well under a second and shares those pages (copy-on-write) with its
 siblings; `gc.freeze` keeps the collector from touching, and so copying, the inherited objects.
 

@@ -12,7 +12,7 @@ never imports torch):
 
 Bodies are not pushed apart: stepping the whole follower back until no bone axes came within 5 cm, tried, cost
 1-2.5 % AFD, and real followers touch the leader that closely in 25 % of handshake frames and 48 % of hug frames.
-Measured: docs/evaluation.md ("Clean-up").
+Measured: docs/experiments/cleanup.md.
 """
 
 from __future__ import annotations

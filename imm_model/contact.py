@@ -10,7 +10,7 @@ from imm_model.skeleton import Skeleton
 
 # Limbs are at least ~8-10 cm thick, so two bone axes within 5 cm overlap by half a limb or more. Kinect's joints
 # sit on the body's axis only roughly: real followers come that close in 25 % of handshake frames (hands clasped)
-# and 48 % of hug frames, so in those classes the measure counts contact as well (docs/evaluation.md, "Clean-up").
+# and 48 % of hug frames, so in those classes the measure counts contact as well (docs/evaluation-protocol.md, interpenetration).
 PENETRATION_M = 0.05
 CONTACT_M = 0.05  # a foot this close to the sequence's lowest foot height is on the floor
 

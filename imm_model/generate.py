@@ -35,7 +35,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="the network's own follower, without the clean-up (rigid bones, planted feet)")
     p.add_argument("--average-placement", action="store_true",
                    help="place the follower at the mean of where the model places it for the leader and, mirrored back, for "
-                        "the leader's mirror image (its motion unchanged; docs/evaluation.md)")
+                        "the leader's mirror image (its motion unchanged; docs/experiments/mirror-placement.md)")
     p.add_argument("--seed", type=int, default=0,
                    help="sampler seed of a stochastic model (the diffusion model): another seed, another reaction (default 0)")
     p.add_argument("--samples", type=int, default=1,

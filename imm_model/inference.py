@@ -217,7 +217,7 @@ class ReactionModel:
         """Move each follower (in place, by one offset for the whole sequence) to the mean of where it stands and where
         the network places it for the leader's mirror image, mirrored back. Where the follower stands is the least
         certain part of a reaction; the network's two answers disagree about it, and for the steered models their mean is
-        nearer the real placement (docs/evaluation.md, "Placement averaged with the mirror image"). The motion is left
+        nearer the real placement (docs/experiments/mirror-placement.md). The motion is left
         as it was."""
         rows = [i for i in range(len(leaders)) if not (labels[i] != 0)[self.handed].any()]
         if not rows:

@@ -16,7 +16,7 @@ import numpy as np
 from imm_model.errors import CheckpointError
 
 # A class asked for reads in the reaction when it gets at least this share of the probability: a two-class mix reads
-# as mixed when both members do (issue 9's mix bar; evaluation/report.py counts the pairs).
+# as mixed when both members do (the mix target; evaluation/report.py counts the pairs).
 MIX_SHARE = 0.25
 
 

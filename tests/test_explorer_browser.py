@@ -86,7 +86,7 @@ def test_class_slider_changes_follower(page):
 
 
 def test_a_mix_that_does_not_read_is_named_under_the_bars(page):
-    """Kicking + hugging, a pair that fails issue 9's mix bar: the bundled model gives the hug (on s04's 49 held-out
+    """Kicking + hugging, a pair that fails the mix target: the bundled model gives the hug (on s04's 49 held-out
     leaders the studio's classifier reads kicking at 0.04 on average, and both members at 0.25 or more for none), and
     the panel says so in words."""
     from imm_model.reads_as import MIX_SHARE

@@ -1,7 +1,7 @@
 """`imm evaluate`: a checkpoint (one fold) or runs (all their folds, several seeds) against every baseline.
 
 Prints the headline and the AFD table; writes the whole summary as JSON, Markdown and PNG figures.
-docs/evaluation.md defines every number.
+docs/evaluation-protocol.md defines every number.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""One LOSO fold evaluated in full: the model and every baseline, on every metric of docs/evaluation.md.
+"""One LOSO fold evaluated in full: the model and every baseline, on every metric of docs/evaluation-protocol.md.
 
 Per fold, each test sequence is synthesized with the one-hot label of its true class (AFD, FID,
 recognition, plausibility); label control asks every test leader for every class, every pair and
@@ -31,7 +31,7 @@ from imm_model.model import classifier as classifiers
 from imm_model.model import classifier_config as classifier_configs
 
 BASELINES = (*HEURISTIC_BASELINES, "men")
-DEV_FOLDS = ("s01", "s03", "s04")  # already used to choose recipes (docs/evaluation.md)
+DEV_FOLDS = ("s01", "s03", "s04")  # already used to choose recipes (docs/evaluation-protocol.md)
 
 
 def fold_group(subject: str) -> str:
@@ -199,7 +199,7 @@ def prepare_model(model, data: InteractionDataset, subject: str, opts: EvalOptio
 
 
 def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptions | None = None, latents: bool = True) -> dict:
-    """Everything about `model` on LOSO fold `subject`: see docs/evaluation.md for each number. With `latents`,
+    """Everything about `model` on LOSO fold `subject`: see docs/evaluation-protocol.md for each number. With `latents`,
     `_latent` holds every sequence's embedding under the model (and the label-free baseline) for the t-SNE figure."""
     from imm_model.inference import ReactionModel, check_compatible
 

@@ -16,7 +16,7 @@
 - body_limb_speed_ratio: the same for joints relative to the centre of the root's neighbours (Kinect: neck and hips),
   and root_sway_mps the root's own speed relative to that centre. A root joint that sways inside the body moves
   every joint relative to it, so limb_speed_ratio counts that sway as limb motion and this ratio does not
-  (docs/evaluation.md, "Root sway and edge motion"). interior_limb_speed_ratio: the same over the frames at least
+  (docs/experiments/motion-energy.md). interior_limb_speed_ratio: the same over the frames at least
   EDGE_FRAMES from either end, because a sequence-to-sequence network moves most in its first and last frames.
 - lean_error_deg: mean over sequences of |the follower's torso lean - the real follower's| (degrees; the lean is the
   angle of hips-centre-to-neck from the vertical, + towards the follower's own facing, averaged over the sequence). A

@@ -51,7 +51,7 @@ def afd_section(summary: dict, class_names: list[str]) -> str:
     paper_ratio = np.mean(np.array(paper.AFD["IMM (paper)"]) / np.array(paper.AFD["NN"]))
     ours_ratio = mean(lambda e: e["afd"] / e["baselines"]["nn1"]["afd"]) if "nn1" in names else float("nan")
     nn_scale = mean(lambda e: e["baselines"]["nn1"]["afd"]) / np.mean(paper.AFD["NN"]) if "nn1" in names else float("nan")
-    return (_table(head, rows) + f"\n\nAFD in the paper's normalized units (docs/evaluation.md). Our 1-NN scores {nn_scale:.1f}x "
+    return (_table(head, rows) + f"\n\nAFD in the paper's normalized units (docs/evaluation-protocol.md). Our 1-NN scores {nn_scale:.1f}x "
             f"the paper's NN in these units, so compare ratios: IMM / nearest neighbour, mean over classes, is "
             f"{paper_ratio:.2f} in the paper and {ours_ratio:.2f} here. With the authors' code's squared distance "
             f"(`afd_squared`) our IMM scores {sq:.3f} on average.")
@@ -69,7 +69,7 @@ def fid_section(summary: dict, class_names: list[str]) -> str:
     ratios = [cls[c]["fid"] / m.get("fid", np.nan) for c, m in zip(class_names, men, strict=True)]
     rows.append(["ours: IMM / label-free", *(_pm(r, digits=2) for r in ratios)])
     return (_table(head, rows) + "\n\nOur FID is computed on the 64-d features of our interaction classifier "
-            "(docs/evaluation.md); the paper does not say which features it used, so only the ratios are comparable.")
+            "(docs/evaluation-protocol.md); the paper does not say which features it used, so only the ratios are comparable.")
 
 
 def k3hi_section(results: dict) -> str:

@@ -128,7 +128,7 @@ def cached_result(job: EvalJob, runs: Path) -> dict | None:
 
 
 def evaluate_run(job: EvalJob, runs: Path, data_path: Path, threads: int) -> dict:
-    """One checkpoint on its split: every metric of docs/evaluation.md (LOSO fold), the recognition study, or the
+    """One checkpoint on its split: every metric of docs/evaluation-protocol.md (LOSO fold), the recognition study, or the
     K3HI table (every recipe and split of the seed)."""
     import torch
 

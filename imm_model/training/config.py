@@ -167,7 +167,7 @@ IMM = TrainConfig(
     role_swap_classes=("shaking_hands", "hugging", "exchanging_objects"),  # symmetric interactions only
     patience=25,
     min_epochs=40,
-    refit=True,  # LOSO mean over seeds 0-2: 0.679 vs 0.690 without (docs/training.md)
+    refit=True,  # LOSO mean over seeds 0-2: 0.679 vs 0.690 without (docs/experiments/imm-recipe.md)
 )
 
 # The strongest published label-free baseline, in the style of Men et al. 2022 (the paper's main competitor):
@@ -175,23 +175,23 @@ IMM = TrainConfig(
 # binary real/fake head beside a multi-class head. Trained on the same folds, so it isolates what the label adds.
 MEN = replace(IMM, name="men", model=IMM.model | {"label_input": False}, discriminator="binary+class")
 
-# `imm` + the label critic (docs/training.md "Label critic"): on the three dev folds (seed 0) the label is obeyed
+# `imm` + the label critic (docs/experiments/label-critic.md): on the three dev folds (seed 0) the label is obeyed
 # (independent judge 0.97-0.98 off-label) at +2.5 % AFD. Selection from epoch 40: from 20, s03 stopped right after the
 # critic's ramp.
 IMM_CRITIC = replace(IMM, name="imm-critic", lambda_critic=0.05, critic_mix_prob=0.5, select_from_epoch=40)
 
-# `imm-critic` + motion energy (training/energy.py) + one dropout mask per sequence (docs/training.md "Label control
-# and motion energy"): per-frame dropout masks made the training outputs jitter, so the energy term was met by noise
+# `imm-critic` + motion energy (training/energy.py) + one dropout mask per sequence (docs/experiments/label-critic.md):
+# per-frame dropout masks made the training outputs jitter, so the energy term was met by noise
 # that vanished at inference (limbs at 0.35 of real speed); per-sequence masks remove that.
 IMM_CONTROL = replace(IMM_CRITIC, name="imm-control", lambda_energy=3.0, model=IMM.model | {"dropout_per_sequence": True})
 
-# `imm-control` with a sixth of its motion-energy weight (docs/training.md "A lower motion-energy weight"): limbs at
+# `imm-control` with a sixth of its motion-energy weight (docs/experiments/motion-energy.md): limbs at
 # 0.85 of real speed instead of 1.04; on all seven folds, seed 0, AFD 0.788 against `imm-control`'s 0.807 and feet
 # sliding 0.21 m/s against 0.39 (its three-seed mean), the label obeyed as well. The bundled model's recipe.
 IMM_STEER = replace(IMM_CONTROL, name="imm-steer", lambda_energy=0.5)
 
 # `imm-steer` with its motion energy measured from the centre of neck and hips and at four times the weight
-# (docs/training.md): `imm-steer` meets the energy bar largely through a torso joint that sways inside the body and
+# (docs/experiments/motion-energy.md): `imm-steer` meets the energy target largely through a torso joint that sways inside the body and
 # motion bunched into the first and last frames; this recipe's limbs move between them (0.72 of real speed against
 # 0.26 over the interior frames, dev folds, seeds 0-2), at +2.9 % AFD over `imm-steer` on those folds.
 IMM_MOVE = replace(IMM_STEER, name="imm-move", energy_reference="body", lambda_energy=2.0)

@@ -2,7 +2,7 @@
 be readable in the follower it produced.
 
 Training only ever pairs a leader with its own class, so without help the generator learns to react to the
-leader and treats the label as a weak hint (docs/evaluation.md, adherence). The critic is the follower GRU of
+leader and treats the label as a weak hint (docs/experiments/label-critic.md). The critic is the follower GRU of
 model/classifier.py, trained on the fold's real training followers only and never updated here. Each batch,
 the generated follower for the true label and a second one for a label drawn at random (another class, or a
 two-class mix) are scored against what was asked for; only this term and the motion energy apply to the drawn

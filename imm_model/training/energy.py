@@ -1,7 +1,7 @@
 """Motion-energy matching: the generated follower's limbs should move as much as a real follower's.
 
 An L1-dominated generator answers an uncertain future with the average of its plausible futures, a near-frozen
-pose (docs/evaluation.md: limbs at ~0.13 of real speed). This term compares, per sequence and joint, the mean
+pose (docs/experiments/imm-recipe.md: limbs at ~0.13 of real speed). This term compares, per sequence and joint, the mean
 speed of the joint relative to the follower's root (or, with `energy_reference` "body", to the centre of the
 root's neighbours, so that the root joint swaying inside the body earns nothing), of the generated and of the real
 follower. It constrains how much a limb moves, not where, so it does not pull towards an average. Both motions are smoothed with the
