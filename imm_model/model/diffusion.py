@@ -33,7 +33,8 @@ class Block(nn.Module):
         self.qkv = nn.Linear(width, 3 * width)
         self.proj = nn.Linear(width, width)
         self.norm2 = nn.LayerNorm(width, elementwise_affine=False)
-        self.mlp = nn.Sequential(nn.Linear(width, ff_mult * width), nn.GELU(), nn.Linear(ff_mult * width, width))
+        self.mlp = nn.Sequential(nn.Linear(width, ff_mult * width), nn.GELU(approximate="tanh"),
+                                 nn.Linear(ff_mult * width, width))  # tanh GELU: ~30x cheaper in numpy than erf
         self.modulation = nn.Linear(width, 6 * width)
         nn.init.zeros_(self.modulation.weight)
         nn.init.zeros_(self.modulation.bias)

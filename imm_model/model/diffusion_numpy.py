@@ -30,9 +30,8 @@ def _layer_norm(x: np.ndarray, eps: float = 1e-5) -> np.ndarray:
 
 
 def _gelu(x: np.ndarray) -> np.ndarray:
-    from scipy.special import erf  # torch's nn.GELU is the exact, erf form
-
-    return 0.5 * x * (1.0 + erf(x / np.float32(math.sqrt(2.0))))
+    """GELU, tanh form (the torch module's nn.GELU(approximate="tanh"))."""
+    return 0.5 * x * (1.0 + np.tanh(np.float32(math.sqrt(2.0 / math.pi)) * (x + np.float32(0.044715) * x * x * x)))
 
 
 def _silu(x: np.ndarray) -> np.ndarray:
