@@ -100,11 +100,11 @@ class DiffusionTrainConfig:
         return cls(**d)
 
 
-# The reaction diffusion model as shipped: 128 wide, 4 blocks, 6000 steps of batch 32 (about 15 minutes a fold on one
-# CPU thread), guidance 2.5 on each class term.
+# The reaction diffusion model as shipped: 128 wide, 4 blocks, one frame a token, 6000 steps of batch 32; guidance 2.5 on
+# each class term, 10 DDIM steps (docs/experiments/reaction-diffusion.md has the variants measured).
 IMM_DIFFUSION = DiffusionTrainConfig(
     model=dict(width=128, layers=4, heads=4, ff_mult=2, dropout=0.1),
-    guidance=dict(label_scale=2.5, leader_scale=1.0, sample_steps=20),
+    guidance=dict(label_scale=2.5, leader_scale=1.0, sample_steps=10),
 )
 
 NAMED: dict[str, DiffusionTrainConfig] = {"imm-diffusion": IMM_DIFFUSION}
