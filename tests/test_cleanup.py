@@ -92,7 +92,7 @@ def test_the_model_cleans_up_unless_raw_and_reads_its_bone_lengths(sample_data, 
     for bad in ([0.3] * 3, [float("nan")] * len(lengths), [-0.1] * len(lengths), "long"):
         side = json.loads(path.with_suffix(".json").read_text()) | {"follower_bone_lengths": bad}
         path.with_suffix(".json").write_text(json.dumps(side))
-        with pytest.raises(CheckpointError, match="follower_bone_lengths must be 14 positive lengths"):
+        with pytest.raises(CheckpointError, match=r"follower_bone_lengths must be 14 lengths in \(0, 5\] m"):
             ReactionModel.load(path)
 
 

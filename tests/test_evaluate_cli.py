@@ -45,7 +45,7 @@ def test_evaluate_bundled_checkpoint_against_every_baseline(tmp_path, quick_clas
         best = min(e["baselines"], key=lambda b: e["baselines"][b]["afd"])
         assert e["strongest_baseline"] == best and e["ratio_strongest"] == pytest.approx(e["afd"] / e["baselines"][best]["afd"])
         assert e["afd"] ** 2 <= e["afd_squared"] + 1e-9  # Jensen: mean of squares >= square of the mean
-    assert set(r["classifier"]["real_accuracy"]) == {"interaction", "follower", "follower_judge"}
+    assert set(r["classifier"]["real_accuracy"]) == {"interaction", "follower", "follower_judge", "upper_judge", "lower_judge"}
     assert 0 <= r["adherence_off_diagonal"] <= 1 and len(r["adherence_matrix"]) == 6
     assert len(r["mix"]) == 15 and {"p_zero", "p_avoid", "change"} <= set(r["avoid"])
     assert {"bone_error_cm", "interpenetration", "foot_skate_mps", "speed_ratio"} <= set(r["plausibility"])
