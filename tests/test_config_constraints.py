@@ -10,10 +10,12 @@ import pytest
 
 from imm_model.model.classifier_config import ClassifierConfig
 from imm_model.model.config import ModelConfig
+from imm_model.model.diffusion_sampler import DiffusionConfig, Guidance
 from imm_model.training.config import NAMED, TrainConfig
+from imm_model.training.diffusion import DiffusionTrainConfig
 from imm_model.typed_config import FieldsOf, Flag, Interval, ListOf, Name, OneOf, constraint_of
 
-CONFIGS = (TrainConfig, ModelConfig, ClassifierConfig)
+CONFIGS = (TrainConfig, ModelConfig, ClassifierConfig, DiffusionTrainConfig, DiffusionConfig, Guidance)
 
 
 def invalid_values(check: Any) -> list[Any]:

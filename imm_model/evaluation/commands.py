@@ -30,7 +30,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--men-run", type=Path, default=None,
                    help="a run of `imm train --config men --fold all` to use as the label-free baseline (default: train and cache it)")
     p.add_argument("--classifier-config", type=Path, default=None,
-                   help="JSON of ClassifierConfig overrides applied to all three classifiers (e.g. {\"epochs\": 30})")
+                   help="JSON of ClassifierConfig overrides applied to every classifier (e.g. {\"epochs\": 30})")
     p.add_argument("--json", type=Path, default=None, help="write the whole summary as JSON")
     p.add_argument("--markdown", type=Path, default=None, help="write every table as Markdown")
     p.add_argument("--figures", type=Path, default=None, help="write PNG figures into this folder")
@@ -47,7 +47,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _options(args: argparse.Namespace):
     from imm_model.checkpoint import final_checkpoint
     from imm_model.evaluation.loso import EvalOptions
-    from imm_model.model.classifier_config import FOLLOWER, FOLLOWER_JUDGE, INTERACTION, ClassifierConfig
+    from imm_model.model.classifier_config import FOLLOWER, FOLLOWER_JUDGE, INTERACTION, LOWER_JUDGE, UPPER_JUDGE, ClassifierConfig
 
     overrides = {}
     if args.classifier_config is not None:
@@ -58,7 +58,8 @@ def _options(args: argparse.Namespace):
         if not isinstance(overrides, dict):
             raise ValueError(f"{args.classifier_config}: a classifier config is a JSON object")
     configs = {}
-    for name, base in (("interaction", INTERACTION), ("follower", FOLLOWER), ("judge", FOLLOWER_JUDGE)):
+    for name, base in (("interaction", INTERACTION), ("follower", FOLLOWER), ("judge", FOLLOWER_JUDGE), ("upper", UPPER_JUDGE),
+                       ("lower", LOWER_JUDGE)):
         configs[name] = ClassifierConfig.from_dict(base.to_dict() | overrides)
     if args.men_run is not None and not args.men_run.is_dir():
         raise ValueError(f"--men-run {args.men_run}: run directory not found")

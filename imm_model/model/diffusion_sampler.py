@@ -22,36 +22,31 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from typing import ClassVar
 
 import numpy as np
 
-from imm_model.typed_config import checked_kwargs
+from imm_model.typed_config import Interval, checked_kwargs, param, validate
 
 MAX_WIDTH = 2048
 
 
 @dataclass(frozen=True)
 class DiffusionConfig:
-    num_joints: int = 15
-    num_classes: int = 6
-    width: int = 128  # transformer token width
-    layers: int = 4  # transformer blocks
-    heads: int = 4  # attention heads per block (width must divide by it)
-    ff_mult: int = 2  # the blocks' MLP is ff_mult * width wide
-    dropout: float = 0.1  # on attention and MLP outputs, training only
-    diffusion_steps: int = 100  # T of the cosine noise schedule the network is trained on
-    frames_per_token: int = 1  # consecutive frames one transformer token carries (2 halves the sampler's cost)
+    num_joints: int = param(15, Interval(int, 1, 512))  # joints per character (from the data)
+    num_classes: int = param(6, Interval(int, 1, 512))  # interaction classes, the label's length (from the data)
+    width: int = param(128, Interval(int, 8, MAX_WIDTH))  # transformer token width
+    layers: int = param(4, Interval(int, 1, 64))  # transformer blocks
+    heads: int = param(4, Interval(int, 1, 64))  # attention heads per block (width must divide by it)
+    ff_mult: int = param(2, Interval(int, 1, 16))  # the blocks' MLP is ff_mult * width wide
+    dropout: float = param(0.1, Interval(float, 0, 1, closed="left"))  # on attention and MLP outputs, training only
+    diffusion_steps: int = param(100, Interval(int, 2, 10_000))  # T of the cosine noise schedule the network is trained on
+    frames_per_token: int = param(1, Interval(int, 1, 8))  # consecutive frames one transformer token carries
+
+    RULES: ClassVar = (("width", lambda c: c.width % c.heads == 0, "a multiple of heads"),)
 
     def __post_init__(self) -> None:
-        for name, lo, hi in (("num_joints", 1, 512), ("num_classes", 1, 512), ("width", 8, MAX_WIDTH), ("layers", 1, 64),
-                             ("heads", 1, 64), ("ff_mult", 1, 16), ("diffusion_steps", 2, 10_000),
-                             ("frames_per_token", 1, 8)):
-            if not lo <= getattr(self, name) <= hi:
-                raise ValueError(f"diffusion config: {name} must be in {lo}..{hi}, not {getattr(self, name)!r}")
-        if self.width % self.heads:
-            raise ValueError(f"diffusion config: width {self.width} must be a multiple of heads {self.heads}")
-        if not 0 <= self.dropout < 1:
-            raise ValueError(f"diffusion config: dropout must be in [0, 1), not {self.dropout!r}")
+        validate(self, "diffusion config")
 
     @property
     def pose_dim(self) -> int:
@@ -81,18 +76,13 @@ def cosine_alpha_bar(steps: int) -> np.ndarray:
 class Guidance:
     """How the sampler composes its terms; stored with each trained model as its defaults."""
 
-    label_scale: float = 2.5  # s: the strength of each class term (times the label value)
-    leader_scale: float = 1.0  # g: guidance on the leader term; 1 = the leader-conditioned term alone
-    sample_steps: int = 20  # DDIM steps
-    clip: float = 6.0  # x0 predictions clamped to this many training standard deviations per coordinate
+    label_scale: float = param(2.5, Interval(float, 0, 20))  # s: the strength of each class term (times the label value)
+    leader_scale: float = param(1.0, Interval(float, 0, 20))  # g: guidance on the leader term; 1 = the leader term alone
+    sample_steps: int = param(20, Interval(int, 1, 1000))  # DDIM steps
+    clip: float = param(6.0, Interval(float, 0.5, 100))  # x0 predictions clamped to this many training stds per coordinate
 
     def __post_init__(self) -> None:
-        for name, lo, hi in (("label_scale", 0.0, 20.0), ("leader_scale", 0.0, 20.0), ("clip", 0.5, 100.0)):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and lo <= value <= hi):
-                raise ValueError(f"guidance: {name} must be in [{lo}, {hi}], not {value!r}")
-        if not (isinstance(self.sample_steps, int) and 1 <= self.sample_steps <= 1000):
-            raise ValueError(f"guidance: sample_steps must be an integer in 1..1000, not {self.sample_steps!r}")
+        validate(self, "guidance")
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import copy
 import csv
 import time
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -28,62 +28,46 @@ from imm_model.errors import CheckpointError, TrainingError
 from imm_model.model.diffusion import ReactionDenoiser, q_sample
 from imm_model.model.diffusion_sampler import DiffusionConfig, Guidance, cosine_alpha_bar
 from imm_model.training.data import Augmenter, PaddedData
-from imm_model.typed_config import checked_kwargs
+from imm_model.typed_config import FieldsOf, Interval, ListOf, Name, OneOf, checked_kwargs, param, validate
 
 FAMILY = "diffusion"
 LOG_FIELDS = ("step", "loss", "x0", "velocity", "lr", "seconds")
 
 
+FRACTION = Interval(float, 0, 1)
+BELOW_1 = Interval(float, 0, 1, closed="left")
+
+
 @dataclass(frozen=True)
 class DiffusionTrainConfig:
-    name: str = "imm-diffusion"
-    family: str = FAMILY  # tells `imm train` which trainer runs the recipe
-    model: dict[str, Any] = field(default_factory=dict)  # DiffusionConfig sizes (joints and classes come from the data)
-    guidance: dict[str, Any] = field(default_factory=dict)  # the sampler's defaults shipped with the model (Guidance)
-    steps: int = 6000  # optimizer steps
-    batch_size: int = 32
-    lr: float = 5e-4  # peak AdamW learning rate, after a linear warm-up, decayed by a cosine to a tenth
-    warmup_steps: int = 200
-    weight_decay: float = 1e-4
-    label_drop: float = 0.15  # probability a training row sees the "absent" label (the label-free term)
-    leader_drop: float = 0.25  # probability a training row sees the "absent" leader (the unconditioned term)
-    lambda_velocity: float = 1.0  # weight of the frame-to-frame velocity error beside the x0 error (normalized units)
-    ema_decay: float = 0.999  # the shipped model is this exponential moving average of the weights
-    mirror_prob: float = 0.5  # swap left/right joints and flip the lateral axis
-    mirror_exclude_classes: tuple[str, ...] = ("shaking_hands",)  # SBU's handshakes are all right-handed
-    rotate_deg: float = 0.0  # uniform yaw of both characters in [-rotate_deg, rotate_deg]
-    scale_jitter: float = 0.0  # scale both characters about A's root by U(1 - s, 1 + s)
-    time_warp: float = 0.0  # resample each sequence to length * U(1 - w, 1 + w)
-    role_swap_prob: float = 0.0  # B becomes the leader (re-canonicalized), for role_swap_classes only
-    role_swap_classes: tuple[str, ...] = ()
-    checkpoint_every: int = 1000  # steps between resumable checkpoints
-    seed: int = 0
+    name: str = param("imm-diffusion", Name())  # the recipe's name (run folders and reports carry it)
+    family: str = param(FAMILY, OneOf((FAMILY,)))  # tells `imm train` which trainer runs the recipe
+    # DiffusionConfig sizes (joints and classes come from the data)
+    model: dict[str, Any] = param(check=FieldsOf(DiffusionConfig), factory=dict)
+    guidance: dict[str, Any] = param(check=FieldsOf(Guidance), factory=dict)  # the sampler's defaults shipped with the model
+    steps: int = param(6000, Interval(int, 1, 10_000_000))  # optimizer steps
+    batch_size: int = param(32, Interval(int, 1, 4096))  # sequences per step
+    # peak AdamW learning rate, after a linear warm-up, decayed by a cosine to a tenth
+    lr: float = param(5e-4, Interval(float, 0, 1, closed="right"))
+    warmup_steps: int = param(200, Interval(int, 0, None))  # steps of the linear warm-up
+    weight_decay: float = param(1e-4, Interval(float, 0, None))  # AdamW weight decay
+    label_drop: float = param(0.15, BELOW_1)  # probability a training row sees the "absent" label (the label-free term)
+    leader_drop: float = param(0.25, BELOW_1)  # probability a training row sees the "absent" leader (the unconditioned term)
+    lambda_velocity: float = param(1.0, Interval(float, 0, None))  # weight of the frame-to-frame velocity error beside x0's
+    ema_decay: float = param(0.999, BELOW_1)  # the shipped model is this exponential moving average of the weights
+    mirror_prob: float = param(0.5, FRACTION)  # swap left/right joints and flip the lateral axis
+    # SBU's handshakes are all right-handed: never mirrored
+    mirror_exclude_classes: tuple[str, ...] = param(("shaking_hands",), ListOf(Name(), unique=True))
+    rotate_deg: float = param(0.0, Interval(float, 0, 180))  # uniform yaw of both characters in [-rotate_deg, rotate_deg]
+    scale_jitter: float = param(0.0, BELOW_1)  # scale both characters about A's root by U(1 - s, 1 + s)
+    time_warp: float = param(0.0, BELOW_1)  # resample each sequence to length * U(1 - w, 1 + w)
+    role_swap_prob: float = param(0.0, FRACTION)  # B becomes the leader (re-canonicalized), for role_swap_classes only
+    role_swap_classes: tuple[str, ...] = param((), ListOf(Name(), unique=True))  # the classes whose roles may swap
+    checkpoint_every: int = param(1000, Interval(int, 1, None))  # steps between resumable checkpoints
+    seed: int = param(0, Interval(int, 0, 2**31 - 1))  # initial weights, batches, noise and augmentation
 
     def __post_init__(self) -> None:
-        DiffusionConfig.from_dict(dict(self.model) | {"num_joints": 15, "num_classes": 6})  # sizes checked now
-        Guidance.from_dict(dict(self.guidance))
-        checks = (
-            ("family", self.family == FAMILY, repr(FAMILY)),
-            ("steps", 1 <= self.steps <= 10_000_000, "in 1..10000000"),
-            ("batch_size", 1 <= self.batch_size <= 4096, "in 1..4096"),
-            ("lr", 0 < self.lr <= 1, "in (0, 1]"),
-            ("warmup_steps", self.warmup_steps >= 0, ">= 0"),
-            ("weight_decay", self.weight_decay >= 0, ">= 0"),
-            ("label_drop", 0 <= self.label_drop < 1, "in [0, 1)"),
-            ("leader_drop", 0 <= self.leader_drop < 1, "in [0, 1)"),
-            ("lambda_velocity", self.lambda_velocity >= 0, ">= 0"),
-            ("ema_decay", 0 <= self.ema_decay < 1, "in [0, 1)"),
-            ("mirror_prob", 0 <= self.mirror_prob <= 1, "in [0, 1]"),
-            ("rotate_deg", 0 <= self.rotate_deg <= 180, "in [0, 180]"),
-            ("scale_jitter", 0 <= self.scale_jitter < 1, "in [0, 1)"),
-            ("time_warp", 0 <= self.time_warp < 1, "in [0, 1)"),
-            ("role_swap_prob", 0 <= self.role_swap_prob <= 1, "in [0, 1]"),
-            ("checkpoint_every", self.checkpoint_every >= 1, ">= 1"),
-            ("seed", 0 <= self.seed < 2**31, "in 0..2**31-1"),
-        )
-        for name, ok, expected in checks:
-            if not ok:
-                raise ValueError(f"training config: {name} must be {expected}, not {getattr(self, name)!r}")
+        validate(self, "training config")
 
     def to_dict(self) -> dict:
         d = asdict(self)
