@@ -5,7 +5,7 @@ unit-testable without a browser.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
@@ -17,11 +17,15 @@ from imm_model.data.canonical import CanonicalFrame
 from imm_model.data.dataset import InteractionDataset
 from imm_model.errors import CheckpointError, DataFormatError, IMMError
 from imm_model.evaluation.metrics import afd
-from imm_model.inference import check_compatible
+from imm_model.inference import check_compatible, check_seeds
 
 FPS = 15.0  # SBU's frame rate
 MAX_UPLOAD_BYTES = 20_000_000
 UPLOAD_SUFFIXES = (".bvh", ".npz", ".txt")
+MAX_VARIATIONS = 4  # followers drawn side by side at once (seeds seed .. seed + 3)
+NEW_SEEDS = 10_000  # "new variation" draws a seed below this: short enough to read, type and share in a link
+# How the page names each model family (a checkpoint's `family`)
+MODEL_TITLES = {"gan": "the paper's GAN", "diffusion": "the diffusion model"}
 
 
 @dataclass(frozen=True)
@@ -62,9 +66,13 @@ class ReactionModelLike(Protocol):
     class_names: Sequence[str]
     skeleton: Any
     raw: bool  # True: the network's own follower, without the clean-up (imm_model/cleanup.py)
+    family: str  # "gan" or "diffusion" (MODEL_TITLES)
+    stochastic: bool  # True: a seed picks one of many reactions; False: every seed gives the same one
 
     def label_vector(self, label: Any, scale: float = 1.0) -> np.ndarray: ...
-    def synthesize_canonical(self, leader: np.ndarray, label_vector: np.ndarray) -> np.ndarray: ...
+    def synthesize_canonical(self, leader: np.ndarray, label_vector: np.ndarray, seed: int = 0) -> np.ndarray: ...
+    def synthesize_batch_canonical(self, leaders: list[np.ndarray], label_vectors: np.ndarray,
+                                   seeds: Sequence[int] | None = None) -> list[np.ndarray]: ...
     def latent_canonical_batch(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> np.ndarray: ...
 
 
@@ -78,6 +86,10 @@ def load_model(checkpoint: Path, data: InteractionDataset) -> ReactionModelLike:
     model = ReactionModel.load(checkpoint)
     check_compatible(model, data, str(checkpoint))
     return model
+
+
+def model_title(name: str) -> str:
+    return MODEL_TITLES.get(name, name)
 
 
 def label_words(weights: Sequence[float], class_names: Sequence[str], scale: float = 1.0) -> str:
@@ -118,12 +130,22 @@ class ReaderLike(Protocol):
 
 
 class Session:
-    def __init__(self, data: InteractionDataset, model: ReactionModelLike, index: int = 0, reader: ReaderLike | None = None) -> None:
-        check_compatible(model, data, "model")
+    def __init__(self, data: InteractionDataset, model: ReactionModelLike, index: int = 0, reader: ReaderLike | None = None,
+                 others: Mapping[str, ReactionModelLike] | None = None) -> None:
+        """`model` opens the session (and is the one the latent map is of); `others`, by name, are one switch away."""
+        self.models: dict[str, ReactionModelLike] = {model.family: model, **(others or {})}
+        for name, m in self.models.items():
+            check_compatible(m, data, f"model {name!r}")
         if reader is not None and tuple(reader.class_names) != tuple(data.class_names):
             raise CheckpointError(f"the 'reads as' classifier's classes {list(reader.class_names)} differ from the data's")
         self.data = data
         self.model = model
+        self.model_name = model.family
+        self.map_model = model  # the latent map's embeddings and AFDs are this model's (explorer/latent.py)
+        self.seed = 0  # the sampler's seed: which variation a stochastic model draws
+        self.variation_count = 1  # followers drawn at once, seeds seed .. seed + count - 1 (`variations`)
+        self.variation_followers: list[np.ndarray] = []
+        self._seeds = np.random.default_rng()
         self.reader = reader
         self.upload: Upload | None = None
         # reads an upload out of this process, within a time and memory budget (explorer/upload_reader.py); None: here
@@ -136,6 +158,8 @@ class Session:
         # A/B: a pinned mix and its follower for the current leader (None: nothing pinned)
         self.pinned_weights: np.ndarray | None = None
         self.pinned_scale = 1.0
+        self.pinned_model = self.model_name  # the pinned follower keeps its model and seed: A/B can compare models
+        self.pinned_seed = 0
         self.pinned: np.ndarray | None = None
         self.select(index)
 
@@ -224,15 +248,75 @@ class Session:
         return label_words(self.weights, self.class_names, self.scale)
 
     def mix_latent(self) -> np.ndarray:
-        """The current leader + mix in the model's latent space (the star on the latent map)."""
-        return self.model.latent_canonical_batch([self.leader], self.label_vector()[None, :])[0]
+        """The current leader + mix in the latent space of the map's model (the star on the latent map), whichever
+        model synthesizes: another model's latents are of another size and meaning."""
+        vec = np.asarray(self.map_model.label_vector([float(x) for x in self.weights], scale=self.scale), np.float32)
+        return self.map_model.latent_canonical_batch([self.leader], vec[None, :])[0]
+
+    # ---- models and variations ------------------------------------------------------------
+    @property
+    def stochastic(self) -> bool:
+        return bool(self.model.stochastic)
+
+    def set_model(self, name: str) -> np.ndarray:
+        """Synthesize with another of the session's models; the sequence, label, scale, seed, clean-up and pin stay.
+        On any error the previous model stays."""
+        if name not in self.models:
+            raise ValueError(f"no model {name!r}; this studio has {', '.join(self.models)}")
+        if name == self.model_name:
+            return self.synth
+        previous = (self.model, self.model_name, self.synth, self.variation_followers)
+        self.models[name].raw = self.model.raw
+        self.model, self.model_name = self.models[name], name
+        try:
+            return self.synthesize()
+        except Exception:
+            self.model, self.model_name, self.synth, self.variation_followers = previous
+            raise
+
+    def set_seed(self, seed: int) -> np.ndarray:
+        """Draw the variation `seed` picks (LabelError, one line, for a seed out of range: nothing changes)."""
+        check_seeds(seed, MAX_VARIATIONS)  # room for the side-by-side variations after it
+        self.seed = int(seed)
+        return self.synthesize()
+
+    def new_variation(self) -> np.ndarray:
+        """A fresh seed: another reaction for the same leader and mix."""
+        seed = self.seed
+        while seed == self.seed:
+            seed = int(self._seeds.integers(NEW_SEEDS))
+        return self.set_seed(seed)
+
+    def set_variation_count(self, n: int) -> None:
+        """How many followers `synthesize` draws at once (1..MAX_VARIATIONS)."""
+        if isinstance(n, bool) or not isinstance(n, int | np.integer) or not 1 <= n <= MAX_VARIATIONS:
+            raise ValueError(f"variations: 1..{MAX_VARIATIONS} at once, not {n!r}")
+        self.variation_count = int(n)
+        self.synthesize()
+
+    def variations(self, n: int) -> list[np.ndarray]:
+        """The current leader and mix drawn with the seeds seed .. seed + n - 1 (the first is `synth`); a deterministic
+        model's n are the one reaction it gives."""
+        if not 1 <= n <= MAX_VARIATIONS:
+            raise ValueError(f"variations: 1..{MAX_VARIATIONS} at once, not {n}")
+        seeds = check_seeds(self.seed, n)
+        if not self.stochastic or n == 1:
+            return [self.synth] * n
+        vec = self.label_vector()
+        rest = self.model.synthesize_batch_canonical([self.leader] * (n - 1), np.repeat(vec[None], n - 1, 0), seeds[1:])
+        return [self.synth, *(np.asarray(f, np.float32) for f in rest)]
+
+    def variation_seeds(self) -> list[int]:
+        return check_seeds(self.seed, len(self.variation_followers) or 1)
 
     # ---- synthesis and review -----------------------------------------------------------
     def synthesize(self) -> np.ndarray:
-        out = np.asarray(self.model.synthesize_canonical(self.leader, self.label_vector()), np.float32)
+        """The follower for the current leader, mix, model and seed (and its side-by-side variations)."""
+        out = np.asarray(self.model.synthesize_canonical(self.leader, self.label_vector(), seed=self.seed), np.float32)
         if out.shape != self.leader.shape:
             raise ValueError(f"model returned shape {out.shape}, expected {self.leader.shape}")
         self.synth = out
+        self.variation_followers = self.variations(self.variation_count) if self.stochastic else [out]
         return out
 
     @property
@@ -242,7 +326,8 @@ class Session:
     def set_cleanup(self, on: bool) -> None:
         """Clean-up on (rigid bones, planted feet) or off (the network's own follower); both followers
         re-synthesized."""
-        self.model.raw = not on
+        for model in self.models.values():
+            model.raw = not on
         self.synthesize()
         self._synthesize_pinned()
 
@@ -250,6 +335,7 @@ class Session:
     def pin(self) -> None:
         """Keep the current mix and its follower, to compare the next mixes with."""
         self.pinned_weights, self.pinned_scale, self.pinned = self.weights.copy(), self.scale, self.synth.copy()
+        self.pinned_model, self.pinned_seed = self.model_name, self.seed
 
     def clear_pin(self) -> None:
         self.pinned_weights = self.pinned = None
@@ -257,11 +343,20 @@ class Session:
     def _synthesize_pinned(self) -> None:
         """The pinned mix for a new leader (the comparison follows the sequence)."""
         if self.pinned_weights is not None:
-            vec = np.asarray(self.model.label_vector([float(x) for x in self.pinned_weights], scale=self.pinned_scale), np.float32)
-            self.pinned = np.asarray(self.model.synthesize_canonical(self.leader, vec), np.float32)
+            model = self.models[self.pinned_model]
+            vec = np.asarray(model.label_vector([float(x) for x in self.pinned_weights], scale=self.pinned_scale), np.float32)
+            self.pinned = np.asarray(model.synthesize_canonical(self.leader, vec, seed=self.pinned_seed), np.float32)
 
     def pinned_text(self) -> str:
-        return "" if self.pinned_weights is None else label_words(self.pinned_weights, self.class_names, self.pinned_scale)
+        """The pinned mix in words, and its model (and seed) when they are not the current ones."""
+        if self.pinned_weights is None:
+            return ""
+        text = label_words(self.pinned_weights, self.class_names, self.pinned_scale)
+        if self.pinned_model != self.model_name:
+            text += f" · {model_title(self.pinned_model)}"
+        if self.models[self.pinned_model].stochastic and (self.pinned_model != self.model_name or self.pinned_seed != self.seed):
+            text += f" · seed {self.pinned_seed}"
+        return text
 
     def ab_distances_m(self) -> np.ndarray:
         """(T,) per frame, how far the pinned follower's joints are from the current one's on average, metres (empty

@@ -263,3 +263,109 @@ def test_chart_ticks_and_markup():
 
     assert distance_chart(np.array([0.1, 0.2]), 15.0).count("imm-tick-x") == 2  # frames 0 and 1, no 0.5
     assert "<polyline" not in distance_chart(np.zeros(0), 15.0)  # an upload without ground truth or contact yet
+
+
+# ---- two models: the switch, seeds and variations ---------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def diffusion(sample_data):
+    from explorer.session import load_model
+    from imm_model.paths import SAMPLE_DIFFUSION
+
+    if not SAMPLE_DIFFUSION.exists():
+        pytest.skip(f"bundled diffusion model missing: {SAMPLE_DIFFUSION}")
+    return load_model(SAMPLE_DIFFUSION, sample_data)
+
+
+@pytest.fixture()
+def two_models(sample_data, model, diffusion):
+    from explorer.session import Session
+
+    model.raw = diffusion.raw = False
+    return Session(sample_data, model, index=3, others={"diffusion": diffusion})
+
+
+def test_switching_models_keeps_the_sequence_mix_and_pin(two_models):
+    ses = two_models
+    assert ses.model_name == "gan" and not ses.stochastic and set(ses.models) == {"gan", "diffusion"}
+    ses.set_label(np.eye(6)[2] * 0.5 + np.eye(6)[4] * -0.5, scale=1.5)
+    ses.pin()
+    gan, mix, index = ses.synth.copy(), ses.weights.copy(), ses.index
+    ses.set_model("diffusion")
+    assert ses.model_name == "diffusion" and ses.stochastic and ses.model.family == "diffusion"
+    assert ses.index == index and np.array_equal(ses.weights, mix) and ses.scale == 1.5
+    assert ses.synth.shape == gan.shape and not np.allclose(ses.synth, gan)  # another model, another reaction
+    np.testing.assert_array_equal(ses.pinned, gan)  # the pin keeps its model: A/B compares the two
+    assert "the paper's GAN" in ses.pinned_text() and ses.ab_distances_m().mean() > 0.01
+    assert ses.mix_latent().shape == ses.map_model.latent_canonical_batch([ses.leader], ses.label_vector()[None]).shape[1:]
+    ses.select(7)  # a new leader: the pinned mix follows it with its own model
+    np.testing.assert_allclose(ses.pinned, ses.models["gan"].synthesize_canonical(
+        ses.leader, ses.models["gan"].label_vector(list(mix), 1.5)), atol=1e-6)
+    ses.set_model("gan")
+    assert ses.model_name == "gan" and "GAN" not in ses.pinned_text()
+    with pytest.raises(ValueError, match="no model 'x'"):
+        ses.set_model("x")
+    assert ses.model_name == "gan"
+
+
+def test_a_seed_picks_a_variation_and_a_moved_slider_moves_it_smoothly(two_models):
+    from imm_model.errors import LabelError
+
+    ses = two_models
+    ses.set_model("diffusion")
+    first = ses.synth.copy()
+    ses.set_seed(0)
+    np.testing.assert_allclose(ses.synth, first, atol=1e-6)  # the same seed, the same reaction
+    ses.set_seed(5)
+    assert ses.seed == 5 and np.abs(ses.synth - first).mean() > 0.01
+    fifth = ses.synth.copy()
+    w = ses.weights.copy()
+    nudges = []
+    for step in (0.01, 0.05):  # a small slider move: a small change, growing with the move, not another sample
+        w[(ses.own_class + 1) % 6] = step
+        ses.set_label(w)
+        nudges.append(np.abs(ses.synth - fifth).mean())
+    ses.match()
+    ses.set_seed(6)
+    assert 0 < nudges[0] < nudges[1] and nudges[0] < 0.3 * np.abs(ses.synth - fifth).mean(), nudges
+    seen = {ses.seed}
+    for _ in range(3):
+        before = ses.synth.copy()
+        ses.new_variation()
+        assert ses.seed not in seen and np.abs(ses.synth - before).mean() > 0.005
+        seen.add(ses.seed)
+    for bad in (-1, 2**31, 1.5, "3", True):
+        with pytest.raises(LabelError, match="seed"):
+            ses.set_seed(bad)
+    assert ses.seed in seen  # a refused seed changes nothing
+
+
+def test_variations_are_the_seeds_side_by_side(two_models):
+    ses = two_models
+    ses.set_model("diffusion")
+    ses.set_seed(40)
+    followers = ses.variations(3)
+    assert len(followers) == 3 and followers[0] is ses.synth
+    for k, f in enumerate(followers):  # each as drawn alone with its seed
+        np.testing.assert_allclose(f, ses.model.synthesize_canonical(ses.leader, ses.label_vector(), seed=40 + k), atol=1e-4)
+    assert np.abs(followers[1] - followers[2]).mean() > 0.01
+    ses.set_variation_count(4)
+    assert len(ses.variation_followers) == 4 and ses.variation_seeds() == [40, 41, 42, 43]
+    ses.set_label(np.eye(6)[1])  # a new mix redraws them all
+    np.testing.assert_allclose(ses.variation_followers[3],
+                               ses.model.synthesize_canonical(ses.leader, ses.label_vector(), seed=43), atol=1e-4)
+    ses.set_model("gan")  # a deterministic model: one reaction, whatever the seed
+    assert len(ses.variation_followers) == 1 and all(f is ses.synth for f in ses.variations(4))
+    for bad in (0, 5, 2.0):
+        with pytest.raises(ValueError, match="1..4"):
+            ses.set_variation_count(bad)
+
+
+def test_the_clean_up_switch_holds_for_both_models(two_models):
+    ses = two_models
+    ses.set_cleanup(False)
+    ses.set_model("diffusion")
+    assert ses.model.raw and not ses.cleaned_up
+    ses.set_cleanup(True)
+    assert not ses.models["gan"].raw and not ses.models["diffusion"].raw
