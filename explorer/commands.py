@@ -17,7 +17,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Start IMM Studio (a local web app). Each browser tab gets its own studio process.",
     )
     p.add_argument("--data", type=Path, default=None, help="interaction bundle .npz (default: the bundled SBU sample)")
-    p.add_argument("--checkpoint", type=Path, default=None, help="model checkpoint .safetensors (default: the bundled one)")
+    p.add_argument("--checkpoint", type=Path, default=None,
+                   help="model checkpoint .safetensors the studio opens with (default: the bundled GAN)")
+    p.add_argument("--diffusion-checkpoint", default=None,
+                   help="the diffusion model one switch away when --checkpoint is a GAN (default: the bundled one; "
+                        "'none' leaves the switch out)")
     p.add_argument("--port", type=int, default=8080, help="port to listen on; 0 picks a free one (printed). Default 8080")
     p.add_argument(
         "--host", default="127.0.0.1",
@@ -79,12 +83,17 @@ def run_explore(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 2
     from explorer.launcher import LaunchConfig, LaunchError, launch
-    from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA
+    from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA, SAMPLE_DIFFUSION
 
     data = args.data or SAMPLE_DATA
     checkpoint = args.checkpoint or SAMPLE_CHECKPOINT
     judge = None if args.judge in (None, "none") else Path(args.judge)
-    for what, path in (("data file", data), ("checkpoint", checkpoint)) + ((("judge", judge),) if judge else ()):
+    if args.diffusion_checkpoint == "none" or (args.diffusion_checkpoint is None and not SAMPLE_DIFFUSION.is_file()):
+        diffusion = None
+    else:
+        diffusion = Path(args.diffusion_checkpoint or SAMPLE_DIFFUSION)
+    for what, path in ((("data file", data), ("checkpoint", checkpoint)) + ((("judge", judge),) if judge else ())
+                       + ((("diffusion checkpoint", diffusion),) if diffusion else ())):
         if not Path(path).is_file():
             print(f"imm explore: error: {what} not found: {path}", file=sys.stderr)
             return 2
@@ -106,6 +115,7 @@ def run_explore(args: argparse.Namespace) -> int:
     config = LaunchConfig(
         token=token, no_auth=no_auth, base_url=base_url,
         data=Path(data).resolve(), checkpoint=Path(checkpoint).resolve(), host=args.host, port=args.port,
+        diffusion_checkpoint=diffusion.resolve() if diffusion else None,
         cache_dir=args.cache_dir.resolve() if args.cache_dir else None, export_dir=args.export_dir.resolve(),
         max_clients=args.max_clients, open_browser=not args.no_browser, sequence=args.sequence, render=args.render,
         judge=str(judge.resolve()) if judge else args.judge,

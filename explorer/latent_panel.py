@@ -116,7 +116,7 @@ class LatentPanel:
         await asyncio.sleep(AFD_DELAY_S)
         ses = self.studio.session
         try:
-            for _ in self.latent.afd_scores(ses.model, ses.data):
+            for _ in self.latent.afd_scores(ses.map_model, ses.data):  # the map is of this model, whichever is on
                 await asyncio.sleep(AFD_STEP_S)  # one sequence at a time, between the page's own work
         except Exception as err:
             with self.studio.state:

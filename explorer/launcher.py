@@ -78,6 +78,7 @@ class Worker:
 class LaunchConfig:
     data: Path
     checkpoint: Path
+    diffusion_checkpoint: Path | None = None  # the diffusion model one switch away (None: no switch)
     host: str = "127.0.0.1"
     port: int = 0
     cache_dir: Path | None = None
@@ -150,6 +151,7 @@ class Launcher:
         cmd += ["--cache-dir", str(c.cache_dir)] if c.cache_dir else []
         cmd += ["--sequence", c.sequence] if c.sequence else []
         cmd += ["--judge", c.judge] if c.judge else []
+        cmd += ["--diffusion-checkpoint", str(c.diffusion_checkpoint)] if c.diffusion_checkpoint else []
         env = {**os.environ, "OMP_NUM_THREADS": "1", "VTK_DEFAULT_OPENGL_WINDOW": "vtkEGLRenderWindow"}
         self.loaded = asyncio.get_running_loop().create_future()
         self.zygote = await asyncio.create_subprocess_exec(*cmd, stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE, env=env)

@@ -40,6 +40,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="python -m explorer.zygote")
     p.add_argument("--data", type=Path, required=True)
     p.add_argument("--checkpoint", type=Path, required=True)
+    p.add_argument("--diffusion-checkpoint", type=Path, default=None, help="the diffusion model one switch away")
     p.add_argument("--cache-dir", type=Path, default=None)
     p.add_argument("--export-dir", type=Path, default=Path("imm-exports"))
     p.add_argument("--host", default="127.0.0.1")
@@ -51,17 +52,35 @@ def parse_args(argv=None) -> argparse.Namespace:
 
 
 def load_everything(args: argparse.Namespace):
-    """Data, model and latent embeddings; raises IMMError/OSError with one-line messages."""
+    """Data, model (with the models one switch away) and latent embeddings; raises IMMError/OSError with one-line
+    messages."""
     from explorer.latent import LatentMap, cache_key, default_cache_dir
     from explorer.session import load_model
     from imm_model.data.dataset import InteractionDataset
 
     data = InteractionDataset.load(args.data)
     model = load_model(args.checkpoint, data)
+    others = load_others(model, args.diffusion_checkpoint, data)
     cache_dir = args.cache_dir or default_cache_dir()
     # The studio fits a missing projection after the page opens (a cold cache's t-SNE costs ~3 s here)
     latent = LatentMap.build(model, data, cache_dir, cache_key(args.checkpoint, args.data), methods=())
-    return data, model, latent, load_reader(args.judge)
+    return data, model, latent, load_reader(args.judge), others
+
+
+def load_others(model, diffusion_checkpoint: Path | None, data) -> dict:
+    """{"diffusion": the diffusion model} beside a GAN (nothing beside a diffusion model: it is the one), warmed by one
+    synthesis here, in the zygote: its first one imports and allocates what every later one reuses (~0.1 s), which a
+    forked tab then inherits."""
+    from explorer.session import load_model
+    from imm_model.errors import CheckpointError
+
+    if diffusion_checkpoint is None or model.family == "diffusion":
+        return {}
+    other = load_model(diffusion_checkpoint, data)
+    if other.family != "diffusion":
+        raise CheckpointError(f"--diffusion-checkpoint {diffusion_checkpoint}: a {other.family} model, not a diffusion one")
+    other.synthesize_canonical(data.canonical(0)[0], other.label_vector([0.0] * len(other.class_names)))
+    return {"diffusion": other}
 
 
 def load_reader(path: Path | None):
@@ -87,8 +106,9 @@ def start_index(data, sequence: str | None) -> int:
     raise ValueError(f"--sequence {sequence!r}: no such sequence (an id such as {data.sequence_ids[0]}, or an index 0..{len(data) - 1})")
 
 
-def serve(data, model, latent, reader, args: argparse.Namespace, *, secret: str, say: Channel, uploads=None) -> int:
-    """Serve one tab; `uploads` reads its uploaded files out of this process (explorer/upload_reader.py)."""
+def serve(data, model, latent, reader, others, args: argparse.Namespace, *, secret: str, say: Channel, uploads=None) -> int:
+    """Serve one tab (`others`: the models one switch away, by name); `uploads` reads its uploaded files out of this
+    process (explorer/upload_reader.py)."""
     from trame.app import get_server
 
     from explorer.app import Studio
@@ -98,7 +118,7 @@ def serve(data, model, latent, reader, args: argparse.Namespace, *, secret: str,
 
     server = get_server("imm-studio", client_type="vue3")
     server.cli.set_defaults(authKey=secret)  # wslink's default secret is public: every process gets its own
-    session = Session(data, model, args.start, reader)
+    session = Session(data, model, args.start, reader, others)
     session.upload_reader = uploads
     Studio(server, session, latent, export_dir=args.export_dir, render=args.render)
     use_page_shell(server, args.cache_dir or default_cache_dir())
