@@ -20,6 +20,7 @@ from explorer.keys import press
 from explorer.latent import LatentMap
 from explorer.latent_panel import LatentPanel
 from explorer.layout import build_layout
+from explorer.model_switch import ModelSwitch
 from explorer.palette import class_color, display_name
 from explorer.playback import play
 from explorer.reads_as_panel import reads_as_rows, unread_note
@@ -40,6 +41,7 @@ class Studio:
         self.session = session
         self.exports = Exports(self, export_dir)
         self.compare = Compare(self)
+        self.model_switch = ModelSwitch(self)
         self.latent_panel = LatentPanel(self, latent)
         data = session.data
         self.scene = Scene(data.skeleton, floor_height(data.leader, data.follower, data.skeleton))
@@ -204,6 +206,7 @@ class Studio:
             self._write_label_state()
             self.scene.set_sequence(ses.leader, ses.ground_truth, ses.synth, 0)
             self.scene.set_pinned(ses.pinned)
+            self.model_switch.show_variations()
             self.scene.set_camera(self.scene.camera_preset)
             self._after_mix()
             s.error = ""
@@ -231,6 +234,7 @@ class Studio:
             self._write_label_state()
             self.scene.set_sequence(ses.leader, None, ses.synth, 0)
             self.scene.set_pinned(ses.pinned)
+            self.model_switch.show_variations()
             self.scene.set_camera(self.scene.camera_preset)
             self._after_mix()
             s.error = ""
@@ -255,7 +259,9 @@ class Studio:
             if self._mix_pending:
                 await asyncio.sleep(0)  # let already-queued slider messages land first
                 self._mix_pending = False
+                await self.model_switch.announce()  # a slow model's "computing" reaches the page before its synthesis
                 review_due = bool(self.apply_mix()) or review_due
+                self.model_switch.settle()
                 await asyncio.sleep(PICTURE_S)  # the picture is rendered, encoded and sent before anything else
                 continue
             # The panels change once the page has shown the picture: their state messages, processed by the page
@@ -275,6 +281,7 @@ class Studio:
             return False
         ses.set_label(weights, scale)
         self.scene.set_synthesized(ses.synth)
+        self.model_switch.show_variations()
         self.ctrl.view_update(draft=True)  # the picture first: it is what the user is watching; the panels follow it
         return True
 
@@ -349,6 +356,7 @@ class Studio:
         self.session.set_cleanup(bool(clean_up))
         self.scene.set_synthesized(self.session.synth)
         self.scene.set_pinned(self.session.pinned)
+        self.model_switch.show_variations()
         with self.state:
             self._after_mix()
         self.ctrl.view_update()

@@ -11,6 +11,7 @@ from trame.widgets import vuetify3 as v3
 
 from explorer.charts import CHART_CSS, DISTANCE_BOX
 from explorer.keys import KEY_HELP, LISTENER_JS
+from explorer.model_switch import model_chip, model_panel
 from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED, WARNING, class_color, display_name
 from explorer.reads_as_panel import reads_as_panel
 from explorer.scene import CAMERA_PRESETS, CHARACTER_KEYS
@@ -54,6 +55,7 @@ def build_layout(studio) -> VAppLayout:
             with html.Div(classes="pa-3"):
                 sequence_picker(studio)
                 v3.VDivider(classes="my-3")
+                model_panel(studio)
                 label_mix(studio)
                 v3.VDivider(classes="my-3")
                 character_toggles(studio)
@@ -110,6 +112,7 @@ def toolbar(studio) -> None:
         classes="mr-2",
     )
     v3.VChip("seen in training", v_else=True, size="small", color="blue-grey-lighten-3", variant="flat", classes="mr-2")
+    model_chip()
     v3.VSpacer()
     with v3.VBtnToggle(v_model=("scene_layout",), density="compact", mandatory=True, variant="outlined", classes="mr-3"):
         v3.VBtn("Overlay", value="overlay", size="small")

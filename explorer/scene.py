@@ -30,6 +30,7 @@ from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED  # noqa: E402
 from imm_model.skeleton import Skeleton  # noqa: E402
 
 CHARACTER_KEYS = ("leader", "ground_truth", "synthesized")
+VARIATION_KEYS = ("variation_1", "variation_2", "variation_3")  # a stochastic model's further followers, side by side
 LAYOUTS = ("overlay", "side_by_side")
 CAMERA_PRESETS = ("default", "front", "side", "top")
 SIDE_SPACING = 1.5  # metres between figures in the side-by-side layout
@@ -58,6 +59,10 @@ class Scene:
         self.figures["pinned"].set_visible(False)
         self.contact = ContactOverlay(self.plotter, skeleton)
         self.captions = {k: self._caption(CHARACTER_TITLES[k], CHARACTERS[k]) for k in CHARACTER_KEYS}
+        for k in VARIATION_KEYS:  # shown only side by side, right of the synthesized follower (set_variations)
+            self.figures[k] = StickFigure(self.plotter, skeleton, CHARACTERS["synthesized"])
+            self.figures[k].set_visible(False)
+            self.captions[k] = self._caption("", CHARACTERS["synthesized"])
         self.floor = self._floor()
         self.layout = "overlay"
         self.visible = {k: True for k in CHARACTER_KEYS}
@@ -102,6 +107,8 @@ class Scene:
         for k in CHARACTER_KEYS:
             self.figures[k].set_visible(self.visible[k] and k in self.sequences)
         self.figures["pinned"].set_visible(False)  # until set_pinned gives it the new leader's follower
+        for k in VARIATION_KEYS:  # until set_variations gives the new leader's
+            self.figures[k].set_visible(False)
         self.contact.flags = None  # until set_contact gives the new sequence's
         self._apply_layout()
         self.set_frame(frame)
@@ -122,6 +129,23 @@ class Scene:
             self.figures["pinned"].set_pose(pinned[min(self.frame, len(pinned) - 1)])
         self.figures["pinned"].set_visible(pinned is not None and self.visible["synthesized"])
         self._apply_layout()
+
+    def set_variations(self, followers: list[np.ndarray], seeds: list[int] | None) -> None:
+        """A stochastic model's followers for seeds[0], seeds[1], ... (the first is the synthesized one): the others
+        stand right of it in the side-by-side layout, each captioned with its seed. `seeds` None: a deterministic
+        model (one follower, captioned as usual)."""
+        title = CHARACTER_TITLES["synthesized"]
+        self.captions["synthesized"].input = title if seeds is None else f"{title} · seed {seeds[0]}"
+        for i, k in enumerate(VARIATION_KEYS, start=1):
+            if seeds is not None and i < len(followers):
+                self.sequences[k] = followers[i]
+                self.captions[k].input = f"seed {seeds[i]}"
+                self.figures[k].set_pose(followers[i][min(self.frame, len(followers[i]) - 1)])
+            else:
+                self.sequences.pop(k, None)
+        self._apply_layout()
+        if self.layout == "side_by_side":
+            self.set_camera(self.camera_preset)  # room for more or fewer figures
 
     def set_contact(self, leader_bones: np.ndarray | None, follower_bones: np.ndarray | None) -> bool:
         """Which bones interpenetrate, per frame ((T, K) each; None: none shown) -> whether that changed."""
@@ -152,8 +176,9 @@ class Scene:
         shown = bool(visible) and (key in self.sequences or not self.sequences)
         self.figures[key].set_visible(shown)
         self.captions[key].SetVisibility(shown and self.layout == "side_by_side")
-        if key == "synthesized":  # the pinned follower is a synthesized one too
+        if key == "synthesized":  # the pinned follower is a synthesized one too, as are its variations
             self.figures["pinned"].set_visible(shown and "pinned" in self.sequences)
+            self._apply_layout()
         self._show_contact()
 
     def set_layout(self, layout: str) -> None:
@@ -172,20 +197,28 @@ class Scene:
             return
         top = float(max(s[..., 1].max() for s in self.sequences.values())) + 0.25
         along_z = self.camera_preset == "side"
-        for slot, k in (*enumerate(CHARACTER_KEYS), (2, "pinned")):  # the pinned follower shares the synthesized spot
+        middle = (self._slots() - 1) / 2
+        variations = [(3 + i, k) for i, k in enumerate(VARIATION_KEYS)]
+        for slot, k in (*enumerate(CHARACTER_KEYS), (2, "pinned"), *variations):  # the pinned one on the synthesized spot
             fig, cap = self.figures[k], self.captions.get(k)
+            if k in VARIATION_KEYS:
+                fig.set_visible(k in self.sequences and self.layout == "side_by_side" and self.visible["synthesized"])
             if k not in self.sequences or self.layout == "overlay":
                 fig.place((0, 0, 0), (0, 0, 0), 0.0)
                 if cap is not None:
                     cap.SetVisibility(False)
                 continue
             root = self.sequences[k][0, self.skeleton.root]
-            spot = (0.0, 0.0, (1 - slot) * SIDE_SPACING) if along_z else ((slot - 1) * SIDE_SPACING, 0.0, 0.0)  # left to right
+            spot = (0.0, 0.0, (middle - slot) * SIDE_SPACING) if along_z else ((slot - middle) * SIDE_SPACING, 0.0, 0.0)  # left to right
             yaw = 0.0 if k == "leader" else 180.0
             fig.place((float(root[0]), 0.0, float(root[2])), (spot[0] - float(root[0]), 0.0, spot[2] - float(root[2])), yaw)
             if cap is not None:
                 cap.position = (spot[0], top, spot[2])
-                cap.SetVisibility(self.visible[k])
+                cap.SetVisibility(self.visible["synthesized" if k in VARIATION_KEYS else k])
+
+    def _slots(self) -> int:
+        """Spots side by side: leader, ground truth, synthesized, and its variations."""
+        return len(CHARACTER_KEYS) + sum(k in self.sequences for k in VARIATION_KEYS)
 
     # ---- camera -------------------------------------------------------------------------
     def _refit_if_resized(self) -> None:
@@ -195,7 +228,8 @@ class Scene:
     def _points_of_interest(self) -> np.ndarray:
         """Corners of the box the camera must show: all frames of the three figures as placed."""
         if self.layout == "side_by_side" or not self.sequences:
-            spread = [SIDE_SPACING + 0.6, 0.0, 0.6][:: -1 if self.camera_preset == "side" else 1]  # along X, or Z (_apply_layout)
+            half = (self._slots() - 1) / 2 * SIDE_SPACING + 0.6
+            spread = [half, 0.0, 0.6][:: -1 if self.camera_preset == "side" else 1]  # along X, or Z (_apply_layout)
             lo = np.array([-spread[0], self.floor_y, -spread[2]])
             hi = np.array([spread[0], self.floor_y + 2.0, spread[2]])
         else:

@@ -1,6 +1,7 @@
 """The view in the URL's query string, so a link reopens what its sender saw:
-`?seq=s01s02/03/001&mix=kicking:1,hugging:0.5&scale=1&frame=12&layout=overlay&camera=front&map=tsne`, and `&raw=1`
-when the clean-up is off.
+`?seq=s01s02/03/001&mix=kicking:1,hugging:0.5&scale=1&frame=12&layout=overlay&camera=front&map=tsne`, `&raw=1`
+when the clean-up is off, `&model=diffusion` when another model than the studio's first draws, and `&seed=12` for a
+stochastic model.
 
 Everything read from a URL is validated here (it comes from whoever wrote the link): unknown keys are ignored,
 bad values are named in one line and left out, the rest still applies.
@@ -14,16 +15,18 @@ from urllib.parse import parse_qs, quote, urlencode
 MAX_QUERY = 2000  # characters; a longer query is refused as a whole
 LAYOUTS = ("overlay", "side_by_side")
 MAPS = ("tsne", "umap")
+MAX_SEED = 2**31 - 5  # room for the side-by-side variations after it (explorer/session.py MAX_VARIATIONS)
 
 
 def view_query(view: dict) -> str:
-    """{seq, weights: {class: w}, scale, frame, layout, camera, map, raw} -> "?..." (None values are left out)."""
+    """{seq, weights: {class: w}, scale, frame, layout, camera, map, raw, model, seed} -> "?..." (None values are left
+    out)."""
     parts = {}
     if view.get("seq"):
         parts["seq"] = view["seq"]
     mix = ",".join(f"{name}:{w:g}" for name, w in view.get("weights", {}).items() if w)
     parts["mix"] = mix or "none"
-    for key in ("scale", "frame", "layout", "camera", "map", "raw"):
+    for key in ("scale", "frame", "layout", "camera", "map", "raw", "model", "seed"):
         if view.get(key) is not None:
             parts[key] = f"{view[key]:g}" if isinstance(view[key], float) else str(view[key])
     return "?" + urlencode(parts, safe=":,/", quote_via=quote)
@@ -51,7 +54,7 @@ def _weights(text: str, class_names) -> dict[str, float]:
     return weights
 
 
-def parse_view(query: str, class_names, sequence_ids, cameras) -> tuple[dict, list[str]]:
+def parse_view(query: str, class_names, sequence_ids, cameras, models=()) -> tuple[dict, list[str]]:
     """"?seq=...&mix=..." -> (the valid parts, one-line reasons for the others)."""
     query = query.lstrip("?")
     if len(query) > MAX_QUERY:
@@ -66,6 +69,8 @@ def parse_view(query: str, class_names, sequence_ids, cameras) -> tuple[dict, li
         "camera": lambda v: v if v in cameras else _fail(f"camera {v!r} is not one of {', '.join(cameras)}"),
         "map": lambda v: v if v in MAPS else _fail(f"map {v!r} is not one of {', '.join(MAPS)}"),
         "raw": lambda v: {"1": True, "0": False}[v] if v in ("0", "1") else _fail(f"raw {v!r} is not 0 or 1"),
+        "model": lambda v: v if v in models else _fail(f"model {v!r} is not one of {', '.join(models) or 'this studio'}"),
+        "seed": lambda v: int(_number(v, 0, MAX_SEED, "seed")) if v.isdigit() else _fail(f"seed {v!r} is not a whole number"),
     }
     view, problems = {}, []
     for key, parse in parsers.items():
@@ -93,6 +98,8 @@ def current_view(studio) -> dict:
         "camera": studio.scene.camera_preset,
         "map": s.projection,
         "raw": None if ses.cleaned_up else 1,  # left out of the link while the clean-up is on, as by default
+        "model": None if ses.model is ses.map_model else ses.model_name,  # left out for the model the studio opens with
+        "seed": ses.seed if ses.stochastic else None,
     }
 
 
@@ -101,7 +108,12 @@ def apply_view(studio, query: str) -> None:
     from explorer.scene import CAMERA_PRESETS
 
     ses, s = studio.session, studio.state
-    view, problems = parse_view(query, ses.class_names, set(ses.data.sequence_ids), CAMERA_PRESETS)
+    view, problems = parse_view(query, ses.class_names, set(ses.data.sequence_ids), CAMERA_PRESETS, tuple(ses.models))
+    with s:  # the model and seed first: the sequence and the mix are then drawn by them once
+        if "model" in view:
+            s.model_name = view["model"]
+        if "seed" in view:
+            s.seed = view["seed"]
     if "seq" in view:
         studio.load_sequence(ses.data.index_of(view["seq"]))
     if "mix" in view or "scale" in view:

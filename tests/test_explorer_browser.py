@@ -508,3 +508,54 @@ def test_side_by_side_from_the_side_keeps_the_three_figures_apart(page):
     finally:
         probe.set_state(page, "scene_layout", "overlay")
         page.locator("#camera-default").click()
+
+
+def test_switch_to_the_diffusion_model_draw_variations_and_back(page):
+    """The model switch: the diffusion model draws another follower and the chip says so; "new variation" draws
+    another seed's; three variations stand side by side; one click brings the GAN, and its follower, back."""
+    from explorer.palette import SYNTHESIZED
+    from tests.studio_probe import color_mask
+
+    def still_green():
+        time.sleep(0.8)  # the still picture after the draft
+        return color_mask(probe.view_pixels(page), SYNTHESIZED)
+
+    def figures(mask) -> int:  # green figures side by side: runs of image columns with green in them
+        rows = np.flatnonzero(mask.any(1))
+        gap = np.flatnonzero(np.diff(rows) > 3)  # the legend and the captions above the figures, empty rows between
+        body = mask[rows[gap[-1] + 1]:] if len(gap) else mask
+        cols = np.convolve(body.sum(0) > 2, np.ones(9), "same") > 0  # a figure's own gaps of a few pixels closed
+        return int((np.diff(cols.astype(int)) == 1).sum() + cols[0])
+
+    _load_sequence(page, 3)
+    probe.set_state(page, "scene_layout", "overlay")
+    chip = page.locator("#model-chip")
+    assert "the paper's GAN" in chip.inner_text() and page.locator("#variation-controls").count() == 0
+    gan = still_green()
+    n = probe.state(page, "mix_count")
+    page.locator("#model-diffusion").click()
+    probe.wait_state(page, f"s.get('model_title') === 'the diffusion model' && s.get('mix_count') > {n} && !s.get('computing')")
+    assert "the diffusion model · seed" in chip.inner_text()
+    diffusion = still_green()
+    assert int((gan ^ diffusion).sum()) > 100, "the follower did not change with the model"
+    seed, n = probe.state(page, "seed"), probe.state(page, "mix_count")
+    page.locator("#new-variation").click()
+    probe.wait_state(page, f"s.get('seed') !== {seed} && s.get('mix_count') > {n} && !s.get('computing')")
+    assert f"seed {probe.state(page, 'seed')}" in chip.inner_text()
+    assert int((diffusion ^ still_green()).sum()) > 100, "a new variation drew the same follower"
+    probe.shot(page, "studio-diffusion-variation")
+
+    page.locator("#variation-count").get_by_role("button", name="3").click()  # three seeds side by side
+    probe.wait_state(page, "s.get('variation_count') === 3 && s.get('scene_layout') === 'side_by_side' && !s.get('computing')")
+    three = figures(still_green())
+    probe.shot(page, "studio-diffusion-three-variations")
+    page.locator("#variation-count").get_by_role("button", name="1").click()
+    probe.wait_state(page, "s.get('variation_count') === 1 && !s.get('computing')")
+    assert (three, figures(still_green())) == (3, 1), "three variations do not show three followers"
+
+    page.locator("#model-gan").click()  # back in one click
+    probe.wait_state(page, "s.get('model_title') === \"the paper's GAN\" && !s.get('stochastic') && !s.get('computing')")
+    probe.set_state(page, "scene_layout", "overlay")
+    assert page.locator("#variation-controls").count() == 0 and "seed" not in chip.inner_text()
+    back = still_green()
+    assert int((back ^ gan).sum()) < 0.1 * int(gan.sum()), "the GAN's follower is not the one it drew before"

@@ -1,0 +1,167 @@
+"""The model switch (the paper's GAN / the diffusion model) and, for a stochastic model, its variations: the seed, a
+"new variation" button, and N followers drawn at once (seeds seed .. seed + N - 1) side by side, each captioned with
+its seed. The session (explorer/session.py) holds the models and draws the followers; this maps them onto the page.
+
+A diffusion reaction costs ~10x the GAN's (benchmarks/explorer_latency.py): slider moves are coalesced as for any
+model (app.py, the latest mix wins), and a "computing" mark shows while it works (the page sets it at once for a
+click here; the server around a slider's synthesis).
+"""
+
+from __future__ import annotations
+
+import asyncio
+
+from trame.widgets import client, html
+from trame.widgets import vuetify3 as v3
+
+from explorer.session import MAX_VARIATIONS, model_title
+
+# The "computing" mark fades in only after 0.15 s: a reaction drawn sooner never makes the page blink.
+COMPUTING_CSS = """
+.imm-computing { animation: imm-computing-in 0s linear 0.15s both; }
+@keyframes imm-computing-in { from { visibility: hidden; } to { visibility: visible; } }
+"""
+
+
+class ModelSwitch:
+    def __init__(self, studio):
+        self.studio = studio
+        ses = studio.session
+        studio.state.update({
+            "model_name": ses.model_name,
+            "model_items": [{"title": model_title(name), "value": name} for name in ses.models],
+            "model_title": model_title(ses.model_name),
+            "stochastic": ses.stochastic,
+            "seed": ses.seed,
+            "variation_count": ses.variation_count,
+            "computing": False,  # a reaction is being drawn (COMPUTING_CSS)
+            "variation_asked": 0,  # "new variation" presses
+        })  # fmt: skip
+        studio.state.change("model_name")(studio.guarded(self.on_model_picked))
+        studio.state.change("seed")(studio.guarded(self.on_seed_typed))
+        studio.state.change("variation_count")(studio.guarded(self.on_count_picked))
+        # a state change, not a trigger: it reaches the server with the page's `computing`, which a trigger could overtake
+        studio.state.change("variation_asked")(studio.guarded(self.on_variation_asked))
+        self._asked = 0
+
+    @property
+    def state(self):
+        return self.studio.state
+
+    # ---- the page's controls ----------------------------------------------------------------
+    def on_model_picked(self, model_name, **_):
+        ses = self.studio.session
+        if model_name == ses.model_name:
+            return self.settle()
+        try:
+            ses.set_model(str(model_name))
+        finally:
+            self.state.model_name = ses.model_name  # a refused name leaves the switch where the session is
+        self.refresh()
+
+    def on_seed_typed(self, seed, **_):
+        """The seed field: an integer in range draws that variation; anything else is named in the page's alert."""
+        ses = self.studio.session
+        text = str(seed).strip() if seed is not None else ""
+        if not text or text == str(ses.seed):
+            return self.settle()
+        try:
+            value = int(text)
+        except ValueError:
+            raise ValueError(f"seed {text[:20]!r} is not a whole number") from None
+        ses.set_seed(value)
+        self.refresh()
+
+    def on_variation_asked(self, variation_asked, **_):
+        asked = int(variation_asked or 0)
+        if asked == self._asked:  # the page's first state, not a press
+            return
+        self._asked = asked
+        self.new_variation()
+
+    def new_variation(self):
+        ses = self.studio.session
+        ses.new_variation()
+        self.state.seed = ses.seed  # the field shows it; its change handler finds the session there already
+        self.refresh()
+
+    def on_count_picked(self, variation_count, **_):
+        """N variations: drawn side by side (the overlay would put them on top of each other)."""
+        ses = self.studio.session
+        n = int(variation_count or 1)
+        if n == ses.variation_count:
+            return self.settle()
+        ses.set_variation_count(n)
+        if n > 1 and self.state.scene_layout != "side_by_side":
+            self.state.scene_layout = "side_by_side"
+        self.refresh()
+
+    # ---- what the studio calls ----------------------------------------------------------------
+    def show_variations(self) -> None:
+        """The session's followers beyond the first into the scene (after any re-synthesis)."""
+        ses = self.studio.session
+        self.studio.scene.set_variations(ses.variation_followers, ses.variation_seeds() if ses.stochastic else None)
+
+    def refresh(self) -> None:
+        """The followers after a switch, a seed or a count: the view, the pin's words, the review panels."""
+        studio, ses, s = self.studio, self.studio.session, self.state
+        studio.scene.set_synthesized(ses.synth)
+        studio.scene.set_pinned(ses.pinned)
+        self.show_variations()
+        with s:
+            s.model_title = model_title(ses.model_name)
+            s.stochastic = ses.stochastic
+            s.seed, s.variation_count = ses.seed, ses.variation_count
+            s.pinned_text = ses.pinned_text()
+            studio._after_mix()
+            s.error = ""
+            s.computing = False
+        studio.ctrl.view_update()
+
+    async def announce(self) -> None:
+        """Before a stochastic model's synthesis from a slider: the page learns it is computing (sent first)."""
+        if self.studio.session.stochastic:
+            with self.state:
+                self.state.computing = True
+            await asyncio.sleep(0)
+
+    def settle(self) -> None:
+        if self.state.computing:
+            with self.state:
+                self.state.computing = False
+
+
+def model_chip() -> None:
+    """The status chip: which model draws the follower (and, for a stochastic one, with which seed)."""
+    with v3.VChip(size="small", variant="flat", color="indigo-lighten-4", classes="mr-2", id="model-chip"):
+        html.Span("{{ model_title }}{{ stochastic ? ' · seed ' + seed : '' }}")
+        v3.VProgressCircular(v_show="computing", indeterminate=True, size=12, width=2, classes="ml-1 imm-computing",
+                             id="computing")
+    client.Style(COMPUTING_CSS)
+
+
+def model_panel(studio) -> None:
+    """The model switch above the label sliders, and the variation controls under it for a stochastic model."""
+    if len(studio.session.models) > 1:
+        html.Div("Model", classes="text-overline")
+        # A click sets the choice and `computing` together, so that both reach the server in one message (with
+        # v_model the choice could overtake `computing`, which would then stay on).
+        with v3.VBtnToggle(model_value=("model_name",), density="compact", mandatory=True, variant="outlined", divided=True,
+                           classes="mb-2", id="model-switch"):
+            for name in studio.session.models:
+                v3.VBtn(model_title(name), value=name, size="x-small", id=f"model-{name}",
+                        click=f"if (model_name !== '{name}') {{ computing = true; model_name = '{name}'; }}")
+    with html.Div(v_if="stochastic", classes="mb-2", id="variation-controls"):
+        with html.Div(classes="d-flex align-center mb-1", style="gap: 6px"):
+            v3.VTextField(v_model=("seed",), label="seed", type="number", min=0, density="compact", hide_details=True,
+                          style="max-width: 96px", id="seed-field",
+                          title="the same seed with a moved slider moves the reaction smoothly")
+            v3.VBtn("new variation", size="x-small", variant="tonal", prepend_icon="mdi-dice-multiple", id="new-variation",
+                    click="computing = true; variation_asked += 1")
+        with html.Div(classes="d-flex align-center", style="gap: 6px"):
+            html.Div("variations side by side", classes="text-body-2")
+            with v3.VBtnToggle(model_value=("variation_count",), density="compact", mandatory=True, variant="outlined",
+                               divided=True, id="variation-count", title="followers drawn at once, seeds seed, seed + 1, ..."):
+                for n in range(1, MAX_VARIATIONS + 1):
+                    v3.VBtn(str(n), value=n, size="x-small",
+                            click=f"if (variation_count !== {n}) {{ computing = true; variation_count = {n}; }}")
