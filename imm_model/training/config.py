@@ -139,7 +139,7 @@ PAPER = TrainConfig(
     l1_reduction="sum",
 )
 
-# The recipe that converges on SBU (docs/training.md compares it with the alternatives).
+# The recipe that converges on SBU (docs/experiments/imm-recipe.md compares it with the alternatives).
 IMM = TrainConfig(
     name="imm",
     # the decoder reads the attention context alone: half the input width of [encoding, context], 0.83x per epoch
