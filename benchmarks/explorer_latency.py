@@ -1,6 +1,7 @@
 """IMM Studio latency benchmark (headless Chromium through Playwright, remote rendering).
 
     .venv/bin/python benchmarks/explorer_latency.py [--trials 40] [--play-seconds 5] [--json out.json] [--checkpoint CK]
+    .venv/bin/python benchmarks/explorer_latency.py --models [--trials 20]   # only 6. below
 
 Every studio it starts serves the bundled model, or CK (a generator checkpoint, e.g. a wider recipe's).
 
@@ -16,6 +17,8 @@ Measures, and prints with the machine's thread count and load:
      at once (each tab its own studio process);
   5. memory with 5 tabs: RSS, PSS and USS of each studio process (one per tab, plus the warm spare) and of the
      zygote they are forked from, and the PSS of all of them together (`--memory-only`: just this).
+  6. (`--models`) the model switch: slider latency with the paper's GAN, with the diffusion model switched on, and
+     with three of its variations side by side; the time from a click on "new variation" to its picture.
 Bars: slider p95 <= 60 ms idle, <= 100 ms with A/B or the 'reads as' panel, <= 150 ms with 5 tabs (issues 9, 12);
 warm start <= 4 s, cold <= 6 s; >= 30 fps render capability; RSS per tab <= 300 MB.
 """
@@ -174,6 +177,34 @@ def _say(what: str, lat: np.ndarray, bar: str) -> None:
           f"max {lat.max():.0f} ms   [bar {bar}]")
 
 
+def measure_models(browser, studio: probe.StudioProcess, trials: int, res: dict) -> None:
+    """6.: the same slider, first with the GAN, then with the diffusion model, then with three variations drawn."""
+    page = probe.open_studio(browser, studio.url, *VIEW_SIZE)
+    probe.watch_view_images(page)
+    res["models_slider_ms_gan"] = _p(lat := slider_latency(page, trials))
+    _say("slider -> redrawn follower, the paper's GAN", lat, "p95 <= 100 ms")
+    page.locator("#model-diffusion").click()
+    probe.wait_state(page, "s.get('model_name') === 'diffusion' && !s.get('computing')")
+    res["models_slider_ms_diffusion"] = _p(lat := slider_latency(page, trials))
+    _say("  ... the diffusion model", lat, "p95 <= 100 ms")
+    clicks = []
+    for _ in range(max(3, trials // 4)):
+        n, seed = probe.images_seen(page), probe.state(page, "seed")
+        t0 = page.evaluate("() => performance.now()")
+        page.locator("#new-variation").click()
+        probe.wait_state(page, f"s.get('seed') !== {seed} && !s.get('computing')")
+        probe.wait_for_new_image(page, n)
+        clicks.append(page.evaluate("([n, t0]) => window.__immImages.slice(n).find(t => t > t0) - t0", [n, t0]))
+        time.sleep(0.25)
+    res["models_new_variation_ms"] = _p(lat := np.array(clicks, float))
+    _say("  ... 'new variation' click -> its picture", lat, "none")
+    page.locator("#variation-count").get_by_role("button", name="3").click()
+    probe.wait_state(page, "s.get('variation_count') === 3 && !s.get('computing')")
+    res["models_slider_ms_diffusion_3"] = _p(lat := slider_latency(page, trials))
+    _say("  ... three diffusion variations side by side", lat, "none")
+    page.close()
+
+
 def measure_start(browser, cache: Path, res: dict, model: tuple[str, ...]) -> probe.StudioProcess:
     for kind, bar in (("cold", 6), ("warm", 4)):
         ready, inter, mapped, studio = start_to_interactive(browser, cache, model)
@@ -235,6 +266,7 @@ def main() -> int:
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--memory-only", action="store_true", help="only the memory of 5 tabs (CPU load does not skew it)")
     ap.add_argument("--checkpoint", type=Path, default=None, help="the model every studio serves (default: the bundled one)")
+    ap.add_argument("--models", action="store_true", help="only the model switch's latencies (6.)")
     args = ap.parse_args()
     if args.checkpoint and not args.checkpoint.is_file():
         ap.error(f"checkpoint not found: {args.checkpoint}")  # one line, before any studio or browser starts
@@ -247,6 +279,16 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp, sync_playwright() as p:
         browser = probe.launch_chromium(p)
         cache = Path(tmp) / "cache"
+        if args.models:
+            studio = probe.StudioProcess(*model, cache_dir=cache, timeout=120)
+            try:
+                measure_models(browser, studio, args.trials, res)
+            finally:
+                studio.stop()
+                browser.close()
+            if args.json:
+                args.json.write_text(json.dumps(res, indent=2))
+            return 0
         if args.memory_only:
             studio = probe.StudioProcess(*model, cache_dir=cache, timeout=120)
             try:

@@ -70,7 +70,7 @@ def parse_view(query: str, class_names, sequence_ids, cameras, models=()) -> tup
         "map": lambda v: v if v in MAPS else _fail(f"map {v!r} is not one of {', '.join(MAPS)}"),
         "raw": lambda v: {"1": True, "0": False}[v] if v in ("0", "1") else _fail(f"raw {v!r} is not 0 or 1"),
         "model": lambda v: v if v in models else _fail(f"model {v!r} is not one of {', '.join(models) or 'this studio'}"),
-        "seed": lambda v: int(_number(v, 0, MAX_SEED, "seed")) if v.isdigit() else _fail(f"seed {v!r} is not a whole number"),
+        "seed": _seed,
     }
     view, problems = {}, []
     for key, parse in parsers.items():
@@ -80,6 +80,14 @@ def parse_view(query: str, class_names, sequence_ids, cameras, models=()) -> tup
             except ValueError as err:
                 problems.append(str(err))
     return view, problems
+
+
+def _seed(text: str) -> int:
+    if not (text.isascii() and text.isdigit()):
+        raise ValueError(f"seed {text[:20]!r} is not a whole number")
+    if int(text) > MAX_SEED:
+        raise ValueError(f"seed {text[:20]!r} is outside 0..{MAX_SEED}")
+    return int(text)
 
 
 def _fail(message: str):

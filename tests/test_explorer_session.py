@@ -369,3 +369,17 @@ def test_the_clean_up_switch_holds_for_both_models(two_models):
     assert ses.model.raw and not ses.cleaned_up
     ses.set_cleanup(True)
     assert not ses.models["gan"].raw and not ses.models["diffusion"].raw
+
+
+def test_a_link_carries_the_model_and_the_seed():
+    from explorer.url_state import MAX_SEED, parse_view, view_query
+
+    query = view_query({"seq": "s01s02/03/001", "weights": {"kicking": 1.0}, "model": "diffusion", "seed": 12})
+    assert query.endswith("&model=diffusion&seed=12")
+    view, problems = parse_view(query, ("kicking",), {"s01s02/03/001"}, ("default",), ("gan", "diffusion"))
+    assert (view["model"], view["seed"], problems) == ("diffusion", 12, [])
+    bad = f"?model=flow&seed={MAX_SEED + 1}&frame=3"
+    view, problems = parse_view(bad, ("kicking",), set(), ("default",), ("gan", "diffusion"))
+    assert view == {"frame": 3} and problems == ["model 'flow' is not one of gan, diffusion",
+                                                 f"seed '{MAX_SEED + 1}' is outside 0..{MAX_SEED}"]
+    assert parse_view("?seed=-1", (), set(), (), ("gan",))[1] == ["seed '-1' is not a whole number"]
