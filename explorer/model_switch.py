@@ -37,22 +37,34 @@ class ModelSwitch:
             "computing": False,  # a reaction is being drawn (COMPUTING_CSS)
             "variation_asked": 0,  # "new variation" presses
         })  # fmt: skip
-        studio.state.change("model_name")(studio.guarded(self.on_model_picked))
-        studio.state.change("seed")(studio.guarded(self.on_seed_typed))
-        studio.state.change("variation_count")(studio.guarded(self.on_count_picked))
+        studio.state.change("model_name")(self._settled(self.on_model_picked))
+        studio.state.change("seed")(self._settled(self.on_seed_typed))
+        studio.state.change("variation_count")(self._settled(self.on_count_picked))
         # a state change, not a trigger: it reaches the server with the page's `computing`, which a trigger could overtake
-        studio.state.change("variation_asked")(studio.guarded(self.on_variation_asked))
+        studio.state.change("variation_asked")(self._settled(self.on_variation_asked))
         self._asked = 0
 
     @property
     def state(self):
         return self.studio.state
 
+    def _settled(self, handler):
+        """`handler` with its errors in the page's alert (studio.guarded) and `computing` off after it, whatever it did."""
+        guarded = self.studio.guarded(handler)
+
+        def call(*args, **kwargs):
+            try:
+                return guarded(*args, **kwargs)
+            finally:
+                self.settle()
+
+        return call
+
     # ---- the page's controls ----------------------------------------------------------------
     def on_model_picked(self, model_name, **_):
         ses = self.studio.session
         if model_name == ses.model_name:
-            return self.settle()
+            return
         try:
             ses.set_model(str(model_name))
         finally:
@@ -64,7 +76,7 @@ class ModelSwitch:
         ses = self.studio.session
         text = str(seed).strip() if seed is not None else ""
         if not text or text == str(ses.seed):
-            return self.settle()
+            return
         try:
             value = int(text)
         except ValueError:
@@ -90,7 +102,7 @@ class ModelSwitch:
         ses = self.studio.session
         n = int(variation_count or 1)
         if n == ses.variation_count:
-            return self.settle()
+            return
         ses.set_variation_count(n)
         if n > 1 and self.state.scene_layout != "side_by_side":
             self.state.scene_layout = "side_by_side"
