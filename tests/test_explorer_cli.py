@@ -50,6 +50,14 @@ def test_unknown_start_sequence_and_bad_judge(tmp_path):
     assert_one_line_error(run_explore("--judge", str(tmp_path / "nope.safetensors")), "judge not found")
 
 
+@pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
+def test_bad_diffusion_checkpoint(tmp_path):
+    assert_one_line_error(run_explore("--diffusion-checkpoint", str(tmp_path / "nope.safetensors")),
+                          "diffusion checkpoint not found", "nope.safetensors")
+    assert_one_line_error(run_explore("--diffusion-checkpoint", str(SAMPLE_CHECKPOINT), "--cache-dir", str(tmp_path)),
+                          "a gan model, not a diffusion one")
+
+
 def test_corrupt_checkpoint(tmp_path):
     bad = tmp_path / "bad.safetensors"
     bad.write_bytes(b"\x00" * 64)
