@@ -135,17 +135,24 @@ class Scene:
         stand right of it in the side-by-side layout, each captioned with its seed. `seeds` None: a deterministic
         model (one follower, captioned as usual)."""
         title = CHARACTER_TITLES["synthesized"]
-        self.captions["synthesized"].input = title if seeds is None else f"{title} · seed {seeds[0]}"
+        self._caption_text("synthesized", title if seeds is None else f"{title} · seed {seeds[0]}")
+        slots = self._slots()
+        if seeds is None and slots == len(CHARACTER_KEYS):
+            return  # a deterministic model's follower, as before: set_synthesized placed it
         for i, k in enumerate(VARIATION_KEYS, start=1):
             if seeds is not None and i < len(followers):
                 self.sequences[k] = followers[i]
-                self.captions[k].input = f"seed {seeds[i]}"
+                self._caption_text(k, f"seed {seeds[i]}")
                 self.figures[k].set_pose(followers[i][min(self.frame, len(followers[i]) - 1)])
             else:
                 self.sequences.pop(k, None)
         self._apply_layout()
-        if self.layout == "side_by_side":
-            self.set_camera(self.camera_preset)  # room for more or fewer figures
+        if self.layout == "side_by_side" and self._slots() != slots:
+            self.set_camera(self.camera_preset)  # room for more or fewer figures (a camera the user turned stays else)
+
+    def _caption_text(self, key: str, text: str) -> None:
+        if self.captions[key].input != text:  # a new text is rasterized again at the next render
+            self.captions[key].input = text
 
     def set_contact(self, leader_bones: np.ndarray | None, follower_bones: np.ndarray | None) -> bool:
         """Which bones interpenetrate, per frame ((T, K) each; None: none shown) -> whether that changed."""

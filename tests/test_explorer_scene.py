@@ -108,3 +108,34 @@ def test_side_by_side_figures_and_captions_stay_apart_from_every_camera(scene):
     finally:
         scene.set_layout("overlay")
         scene.set_camera("default")
+
+
+def test_variations_stand_right_of_the_synthesized_follower_with_their_seeds(scene):
+    """A stochastic model's further followers: side by side only, each on its own spot and captioned with its seed;
+    a turned camera stays while their number does not change; a deterministic model's follower brings the three
+    figures back."""
+    from explorer.palette import CHARACTER_TITLES
+    from explorer.scene import VARIATION_KEYS
+
+    followers = [scene.sequences["synthesized"] + np.float32([dx, 0.0, 0.0]) for dx in (0.0, 0.2, 0.4)]
+    scene.set_variations(followers, [7, 8, 9])
+    assert not any(scene.figures[k].actors[0].GetVisibility() for k in VARIATION_KEYS)  # overlay: the three figures only
+    scene.set_layout("side_by_side")
+    try:
+        shown = [k for k in VARIATION_KEYS if scene.figures[k].actors[0].GetVisibility()]
+        assert shown == ["variation_1", "variation_2"]
+        assert [scene.captions[k].input for k in ("synthesized", *shown)] == [f"{CHARACTER_TITLES['synthesized']} · seed 7",
+                                                                            "seed 8", "seed 9"]
+        xs = [scene.captions[k].position[0] for k in ("leader", "ground_truth", "synthesized", *shown)]
+        assert np.all(np.diff(xs) > 1.0), xs  # five spots, left to right
+        camera = scene.renderer.GetActiveCamera()
+        camera.Azimuth(30)
+        turned = camera.GetPosition()
+        scene.set_variations(followers, [7, 8, 9])  # a new mix, as many followers: the user's camera stays
+        assert camera.GetPosition() == turned
+        scene.set_variations(followers[:1], None)
+        assert not any(scene.figures[k].actors[0].GetVisibility() for k in VARIATION_KEYS)
+        assert scene.captions["synthesized"].input == CHARACTER_TITLES["synthesized"] and camera.GetPosition() != turned
+    finally:
+        scene.set_layout("overlay")
+        scene.set_camera("default")
