@@ -279,7 +279,7 @@ class Studio:
         scale = float(s.scale if s.scale is not None else 1.0)
         if np.allclose(weights, ses.weights) and abs(scale - ses.scale) < 1e-9 and ses.synth is not None and s.mix_count:
             return False
-        ses.set_label(weights, scale)
+        ses.set_label(weights, scale, variations=False)  # the side-by-side variations follow with the review
         self.scene.set_synthesized(ses.synth)
         self.model_switch.show_variations()
         self.ctrl.view_update(draft=True)  # the picture first: it is what the user is watching; the panels follow it
@@ -287,6 +287,7 @@ class Studio:
 
     @_guard
     def update_review(self) -> None:
+        self.model_switch.draw_variations()
         with self.state:
             self._after_mix()
             self.state.error = ""

@@ -3,8 +3,9 @@
 its seed. The session (explorer/session.py) holds the models and draws the followers; this maps them onto the page.
 
 A diffusion reaction costs ~10x the GAN's (benchmarks/explorer_latency.py): slider moves are coalesced as for any
-model (app.py, the latest mix wins), and a "computing" mark shows while it works (the page sets it at once for a
-click here; the server around a slider's synthesis).
+model (app.py, the latest mix wins), a slider's further variations are drawn after its first picture, with the
+review panels, and a "computing" mark shows while it works (the page sets it at once for a click here; the server
+around a slider's synthesis).
 """
 
 from __future__ import annotations
@@ -113,6 +114,14 @@ class ModelSwitch:
         """The session's followers beyond the first into the scene (after any re-synthesis)."""
         ses = self.studio.session
         self.studio.scene.set_variations(ses.variation_followers, ses.variation_seeds() if ses.stochastic else None)
+
+    def draw_variations(self) -> None:
+        """The side-by-side variations of a slider's mix, drawn after its first picture (they cost a reaction each)."""
+        ses = self.studio.session
+        if ses.variations_due:
+            ses.draw_variations()
+            self.show_variations()
+            self.studio.ctrl.view_update()
 
     def refresh(self) -> None:
         """The followers after a switch, a seed or a count: the view, the pin's words, the review panels."""

@@ -145,6 +145,7 @@ class Session:
         self.seed = 0  # the sampler's seed: which variation a stochastic model draws
         self.variation_count = 1  # followers drawn at once, seeds seed .. seed + count - 1 (`variations`)
         self.variation_followers: list[np.ndarray] = []
+        self._variations_of: np.ndarray | None = None  # the follower `variation_followers` were drawn with
         self._seeds = np.random.default_rng()
         self.reader = reader
         self.upload: Upload | None = None
@@ -232,14 +233,16 @@ class Session:
     def reset(self) -> np.ndarray:
         return self.set_label(np.zeros(len(self.class_names), np.float32), 1.0)
 
-    def set_label(self, weights: Sequence[float], scale: float | None = None) -> np.ndarray:
+    def set_label(self, weights: Sequence[float], scale: float | None = None, variations: bool = True) -> np.ndarray:
+        """The mix (and scale) -> its follower; `variations` False: the side-by-side variations wait for
+        `draw_variations` (a slider's picture goes first)."""
         w = np.clip(np.asarray(weights, np.float32).reshape(-1), -1.0, 1.0)
         if w.shape != (len(self.class_names),):
             raise ValueError(f"{len(w)} label weights for {len(self.class_names)} classes")
         self.weights = w
         if scale is not None:
             self.scale = float(scale)
-        return self.synthesize()
+        return self.synthesize(variations)
 
     def label_vector(self) -> np.ndarray:
         return np.asarray(self.model.label_vector([float(x) for x in self.weights], scale=self.scale), np.float32)
@@ -310,14 +313,27 @@ class Session:
         return check_seeds(self.seed, len(self.variation_followers) or 1)
 
     # ---- synthesis and review -----------------------------------------------------------
-    def synthesize(self) -> np.ndarray:
-        """The follower for the current leader, mix, model and seed (and its side-by-side variations)."""
+    def synthesize(self, variations: bool = True) -> np.ndarray:
+        """The follower for the current leader, mix, model and seed, and its side-by-side variations (`variations`
+        False: those of the previous mix stay until `draw_variations`)."""
         out = np.asarray(self.model.synthesize_canonical(self.leader, self.label_vector(), seed=self.seed), np.float32)
         if out.shape != self.leader.shape:
             raise ValueError(f"model returned shape {out.shape}, expected {self.leader.shape}")
         self.synth = out
-        self.variation_followers = self.variations(self.variation_count) if self.stochastic else [out]
+        if variations or not self.stochastic or len(self.variation_followers) != self.variation_count:
+            self.draw_variations()
+        else:
+            self.variation_followers = [out, *self.variation_followers[1:]]
         return out
+
+    @property
+    def variations_due(self) -> bool:
+        """True while the side-by-side variations are those of an earlier mix (set_label(..., variations=False))."""
+        return self._variations_of is not self.synth
+
+    def draw_variations(self) -> None:
+        self.variation_followers = self.variations(self.variation_count) if self.stochastic else [self.synth]
+        self._variations_of = self.synth
 
     @property
     def cleaned_up(self) -> bool:

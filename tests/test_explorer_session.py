@@ -383,3 +383,18 @@ def test_a_link_carries_the_model_and_the_seed():
     assert view == {"frame": 3} and problems == ["model 'flow' is not one of gan, diffusion",
                                                  f"seed '{MAX_SEED + 1}' is outside 0..{MAX_SEED}"]
     assert parse_view("?seed=-1", (), set(), (), ("gan",))[1] == ["seed '-1' is not a whole number"]
+
+
+def test_a_sliders_variations_can_wait_for_its_first_picture(two_models):
+    ses = two_models
+    ses.set_model("diffusion")
+    ses.set_variation_count(3)
+    before = [f.copy() for f in ses.variation_followers]
+    ses.set_label(np.eye(6)[4], variations=False)
+    assert ses.variations_due and ses.variation_followers[0] is ses.synth
+    np.testing.assert_array_equal(ses.variation_followers[2], before[2])  # the earlier mix's, until drawn
+    ses.draw_variations()
+    assert not ses.variations_due
+    np.testing.assert_allclose(ses.variation_followers[2],
+                               ses.model.synthesize_canonical(ses.leader, ses.label_vector(), seed=ses.seed + 2), atol=1e-4)
+    ses.set_variation_count(1)
