@@ -129,6 +129,7 @@ class ModelSwitch:
         studio.scene.set_synthesized(ses.synth)
         studio.scene.set_pinned(ses.pinned)
         self.show_variations()
+        studio.ctrl.view_update()  # the picture first, as after a slider; the panels follow it
         with s:
             s.model_title = model_title(ses.model_name)
             s.stochastic = ses.stochastic
@@ -137,7 +138,8 @@ class ModelSwitch:
             studio._after_mix()
             s.error = ""
             s.computing = False
-        studio.ctrl.view_update()
+        if studio._contact_changed:  # the new follower's orange limbs
+            studio.ctrl.view_update()
 
     async def announce(self) -> None:
         """Before a stochastic model's synthesis from a slider: the page learns it is computing (sent first)."""
