@@ -542,6 +542,7 @@ def test_switch_to_the_diffusion_model_draw_variations_and_back(page):
     page.locator("#new-variation").click()
     probe.wait_state(page, f"s.get('seed') !== {seed} && s.get('mix_count') > {n} && !s.get('computing')")
     assert f"seed {probe.state(page, 'seed')}" in chip.inner_text()
+    assert probe.state(page, "url_query").endswith(f"&model=diffusion&seed={probe.state(page, 'seed')}")  # a link keeps both
     assert int((diffusion ^ still_green()).sum()) > 100, "a new variation drew the same follower"
     probe.shot(page, "studio-diffusion-variation")
 
@@ -557,5 +558,6 @@ def test_switch_to_the_diffusion_model_draw_variations_and_back(page):
     probe.wait_state(page, "s.get('model_title') === \"the paper's GAN\" && !s.get('stochastic') && !s.get('computing')")
     probe.set_state(page, "scene_layout", "overlay")
     assert page.locator("#variation-controls").count() == 0 and "seed" not in chip.inner_text()
+    assert "model=" not in probe.state(page, "url_query") and "seed=" not in probe.state(page, "url_query")
     back = still_green()
     assert int((back ^ gan).sum()) < 0.1 * int(gan.sum()), "the GAN's follower is not the one it drew before"
