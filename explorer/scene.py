@@ -135,7 +135,7 @@ class Scene:
         stand right of it in the side-by-side layout, each captioned with its seed. `seeds` None: a deterministic
         model (one follower, captioned as usual)."""
         title = CHARACTER_TITLES["synthesized"]
-        self._caption_text("synthesized", title if seeds is None else f"{title} · seed {seeds[0]}")
+        self._caption_text("synthesized", title if seeds is None else f"{title}\nseed {seeds[0]}")  # one line would reach its neighbour
         slots = self._slots()
         if seeds is None and slots == len(CHARACTER_KEYS):
             return  # a deterministic model's follower, as before: set_synthesized placed it

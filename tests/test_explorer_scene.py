@@ -124,7 +124,7 @@ def test_variations_stand_right_of_the_synthesized_follower_with_their_seeds(sce
     try:
         shown = [k for k in VARIATION_KEYS if scene.figures[k].actors[0].GetVisibility()]
         assert shown == ["variation_1", "variation_2"]
-        assert [scene.captions[k].input for k in ("synthesized", *shown)] == [f"{CHARACTER_TITLES['synthesized']} · seed 7",
+        assert [scene.captions[k].input for k in ("synthesized", *shown)] == [f"{CHARACTER_TITLES['synthesized']}\nseed 7",
                                                                             "seed 8", "seed 9"]
         xs = [scene.captions[k].position[0] for k in ("leader", "ground_truth", "synthesized", *shown)]
         assert np.all(np.diff(xs) > 1.0), xs  # five spots, left to right
