@@ -78,14 +78,19 @@ class ReactionModel:
     @functools.cached_property
     def generator(self):
         """The torch model.Generator with these weights, on `device` (built when first needed)."""
+        from imm_model.model.generator import Generator
+
+        return self._torch_module(Generator, "generator")
+
+    def _torch_module(self, module_class, what: str):
+        """`module_class(config)` holding these weights (strict load), in eval mode, on `device`."""
         import torch
 
         from imm_model.checkpoint import load_module_state
-        from imm_model.model.generator import Generator
 
-        generator = Generator(self.config)
-        load_module_state(generator, {k: torch.from_numpy(v) for k, v in self.weights.items()}, "generator", self.path)
-        return generator.eval().to(self.device)
+        module = module_class(self.config)
+        load_module_state(module, {k: torch.from_numpy(v) for k, v in self.weights.items()}, what, self.path)
+        return module.eval().to(self.device)
 
     # ---- loading --------------------------------------------------------------------------
     @classmethod
@@ -324,14 +329,9 @@ class DiffusionReactionModel(ReactionModel):
     @functools.cached_property
     def net(self):
         """The torch ReactionDenoiser with these weights, on `device` (built when first needed)."""
-        import torch
-
-        from imm_model.checkpoint import load_module_state
         from imm_model.model.diffusion import ReactionDenoiser
 
-        net = ReactionDenoiser(self.config)
-        load_module_state(net, {k: torch.from_numpy(v) for k, v in self.weights.items()}, "denoiser", self.path)
-        return net.eval().to(self.device)
+        return self._torch_module(ReactionDenoiser, "denoiser")
 
     @classmethod
     def from_checkpoint(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], path: Path, device: str = "cpu"):

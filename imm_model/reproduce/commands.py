@@ -79,8 +79,9 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         if args.report_only:  # reads the runs, which another reproduce may be training
             trained, results = _run_jobs(None, plan, runs, data_path, data_hash, args.cpus_per_task)
         else:
-            with Runner(args.address, args.cpus_per_task, args.backend) as runner:  # checks its arguments first
-                locks.enter_context(FolderLock(runs, "--runs"))
+            runner = Runner(args.address, args.cpus_per_task, args.backend)  # checks its arguments; starts nothing yet
+            locks.enter_context(FolderLock(runs, "--runs"))
+            with runner:
                 trained, results = _run_jobs(runner, plan, runs, data_path, data_hash, args.cpus_per_task)
         wall = time.perf_counter() - t0
         report = write_report(plan, results, args.out.resolve(), None if args.report_only else wall, runs)

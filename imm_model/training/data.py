@@ -107,3 +107,16 @@ class Augmenter:
         out = (1 - w) * poses.gather(2, idx(lo)) + w * poses.gather(2, idx(hi))
         valid = (t < new[:, None])[None, :, :, None]
         return torch.where(valid, out, torch.zeros(())), new
+
+
+def data_meta(data: InteractionDataset, subject: str | None, train_idx: np.ndarray) -> dict:
+    """What a checkpoint records of the data it was trained on (both trainers' sidecars): what inference needs to read
+    a leader as the training did, and which subject it never saw."""
+    return {
+        "skeleton": data.skeleton.to_dict(),
+        "class_names": list(data.class_names),
+        "canonical_mode": data.canonical_mode,
+        "dataset": data.dataset,
+        "held_out_subject": subject,
+        "max_train_length": int(data.lengths[train_idx].max()),
+    }

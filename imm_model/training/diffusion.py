@@ -27,7 +27,7 @@ from imm_model.data.splits import loso_fold
 from imm_model.errors import CheckpointError, TrainingError
 from imm_model.model.diffusion import ReactionDenoiser, q_sample
 from imm_model.model.diffusion_sampler import DiffusionConfig, Guidance, cosine_alpha_bar
-from imm_model.training.data import Augmenter, PaddedData
+from imm_model.training.data import Augmenter, PaddedData, data_meta
 from imm_model.typed_config import FieldsOf, Interval, ListOf, Name, OneOf, checked_kwargs, param, validate
 
 FAMILY = "diffusion"
@@ -223,12 +223,7 @@ class DiffusionTrainer:
             "model_config": self.model_cfg.to_dict(),
             "guidance": self.guidance.to_dict(),
             "train_config": self.cfg.to_dict(),
-            "skeleton": d.skeleton.to_dict(),
-            "class_names": list(d.class_names),
-            "canonical_mode": d.canonical_mode,
-            "dataset": d.dataset,
-            "held_out_subject": self.subject,
-            "max_train_length": int(d.lengths[self.train_idx].max()),
+            **data_meta(d, self.subject, self.train_idx),
             "follower_bone_lengths": self.bone_lengths,
             "training": {"fold": f"loso-{self.subject}" if self.subject else "all", "step": self.step,
                          "train_sequences": len(self.train_idx), "seed": self.cfg.seed},

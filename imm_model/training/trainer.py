@@ -30,7 +30,7 @@ from imm_model.training import losses
 from imm_model.training.config import TrainConfig, same_recipe
 from imm_model.training.critic import LabelCritic, drawn_labels
 from imm_model.training.curves import plot_curves
-from imm_model.training.data import Augmenter, PaddedData
+from imm_model.training.data import Augmenter, PaddedData, data_meta
 from imm_model.training.energy import class_profiles, energy_loss, limb_speeds, mixed_profile
 from imm_model.training.schedule import adversarial_weight, lr_scale
 
@@ -128,12 +128,7 @@ class Trainer:
             "model_config": self.G.cfg.to_dict(),
             "train_config": self.cfg.to_dict(),
             "d_spectral_norm": self.cfg.d_spectral_norm,
-            "skeleton": d.skeleton.to_dict(),
-            "class_names": list(d.class_names),
-            "canonical_mode": d.canonical_mode,
-            "dataset": d.dataset,
-            "held_out_subject": self.subject,
-            "max_train_length": int(d.lengths[self.train_idx].max()),
+            **data_meta(d, self.subject, self.train_idx),
             # the skeleton the inference clean-up holds every synthesized follower to (cleanup.py)
             "follower_bone_lengths": self.bone_lengths,
             "training": {
