@@ -96,28 +96,16 @@ class ReactionModel:
     @classmethod
     def load(cls, path: Path | str | None = None, device: str = "cpu") -> ReactionModel:
         """Load a checkpoint (default: the bundled one). Any problem -> CheckpointError (one line)."""
-        from imm_model.checkpoint import check_state, load_checkpoint, prefixed
+        from imm_model.checkpoint import check_state, load_checkpoint
         from imm_model.model.config import ModelConfig
         from imm_model.model.numpy_runtime import NumpyGenerator
         from imm_model.paths import SAMPLE_CHECKPOINT
-        from imm_model.skeleton import Skeleton
 
         path = Path(path) if path is not None else SAMPLE_CHECKPOINT
         arrays, meta = load_checkpoint(path, framework="np")
         if meta.get("family") == DiffusionReactionModel.family:
             return DiffusionReactionModel.from_checkpoint(arrays, meta, path, device)
-        try:
-            cfg = ModelConfig.from_dict(meta["model_config"])
-            skeleton = Skeleton.from_dict(meta["skeleton"])
-            classes = list(meta["class_names"])
-        except (KeyError, TypeError, ValueError) as err:
-            raise CheckpointError(f"{path}: sidecar lacks a valid model description ({type(err).__name__}: {err})") from None
-        if cfg.num_classes != len(classes) or cfg.num_joints != skeleton.num_joints:
-            raise CheckpointError(f"{path}: model config disagrees with the class names or the skeleton")
-        weights = prefixed(arrays, "generator")
-        bad = sorted(k for k, v in weights.items() if v.dtype.kind != "f" or not np.isfinite(v).all())
-        if bad:
-            raise CheckpointError(f"{path}: weights that are not finite floats ({', '.join(bad[:3])}{', ...' if len(bad) > 3 else ''})")
+        cfg, weights = _described_weights(arrays, meta, path, ModelConfig, "generator")
         if NumpyGenerator.supports(cfg):
             check_state(weights, NumpyGenerator.expected_shapes(cfg), "generator", path)
         model = cls({k: v.astype(np.float32) for k, v in weights.items()}, cfg, meta, path, device)
@@ -335,24 +323,15 @@ class DiffusionReactionModel(ReactionModel):
 
     @classmethod
     def from_checkpoint(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], path: Path, device: str = "cpu"):
-        from imm_model.checkpoint import check_state, prefixed
+        from imm_model.checkpoint import check_state
         from imm_model.model.diffusion_numpy import NumpyDenoiser
         from imm_model.model.diffusion_sampler import DiffusionConfig, Guidance
-        from imm_model.skeleton import Skeleton
 
+        cfg, weights = _described_weights(arrays, meta, path, DiffusionConfig, "denoiser")
         try:
-            cfg = DiffusionConfig.from_dict(meta["model_config"])
             guidance = Guidance.from_dict(meta["guidance"])
-            skeleton = Skeleton.from_dict(meta["skeleton"])
-            classes = list(meta["class_names"])
         except (KeyError, TypeError, ValueError) as err:
-            raise CheckpointError(f"{path}: sidecar lacks a valid diffusion model description ({type(err).__name__}: {err})") from None
-        if cfg.num_classes != len(classes) or cfg.num_joints != skeleton.num_joints:
-            raise CheckpointError(f"{path}: model config disagrees with the class names or the skeleton")
-        weights = prefixed(arrays, "denoiser")
-        bad = sorted(k for k, v in weights.items() if v.dtype.kind != "f" or not np.isfinite(v).all())
-        if bad:
-            raise CheckpointError(f"{path}: weights that are not finite floats ({', '.join(bad[:3])}{', ...' if len(bad) > 3 else ''})")
+            raise CheckpointError(f"{path}: sidecar lacks valid sampler guidance ({type(err).__name__}: {err})") from None
         check_state(weights, NumpyDenoiser.expected_shapes(cfg), "denoiser", path)
         model = cls({k: np.ascontiguousarray(v, np.float32) for k, v in weights.items()}, cfg, guidance, meta, path, device)
         if model.fast is None:
@@ -422,6 +401,27 @@ class DiffusionReactionModel(ReactionModel):
                 h, tokens = h.cpu().numpy(), tokens.cpu().numpy()
         m = tokens[..., None].astype(np.float32)
         return (h * m).sum(1) / m.sum(1)
+
+
+def _described_weights(arrays: dict[str, np.ndarray], meta: dict[str, Any], path: Path, config_class, prefix: str):
+    """A checkpoint's model config (checked against its classes and skeleton) and its `prefix.` weights (finite floats)
+    -> (config, weights); CheckpointError (one line) otherwise."""
+    from imm_model.checkpoint import prefixed
+    from imm_model.skeleton import Skeleton
+
+    try:
+        cfg = config_class.from_dict(meta["model_config"])
+        skeleton = Skeleton.from_dict(meta["skeleton"])
+        classes = list(meta["class_names"])
+    except (KeyError, TypeError, ValueError) as err:
+        raise CheckpointError(f"{path}: sidecar lacks a valid model description ({type(err).__name__}: {err})") from None
+    if cfg.num_classes != len(classes) or cfg.num_joints != skeleton.num_joints:
+        raise CheckpointError(f"{path}: model config disagrees with the class names or the skeleton")
+    weights = prefixed(arrays, prefix)
+    bad = sorted(k for k, v in weights.items() if v.dtype.kind != "f" or not np.isfinite(v).all())
+    if bad:
+        raise CheckpointError(f"{path}: weights that are not finite floats ({', '.join(bad[:3])}{', ...' if len(bad) > 3 else ''})")
+    return cfg, weights
 
 
 def check_compatible(model, data, where: str = "checkpoint") -> None:
