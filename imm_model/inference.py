@@ -345,9 +345,13 @@ class DiffusionReactionModel(ReactionModel):
 
             return torch_denoiser(self.net, leaders, mask)
 
+        tiled: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # leaders and mask repeated once per term count, not per step
+
         def denoise(x_t, step, leader_on, label, label_on):
             reps = len(x_t) // len(leaders)
-            return self.fast(x_t, step, np.tile(leaders, (reps, 1, 1)), leader_on, label, label_on, np.tile(mask, (reps, 1)))
+            if reps not in tiled:
+                tiled[reps] = np.tile(leaders, (reps, 1, 1)), np.tile(mask, (reps, 1))
+            return self.fast(x_t, step, tiled[reps][0], leader_on, label, label_on, tiled[reps][1])
 
         return denoise
 

@@ -161,17 +161,19 @@ def label_control(model, data: InteractionDataset, judges: FoldJudges) -> dict:
 VARIATIONS = 5  # reactions drawn per test leader for multimodality and best-of-N AFD
 
 
-def variations(model, data: InteractionDataset, judges: FoldJudges, n: int = VARIATIONS) -> dict:
+def variations(model, data: InteractionDataset, judges: FoldJudges, seed0: dict[int, np.ndarray], n: int = VARIATIONS) -> dict:
     """A stochastic model's spread, each test leader with its true label and sampler seeds 0..n-1 (seed 0 is the
     single sample every other number scores):
     - multimodality: mean interaction-classifier feature distance between two reactions to the same leader and label
       (ACTOR's and ReGenNet's definition), beside real_class_diversity, the same distance between the real followers
       of different test sequences of the same class (what a reaction may vary by); multimodality_m the same pairs'
       mean per-frame pose distance in metres;
-    - afd_best_of_n: per sequence the lowest AFD of the n reactions, averaged (normalized units, as `afd`)."""
+    - afd_best_of_n: per sequence the lowest AFD of the n reactions, averaged (normalized units, as `afd`).
+    `seed0`: the model's predictions already drawn with seed 0 ({test index: follower})."""
     test = judges.test
     labels = np.eye(len(data.class_names), dtype=np.float32)[data.actions[test]]
-    draws = [model.synthesize_batch_canonical(judges.leaders, labels, [k] * len(test)) for k in range(n)]
+    draws = [[seed0[int(i)] for i in test]]
+    draws += [model.synthesize_batch_canonical(judges.leaders, labels, [k] * len(test)) for k in range(1, n)]
     features = np.stack([judges.interaction_view(d)[1] for d in draws], 1)  # (N, n, F)
     pairs = [(a, b) for a in range(n) for b in range(a + 1, n)]
     multimodality = np.mean([np.linalg.norm(features[:, a] - features[:, b], axis=-1).mean() for a, b in pairs])
@@ -210,11 +212,12 @@ def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptio
     result = {"subject": subject, "group": fold_group(subject), "checkpoint": str(model.path),
               "classifier": {"real_accuracy": judges.real_accuracy},
               "real_diversity": distribution.diversity(judges.real_features),
-              "model": method_scores(data, judges, model_predictions(model, data, judges.test)),
               "baselines": {}}
+    predictions = model_predictions(model, data, judges.test)
+    result["model"] = method_scores(data, judges, predictions)
     result |= label_control(model, data, judges)
     if getattr(model, "stochastic", False):
-        result["variations"] = variations(model, data, judges)
+        result["variations"] = variations(model, data, judges, predictions)
     all_idx = np.arange(len(data))
     result["_latent"] = {"model": _latents(model, data, all_idx)} if latents else {}  # "_": for the figures, not the JSON
     for name in opts.baselines:

@@ -122,12 +122,16 @@ def torch_denoiser(net: ReactionDenoiser, leaders: np.ndarray, mask: np.ndarray)
     device = next(net.parameters()).device
     leaders_t, mask_t = torch.as_tensor(leaders, device=device), torch.as_tensor(mask, device=device)
 
+    tiled: dict[int, tuple[torch.Tensor, torch.Tensor]] = {}  # leaders and mask repeated once per term count
+
     @torch.inference_mode()
     def denoise(x_t, step, leader_on, label, label_on):
         reps = len(x_t) // len(leaders)
+        if reps not in tiled:
+            tiled[reps] = leaders_t.repeat(reps, 1, 1), mask_t.repeat(reps, 1)
         as_t = lambda a: torch.as_tensor(a, device=device)  # noqa: E731
-        x0 = net(as_t(x_t), torch.full((len(x_t),), step, device=device), leaders_t.repeat(reps, 1, 1), as_t(leader_on),
-                 as_t(label), as_t(label_on), mask_t.repeat(reps, 1))
+        x0 = net(as_t(x_t), torch.full((len(x_t),), step, device=device), tiled[reps][0], as_t(leader_on),
+                 as_t(label), as_t(label_on), tiled[reps][1])
         return x0.cpu().numpy()
 
     return denoise

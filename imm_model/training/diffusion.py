@@ -28,6 +28,7 @@ from imm_model.errors import CheckpointError, TrainingError
 from imm_model.model.diffusion import ReactionDenoiser, q_sample
 from imm_model.model.diffusion_sampler import DiffusionConfig, Guidance, cosine_alpha_bar
 from imm_model.training.data import Augmenter, PaddedData, data_meta
+from imm_model.training.trainer import derive_seed
 from imm_model.typed_config import FieldsOf, Interval, ListOf, Name, OneOf, checked_kwargs, param, validate
 
 FAMILY = "diffusion"
@@ -92,10 +93,6 @@ IMM_DIFFUSION = DiffusionTrainConfig(
 )
 
 NAMED: dict[str, DiffusionTrainConfig] = {"imm-diffusion": IMM_DIFFUSION}
-
-
-def derive_seed(*parts: int) -> int:
-    return int(np.random.SeedSequence([int(p) for p in parts]).generate_state(1)[0])
 
 
 class DiffusionTrainer:
