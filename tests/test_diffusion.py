@@ -241,3 +241,36 @@ def test_generate_draws_variations_with_seeds(tiny_model, sample_data, tmp_path,
     assert "deterministic" in capsys.readouterr().err and not (tmp_path / "gan").exists()
     assert main(base + ["--samples", "0", "--out", str(tmp_path / "none")]) == 2
     assert "samples must be" in capsys.readouterr().err
+
+
+def test_evaluation_reports_a_stochastic_models_variations_and_mixed_readings(tiny_model, sample_data, tmp_path, monkeypatch):
+    from imm_model.evaluation.loso import EvalOptions, evaluate_fold
+    from imm_model.model.classifier_config import ClassifierConfig
+
+    monkeypatch.setenv("IMM_CACHE_DIR", str(tmp_path / "cache"))
+    quick = {"epochs": 2, "hidden": 16, "features": 8}
+    judges = {name: ClassifierConfig.from_dict(getattr(EvalOptions, name).to_dict() | quick)
+              for name in ("interaction", "follower", "judge", "upper", "lower")}
+    result = evaluate_fold(ReactionModel.load(tiny_model), sample_data, "s04",
+                           EvalOptions(baselines=("nn1",), progress=False, **judges), latents=False)
+    v = result["variations"]
+    assert v["samples"] == 5 and v["afd_best_of_n"] <= v["afd_single"] and v["multimodality"] > 0 < v["multimodality_m"]
+    assert v["real_class_diversity"] > 0
+    rows = result["mix_parts"]
+    assert len(rows) == 15 and all(max(r["whole"], r["parts"]) <= r["mixed"] <= r["whole"] + r["parts"] + 1e-9 for r in rows)
+    assert 0 <= result["avoid_judge"]["share_lowered"] <= 1
+    gan = evaluate_fold(ReactionModel.load(SAMPLE_CHECKPOINT), sample_data, "s04",
+                        EvalOptions(baselines=("nn1",), progress=False, **judges), latents=False)
+    assert "variations" not in gan and len(gan["mix_parts"]) == 15
+
+
+@pytest.mark.parametrize("override, message", [({"lr": -1}, "lr must be"), ({"model": {"width": 30, "heads": 4}}, "width must be"),
+                                               ({"guidance": 5}, "guidance must be a JSON object"),
+                                               ({"steps": "many"}, "steps must be"), ({"epochs": 3}, "unknown training config keys")])
+def test_a_bad_diffusion_recipe_is_one_line_and_trains_nothing(tmp_path, capsys, override, message):
+    cfg = tmp_path / "bad.json"
+    cfg.write_text(json.dumps({"base": "imm-diffusion"} | override))
+    assert main(["train", "--config", str(cfg), "--fold", "s04", "--out", str(tmp_path / "run"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and message in err and "Traceback" not in err, err
+    assert not (tmp_path / "run").exists()
