@@ -108,7 +108,9 @@ async def forward_websocket(request: web.Request, port: int, tail: str, secret: 
     browser's hello carries the studio's secret; the browser's chunks are checked against `budget`; `on_message` is
     called for every message relayed."""
     budget = budget or InboundBudget()
-    browser = web.WebSocketResponse(max_msg_size=MAX_MESSAGE_BYTES, autoping=True, heartbeat=HEARTBEAT_S)
+    # No permessage-deflate: the pictures are JPEG already, deflating them costs a thread hop per frame, and a tab
+    # closing mid-send would leave aiohttp's shielded compress-and-send task with an exception no one retrieves.
+    browser = web.WebSocketResponse(max_msg_size=MAX_MESSAGE_BYTES, autoping=True, heartbeat=HEARTBEAT_S, compress=False)
     await browser.prepare(request)
     connection = id(browser)
     async with ClientSession() as session:
