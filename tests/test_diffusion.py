@@ -17,7 +17,15 @@ from imm_model.errors import LabelError, TrainingError
 from imm_model.inference import DiffusionReactionModel, ReactionModel
 from imm_model.model.diffusion import ReactionDenoiser, torch_denoiser
 from imm_model.model.diffusion_numpy import NumpyDenoiser
-from imm_model.model.diffusion_sampler import DiffusionConfig, Guidance, cosine_alpha_bar, initial_noise, sample
+from imm_model.model.diffusion_sampler import (
+    BodyRouting,
+    DiffusionConfig,
+    Guidance,
+    compose,
+    cosine_alpha_bar,
+    initial_noise,
+    sample,
+)
 from imm_model.paths import SAMPLE_CHECKPOINT
 from imm_model.training.diffusion import IMM_DIFFUSION, DiffusionTrainConfig, DiffusionTrainer, diffusion_recipe
 
@@ -274,3 +282,118 @@ def test_a_bad_diffusion_recipe_is_one_line_and_trains_nothing(tmp_path, capsys,
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and message in err and "Traceback" not in err, err
     assert not (tmp_path / "run").exists()
+
+
+# ---- "parts" composition: the classes at a positive value share the body ---------------------------------------
+def _terms(seed: int = 0, k: int = 3, b: int = 2, t: int = 9):
+    from imm_model.skeleton import KINECT15
+
+    rng = np.random.default_rng(seed)
+    base = rng.standard_normal((b, t, 45)).astype(np.float32)
+    terms = (base + rng.standard_normal((k, b, t, 45))).astype(np.float32)
+    return base, terms, BodyRouting.of(KINECT15, 0.2 + rng.random(45))
+
+
+PARTS = Guidance(composition="parts", routing_power=4.0)
+
+
+def test_parts_with_one_positive_class_is_exactly_the_sum_rule(tiny_model, leader):
+    base, terms, routing = _terms()
+    for w in ([[2.5, 0.5], [0, 0], [0, 0]], [[2.5, 0], [-1.0, 0], [-0.5, 0]], [[0, 0], [0, 0], [0, 0]]):
+        w = np.array(w, np.float32)
+        assert np.array_equal(compose(base, terms, w, PARTS, routing), compose(base, terms, w, Guidance(), routing))
+    model = ReactionModel.load(tiny_model)
+    for label in ({"pushing": 1.0}, {"kicking": 0.4, "hugging": -1.0}, {}):
+        model.guidance = replace(model.guidance, composition="sum")
+        summed = model.synthesize(leader, label, seed=2)
+        model.guidance = replace(model.guidance, composition="parts", routing_power=8.0)
+        assert np.array_equal(model.synthesize(leader, label, seed=2), summed), label
+    model.guidance = replace(model.guidance, composition="parts")
+    assert np.abs(model.synthesize(leader, {"pushing": 1, "kicking": 1}, seed=2) - summed).mean() > 1e-4  # two classes: routed
+
+
+def test_parts_share_the_body_and_power_zero_is_the_sum_rule():
+    base, terms, routing = _terms()
+    w = np.array([[2.5, 2.5], [2.5, 1.0], [0, 0]], np.float32)
+    summed = compose(base, terms, w, Guidance(), routing)
+    assert np.allclose(compose(base, terms, w, replace(PARTS, routing_power=0.0), routing), summed, atol=1e-5)
+    hard = compose(base, terms, w, replace(PARTS, routing_power=64.0), routing)
+    assert np.abs(hard - summed).mean() > 0.1
+    # class 0 bends only the knees and feet, class 1 only the elbows and hands: each limb follows the class that moves
+    # it, at the total positive weight (where the sum rule gives each its own weight)
+    split = np.repeat(base[None], 3, 0)
+    legs = np.array([3 * j + a for j in (10, 11, 13, 14) for a in range(3)])
+    arms = np.array([3 * j + a for j in (4, 5, 7, 8) for a in range(3)])
+    split[0][..., legs], split[1][..., arms] = terms[0][..., legs], terms[1][..., arms]
+    total = w.sum(0)[:, None, None]
+    want = base + total * ((split[0] - base) + (split[1] - base))
+    assert np.allclose(compose(base, split, w, PARTS, routing), want, atol=1e-5)
+    assert not np.allclose(compose(base, split, w, Guidance(), routing), want, atol=1e-2)
+
+
+def test_parts_avoid_keeps_the_sum_rule():
+    """Negative values add s * w_c * d_c whatever the positive classes do."""
+    base, terms, routing = _terms(1)
+    pos = np.array([[2.5, 2.5], [2.5, 0.7], [0, 0]], np.float32)
+    neg = pos.copy()
+    neg[2] = [-2.5, -1.0]
+    diff = compose(base, terms, neg, PARTS, routing) - compose(base, terms, pos, PARTS, routing)
+    assert np.allclose(diff, (neg[2][:, None, None] * (terms[2] - base)), atol=1e-5)
+
+
+def test_parts_is_continuous_in_the_label(tiny_model, leader):
+    """A class entering, leaving or moving moves the reaction by little: compose by small steps, then the sampler."""
+    base, terms, routing = _terms(2)
+    outs = [compose(base, terms, np.array([[2.5, 2.5], [v, v], [0, 0]], np.float32), PARTS, routing)
+            for v in np.linspace(0, 0.5, 26)]
+    steps = [np.abs(b - a).max() for a, b in zip(outs, outs[1:], strict=False)]
+    assert max(steps) < 0.2 and max(steps) < 4 * np.median(steps) + 1e-6
+    assert np.abs(compose(base, terms, np.array([[2.5, 2.5], [1e-4, 1e-4], [0, 0]], np.float32), PARTS, routing)
+                  - outs[0]).max() < 1e-3  # one class -> two: no jump where the sum rule hands over
+    model = ReactionModel.load(tiny_model)
+    model.raw = True
+    model.guidance = replace(model.guidance, composition="parts", routing_power=8.0)
+    moved = [model.synthesize(leader, {"pushing": 1.0, "kicking": v}, seed=0) for v in (0.0, 0.02, 0.04, 0.5, 0.52)]
+    small = [np.abs(moved[k + 1] - moved[k]).mean() for k in (0, 1, 3)]
+    other_seed = np.abs(model.synthesize(leader, {"pushing": 1.0, "kicking": 0.5}, seed=1) - moved[3]).mean()
+    assert max(small) < 0.2 * other_seed
+    assert np.array_equal(moved[3], model.synthesize(leader, {"pushing": 1.0, "kicking": 0.5}, seed=0))  # deterministic
+
+
+def test_composition_round_trips_with_the_model(tiny_model, tmp_path):
+    from imm_model.checkpoint import save_checkpoint
+
+    g = Guidance(composition="parts", routing_power=3.0)
+    assert Guidance.from_dict(json.loads(json.dumps(g.to_dict()))) == g
+    assert Guidance.from_dict({"label_scale": 2.5}).composition == "sum"  # a model stored before the field: the sum rule
+    tensors, meta = load_checkpoint(tiny_model)
+    assert meta["guidance"]["composition"] == "sum"  # the trainer stores the whole Guidance
+    meta["guidance"] |= {"composition": "parts", "routing_power": 3.0}
+    save_checkpoint(tmp_path / "parts.safetensors", tensors, meta)
+    assert ReactionModel.load(tmp_path / "parts.safetensors").guidance == Guidance.from_dict(meta["guidance"]) != Guidance()
+    assert Guidance.from_dict(dict(replace(TINY, guidance=dict(composition="parts")).guidance)).composition == "parts"
+
+
+def test_a_bad_composition_is_one_line(tiny_model, tmp_path, capsys):
+    from imm_model.checkpoint import save_checkpoint
+    from imm_model.errors import CheckpointError
+
+    with pytest.raises(ValueError) as err:
+        Guidance(composition="mix")
+    assert "composition must be one of 'sum', 'parts'" in str(err.value) and len(str(err.value).splitlines()) == 1
+    with pytest.raises(ValueError, match="routing_power must be"):
+        Guidance.from_dict({"composition": "parts", "routing_power": -1})
+    tensors, meta = load_checkpoint(tiny_model)
+    meta["guidance"]["composition"] = "product"
+    save_checkpoint(tmp_path / "bad.safetensors", tensors, meta)
+    with pytest.raises(CheckpointError) as err:
+        ReactionModel.load(tmp_path / "bad.safetensors")
+    assert "composition" in str(err.value) and len(str(err.value).splitlines()) == 1
+    cfg = tmp_path / "bad.json"
+    cfg.write_text(json.dumps({"base": "imm-diffusion", "guidance": {"composition": "mix"}}))
+    assert main(["train", "--config", str(cfg), "--fold", "s04", "--out", str(tmp_path / "run"), "--quiet"]) == 2
+    err_text = capsys.readouterr().err.strip()
+    assert len(err_text.splitlines()) == 1 and "composition must be" in err_text and "Traceback" not in err_text, err_text
+    base, terms, _ = _terms()
+    with pytest.raises(ValueError, match="body routing"):
+        compose(base, terms, np.ones((3, 2), np.float32), PARTS)
