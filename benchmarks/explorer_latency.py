@@ -101,7 +101,7 @@ def render_capability(frames: int = 60, size=(1052, 497)) -> float:
     """Server side, no browser: per frame = move points + render + JPEG (quality 80), in fps."""
     import vtk
 
-    from explorer.scene import Scene, floor_height
+    from explorer.rendering.scene import Scene, floor_height
     from imm_model.data.dataset import InteractionDataset
     from imm_model.paths import SAMPLE_DATA
 
@@ -148,11 +148,11 @@ def _smaps_mb(pid: int) -> dict[str, float]:
 
 
 def studio_memory(launcher_pid: int) -> dict:
-    """Memory of the zygote (explorer/zygote.py, the launcher's child) and of each studio process it forked."""
+    """Memory of the zygote (explorer/serving/zygote.py, the launcher's child) and of each studio process it forked."""
     kids = _children(launcher_pid)
     zygotes = [k for k in kids if _children(k)]
     tabs = [k for k in kids if k not in zygotes] + [c for z in zygotes for c in _children(z)]  # the former: no zygote
-    readers = [h for t in tabs for h in _children(t)]  # each studio process's upload reader (explorer/upload_reader.py)
+    readers = [h for t in tabs for h in _children(t)]  # each studio process's upload reader (explorer/serving/upload_reader.py)
     return {"zygote": [_smaps_mb(z) for z in zygotes], "tabs": [_smaps_mb(t) for t in tabs], "readers": [_smaps_mb(h) for h in readers]}
 
 

@@ -61,7 +61,7 @@ def access(args: argparse.Namespace) -> tuple[str | None, bool]:
     (given or random, printed in its URL) unless --no-auth says otherwise; either way a warning is printed."""
     import secrets
 
-    from explorer.launcher import LOOPBACK
+    from explorer.serving.launcher import LOOPBACK
 
     if args.token is not None and (len(args.token) < 8 or not args.token.isascii() or not args.token.isprintable()):
         raise ValueError("--token must be at least 8 printable ASCII characters")
@@ -82,7 +82,7 @@ def run_explore(args: argparse.Namespace) -> int:
         print(f"imm explore: error: the studio needs its extra: pip install 'imm-studio[studio]' (missing: {', '.join(missing)})",
               file=sys.stderr)
         return 2
-    from explorer.launcher import LaunchConfig, LaunchError, launch
+    from explorer.serving.launcher import LaunchConfig, LaunchError, launch
     from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA, SAMPLE_DIFFUSION
 
     data = args.data or SAMPLE_DATA

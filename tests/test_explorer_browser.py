@@ -15,7 +15,7 @@ pytestmark = [pytest.mark.browser, pytest.mark.timeout(240)]
 
 
 def colors(page) -> list[int]:
-    from explorer.palette import GROUND_TRUTH, LEADER, SYNTHESIZED
+    from explorer.rendering.palette import GROUND_TRUTH, LEADER, SYNTHESIZED
 
     return probe.count_colors(probe.view_pixels(page), [LEADER, GROUND_TRUTH, SYNTHESIZED])
 
@@ -29,7 +29,7 @@ def test_page_shows_three_skeletons(page):
 
 
 def test_the_page_hands_wslink_websocket_bytes(page):
-    """explorer/page_shell.py: the page's websocket is the shell's, which delivers binary messages as bytes."""
+    """explorer/serving/page_shell.py: the page's websocket is the shell's, which delivers binary messages as bytes."""
     assert page.evaluate("() => window.WebSocket.name") == "BytesWebSocket"
 
 
@@ -43,7 +43,7 @@ def test_sliders_and_reads_as_bars_do_not_glide(page):
 
 
 def test_a_label_changes_first_picture_is_a_stretched_draft_then_full_size(page):
-    """explorer/view_stream.py: the picture right after a slider move is rendered at half the view's width and
+    """explorer/rendering/view_stream.py: the picture right after a slider move is rendered at half the view's width and
     height and shown stretched over the whole view; the still picture that follows is full size."""
     page.evaluate(f"""() => {{ window.__sizes = []; const i = document.querySelector('{probe.VIEW_IMG}');
         i.addEventListener('load', () => window.__sizes.push([i.naturalWidth, i.clientWidth, i.clientHeight])); }}""")
@@ -60,7 +60,7 @@ def test_a_label_changes_first_picture_is_a_stretched_draft_then_full_size(page)
 
 
 def test_class_slider_changes_follower(page):
-    from explorer.palette import SYNTHESIZED
+    from explorer.rendering.palette import SYNTHESIZED
     from tests.studio_probe import color_mask
 
     names = probe.state(page, "class_names")
@@ -403,7 +403,7 @@ def test_screenshot_downloads_the_view_as_png(page, tmp_path):
 def test_pin_a_mix_then_compare_swap_and_clear(page):
     """A/B: the pinned mix shows as a purple figure with its own line on the distance chart; swap puts it back on
     the sliders; clear removes it."""
-    from explorer.palette import PINNED
+    from explorer.rendering.palette import PINNED
 
     _load_sequence(page, 2)
     names = probe.state(page, "class_names")
@@ -429,7 +429,7 @@ def test_pin_a_mix_then_compare_swap_and_clear(page):
 def test_interpenetrating_limbs_are_marked(page, sample_data):
     """A sequence whose synthesized hug goes into the leader: the count in words, shaded frames on the chart, and
     orange limbs in the view at such a frame."""
-    from explorer.palette import WARNING
+    from explorer.rendering.palette import WARNING
     from imm_model.evaluation.plausibility import closest_distances
     from imm_model.inference import ReactionModel
 
@@ -490,7 +490,7 @@ def test_the_view_chart_and_map_fit_the_window(browser, studio, width, height):
 def test_side_by_side_from_the_side_keeps_the_three_figures_apart(page):
     """The side camera in the side-by-side layout shows leader, ground truth and synthesized left to right, apart
     (it used to look along the line they stand on, stacking them and their captions)."""
-    from explorer.palette import GROUND_TRUTH, LEADER, SYNTHESIZED
+    from explorer.rendering.palette import GROUND_TRUTH, LEADER, SYNTHESIZED
     from tests.studio_probe import color_mask
 
     n = probe.images_seen(page)
@@ -513,7 +513,7 @@ def test_side_by_side_from_the_side_keeps_the_three_figures_apart(page):
 def test_switch_to_the_diffusion_model_draw_variations_and_back(page):
     """The model switch: the diffusion model draws another follower and the chip says so; "new variation" draws
     another seed's; three variations stand side by side; one click brings the GAN, and its follower, back."""
-    from explorer.palette import SYNTHESIZED
+    from explorer.rendering.palette import SYNTHESIZED
     from tests.studio_probe import color_mask
 
     def still_green():

@@ -241,7 +241,7 @@ def _hello(port: int, secret: str) -> dict:
     import aiohttp
     import msgpack
 
-    from explorer.proxy import HEADER
+    from explorer.serving.proxy import HEADER
 
     async def go():
         body = msgpack.packb({"wslink": "1.0", "id": "system:c0:0", "method": "wslink.hello", "args": [{"secret": secret}]})
@@ -259,10 +259,10 @@ def test_a_studio_process_answers_only_its_own_secret(tmp_path):
     """Another local user who finds a studio process's loopback port cannot log in with wslink's public default;
     the proxy puts the process's own secret into the browser's hello. Also the zygote's protocol: studio processes
     forked on request, each with its own secret, and all gone when the launcher's end of the pipe closes."""
-    from explorer.proxy import with_secret
+    from explorer.serving.proxy import with_secret
     from imm_model.paths import SAMPLE_DATA
 
-    cmd = [sys.executable, "-m", "explorer.zygote", "--data", str(SAMPLE_DATA), "--checkpoint", str(SAMPLE_CHECKPOINT),
+    cmd = [sys.executable, "-m", "explorer.serving.zygote", "--data", str(SAMPLE_DATA), "--checkpoint", str(SAMPLE_CHECKPOINT),
            "--cache-dir", str(tmp_path), "--port", "0"]
     proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     try:
@@ -323,8 +323,8 @@ def test_the_next_spare_waits_for_quiet_tabs(monkeypatch):
     another tab asking starts it at once, and constant traffic (playback) delays it only up to a limit."""
     import asyncio
 
-    from explorer import launcher
-    from explorer.launcher import LaunchConfig, Launcher
+    from explorer.serving import launcher
+    from explorer.serving.launcher import LaunchConfig, Launcher
     from imm_model.paths import SAMPLE_DATA
 
     monkeypatch.setattr(launcher, "SPARE_DELAY_S", 0.05)

@@ -25,7 +25,7 @@ class TinyModel:
 
 
 def test_cache_key_follows_file_contents(tmp_path):
-    from explorer.latent import cache_key
+    from explorer.session.latent import cache_key
 
     a, b = tmp_path / "a.safetensors", tmp_path / "d.npz"
     a.write_bytes(b"weights-1")
@@ -40,8 +40,7 @@ def test_cache_key_follows_file_contents(tmp_path):
 
 
 def test_build_caches_and_places(tmp_path, sample_data, monkeypatch):
-    from explorer import latent
-
+    from explorer.session import latent
     model = TinyModel(sample_data)
     lm = latent.LatentMap.build(model, sample_data, tmp_path, "k1")
     xy = lm.coords["tsne"]
@@ -61,15 +60,14 @@ def test_build_caches_and_places(tmp_path, sample_data, monkeypatch):
 
 
 def test_corrupt_cache_is_recomputed(tmp_path, sample_data):
-    from explorer import latent
-
+    from explorer.session import latent
     (tmp_path / "latent-bad.npz").write_bytes(b"not a zip")
     lm = latent.LatentMap.build(TinyModel(sample_data), sample_data, tmp_path, "bad")
     assert lm.coords["tsne"].shape == (len(sample_data), 2)
 
 
 def test_unknown_projection(sample_data):
-    from explorer.latent import project
+    from explorer.session.latent import project
 
     with pytest.raises(ValueError, match="projection must be one of"):
         project(np.zeros((5, 3)), "pca")
@@ -81,8 +79,7 @@ def test_concurrent_requests_share_one_fit_per_method(tmp_path, monkeypatch):
     import threading
     import time
 
-    from explorer import latent as latent_module
-
+    from explorer.session import latent as latent_module
     calls = []
 
     def slow_project(latents, method, seed=0):
@@ -111,19 +108,18 @@ def test_concurrent_requests_share_one_fit_per_method(tmp_path, monkeypatch):
 
 def test_a_fit_in_another_process_is_taken_not_repeated(tmp_path, sample_data):
     """What the studio does on a cold cache: the loader saves the embeddings only; a separate process
-    (`python -m explorer.latent`, as LatentMap.fit_elsewhere runs it) fits t-SNE; the studio takes that result, and so
+    (`python -m explorer.session.latent`, as LatentMap.fit_elsewhere runs it) fits t-SNE; the studio takes that result, and so
     does a later ensure() in any process, without fitting again."""
     import asyncio
 
-    from explorer import latent
-
+    from explorer.session import latent
     lm = latent.LatentMap.build(TinyModel(sample_data), sample_data, tmp_path, "k2", methods=())
     assert not lm.has("tsne") and (tmp_path / "latent-k2.npz").exists()
     asyncio.run(lm.fit_elsewhere("tsne"))
     assert lm.coords["tsne"].shape == (len(sample_data), 2)
     other = latent.LatentMap.build(TinyModel(sample_data), sample_data, tmp_path, "k2", methods=())
     np.testing.assert_array_equal(other.coords["tsne"], lm.coords["tsne"])
-    with pytest.raises(RuntimeError, match="usage: python -m explorer.latent"):
+    with pytest.raises(RuntimeError, match="usage: python -m explorer.session.latent"):
         asyncio.run(lm.fit_elsewhere("pca"))
 
 
@@ -135,15 +131,14 @@ def test_the_fit_command_answers_bad_arguments_in_one_line(tmp_path):
     for args, needle in (([], "usage"), ([str(tmp_path / "x.npz"), "pca"], "usage"),
                          ([str(tmp_path / "bad.npz"), "tsne"], "cannot be read"),
                          ([str(tmp_path / "missing.npz"), "umap"], "cannot be read")):  # fmt: skip
-        proc = subprocess.run([sys.executable, "-m", "explorer.latent", *args], capture_output=True, text=True, timeout=60)
+        proc = subprocess.run([sys.executable, "-m", "explorer.session.latent", *args], capture_output=True, text=True, timeout=60)
         assert proc.returncode == 2 and needle in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
 
 
 def test_per_sequence_afd_is_scored_once_and_cached(tmp_path, sample_data):
     """Each sequence's AFD under its own label (the map's hover and AFD colouring), saved beside the projections: a
     second map on the same cache reads it back instead of re-synthesizing; a follower equal to the real one scores 0."""
-    from explorer import latent
-
+    from explorer.session import latent
     class Copier(TinyModel):
         """Synthesizes the real follower exactly for odd sequences and a shifted one for even ones."""
 
@@ -176,8 +171,8 @@ def test_per_sequence_afd_is_scored_once_and_cached(tmp_path, sample_data):
 def test_the_selection_list_sorts_worst_first_by_id_or_class(sample_data):
     from types import SimpleNamespace
 
-    from explorer.latent import LatentMap
-    from explorer.latent_panel import LatentPanel
+    from explorer.session.latent import LatentMap
+    from explorer.ui.latent_panel import LatentPanel
 
     panel = LatentPanel.__new__(LatentPanel)  # rows() needs only the session's data and the map's AFDs
     panel.studio = SimpleNamespace(session=SimpleNamespace(data=sample_data, class_names=sample_data.class_names))

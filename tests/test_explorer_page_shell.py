@@ -1,8 +1,8 @@
-"""The page's shell (explorer/page_shell.py): trame's index.html plus the websocket and latent map scripts."""
+"""The page's shell (explorer/serving/page_shell.py): trame's index.html plus the websocket and latent map scripts."""
 
 from __future__ import annotations
 
-from explorer import page_shell
+from explorer.serving import page_shell
 
 
 def test_the_shell_runs_the_websocket_script_before_trames_scripts():

@@ -10,7 +10,7 @@ pytest.importorskip("pyvista")
 
 @pytest.fixture(scope="module")
 def scene(sample_data):
-    from explorer.scene import Scene, floor_height
+    from explorer.rendering.scene import Scene, floor_height
 
     sc = Scene(sample_data.skeleton, floor_height(sample_data.leader, sample_data.follower, sample_data.skeleton), (320, 240))
     leader, follower = sample_data.canonical(0)
@@ -41,7 +41,7 @@ def test_frame_moves_points_in_place(scene, sample_data):
 
 
 def test_three_colors_visible_and_hideable(scene):
-    from explorer.palette import GROUND_TRUTH, LEADER, SYNTHESIZED
+    from explorer.rendering.palette import GROUND_TRUTH, LEADER, SYNTHESIZED
 
     img = scene.screenshot()
     assert all(_count(img, c) > 50 for c in (LEADER, GROUND_TRUTH, SYNTHESIZED))
@@ -51,7 +51,7 @@ def test_three_colors_visible_and_hideable(scene):
 
 
 def test_layouts_and_cameras(scene):
-    from explorer.scene import CAMERA_PRESETS
+    from explorer.rendering.scene import CAMERA_PRESETS
 
     overlay = scene.screenshot()
     scene.set_layout("side_by_side")
@@ -87,8 +87,8 @@ def test_the_scene_is_made_of_pyvista_objects(scene):
 def test_side_by_side_figures_and_captions_stay_apart_from_every_camera(scene):
     """The three figures stand left to right (leader, ground truth, synthesized) with their captions apart, also for
     the side camera, which looks along the axis they stand on in the other views."""
-    from explorer.palette import GROUND_TRUTH, LEADER, SYNTHESIZED
-    from explorer.scene import CAMERA_PRESETS
+    from explorer.rendering.palette import GROUND_TRUTH, LEADER, SYNTHESIZED
+    from explorer.rendering.scene import CAMERA_PRESETS
     from tests.studio_probe import color_mask
 
     scene.set_layout("side_by_side")
@@ -114,8 +114,8 @@ def test_variations_stand_right_of_the_synthesized_follower_with_their_seeds(sce
     """A stochastic model's further followers: side by side only, each on its own spot and captioned with its seed;
     a turned camera stays while their number does not change; a deterministic model's follower brings the three
     figures back."""
-    from explorer.palette import CHARACTER_TITLES
-    from explorer.scene import VARIATION_KEYS
+    from explorer.rendering.palette import CHARACTER_TITLES
+    from explorer.rendering.scene import VARIATION_KEYS
 
     followers = [scene.sequences["synthesized"] + np.float32([dx, 0.0, 0.0]) for dx in (0.0, 0.2, 0.4)]
     scene.set_variations(followers, [7, 8, 9])

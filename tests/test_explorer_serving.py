@@ -166,7 +166,7 @@ def test_five_clients_are_independent(studio, browser):
 
 def test_a_hostile_upload_is_one_red_line_and_closed_tabs_leave_no_error(studio, browser, tmp_path):
     """Through the page: an .npz of 0.5 MB that unpacks to 540 MB is read within the upload's budget (its own
-    process, explorer/upload_reader.py) and answered by the red one-line alert; the view and the slider keep
+    process, explorer/serving/upload_reader.py) and answered by the red one-line alert; the view and the slider keep
     working. Tabs closed while playing (pictures in flight) leave no error in the studio's log."""
     from tests.test_studio_hardening import hostile_uploads
 

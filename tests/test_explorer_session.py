@@ -18,20 +18,20 @@ pytest.importorskip("trame")
 def model(sample_data):
     if not SAMPLE_CHECKPOINT.exists():
         pytest.skip(f"bundled checkpoint missing: {SAMPLE_CHECKPOINT}")
-    from explorer.session import load_model
+    from explorer.session.session import load_model
 
     return load_model(SAMPLE_CHECKPOINT, sample_data)
 
 
 @pytest.fixture()
 def session(sample_data, model):
-    from explorer.session import Session
+    from explorer.session.session import Session
 
     return Session(sample_data, model, index=0)
 
 
 def test_label_words():
-    from explorer.session import label_words
+    from explorer.session.session import label_words
 
     names = ("kicking", "pushing", "shaking_hands", "hugging")
     assert label_words([0, 0, 1, 1], names) == "shaking hands +1, hugging +1"
@@ -104,7 +104,7 @@ def test_export_bvh_reimports(session, tmp_path):
 
 
 def test_mismatched_model_is_one_line(sample_data):
-    from explorer.session import check_compatible
+    from explorer.session.session import check_compatible
 
     wrong_classes = SimpleNamespace(class_names=("a", "b"), skeleton=sample_data.skeleton)
     with pytest.raises(CheckpointError, match="classes a, b do not match"):
@@ -124,8 +124,8 @@ def test_mismatched_model_is_one_line(sample_data):
 
 def test_reads_as_follows_the_label(sample_data, model):
     """The 'reads as' panel's numbers: the bundled follower-only classifier on the synthesized follower."""
-    from explorer.reads_as_panel import reads_as_rows
-    from explorer.session import Session
+    from explorer.session.session import Session
+    from explorer.ui.reads_as_panel import reads_as_rows
     from imm_model.paths import SAMPLE_JUDGE
     from imm_model.reads_as import ReadsAs
 
@@ -143,7 +143,7 @@ def test_reads_as_follows_the_label(sample_data, model):
 
 
 def test_the_panel_names_asked_classes_that_do_not_read():
-    from explorer.reads_as_panel import reads_as_rows, unread_note
+    from explorer.ui.reads_as_panel import reads_as_rows, unread_note
 
     names = ("kicking", "pushing", "hugging")
     mixed = reads_as_rows(np.array([0.05, 0.15, 0.80]), [1, 0, 1], names)
@@ -155,7 +155,7 @@ def test_the_panel_names_asked_classes_that_do_not_read():
 
 
 def test_reads_as_refuses_other_classes_and_files(sample_data, model, tmp_path):
-    from explorer.session import Session
+    from explorer.session.session import Session
     from imm_model.reads_as import ReadsAs
 
     with pytest.raises(CheckpointError, match="classes"):
@@ -187,7 +187,7 @@ def test_reads_as_centres_a_start_centred_conv_classifier(sample_data, tmp_path)
 
 
 def test_playback_speed_from_the_page_is_clamped():
-    from explorer.playback import playback_speed
+    from explorer.ui.playback import playback_speed
 
     assert playback_speed(1.5) == 1.5 and playback_speed(None) == 1.0 and playback_speed("x") == 1.0
     assert playback_speed(1e-300) == 0.25 and playback_speed(-2) == 0.25 and playback_speed(1e9) == 2.0
@@ -235,7 +235,7 @@ def test_pin_a_mix_and_compare(session):
 
 
 def test_contact_marks_the_interpenetrating_frames_and_bones(session):
-    from explorer.charts import contact_text, distance_chart, penetration_ranges
+    from explorer.rendering.charts import contact_text, distance_chart, penetration_ranges
     from imm_model.evaluation.plausibility import PENETRATION_M, closest_distances
 
     assert penetration_ranges(np.array([0.1, 0.01, 0.02, 0.2, 0.04])) == [(1, 2), (4, 4)]
@@ -256,7 +256,7 @@ def test_contact_marks_the_interpenetrating_frames_and_bones(session):
 
 
 def test_chart_ticks_and_markup():
-    from explorer.charts import distance_chart, nice_ticks
+    from explorer.rendering.charts import distance_chart, nice_ticks
 
     assert nice_ticks(0.83) == [0, 0.25, 0.5, 0.75] and nice_ticks(0.7) == [0, 0.2, 0.4, 0.6] and nice_ticks(95, 6) == [0, 20, 40, 60, 80]
     assert nice_ticks(0.0) == [0.0]
@@ -270,7 +270,7 @@ def test_chart_ticks_and_markup():
 
 @pytest.fixture(scope="module")
 def diffusion(sample_data):
-    from explorer.session import load_model
+    from explorer.session.session import load_model
     from imm_model.paths import SAMPLE_DIFFUSION
 
     if not SAMPLE_DIFFUSION.exists():
@@ -280,7 +280,7 @@ def diffusion(sample_data):
 
 @pytest.fixture()
 def two_models(sample_data, model, diffusion):
-    from explorer.session import Session
+    from explorer.session.session import Session
 
     model.raw = diffusion.raw = False
     return Session(sample_data, model, index=3, others={"diffusion": diffusion})
@@ -372,7 +372,7 @@ def test_the_clean_up_switch_holds_for_both_models(two_models):
 
 
 def test_a_link_carries_the_model_and_the_seed():
-    from explorer.url_state import MAX_SEED, parse_view, view_query
+    from explorer.ui.url_state import MAX_SEED, parse_view, view_query
 
     query = view_query({"seq": "s01s02/03/001", "weights": {"kicking": 1.0}, "model": "diffusion", "seed": 12})
     assert query.endswith("&model=diffusion&seed=12")

@@ -47,7 +47,7 @@ def test_the_check_finds_upward_imports_cycles_and_unplaced_modules(tmp_path):
         "imm_model/data/__main__.py": "from imm_model.cli import main\n",  # an entry point may import the top
         "imm_model/cli.py": "",
         "explorer/__init__.py": "",
-        "explorer/app.py": "from imm_model.evaluation.metrics import afd\n",
+        "explorer/ui/app.py": "from imm_model.evaluation.metrics import afd\n",
     })
     found, n_modules, _ = layers.problems(tmp_path)
     text = "\n".join(found)

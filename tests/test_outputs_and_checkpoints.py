@@ -359,7 +359,7 @@ def test_killing_the_runner_ends_its_workers(tmp_path, sig):
 
 # ---- the studio's export copies ------------------------------------------------------------------------------------
 def test_studio_export_copies_never_overwrite_and_use_safe_names(tmp_path):
-    from explorer.exports import Exports
+    from explorer.ui.exports import Exports
 
     upload = SimpleNamespace(name="take.bvh")
     session = SimpleNamespace(export_name=lambda ext: f"{Path(upload.name).stem}_neutral.{ext}",

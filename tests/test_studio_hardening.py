@@ -46,8 +46,7 @@ def hostile_uploads() -> dict[str, bytes]:
 
 @pytest.fixture()
 def budget(monkeypatch):
-    from explorer import upload_reader
-
+    from explorer.serving import upload_reader
     monkeypatch.setattr(upload_reader, "TIME_BUDGET_S", 1.5)
     return upload_reader
 
@@ -68,7 +67,7 @@ def _crash(name, content):
 def test_an_upload_reader_that_hangs_or_hogs_is_stopped_and_the_next_upload_is_read(budget):
     """The time budget holds even if a reader never returns; the memory budget even if it allocates without end; a
     crash is one line too; and after each the same reader reads a good file as the studio itself would."""
-    from explorer.session import load_model, read_upload
+    from explorer.session.session import load_model, read_upload
     from imm_model.data.dataset import InteractionDataset
 
     data = InteractionDataset.load(SAMPLE_DATA)
@@ -107,7 +106,7 @@ def _chunk(message_id: int, offset: int, total: int, content: bytes = b"") -> by
 
 
 def test_the_proxy_refuses_chunks_that_claim_too_much():
-    from explorer.proxy import MAX_MESSAGE_BYTES, InboundBudget
+    from explorer.serving.proxy import MAX_MESSAGE_BYTES, InboundBudget
 
     budget = InboundBudget()
     assert "claiming 1073741824 bytes" in budget.admit(1, _chunk(7, 0, 1 << 30, b"x"))
@@ -138,7 +137,7 @@ def _request(path: str = "/claim", method: str = "POST", host: str = "localhost:
 
 
 def _launcher(**config):
-    from explorer.launcher import LaunchConfig, Launcher
+    from explorer.serving.launcher import LaunchConfig, Launcher
 
     return Launcher(LaunchConfig(data=SAMPLE_DATA, checkpoint=SAMPLE_CHECKPOINT, **config))
 
@@ -157,8 +156,8 @@ def test_the_origin_check_accepts_the_scheme_the_page_was_served_over():
 def test_claims_need_the_page_and_are_rate_limited(monkeypatch):
     """A bare POST (no Origin, no cookie) is refused; the page's Origin or, without one, its cookie is admitted; past
     the burst, claims are refused until the bucket refills."""
-    from explorer import launcher as launcher_module
-    from explorer.launcher import PAGE_COOKIE, Worker
+    from explorer.serving import launcher as launcher_module
+    from explorer.serving.launcher import PAGE_COOKIE, Worker
 
     async def go():
         front = _launcher()
@@ -460,7 +459,7 @@ async def _upload_all(tab: RawTab, uploads: list[tuple[str, bytes]]) -> list[str
 def test_a_reload_finds_its_own_session_and_an_ended_one_keeps_the_view(small_studio):
     """A tab whose page is asked for again after its websocket closed (a reload) keeps its process past the close's
     grace; a tab that only closed loses it, and its link then leads to a fresh studio with the link's view."""
-    from explorer.launcher import RECONNECT_GRACE_S
+    from explorer.serving.launcher import RECONNECT_GRACE_S
 
     async def go():
         tab, pid = await _open_tab(small_studio)

@@ -6,7 +6,7 @@
 // plotly.js is 4.8 MB: it is fetched and evaluated only once the 3D view shows its first picture, so the page
 // opens as fast as it does without it (benchmarks/explorer_startup.py); the browser caches the file.
 (() => {
-  const PLOTLY_SRC = 'imm_plotly/plotly.min.js';  // served by the studio (explorer/page_shell.py)
+  const PLOTLY_SRC = 'imm_plotly/plotly.min.js';  // served by the studio (explorer/serving/page_shell.py)
   const VIEW_IMG = '.imm-scene img';
   const PLOT_ID = 'latent-plotly';
   const FIRST_PICTURE_WAIT_MS = 8000;  // load it anyway after this long (a page with no picture still gets its map)

@@ -1,4 +1,4 @@
-// Loaded before trame's client (explorer/page_shell.py). wslink's client asks the browser to deliver each binary
+// Loaded before trame's client (explorer/serving/page_shell.py). wslink's client asks the browser to deliver each binary
 // websocket message as a Blob, then reads it back with two asynchronous Blob reads; on a busy machine that took
 // ~20 ms between a picture's arrival and its display. Here the socket delivers an ArrayBuffer, handed to wslink
 // in a Blob-shaped wrapper whose reads resolve at once.

@@ -4,8 +4,8 @@
 
 Every Import and ImportFrom node of every module of imm_model/ and explorer/ counts, at module level or inside a
 function alike (a lazy import is a dependency all the same). A module may import modules of its own layer and of the
-layers below it. Each of imm_model's top-level modules and packages is placed in a layer in LAYERS below, so a new one
-fails the check until it is given a place. Imports spelled as strings (importlib, entry points) are not seen; the
+layers below it. Each top-level module and package of imm_model and of explorer is placed in a layer in LAYERS below,
+so a new one fails the check until it is given a place. Imports spelled as strings (importlib, entry points) are not seen; the
 `imm` command finds its subcommand modules that way on purpose, from the top.
 """
 
@@ -31,7 +31,14 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("evaluation", ("imm_model.evaluation",)),
     # the commands and tools built on the library
     ("applications", ("imm_model.reproduce", "imm_model.generate", "imm_model.cli", "imm_model.devtools")),
-    ("studio", ("explorer",)),
+    # the studio (a separate package), bottom to top: its one adapter to trame's internals, its picture-making, the
+    # user's session, the serving processes, the page, and the front ends that start it
+    ("studio adapter", ("explorer", "explorer.trame_adapter")),
+    ("studio rendering", ("explorer.rendering",)),
+    ("studio session", ("explorer.session",)),
+    ("studio serving", ("explorer.serving",)),
+    ("studio ui", ("explorer.ui", "explorer.review_panel")),
+    ("studio front ends", ("explorer.commands", "explorer.desktop")),
 )
 # A package's __main__ is an entry point (`python -m package`): it sits in this layer whatever its package.
 ENTRY_POINT_LAYER = "applications"
@@ -39,6 +46,8 @@ ENTRY_POINT_LAYER = "applications"
 ALLOWED_UPWARD: dict[tuple[str, str], str] = {
     ("imm_model", "imm_model.inference"):
         "the package's lazy re-export of the inference API (imm_model.synthesize), run on attribute access only",
+    ("explorer.serving.worker", "explorer.ui.app"): "a studio process builds the page it serves",
+    ("explorer.serving.zygote", "explorer.ui.app"): "the page is imported once before forking, so no tab imports it again",
 }
 ROOTS = ("imm_model", "explorer")
 
@@ -103,8 +112,8 @@ def layer_of(module: str) -> str | None:
     """The layer a module belongs to (None: its unit is in no layer)."""
     if module.rsplit(".", 1)[-1] == "__main__" and not module.startswith("explorer"):
         return ENTRY_POINT_LAYER
-    # the package root is the unit of its own __init__ only: each of its top-level modules needs a place of its own
-    units = [u for _, us in LAYERS for u in us if u != "imm_model" or module == "imm_model"]
+    # a package root is the unit of its own __init__ only: each of its top-level modules needs a place of its own
+    units = [u for _, us in LAYERS for u in us if u not in ROOTS or module == u]
     unit = _resolve(module, units)
     return next((layer for layer, units in LAYERS if unit in units), None)
 

@@ -11,15 +11,11 @@ from pathlib import Path
 
 import numpy as np
 
-from explorer.session import FPS
+from explorer.session.session import FPS, one_line
+from explorer.trame_adapter import attachment
 
 CHARACTERS = ("follower", "leader")
 VIDEO_FORMATS = ("gif", "mp4")
-
-
-def one_line(err: BaseException) -> str:
-    text = str(err.args[0] if isinstance(err, KeyError) and err.args else err) or type(err).__name__
-    return text.strip().splitlines()[0]
 
 
 class Exports:
@@ -34,7 +30,7 @@ class Exports:
 
     def _send(self, name: str, data: bytes):
         self._save_copy(name, data)
-        return self.studio.server.protocol.addAttachment(memoryview(data))
+        return attachment(self.studio.server, data)
 
     def export_npz(self):
         return self._send(self.session.export_name("npz"), self.session.export_npz())

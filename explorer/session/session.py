@@ -1,5 +1,5 @@
 """One user's studio session without any UI: the chosen sequence, the mixed label, the synthesized
-follower and its review numbers. The trame app (app.py) only maps this onto widgets, so all of it is
+follower and its review numbers. The page (explorer/ui/app.py) only maps this onto widgets, so all of it is
 unit-testable without a browser.
 """
 
@@ -12,7 +12,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from explorer.palette import display_name
+from explorer.rendering.palette import display_name
 from imm_model.data.canonical import CanonicalFrame
 from imm_model.data.dataset import InteractionDataset
 from imm_model.errors import CheckpointError, DataFormatError, IMMError
@@ -26,6 +26,12 @@ MAX_VARIATIONS = 4  # followers drawn side by side at once (seeds seed .. seed +
 NEW_SEEDS = 10_000  # "new variation" draws a seed below this: short enough to read, type and share in a link
 # How the page names each model family (a checkpoint's `family`)
 MODEL_TITLES = {"gan": "the paper's GAN", "diffusion": "the diffusion model"}
+
+
+def one_line(err: BaseException) -> str:
+    """An error's message as the page and the launcher show it: its first line (a KeyError's key, not its repr)."""
+    text = str(err.args[0] if isinstance(err, KeyError) and err.args else err) or type(err).__name__
+    return text.strip().splitlines()[0]
 
 
 @dataclass(frozen=True)
@@ -141,7 +147,7 @@ class Session:
         self.data = data
         self.model = model
         self.model_name = model.family
-        self.map_model = model  # the latent map's embeddings and AFDs are this model's (explorer/latent.py)
+        self.map_model = model  # the latent map's embeddings and AFDs are this model's (explorer/session/latent.py)
         self.seed = 0  # the sampler's seed: which variation a stochastic model draws
         self.variation_count = 1  # followers drawn at once, seeds seed .. seed + count - 1 (`variations`)
         self.variation_followers: list[np.ndarray] = []
@@ -149,7 +155,7 @@ class Session:
         self._seeds = np.random.default_rng()
         self.reader = reader
         self.upload: Upload | None = None
-        # reads an upload out of this process, within a time and memory budget (explorer/upload_reader.py); None: here
+        # reads an upload out of this process, within a time and memory budget (explorer/serving/upload_reader.py); None: here
         self.upload_reader: Callable[[str, bytes], tuple[np.ndarray, CanonicalFrame]] | None = None
         self.class_names = tuple(data.class_names)
         self.weights = np.zeros(len(self.class_names), np.float32)

@@ -2,7 +2,7 @@
 
 A trame server shares one state among all its clients, so two people on one server would move each
 other's sliders. The launcher listens on the public port; each visit to `/` takes a warm studio
-process (explorer/worker.py, forked by explorer/zygote.py and listening on its own loopback port) when the
+process (explorer/serving/worker.py, forked by explorer/serving/zygote.py and listening on its own loopback port) when the
 front page's script claims one (a same-origin POST: a bare GET or another web page cannot), forwards the tab
 to it (proxy.py) and forks the next spare in the background. A tab's studio process is ended (by the zygote, with
 SIGKILL if it is too busy to stop) RECONNECT_GRACE_S after its last websocket closed, or CLAIM_TIMEOUT_S after a claim
@@ -27,10 +27,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.parse import urlsplit
 
-from explorer.worker import PREFIX
+from explorer.serving.worker import PREFIX
 
 if TYPE_CHECKING:
-    from explorer.proxy import InboundBudget  # imports aiohttp, which loads beside the zygote (run)
+    from explorer.serving.proxy import InboundBudget  # imports aiohttp, which loads beside the zygote (run)
 
 TOKEN_COOKIE = "imm_studio_token"
 PAGE_COOKIE = "imm_studio_page"  # set by the front page: a claim without an Origin header must carry it
@@ -61,7 +61,7 @@ class LaunchError(Exception):
 
 @dataclass
 class Worker:
-    id: str  # the zygote's name for it (explorer/zygote.py)
+    id: str  # the zygote's name for it (explorer/serving/zygote.py)
     secret: str  # its wslink secret (proxy.py puts it into the browser's hello)
     port: int = 0
     exited: bool = False
@@ -119,7 +119,7 @@ class Launcher:
         self.busy: list[Worker] = []
         self.sessions: dict[str, Worker] = {}  # /s/<token>/ -> the tab's studio process
         self.workers: dict[str, Worker] = {}  # by zygote id, until it exits
-        self.zygote: asyncio.subprocess.Process | None = None  # explorer/zygote.py: forks the studio processes
+        self.zygote: asyncio.subprocess.Process | None = None  # explorer/serving/zygote.py: forks the studio processes
         self.loaded: asyncio.Future | None = None
         self.gone = ""  # why the zygote is no more, once it has exited
         self.spawned = 0
@@ -146,7 +146,7 @@ class Launcher:
 
     async def _start_zygote(self) -> None:
         c = self.config
-        cmd = [sys.executable, "-m", "explorer.zygote", "--data", str(c.data), "--checkpoint", str(c.checkpoint),
+        cmd = [sys.executable, "-m", "explorer.serving.zygote", "--data", str(c.data), "--checkpoint", str(c.checkpoint),
                "--host", "127.0.0.1", "--port", "0", "--export-dir", str(c.export_dir), "--render", c.render]  # fmt: skip
         cmd += ["--cache-dir", str(c.cache_dir)] if c.cache_dir else []
         cmd += ["--sequence", c.sequence] if c.sequence else []
@@ -177,7 +177,7 @@ class Launcher:
                 self._worker_says(w, kind, rest)
         code = await self.zygote.wait()
         # later spawns fail at once instead of waiting for a READY that cannot come
-        self.gone = f"the studio's loader (explorer/zygote.py) stopped with exit code {code}: restart imm explore"
+        self.gone = f"the studio's loader (explorer/serving/zygote.py) stopped with exit code {code}: restart imm explore"
         if not self.loaded.done():
             self.loaded.set_exception(LaunchError(f"the studio's loader exited with code {code} before it was ready"))
         for w in list(self.workers.values()):
@@ -202,7 +202,7 @@ class Launcher:
 
     def retire(self, w: Worker) -> None:
         """End a studio process whose tab has gone and free its slot now: the zygote stops it, with SIGKILL when it is
-        too busy to stop by itself (explorer/zygote.py)."""
+        too busy to stop by itself (explorer/serving/zygote.py)."""
         if w.exited or w.retired:
             return
         w.retired = True
@@ -325,7 +325,7 @@ class Launcher:
         """/s/<token>/<path>: the tab's page, assets and websocket, forwarded to its studio process."""
         from aiohttp import web
 
-        from explorer.proxy import InboundBudget, forward_http, forward_websocket
+        from explorer.serving.proxy import InboundBudget, forward_http, forward_websocket
 
         if not self.authorized(request):
             return web.Response(status=403, text="refused: the studio only answers its own page")
@@ -459,7 +459,7 @@ CLAIM_PAGE = """<!doctype html><title>IMM Studio</title>
 <script>
 fetch("claim", {method: "POST"}).then(async (r) => {
   if (!r.ok) throw new Error(await r.text());
-  location.replace((await r.json()).url + location.search);  // a link's view (explorer/url_state.py) goes along
+  location.replace((await r.json()).url + location.search);  // a link's view (explorer/ui/url_state.py) goes along
 }).catch((e) => { const m = document.getElementById("m"); m.style.color = "#b00020";
   m.textContent = (e.message || String(e)).replace(/<[^>]*>/g, " ").replace(/\\s+/g, " ").replace("IMM Studio", "").trim(); });
 </script></body>"""

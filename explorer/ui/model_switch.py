@@ -1,6 +1,6 @@
 """The model switch (the paper's GAN / the diffusion model) and, for a stochastic model, its variations: the seed, a
 "new variation" button, and N followers drawn at once (seeds seed .. seed + N - 1) side by side, each captioned with
-its seed. The session (explorer/session.py) holds the models and draws the followers; this maps them onto the page.
+its seed. The session (explorer/session/session.py) holds the models and draws the followers; this maps them onto the page.
 
 A diffusion reaction costs ~10x the GAN's (benchmarks/explorer_latency.py): slider moves are coalesced as for any
 model (app.py, the latest mix wins), a slider's further variations are drawn after its first picture, with the
@@ -15,7 +15,7 @@ import asyncio
 from trame.widgets import client, html
 from trame.widgets import vuetify3 as v3
 
-from explorer.session import MAX_VARIATIONS, model_title
+from explorer.session.session import MAX_VARIATIONS, model_title
 
 # The "computing" mark fades in only after 0.15 s: a reaction drawn sooner never makes the page blink.
 COMPUTING_CSS = """

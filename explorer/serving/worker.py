@@ -1,9 +1,9 @@
 """One studio process = one user: serves the page for the data, model and latent map it was given, on its own
 loopback port.
 
-Forked per browser tab by the zygote (explorer/zygote.py), which loaded everything once. It says
+Forked per browser tab by the zygote (explorer/serving/zygote.py), which loaded everything once. It says
 `IMM-WORKER READY <id> <port>` (or `ERROR <id> <message>`) to the launcher. The launcher ends it when its tab has
-gone (through the zygote: explorer/launcher.py); it exits by itself when the zygote goes away (its stdin closes).
+gone (through the zygote: explorer/serving/launcher.py); it exits by itself when the zygote goes away (its stdin closes).
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ def say_line(kind: str, *words: object) -> None:
 
 
 def parse_args(argv=None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(prog="python -m explorer.zygote")
+    p = argparse.ArgumentParser(prog="python -m explorer.serving.zygote")
     p.add_argument("--data", type=Path, required=True)
     p.add_argument("--checkpoint", type=Path, required=True)
     p.add_argument("--diffusion-checkpoint", type=Path, default=None, help="the diffusion model one switch away")
@@ -54,8 +54,8 @@ def parse_args(argv=None) -> argparse.Namespace:
 def load_everything(args: argparse.Namespace):
     """Data, model (with the models one switch away) and latent embeddings; raises IMMError/OSError with one-line
     messages."""
-    from explorer.latent import LatentMap, cache_key, default_cache_dir
-    from explorer.session import load_model
+    from explorer.session.latent import LatentMap, cache_key, default_cache_dir
+    from explorer.session.session import load_model
     from imm_model.data.dataset import InteractionDataset
 
     data = InteractionDataset.load(args.data)
@@ -71,7 +71,7 @@ def load_others(model, diffusion_checkpoint: Path | None, data) -> dict:
     """{"diffusion": the diffusion model} beside a GAN (nothing beside a diffusion model: it is the one), loaded and
     warmed by one synthesis here, in the zygote (~50 ms, paid once rather than at every tab's first switch; its 4 MB
     of weights shared by the forked tabs)."""
-    from explorer.session import load_model
+    from explorer.session.session import load_model
     from imm_model.errors import CheckpointError
 
     if diffusion_checkpoint is None or model.family == "diffusion":
@@ -108,16 +108,17 @@ def start_index(data, sequence: str | None) -> int:
 
 def serve(data, model, latent, reader, others, args: argparse.Namespace, *, secret: str, say: Channel, uploads=None) -> int:
     """Serve one tab (`others`: the models one switch away, by name); `uploads` reads its uploaded files out of this
-    process (explorer/upload_reader.py)."""
+    process (explorer/serving/upload_reader.py)."""
     from trame.app import get_server
 
-    from explorer.app import Studio
-    from explorer.latent import default_cache_dir
-    from explorer.page_shell import use_page_shell
-    from explorer.session import Session
+    from explorer.serving.page_shell import use_page_shell
+    from explorer.session.latent import default_cache_dir
+    from explorer.session.session import Session
+    from explorer.trame_adapter import set_secret
+    from explorer.ui.app import Studio
 
     server = get_server("imm-studio", client_type="vue3")
-    server.cli.set_defaults(authKey=secret)  # wslink's default secret is public: every process gets its own
+    set_secret(server, secret)  # wslink's default secret is public: every process gets its own
     session = Session(data, model, args.start, reader, others)
     session.upload_reader = uploads
     Studio(server, session, latent, export_dir=args.export_dir, render=args.render)

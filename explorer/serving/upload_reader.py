@@ -36,7 +36,7 @@ Read = Callable[[str, bytes], tuple[np.ndarray, CanonicalFrame]]
 
 
 class UploadReader:
-    """`reader(name, content)` -> (canonical leader, its frame), as explorer/session.py `read_upload`, read in a child
+    """`reader(name, content)` -> (canonical leader, its frame), as explorer/session/session.py `read_upload`, read in a child
     process. Construct it while the process has a single thread (it forks its helper then)."""
 
     def __init__(self, read: Read):
@@ -166,11 +166,11 @@ def _pack(leader: np.ndarray, frame: CanonicalFrame) -> bytes:
 
 
 def _message(name: str, err: BaseException) -> str:
-    from explorer.exports import one_line
+    from explorer.session.session import one_line
 
     text = one_line(err)
     if isinstance(err, IMMError):
-        return text  # already names the file and the problem (explorer/session.py read_upload)
+        return text  # already names the file and the problem (explorer/session/session.py read_upload)
     return f"{name}: cannot be read as a leader ({type(err).__name__}: {text})"
 
 

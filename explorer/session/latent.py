@@ -195,14 +195,14 @@ class LatentMap:
         self.save()
 
     async def fit_elsewhere(self, method: str) -> None:
-        """Fit in a separate process (`python -m explorer.latent`), then take its result: a fit holds the GIL for
+        """Fit in a separate process (`python -m explorer.session.latent`), then take its result: a fit holds the GIL for
         seconds (sklearn's import alone is ~1.9 s here, UMAP's numba compilation 10-50 s), and in the studio's
         own process that would stall the page it serves. Without a cache file, in a thread."""
         if not self.path:
             await asyncio.to_thread(self.ensure, method)
             return
         fitter = await asyncio.create_subprocess_exec(
-            sys.executable, "-m", "explorer.latent", str(self.path), method, stdout=asyncio.subprocess.DEVNULL,
+            sys.executable, "-m", "explorer.session.latent", str(self.path), method, stdout=asyncio.subprocess.DEVNULL,
             stderr=asyncio.subprocess.PIPE,
         )  # fmt: skip
         _, err = await fitter.communicate()
@@ -225,11 +225,11 @@ class LatentMap:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """`python -m explorer.latent <cache file> <method>`: fit one projection of a cached map and save it. Bad
+    """`python -m explorer.session.latent <cache file> <method>`: fit one projection of a cached map and save it. Bad
     arguments get one line on stderr and exit code 2 (the studio shows that line)."""
     args = sys.argv[1:] if argv is None else argv
     if len(args) != 2 or args[1] not in METHODS:
-        print(f"usage: python -m explorer.latent <cache file> <{'|'.join(METHODS)}>, not {' '.join(args)!r}", file=sys.stderr)
+        print(f"usage: python -m explorer.session.latent <cache file> <{'|'.join(METHODS)}>, not {' '.join(args)!r}", file=sys.stderr)
         return 2
     latent_map = LatentMap.load(Path(args[0]))
     if latent_map is None:

@@ -1,6 +1,6 @@
 """The studio's page: trame + Vuetify 3 layout, state and controllers for one user.
 
-One process serves one user (see launcher.py), so trame's shared state is that user's state.
+One process serves one user (see explorer/serving/launcher.py), so trame's shared state is that user's state.
 State keys and controllers are named for what the user does (play, scrub, mix, pick, export).
 """
 
@@ -13,20 +13,20 @@ from pathlib import Path
 import numpy as np
 from trame.app import asynchronous
 
-from explorer import charts
-from explorer.compare import Compare
-from explorer.exports import Exports, one_line
-from explorer.keys import press
-from explorer.latent import LatentMap
-from explorer.latent_panel import LatentPanel
-from explorer.layout import build_layout
-from explorer.model_switch import ModelSwitch
-from explorer.palette import class_color, display_name
-from explorer.playback import play
-from explorer.reads_as_panel import reads_as_rows, unread_note
-from explorer.scene import CHARACTER_KEYS, Scene, floor_height
-from explorer.session import FPS, Session
-from explorer.url_state import apply_view, current_view, view_query
+from explorer.rendering import charts
+from explorer.rendering.palette import class_color, display_name
+from explorer.rendering.scene import CHARACTER_KEYS, Scene, floor_height
+from explorer.session.latent import LatentMap
+from explorer.session.session import FPS, Session, one_line
+from explorer.ui.compare import Compare
+from explorer.ui.exports import Exports
+from explorer.ui.keys import press
+from explorer.ui.latent_panel import LatentPanel
+from explorer.ui.layout import build_layout
+from explorer.ui.model_switch import ModelSwitch
+from explorer.ui.playback import play
+from explorer.ui.reads_as_panel import reads_as_rows, unread_note
+from explorer.ui.url_state import apply_view, current_view, view_query
 
 PICTURE_S = 0.04  # after a new mix, the time its picture takes to leave (the next mix waits for it)
 REVIEW_DELAY_S = 0.1  # ... and the time until the 'reads as' panel, distance chart, AFD and latent star follow it
@@ -93,7 +93,7 @@ class Studio:
                 "loop": True,
                 "scale": 1.0,
                 "label_text": "",
-                "reads_as": [],  # explorer/reads_as_panel.py
+                "reads_as": [],  # explorer/ui/reads_as_panel.py
                 "reads_as_note": "",
                 "scene_layout": "overlay",
                 "show_leader": True,
@@ -103,16 +103,16 @@ class Studio:
                 "projection": "tsne",
                 "projection_busy": False,
                 "afd_text": "",
-                "distance_chart": "",  # explorer/charts.py markup; the frame cursor over it follows `frame` in the page
+                "distance_chart": "",  # explorer/rendering/charts.py markup; the frame cursor over it follows `frame` in the page
                 "error": "",
                 "notice": "",
                 "mix_count": 0,  # increments after each re-synthesis (tests and benchmarks wait on it)
-                "url_query": "",  # the view as a query string (explorer/url_state.py); the page mirrors it in its URL
-                "key_slider": 0,  # the class slider the up/down keys move (explorer/keys.py)
+                "url_query": "",  # the view as a query string (explorer/ui/url_state.py); the page mirrors it in its URL
+                "key_slider": 0,  # the class slider the up/down keys move (explorer/ui/keys.py)
                 "show_keys": False,
-                "pinned_text": "",  # A/B (explorer/compare.py): the pinned mix in words, "" when none
+                "pinned_text": "",  # A/B (explorer/ui/compare.py): the pinned mix in words, "" when none
                 "ab_text": "",
-                "contact_text": "",  # interpenetration of the two bodies (explorer/charts.py contact_text)
+                "contact_text": "",  # interpenetration of the two bodies (explorer/rendering/charts.py contact_text)
                 "held_out_subject": d.info.get("held_out_subject", ""),
             }
         )

@@ -1,5 +1,5 @@
 """The parent of every studio process: loads the data, model, latent map and the heavy libraries once, then forks
-one studio process (explorer/worker.py `serve`) per browser tab.
+one studio process (explorer/serving/worker.py `serve`) per browser tab.
 
 Why a fork server: a studio process that starts from scratch imports VTK and trame and loads everything itself
 (before the zygote, with torch then: ~5-10 s before a tab could open and ~350 MB of private memory each). A process
@@ -25,24 +25,23 @@ import signal
 import sys
 import time
 
-from explorer import worker
-from explorer.exports import one_line
+from explorer.serving import worker
+from explorer.session.session import one_line
 
 RETIRE_GRACE_S = 1.0
 
 
 def preload() -> None:
     """Import what a studio process needs before the first fork, so that no child imports it again."""
-    from trame.app import get_server  # noqa: F401
-    from trame_rca.schedulers import image_scheduler  # noqa: F401
-    from wslink.websocket import LinkProtocol  # noqa: F401
+    from explorer.trame_adapter import preload as preload_trame
 
-    import explorer.app  # noqa: F401 - the page, the scene (PyVista), the charts, the view stream
-    import explorer.page_shell  # noqa: F401
-    from explorer.scene import warm_up
+    preload_trame()  # trame's server, trame-rca's image scheduler, wslink's websocket protocol
+    import explorer.serving.page_shell  # noqa: F401
+    import explorer.ui.app  # noqa: F401 - the page, the scene (PyVista), the charts, the view stream
+    from explorer.rendering.scene import warm_up
 
     warm_up()  # PyVista's first-Plotter costs, paid here once rather than in every tab
-    import explorer.upload_reader  # noqa: F401 - not the file readers it runs (bvh: 0.5 s here), which uploads import
+    import explorer.serving.upload_reader  # noqa: F401 - not the file readers it runs (bvh: 0.5 s here), which uploads import
 
 
 class ForkServer:
@@ -129,8 +128,8 @@ class ForkServer:
             os._exit(code)
 
     def upload_reader(self):
-        from explorer.session import read_upload
-        from explorer.upload_reader import UploadReader
+        from explorer.serving.upload_reader import UploadReader
+        from explorer.session.session import read_upload
 
         data, model = self.loaded[0], self.loaded[1]
         return UploadReader(lambda name, content: read_upload(name, content, model, data.skeleton))

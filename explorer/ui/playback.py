@@ -6,8 +6,8 @@ import asyncio
 import math
 import os
 
-from explorer.layout import SPEEDS
-from explorer.session import FPS
+from explorer.session.session import FPS
+from explorer.ui.layout import SPEEDS
 
 MIN_YIELD_S = 0.005  # even when late, give the image delivery and incoming messages a turn
 # Pictures per second at most. On a 2-core machine the browser and the server share the cores: asked for 30/s (2x),

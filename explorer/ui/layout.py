@@ -9,13 +9,13 @@ from trame.ui.vuetify3 import VAppLayout
 from trame.widgets import client, html
 from trame.widgets import vuetify3 as v3
 
-from explorer.charts import CHART_CSS, DISTANCE_BOX
-from explorer.keys import KEY_HELP, LISTENER_JS
-from explorer.model_switch import model_chip, model_panel
-from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED, WARNING, class_color, display_name
-from explorer.reads_as_panel import reads_as_panel
-from explorer.scene import CAMERA_PRESETS, CHARACTER_KEYS
-from explorer.view_stream import ViewStream
+from explorer.rendering.charts import CHART_CSS, DISTANCE_BOX
+from explorer.rendering.palette import CHARACTER_TITLES, CHARACTERS, PINNED, WARNING, class_color, display_name
+from explorer.rendering.scene import CAMERA_PRESETS, CHARACTER_KEYS
+from explorer.rendering.view_stream import ViewStream
+from explorer.ui.keys import KEY_HELP, LISTENER_JS
+from explorer.ui.model_switch import model_chip, model_panel
+from explorer.ui.reads_as_panel import reads_as_panel
 
 SPEEDS = [0.25, 0.5, 1.0, 1.5, 2.0]
 # Sliders jump to a new value at once, as Vuetify's already do while dragged (a key or a click glides for 0.3 s), and
@@ -290,7 +290,7 @@ def scene_view(studio) -> None:
             from trame.widgets import pyvista as pyvista_widgets  # only here: trame-pyvista's import is for this mode
 
             view = pyvista_widgets.PyVistaLocalView(studio.scene.plotter)
-        else:  # rendered on the server, streamed as pictures (explorer/view_stream.py)
+        else:  # rendered on the server, streamed as pictures (explorer/rendering/view_stream.py)
             view = ViewStream(studio.server, studio.scene.render_window)
         studio._view = view
         studio.ctrl.view_update = studio.push_view
@@ -375,7 +375,7 @@ SEEK_JS = ("frame = Math.max(0, Math.min(num_frames - 1, Math.round((num_frames 
 
 
 def distance_chart() -> None:
-    """explorer/charts.py's markup, with the frame cursor on top (it follows playback without a redraw)."""
+    """explorer/rendering/charts.py's markup, with the frame cursor on top (it follows playback without a redraw)."""
     client.Style(CHART_CSS)
     with html.Div(classes="imm-fill", id="distance-chart"):
         html.Div(v_html=("distance_chart",))

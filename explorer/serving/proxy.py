@@ -17,7 +17,9 @@ from collections.abc import Callable
 
 from aiohttp import ClientSession, WSCloseCode, WSMsgType, web
 
-MAX_MESSAGE_BYTES = 32 * 1024 * 1024  # an upload is at most 20 MB (explorer/session.py) plus framing
+from explorer.trame_adapter import WSLINK_HEADER, WSLINK_HELLO
+
+MAX_MESSAGE_BYTES = 32 * 1024 * 1024  # an upload is at most 20 MB (explorer/session/session.py) plus framing
 MAX_PENDING_BYTES = 32 * 1024 * 1024  # all messages a studio process is still receiving, over all its websockets
 HEARTBEAT_S = 20.0  # a browser that vanished without closing (network lost) is noticed within 1.5x this
 HOP_HEADERS = {"connection", "keep-alive", "transfer-encoding", "upgrade", "host", "content-length", "content-encoding"}
@@ -40,7 +42,7 @@ async def forward_http(request: web.Request, port: int, tail: str) -> web.Stream
             return response
 
 
-HEADER = 12  # wslink's chunk header: message id, offset, total size (uint32 little-endian each)
+HEADER = WSLINK_HEADER  # wslink's chunk header: message id, offset, total size (uint32 little-endian each)
 
 
 class InboundBudget:
@@ -93,7 +95,7 @@ def with_secret(frame: bytes, secret: str) -> bytes:
         message = msgpack.unpackb(frame[HEADER:])
     except (ValueError, msgpack.ExtraData, msgpack.FormatError, msgpack.StackError):
         return frame
-    if not (isinstance(message, dict) and message.get("method") == "wslink.hello" and message.get("args")
+    if not (isinstance(message, dict) and message.get("method") == WSLINK_HELLO and message.get("args")
             and isinstance(message["args"][0], dict)):
         return frame
     message["args"][0]["secret"] = secret

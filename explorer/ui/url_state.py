@@ -15,7 +15,7 @@ from urllib.parse import parse_qs, quote, urlencode
 MAX_QUERY = 2000  # characters; a longer query is refused as a whole
 LAYOUTS = ("overlay", "side_by_side")
 MAPS = ("tsne", "umap")
-MAX_SEED = 2**31 - 5  # room for the side-by-side variations after it (explorer/session.py MAX_VARIATIONS)
+MAX_SEED = 2**31 - 5  # room for the side-by-side variations after it (explorer/session/session.py MAX_VARIATIONS)
 
 
 def view_query(view: dict) -> str:
@@ -113,7 +113,7 @@ def current_view(studio) -> dict:
 
 def apply_view(studio, query: str) -> None:
     """Open the view a link describes; what cannot be applied is named in the page's alert."""
-    from explorer.scene import CAMERA_PRESETS
+    from explorer.rendering.scene import CAMERA_PRESETS
 
     ses, s = studio.session, studio.state
     view, problems = parse_view(query, ses.class_names, set(ses.data.sequence_ids), CAMERA_PRESETS, tuple(ses.models))

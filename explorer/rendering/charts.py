@@ -2,7 +2,7 @@
 
 Written by hand rather than with Plotly: it needs lines, shaded bands and a click that seeks, which a few lines of
 markup do, and it is on screen from the page's first picture, before Plotly's 4.8 MB have loaded (the latent map,
-which needs zoom, pan and selection, is a Plotly figure loaded after that picture: latent_panel.py). The frame
+which needs zoom, pan and selection, is a Plotly figure loaded after that picture: explorer/ui/latent_panel.py). The frame
 cursor is not in the markup: the layout binds it to `frame`, so playback does not resend the chart.
 
 Coordinates inside the plot box (DISTANCE_BOX, CSS insets) are percentages (HTML) or a 0-1000 SVG viewBox stretched
@@ -16,7 +16,7 @@ from html import escape
 
 import numpy as np
 
-from explorer.palette import PINNED, SYNTHESIZED, WARNING
+from explorer.rendering.palette import PINNED, SYNTHESIZED, WARNING
 from imm_model.evaluation.plausibility import PENETRATION_M
 
 DISTANCE_BOX = "left: 52px; right: 12px; top: 24px; bottom: 34px"  # plot area of the distance chart

@@ -5,7 +5,7 @@ out and AFD, zoom, pan, box and lasso selection that lists the selected sequence
 out, and a click on a point that opens that sequence and plays it.
 
 A method not fitted yet (UMAP until asked for; t-SNE too on a cold cache) is fitted in a separate process while
-the page works, with a progress message (explorer/latent.py keeps one fit per method at a time, across the
+the page works, with a progress message (explorer/session/latent.py keeps one fit per method at a time, across the
 studio's processes). The per-sequence AFDs are computed once, a sequence at a time between the page's own work
 once it is up, and cached.
 """
@@ -16,9 +16,9 @@ import asyncio
 
 from trame.app import asynchronous
 
-from explorer.exports import one_line
-from explorer.latent import METHODS, LatentMap
-from explorer.palette import SYNTHESIZED, class_color, display_name
+from explorer.rendering.palette import SYNTHESIZED, class_color, display_name
+from explorer.session.latent import METHODS, LatentMap
+from explorer.session.session import one_line
 
 COLOR_MODES = ("class", "afd", "held")
 SORT_KEYS = ("afd", "id", "class")
@@ -31,7 +31,7 @@ class LatentPanel:
         self.studio = studio
         self.latent = latent
         self._drawn = ""  # the method whose points the page holds
-        self._fitting: set[str] = set()  # methods being fitted (explorer/latent.py fit_elsewhere)
+        self._fitting: set[str] = set()  # methods being fitted (explorer/session/latent.py fit_elsewhere)
         studio.state.update({
             "latent_points": None,  # the figure's points (static/latent_map.js draws them)
             "latent_marks": {"ring": None, "star": None},  # the current sequence and mix, map coordinates

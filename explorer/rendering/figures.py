@@ -1,6 +1,6 @@
 """The pieces of the 3D scene as PyVista meshes and actors: stick figures (tubes and spheres around one persistent
 PyVista mesh whose points are overwritten in place), the interpenetration overlay, and the helpers that build them
-(explorer/scene.py puts them together in a PyVista Plotter).
+(explorer/rendering/scene.py puts them together in a PyVista Plotter).
 
 The tubes and spheres are VTK filters fed by the PyVista mesh (vtkTubeFilter, vtkGlyph3D), which the Plotter draws
 as a pipeline: PyVista's own `tube()` and `glyph()` return a new mesh on every call, and a frame change here must
@@ -12,7 +12,7 @@ import numpy as np
 import pyvista as pv
 from vtkmodules.vtkFiltersCore import vtkGlyph3D, vtkTubeFilter
 
-from explorer.palette import WARNING
+from explorer.rendering.palette import WARNING
 from imm_model.skeleton import Skeleton
 
 

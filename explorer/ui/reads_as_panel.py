@@ -11,7 +11,7 @@ import numpy as np
 from trame.widgets import html
 from trame.widgets import vuetify3 as v3
 
-from explorer.palette import class_color, display_name
+from explorer.rendering.palette import class_color, display_name
 from imm_model.reads_as import MIX_SHARE
 
 

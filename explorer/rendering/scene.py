@@ -1,4 +1,4 @@
-"""The 3D scene: three stick figures (leader, ground truth, synthesized; explorer/figures.py), a floor grid,
+"""The 3D scene: three stick figures (leader, ground truth, synthesized; explorer/rendering/figures.py), a floor grid,
 captions, the camera presets and the layouts, in a PyVista Plotter rendering off screen.
 
 Built once per process. A frame change only overwrites point coordinates of persistent meshes (the
@@ -6,7 +6,7 @@ tube and sphere filters re-run on their inputs); a layout change only moves acto
 rebuilt while the user plays, scrubs or mixes labels.
 
 Importing pyvista.plotting (which imports matplotlib) costs 1.4-2 s here: the zygote pays it once, before it forks
-the studio processes (explorer/zygote.py preload), so a tab's process starts with it loaded.
+the studio processes (explorer/serving/zygote.py preload), so a tab's process starts with it loaded.
 """
 
 from __future__ import annotations
@@ -25,8 +25,8 @@ from vtkmodules.vtkInteractionStyle import vtkInteractorStyleTrackballCamera  # 
 from vtkmodules.vtkRenderingCore import vtkWindowToImageFilter  # noqa: E402
 from vtkmodules.vtkRenderingUI import vtkGenericRenderWindowInteractor  # noqa: E402
 
-from explorer.figures import ContactOverlay, StickFigure, add_actor, line_mesh, set_lines  # noqa: E402
-from explorer.palette import CHARACTER_TITLES, CHARACTERS, PINNED  # noqa: E402
+from explorer.rendering.figures import ContactOverlay, StickFigure, add_actor, line_mesh, set_lines  # noqa: E402
+from explorer.rendering.palette import CHARACTER_TITLES, CHARACTERS, PINNED  # noqa: E402
 from imm_model.skeleton import Skeleton  # noqa: E402
 
 CHARACTER_KEYS = ("leader", "ground_truth", "synthesized")
@@ -46,7 +46,7 @@ class Scene:
         self.renderer = self.plotter.renderer
         self.render_window = self.plotter.render_window
         self.render_window.SetMultiSamples(0)  # MSAA costs ~3x per frame on llvmpipe (docs/experiments/studio-performance.md)
-        # Mouse events from the page (explorer/view_stream.py) turn the camera through this interactor (an off-screen
+        # Mouse events from the page (explorer/rendering/view_stream.py) turn the camera through this interactor (an off-screen
         # Plotter has none of its own).
         interactor = vtkGenericRenderWindowInteractor()
         interactor.SetRenderWindow(self.render_window)

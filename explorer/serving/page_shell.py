@@ -17,18 +17,18 @@ import shutil
 import tempfile
 from pathlib import Path
 
-BYTES_SCRIPT = Path(__file__).with_name("static") / "websocket_bytes.js"
-LATENT_SCRIPT = Path(__file__).with_name("static") / "latent_map.js"
+from explorer.trame_adapter import CLIENT_FIRST_SCRIPT, client_www, serve_page
+
+STATIC = Path(__file__).resolve().parents[1] / "static"  # explorer/static
+BYTES_SCRIPT = STATIC / "websocket_bytes.js"
+LATENT_SCRIPT = STATIC / "latent_map.js"
 PLOTLY_URL = "imm_plotly"  # where the page finds plotly.min.js (static/latent_map.js PLOTLY_SRC)
-ANCHOR = '<script src="vue.global.js"></script>'  # trame's first script: ours go before it
+ANCHOR = CLIENT_FIRST_SCRIPT  # trame's first script: ours go before it
 
 
 def use_page_shell(server, cache_dir: Path) -> None:
     """Serve the shell as `server`'s page: call once the studio's modules are enabled, before the server starts."""
-    from trame_client import module
-
-    server.enable_module(module)  # trame's client, which the server would enable when it starts; its page is replaced
-    server.enable_module({"www": str(page_shell(cache_dir)), "serve": {PLOTLY_URL: str(plotly_js_dir())}})
+    serve_page(server, page_shell(cache_dir), {PLOTLY_URL: str(plotly_js_dir())})
 
 
 def plotly_js_dir() -> Path:
@@ -49,9 +49,7 @@ def shell_index(trame_index: str) -> str:
 
 def page_shell(cache_dir: Path) -> Path:
     """The folder to serve as the page (built on first use; concurrent studio processes build it once)."""
-    from trame_client.module import vue3
-
-    source = Path(vue3.www)
+    source = client_www()
     index = shell_index((source / "index.html").read_text())
     key = hashlib.sha256(index.encode() + str(source).encode()).hexdigest()[:16]
     shell = cache_dir / f"page-{key}"

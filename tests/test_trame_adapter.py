@@ -1,0 +1,194 @@
+"""explorer/trame_adapter.py: every trame, trame-rca and wslink internal it relies on is still there in the installed
+packages. Each check fails naming the package, its version and the adapter's numbered patch, so that an upgrade that
+drops one is found here rather than as a blank studio page."""
+
+from __future__ import annotations
+
+import asyncio
+import importlib
+import importlib.metadata
+import inspect
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from explorer import trame_adapter
+
+pytest.importorskip("trame")
+pytest.importorskip("trame_rca")
+
+
+def where(package: str, patch: int) -> str:
+    """'<package> <installed version> (explorer/trame_adapter.py patch N)', the prefix of every failure."""
+    return f"{package} {importlib.metadata.version(package)} (explorer/trame_adapter.py patch {patch})"
+
+
+def params(fn) -> list[str]:
+    return list(inspect.signature(fn).parameters)
+
+
+# ---- 1, 2. the page ------------------------------------------------------------------------------------------------
+def test_trames_client_page_still_has_what_the_shell_rewrites():
+    www = trame_adapter.client_www()
+    index = www / "index.html"
+    assert index.is_file(), f"{where('trame-client', 1)}: no index.html in trame_client.module.vue3.www ({www})"
+    assert trame_adapter.CLIENT_FIRST_SCRIPT in index.read_text(), (
+        f"{where('trame-client', 1)}: index.html no longer loads {trame_adapter.CLIENT_FIRST_SCRIPT} (the studio's scripts go before it)")
+    assert (www / "vue.global.js").is_file(), f"{where('trame-client', 1)}: no vue.global.js beside index.html"
+
+
+def test_the_last_www_enabled_is_the_page_trame_serves(tmp_path):
+    from trame.app import get_server
+    from trame_server.core import Server
+
+    assert "module" in params(Server.enable_module), f"{where('trame-server', 1)}: Server.enable_module(module) changed"
+    server = get_server("trame-adapter-test", client_type="vue3")
+    trame_adapter.serve_page(server, tmp_path, {"imm_test": str(tmp_path)})
+    assert getattr(server, "_www", None) == str(tmp_path), (
+        f"{where('trame-server', 1)}: enable_module no longer keeps the last module's 'www' as the page (Server._www)")
+    assert server.serve.get("imm_test") == str(tmp_path), f"{where('trame-server', 1)}: a module's 'serve' is not served"
+    source = inspect.getsource(Server)
+    assert re.search(r"if self\._www is None:\s*\n\s*from trame_client import module", source), (
+        f"{where('trame-server', 1)}: Server no longer enables trame_client's module only when no page is set")
+
+
+def test_trames_client_bundle_reads_binary_messages_as_the_bytes_script_expects():
+    bundles = [p.read_text(errors="replace") for p in (trame_adapter.client_www() / "assets").glob("*.js")]
+    assert any(re.search(r"binaryType\s*=\s*[`'\"]blob[`'\"]", b) for b in bundles), (
+        f"{where('trame-client', 2)}: the client bundle no longer sets binaryType to 'blob' (static/websocket_bytes.js)")
+    assert any(".arrayBuffer()" in b and ".slice(" in b for b in bundles), (
+        f"{where('trame-client', 2)}: the client bundle no longer reads messages with slice() and arrayBuffer()")
+
+
+# ---- 3, 4. the picture stream ----------------------------------------------------------------------------------------
+class FakeWindow:
+    """A remote-controlled area (trame-rca's RemoteControlledAreaProtocol) that counts what it is asked."""
+
+    def __init__(self):
+        self.events, self.grabs = [], 0
+
+    @property
+    def img_cols_rows(self):
+        self.grabs += 1
+        return np.zeros((4 * 4 * 3,), np.uint8), 4, 4
+
+    def process_resize_event(self, width, height):
+        pass
+
+    def process_interaction_event(self, event):
+        self.events.append(event)
+
+
+class FakeArea:
+    name = "view"
+
+    def __init__(self):
+        self.handlers = []
+
+    def add_view_handler(self, handler):
+        self.handlers.append(handler)
+
+
+def test_the_image_scheduler_still_has_the_private_render_hook():
+    from trame_rca.schedulers import RcaImageRenderScheduler
+
+    assert params(getattr(RcaImageRenderScheduler, "_render_frame", lambda: None)) == ["self", "quality"], (
+        f"{where('trame-rca', 3)}: RcaImageRenderScheduler._render_frame(self, quality) is gone or changed")
+    init = params(RcaImageRenderScheduler.__init__)
+    for name in ("window", "target_fps", "interactive_quality", "still_quality", "rca_encoder"):
+        assert name in init, f"{where('trame-rca', 3)}: RcaImageRenderScheduler.__init__ has no {name!r}"
+    assert "self._render_frame(interactive)" in inspect.getsource(RcaImageRenderScheduler), (
+        f"{where('trame-rca', 3)}: the render loop no longer renders through self._render_frame")
+
+
+def test_interactive_frames_go_through_the_wrapper_and_keys_never_reach_vtk():
+    from trame_rca.rca import RemoteControlledAreaProtocol, window_wrapper  # noqa: F401 - patch 4 uses window_wrapper
+    from trame_rca.view_adapter import RcaViewAdapter
+
+    assert {"window", "name", "scheduler"} <= set(params(RcaViewAdapter.__init__)), (
+        f"{where('trame-rca', 4)}: RcaViewAdapter(window, name, scheduler=...) changed")
+    assert len(params(RcaViewAdapter.on_interaction)) == 3, (
+        f"{where('trame-rca', 4)}: RcaViewAdapter.on_interaction(origin, event) changed")
+    assert isinstance(FakeWindow(), RemoteControlledAreaProtocol), f"{where('trame-rca', 4)}: RemoteControlledAreaProtocol changed"
+
+    async def run():
+        window, area, wrapped, after = FakeWindow(), FakeArea(), [], []
+
+        def wrap(render):
+            before = window.grabs
+            result = render()
+            wrapped.append(window.grabs - before)  # the render grabbed the window's pixels once, inside the wrapper
+            after.append(window.grabs)
+            return result
+
+        handler = trame_adapter.stream_view(area, window, wrap_interactive=wrap, target_fps=30, interactive_quality=70,
+                                            still_quality=85)
+        assert area.handlers == [handler]
+        handler.update()
+        for _ in range(100):  # the scheduler's loop renders the interactive frame, then the still one
+            await asyncio.sleep(0.01)
+            if after and window.grabs > after[-1]:
+                break
+        handler.on_interaction(None, {"type": "KeyPress", "key": "r"})
+        handler.on_interaction(None, {"type": "LeftButtonPress", "x": 1, "y": 1})
+        await handler.close()
+        return window, wrapped, after
+
+    window, wrapped, after = asyncio.run(run())
+    assert wrapped == [1], f"{where('trame-rca', 3)}: the interactive frame did not render through the wrapper ({wrapped})"
+    assert window.grabs > after[-1], f"{where('trame-rca', 3)}: the still frame after it was not rendered (outside the wrapper)"
+    assert [e["type"] for e in window.events] == ["LeftButtonPress"], (
+        f"{where('trame-rca', 4)}: a key reached the window, or the mouse did not ({window.events})")
+
+
+# ---- 5, 6. the server ----------------------------------------------------------------------------------------------
+def test_attachments_and_the_secret_still_go_where_the_adapter_puts_them():
+    from trame.app import get_server
+    from trame_server.core import Server
+    from wslink.protocol import WslinkHandler
+    from wslink.websocket import ServerProtocol
+
+    assert isinstance(inspect.getattr_static(Server, "protocol"), property), f"{where('trame-server', 5)}: Server.protocol"
+    assert "addAttachment" in params(ServerProtocol.init), f"{where('wslink', 5)}: ServerProtocol.init(.., addAttachment, ..)"
+    assert callable(getattr(WslinkHandler, "addAttachment", None)), f"{where('wslink', 5)}: WslinkHandler.addAttachment"
+    server = get_server("trame-adapter-secret", client_type="vue3")
+    trame_adapter.set_secret(server, "adapter-test-secret")
+    args, _ = server.cli.parse_known_args([])
+    assert getattr(args, "authKey", None) == "adapter-test-secret", (
+        f"{where('wslink', 6)}: the server's command line has no --authKey default to set")
+
+
+# ---- 7. wslink's wire format ----------------------------------------------------------------------------------------
+def test_wslinks_chunk_header_and_hello_are_what_the_proxy_speaks():
+    from wslink import chunking, protocol
+
+    assert getattr(chunking, "HEADER_LENGTH", None) == trame_adapter.WSLINK_HEADER, (
+        f"{where('wslink', 7)}: chunk header is {getattr(chunking, 'HEADER_LENGTH', None)} bytes, not {trame_adapter.WSLINK_HEADER}")
+    header = (7).to_bytes(4, "little") + (0).to_bytes(4, "little") + (99).to_bytes(4, "little")
+    assert chunking._encode_header(7, 0, 99) == header, f"{where('wslink', 7)}: chunk header layout (id, offset, size)"
+    source = inspect.getsource(protocol)
+    assert f'"{trame_adapter.WSLINK_HELLO}"' in source and '"secret"' in source, (
+        f"{where('wslink', 7)}: the hello ({trame_adapter.WSLINK_HELLO} with a 'secret') is not what wslink checks")
+
+
+# ---- 8. the zygote's preload ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("name", trame_adapter.PRELOAD)
+def test_every_preloaded_module_is_there(name):
+    package = {"trame": "trame", "trame_rca": "trame-rca", "wslink": "wslink"}[name.split(".")[0]]
+    try:
+        importlib.import_module(name)
+    except ImportError as err:
+        pytest.fail(f"{where(package, 8)}: cannot import {name}: {err}")
+
+
+def test_the_adapter_is_the_only_module_reaching_into_trame_privates():
+    """No other studio module names the private attributes the adapter patches."""
+    root = Path(trame_adapter.__file__).parent
+    names = ("_render_frame", "_interactive_quality", "addAttachment", "authKey", "enable_module", "window_wrapper")
+    for path in sorted(root.rglob("*.py")):
+        if path.name == "trame_adapter.py":
+            continue
+        text = path.read_text()
+        assert not [n for n in names if n in text], f"{path.relative_to(root.parent)} uses {[n for n in names if n in text]}"
