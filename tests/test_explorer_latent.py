@@ -175,7 +175,7 @@ def test_the_selection_list_sorts_worst_first_by_id_or_class(sample_data):
     from explorer.ui.latent_panel import LatentPanel
 
     panel = LatentPanel.__new__(LatentPanel)  # rows() needs only the session's data and the map's AFDs
-    panel.studio = SimpleNamespace(session=SimpleNamespace(data=sample_data, class_names=sample_data.class_names))
+    panel.page = SimpleNamespace(session=SimpleNamespace(data=sample_data, class_names=sample_data.class_names))
     panel.latent = LatentMap(np.zeros((len(sample_data), 2), np.float32))
     picked = [40, 3, 120, 3, 9999, -1]  # a repeat and indices off the map are dropped
     assert [r["i"] for r in panel.rows(picked, "afd")] == [3, 40, 120] and panel.rows(picked, "afd")[0]["afd"] is None

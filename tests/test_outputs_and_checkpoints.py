@@ -364,16 +364,15 @@ def test_studio_export_copies_never_overwrite_and_use_safe_names(tmp_path):
     upload = SimpleNamespace(name="take.bvh")
     session = SimpleNamespace(export_name=lambda ext: f"{Path(upload.name).stem}_neutral.{ext}",
                               export_bvh=lambda character: f"BVH of {upload.name}".encode())
-    studio = SimpleNamespace(session=session, state=SimpleNamespace(notice=""), guarded=lambda fn: fn,
-                             server=SimpleNamespace(trigger=lambda name: (lambda fn: fn),
-                                                    protocol=SimpleNamespace(addAttachment=bytes)))
-    exports = Exports(studio, tmp_path / "exports")
+    page = SimpleNamespace(session=session, state=SimpleNamespace(notice=""), guarded=lambda fn: fn,
+                           trigger=lambda name: (lambda fn: fn))
+    exports = Exports(page, None, tmp_path / "exports", attach=bytes)
     assert exports.export_bvh("follower") == b"BVH of take.bvh"
     upload.name = "elsewhere/take.bvh"  # another take of the same name
     exports.export_bvh("follower")
     assert _files(tmp_path / "exports") == {"take_neutral.follower.bvh": b"BVH of take.bvh",
                                             "take_neutral.follower-2.bvh": b"BVH of elsewhere/take.bvh"}
-    assert "take_neutral.follower-2.bvh" in studio.state.notice
+    assert "take_neutral.follower-2.bvh" in page.state.notice
     for bad in ("../../x", "follower/../../x"):
         with pytest.raises(ValueError, match="unknown character"):
             exports.export_bvh(bad)

@@ -18,12 +18,14 @@ from explorer.rendering.palette import class_color, display_name
 from explorer.rendering.scene import CHARACTER_KEYS, Scene, floor_height
 from explorer.session.latent import LatentMap
 from explorer.session.session import FPS, Session, one_line
+from explorer.trame_adapter import attachment
 from explorer.ui.compare import Compare
 from explorer.ui.exports import Exports
 from explorer.ui.keys import press
 from explorer.ui.latent_panel import LatentPanel
-from explorer.ui.layout import build_layout
+from explorer.ui.layout import LayoutParts, build_layout
 from explorer.ui.model_switch import ModelSwitch
+from explorer.ui.panel_api import Page
 from explorer.ui.playback import play
 from explorer.ui.reads_as_panel import reads_as_rows, unread_note
 from explorer.ui.url_state import apply_view, current_view, view_query
@@ -39,12 +41,15 @@ class Studio:
         self.server = server
         self.render_mode = render
         self.session = session
-        self.exports = Exports(self, export_dir)
-        self.compare = Compare(self)
-        self.model_switch = ModelSwitch(self)
-        self.latent_panel = LatentPanel(self, latent)
         data = session.data
         self.scene = Scene(data.skeleton, floor_height(data.leader, data.follower, data.skeleton))
+        # each panel gets the page and the few callbacks it calls, never the Studio (explorer/ui/panel_api.py)
+        page = Page(session, server.state, server.controller, server.trigger, self.guarded)
+        self.exports = Exports(page, self.scene, export_dir, attach=functools.partial(attachment, server))
+        self.compare = Compare(page, self.scene, set_label=self.set_label, update_review=self.update_review)
+        self.model_switch = ModelSwitch(page, self.scene, show_review=self.show_review)
+        self.latent_panel = LatentPanel(page, latent, open_sequence=self.load_sequence)
+        self._view = None  # the 3D view widget, made by the layout (attach_view)
         self._mix_pending = False
         self._mix_task = None
         self._play_task = None
@@ -314,6 +319,12 @@ class Studio:
         self.latent_panel.redraw()
         s.mix_count = (s.mix_count or 0) + 1
 
+    def show_review(self) -> bool:
+        """The review panels' state for the current follower (inside the caller's state batch); True when the view's
+        contact limbs changed, so that it needs one more picture."""
+        self._after_mix()
+        return self._contact_changed
+
     def match_label(self):
         if self.session.own_class is not None:  # an uploaded leader has no class to match
             self.set_label(np.eye(len(self.session.class_names))[self.session.own_class])
@@ -390,5 +401,10 @@ class Studio:
         self._view.update(draft=draft)
 
     # ---- layout --------------------------------------------------------------------------
+    def attach_view(self, view) -> None:
+        """The 3D view widget the layout made: every new picture goes through it (ctrl.view_update)."""
+        self._view = view
+        self.ctrl.view_update = self.push_view
+
     def _build_ui(self):
-        return build_layout(self)
+        return build_layout(LayoutParts(self.server, self.session, self.scene, self.render_mode, attach_view=self.attach_view))

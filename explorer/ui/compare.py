@@ -4,36 +4,45 @@ the synthesized one is) with the per-frame distance between them. "What does add
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from explorer.rendering.scene import Scene
+    from explorer.ui.panel_api import Page
+
 
 class Compare:
-    def __init__(self, studio):
-        self.studio = studio
-        studio.ctrl.pin_mix = studio.guarded(self.pin)
-        studio.ctrl.swap_mix = studio.guarded(self.swap)
-        studio.ctrl.clear_pin = studio.guarded(self.clear)
+    def __init__(self, page: Page, scene: Scene, *, set_label: Callable[..., None], update_review: Callable[[], None]):
+        """`set_label(weights, scale)` moves the sliders; `update_review()` redraws the review panels."""
+        self.page, self.scene = page, scene
+        self.set_label, self.update_review = set_label, update_review
+        page.ctrl.pin_mix = page.guarded(self.pin)
+        page.ctrl.swap_mix = page.guarded(self.swap)
+        page.ctrl.clear_pin = page.guarded(self.clear)
 
     def pin(self) -> None:
-        self.studio.session.pin()
+        self.page.session.pin()
         self.show()
 
     def swap(self) -> None:
         """The pinned mix goes back on the sliders and the current one is pinned in its place."""
-        ses = self.studio.session
+        ses = self.page.session
         if ses.pinned_weights is None:
             return
         weights, scale = ses.pinned_weights.copy(), ses.pinned_scale
         ses.pin()
         self.show()
-        self.studio.set_label(weights, scale)  # re-synthesizes as a slider move does
+        self.set_label(weights, scale)  # re-synthesizes as a slider move does
 
     def clear(self) -> None:
-        self.studio.session.clear_pin()
+        self.page.session.clear_pin()
         self.show()
 
     def show(self) -> None:
         """Scene, label text and distance line after a pin, swap, clear or a new leader."""
-        studio, ses = self.studio, self.studio.session
-        studio.scene.set_pinned(ses.pinned)
-        studio.state.pinned_text = ses.pinned_text()
-        studio.update_review()
-        studio.ctrl.view_update()
+        page, ses = self.page, self.page.session
+        self.scene.set_pinned(ses.pinned)
+        page.state.pinned_text = ses.pinned_text()
+        self.update_review()
+        page.ctrl.view_update()

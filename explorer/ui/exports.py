@@ -7,30 +7,36 @@ They are trame triggers, not controllers: the page awaits the returned bytes to 
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from explorer.session.session import FPS, one_line
-from explorer.trame_adapter import attachment
+
+if TYPE_CHECKING:
+    from explorer.rendering.scene import Scene
+    from explorer.ui.panel_api import Page
 
 CHARACTERS = ("follower", "leader")
 VIDEO_FORMATS = ("gif", "mp4")
 
 
 class Exports:
-    def __init__(self, studio, export_dir: Path):
-        self.studio, self.export_dir = studio, Path(export_dir)
+    def __init__(self, page: Page, scene: Scene, export_dir: Path, *, attach: Callable[[bytes], object]):
+        """`attach(data)` makes `data` what a trigger returns for the page to download (explorer/trame_adapter.py)."""
+        self.page, self.scene, self.export_dir, self.attach = page, scene, Path(export_dir), attach
         for name in ("export_npz", "export_bvh", "export_video", "export_png"):
-            studio.server.trigger(name)(studio.guarded(getattr(self, name)))
+            page.trigger(name)(page.guarded(getattr(self, name)))
 
     @property
     def session(self):
-        return self.studio.session
+        return self.page.session
 
     def _send(self, name: str, data: bytes):
         self._save_copy(name, data)
-        return attachment(self.studio.server, data)
+        return self.attach(data)
 
     def export_npz(self):
         return self._send(self.session.export_name("npz"), self.session.export_npz())
@@ -45,7 +51,7 @@ class Exports:
         """The 3D view as the user sees it now (the server renders it; no browser canvas needed)."""
         import imageio.v3 as iio
 
-        return self._send(self.session.export_name("png"), iio.imwrite("<bytes>", self.studio.scene.screenshot(), extension=".png"))
+        return self._send(self.session.export_name("png"), iio.imwrite("<bytes>", self.scene.screenshot(), extension=".png"))
 
     def export_video(self, fmt: str = "gif"):
         import imageio.v3 as iio
@@ -53,8 +59,8 @@ class Exports:
         if fmt not in VIDEO_FORMATS:
             raise ValueError(f"unknown video format {fmt!r}: {' or '.join(VIDEO_FORMATS)}")
 
-        images = self.studio.scene.frames()
-        self.studio.ctrl.view_update()
+        images = self.scene.frames()
+        self.page.ctrl.view_update()
         if fmt == "mp4":
             images = [im[: im.shape[0] // 2 * 2, : im.shape[1] // 2 * 2] for im in images]  # even sizes for yuv420p
             data = iio.imwrite("<bytes>", np.stack(images), extension=".mp4", fps=FPS, codec="libx264")
@@ -68,7 +74,7 @@ class Exports:
         from imm_model.errors import IMMError
         from imm_model.outputs import write_new
 
-        state = self.studio.state
+        state = self.page.state
         try:
             path = write_new(self.export_dir / safe_file_name(name), data)
             state.notice = f"saved {path}"

@@ -6,7 +6,13 @@ whose own arrow keys move it) and sends the key; the studio acts on it here.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any, Protocol
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from explorer.session.session import Session
+
 
 SLIDER_STEP = 0.1
 
@@ -40,7 +46,18 @@ LISTENER_JS = (
 )
 
 
-def press(studio, key: str) -> None:
+class KeyTarget(Protocol):
+    """What the keys act on (the Studio is one)."""
+
+    state: Any
+    session: Session
+
+    def match_label(self) -> None: ...
+
+    def reset_label(self) -> None: ...
+
+
+def press(studio: KeyTarget, key: str) -> None:
     """Act on one key (anything not in KEYS is ignored: the page is not trusted to filter)."""
     s, n = studio.state, studio.session.num_frames
     frames = {"ArrowLeft": int(s.frame or 0) - 1, "ArrowRight": int(s.frame or 0) + 1, "Home": 0, "End": n - 1}

@@ -13,12 +13,17 @@ once it is up, and cached.
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from trame.app import asynchronous
 
 from explorer.rendering.palette import SYNTHESIZED, class_color, display_name
 from explorer.session.latent import METHODS, LatentMap
 from explorer.session.session import one_line
+
+if TYPE_CHECKING:
+    from explorer.ui.panel_api import Page
 
 COLOR_MODES = ("class", "afd", "held")
 SORT_KEYS = ("afd", "id", "class")
@@ -27,32 +32,34 @@ AFD_STEP_S = 0.01  # ... and leave the event loop this long after each sequence'
 
 
 class LatentPanel:
-    def __init__(self, studio, latent: LatentMap):
-        self.studio = studio
+    def __init__(self, page: Page, latent: LatentMap, *, open_sequence: Callable[[int], None]):
+        """`open_sequence(index)` opens a sequence as the picker does."""
+        self.page = page
         self.latent = latent
+        self.open_sequence = open_sequence
         self._drawn = ""  # the method whose points the page holds
         self._fitting: set[str] = set()  # methods being fitted (explorer/session/latent.py fit_elsewhere)
-        studio.state.update({
+        page.state.update({
             "latent_points": None,  # the figure's points (static/latent_map.js draws them)
             "latent_marks": {"ring": None, "star": None},  # the current sequence and mix, map coordinates
             "latent_color": "class",
-            "latent_colors": {"classes": [class_color(i) for i in range(len(studio.session.class_names))],
+            "latent_colors": {"classes": [class_color(i) for i in range(len(page.session.class_names))],
                               "star": SYNTHESIZED},
             "latent_selection": [],  # indices the page's box or lasso selected
             "latent_rows": [],  # ... as rows of the list under the map
             "latent_sort": "afd",
         })  # fmt: skip
-        studio.state.change("projection")(self.on_projection_change)
-        studio.state.change("latent_selection", "latent_sort")(self.on_selection_change)
-        studio.ctrl.pick_latent_point = studio.guarded(self.pick_point)
-        studio.ctrl.open_listed = studio.guarded(self.open_listed)
-        studio.server.trigger("latent_pick")(studio.guarded(self.pick_point))
-        studio.ctrl.on_server_ready.add(lambda **_: self.on_projection_change(studio.state.projection or "tsne"))
-        studio.ctrl.on_server_ready.add(lambda **_: asynchronous.create_task(self._score()))
+        page.state.change("projection")(self.on_projection_change)
+        page.state.change("latent_selection", "latent_sort")(self.on_selection_change)
+        page.ctrl.pick_latent_point = page.guarded(self.pick_point)
+        page.ctrl.open_listed = page.guarded(self.open_listed)
+        page.trigger("latent_pick")(page.guarded(self.pick_point))
+        page.ctrl.on_server_ready.add(lambda **_: self.on_projection_change(page.state.projection or "tsne"))
+        page.ctrl.on_server_ready.add(lambda **_: asynchronous.create_task(self._score()))
 
     def points(self, method: str) -> dict:
         """What the figure plots for `method`: coordinates and each point's hover readout."""
-        d, names = self.studio.session.data, self.studio.session.class_names
+        d, names = self.page.session.data, self.page.session.class_names
         xy = self.latent.coords[method]
         afd = self.latent.afd
         return {
@@ -70,7 +77,7 @@ class LatentPanel:
     def redraw(self) -> None:
         """The map for the chosen method (nothing while that method is still being fitted). Its points are sent
         when the method changes; after that only the current sequence's ring and the mix's star move."""
-        s, ses = self.studio.state, self.studio.session
+        s, ses = self.page.state, self.page.session
         method = s.projection or "tsne"
         if not self.latent.has(method):
             return
@@ -90,13 +97,13 @@ class LatentPanel:
         if self.latent.has(projection):
             self.redraw()
             return
-        self.studio.state.projection_busy = True
+        self.page.state.projection_busy = True
         if projection not in self._fitting:
             self._fitting.add(projection)
             asynchronous.create_task(self._fit(projection))
 
     async def _fit(self, method: str):
-        state = self.studio.state
+        state = self.page.state
         try:
             await self.latent.fit_elsewhere(method)
         except Exception as err:
@@ -114,22 +121,22 @@ class LatentPanel:
         if self.latent.afd is not None:
             return
         await asyncio.sleep(AFD_DELAY_S)
-        ses = self.studio.session
+        ses = self.page.session
         try:
             for _ in self.latent.afd_scores(ses.map_model, ses.data):  # the map is of this model, whichever is on
                 await asyncio.sleep(AFD_STEP_S)  # one sequence at a time, between the page's own work
         except Exception as err:
-            with self.studio.state:
-                self.studio.state.error = f"AFD of the sequences failed: {one_line(err)}"
+            with self.page.state:
+                self.page.state.error = f"AFD of the sequences failed: {one_line(err)}"
             return
-        with self.studio.state:
+        with self.page.state:
             self._drawn = ""  # resend the points, now with their AFDs
             self.redraw()
             self.on_selection_change()
 
     def rows(self, indices, sort: str) -> list[dict]:
         """The listed sequences: id, class, subject pair, held out, AFD; the worst AFD first, or by id or class."""
-        d, names, afd = self.studio.session.data, self.studio.session.class_names, self.latent.afd
+        d, names, afd = self.page.session.data, self.page.session.class_names, self.latent.afd
         rows = [{"i": i, "id": d.sequence_ids[i], "cls": display_name(names[int(d.actions[i])]),
                  "color": class_color(int(d.actions[i])), "held": bool(d.held_out[i]),
                  "afd": None if afd is None else round(float(afd[i]), 3)}
@@ -143,7 +150,7 @@ class LatentPanel:
         return rows
 
     def on_selection_change(self, **_):
-        s = self.studio.state
+        s = self.page.state
         sort = s.latent_sort if s.latent_sort in SORT_KEYS else "afd"
         s.latent_rows = self.rows(s.latent_selection or [], sort)
 
@@ -152,16 +159,16 @@ class LatentPanel:
         if index is None:
             return
         self.open(int(index[0] if isinstance(index, list | tuple) else index))
-        self.studio.state.playing = True
+        self.page.state.playing = True
 
     def open_listed(self, index) -> None:
         """A row of the selection list: open that sequence (paused, at its first frame)."""
         self.open(int(index))
 
     def open(self, index: int) -> None:
-        state = self.studio.state
+        state = self.page.state
         with state:
             state.class_filter = ""
             state.pair_filter = ""
             state.held_filter = "all"
-        self.studio.load_sequence(index)
+        self.open_sequence(index)

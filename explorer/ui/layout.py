@@ -1,9 +1,14 @@
 """The studio page's layout (trame + Vuetify 3): what is on screen and which controller each control calls.
 
-The Studio (app.py) owns state and controllers; this module only places widgets, in pieces small enough to read.
+The Studio (app.py) owns state and controllers; this module only places widgets, in pieces small enough to read,
+from the LayoutParts it is given.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from trame.ui.vuetify3 import VAppLayout
 from trame.widgets import client, html
@@ -13,6 +18,10 @@ from explorer.rendering.charts import CHART_CSS, DISTANCE_BOX
 from explorer.rendering.palette import CHARACTER_TITLES, CHARACTERS, PINNED, WARNING, class_color, display_name
 from explorer.rendering.scene import CAMERA_PRESETS, CHARACTER_KEYS
 from explorer.rendering.view_stream import ViewStream
+
+if TYPE_CHECKING:
+    from explorer.rendering.scene import Scene
+    from explorer.session.session import Session
 from explorer.ui.keys import KEY_HELP, LISTENER_JS
 from explorer.ui.model_switch import model_chip, model_panel
 from explorer.ui.reads_as_panel import reads_as_panel
@@ -42,28 +51,45 @@ html { overflow: hidden; }
 """
 
 
-def build_layout(studio) -> VAppLayout:
+@dataclass(frozen=True)
+class LayoutParts:
+    """What the layout places and wires: the trame server (its controllers are what the controls call), the session
+    (class and model names), the scene, the render mode, and `attach_view(view)`, called with the 3D view widget once
+    made (the Studio sends its pictures through it)."""
+
+    server: Any
+    session: Session
+    scene: Scene
+    render_mode: str
+    attach_view: Callable[[Any], None]
+
+    @property
+    def ctrl(self):
+        return self.server.controller
+
+
+def build_layout(page: LayoutParts) -> VAppLayout:
     # Built from VAppLayout rather than trame's SinglePageWithDrawerLayout: that one adds a footer (hidden here anyway)
     # whose list of trame versions reads every installed package's metadata, ~0.2 s at every tab's start.
-    studio.server.state.trame__title = "IMM Studio"
-    with VAppLayout(studio.server, full_height=True) as layout:
+    page.server.state.trame__title = "IMM Studio"
+    with VAppLayout(page.server, full_height=True) as layout:
         with v3.VAppBar(density="compact", color="#263238", theme="dark"):
             v3.VAppBarNavIcon(click="main_drawer = !main_drawer")
             v3.VToolbarTitle("IMM Studio", style="flex: 0 0 auto")
-            toolbar(studio)
+            toolbar(page)
         with v3.VNavigationDrawer(v_model=("main_drawer", True), permanent=True, location="left", width=330):
             with html.Div(classes="pa-3"):
-                sequence_picker(studio)
+                sequence_picker(page)
                 v3.VDivider(classes="my-3")
-                model_panel(studio)
-                label_mix(studio)
+                model_panel(page.session)
+                label_mix(page)
                 v3.VDivider(classes="my-3")
-                character_toggles(studio)
+                character_toggles(page)
         with v3.VMain(classes="imm-main"):
             with html.Div(classes="imm-column"):
-                scene_view(studio)
-                playback_bar(studio)
-                review_cards(studio)
+                scene_view(page)
+                playback_bar(page)
+                review_cards(page)
                 v3.VSnackbar("{{ notice }}", model_value=("!!notice",), timeout=4000, update_modelValue="notice = ''")
                 page_hooks()
                 keys_card()
@@ -91,7 +117,7 @@ def keys_card() -> None:
                         html.Span(what)
 
 
-def toolbar(studio) -> None:
+def toolbar(page: LayoutParts) -> None:
     """The top bar: the sequence and whether the model saw it, layout, camera presets, export."""
     v3.VSpacer()
     v3.VChip(
@@ -123,7 +149,7 @@ def toolbar(studio) -> None:
             size="small",
             variant="text",
             prepend_icon="mdi-camera-retake" if preset == "default" else None,
-            click=(studio.ctrl.set_camera, f"['{preset}']"),
+            click=(page.ctrl.set_camera, f"['{preset}']"),
             id=f"camera-{preset}",
         )
     with v3.VMenu():
@@ -164,7 +190,7 @@ def share_link() -> None:
                           hide_details=True, id="share-link", classes="pa-2")
 
 
-def sequence_picker(studio) -> None:
+def sequence_picker(page: LayoutParts) -> None:
     """Filters (class, subject pair, held out) and the sequence picker."""
     html.Div("Sequence", classes="text-overline")
     for label, key in (("Class", "class_filter"), ("Subject pair", "pair_filter")):
@@ -200,14 +226,14 @@ def sequence_picker(studio) -> None:
     )
 
 
-def label_mix(studio) -> None:
+def label_mix(page: LayoutParts) -> None:
     """One slider per class (-1 avoid .. +1 perform), the scale, the label in words and what it reads as."""
     with html.Div(classes="d-flex align-center"):
         html.Div("Label mix", classes="text-overline")
         v3.VSpacer()
-        v3.VBtn("match", size="x-small", variant="tonal", click=studio.ctrl.match_label, id="match-label", classes="mr-1")
-        v3.VBtn("reset", size="x-small", variant="tonal", click=studio.ctrl.reset_label, id="reset-label")
-    for i, name in enumerate(studio.session.class_names):
+        v3.VBtn("match", size="x-small", variant="tonal", click=page.ctrl.match_label, id="match-label", classes="mr-1")
+        v3.VBtn("reset", size="x-small", variant="tonal", click=page.ctrl.reset_label, id="reset-label")
+    for i, name in enumerate(page.session.class_names):
         with html.Div(classes="d-flex align-center", style="height: 30px"):
             html.Div(
                 f"{i + 1} {display_name(name)}", classes=(f"key_slider === {i} ? 'text-body-2 text-decoration-underline' : 'text-body-2'",),
@@ -235,11 +261,11 @@ def label_mix(studio) -> None:
         v3.VSlider(v_model=("scale",), min=0, max=2, step=0.05, density="compact", hide_details=True, id="scale-slider")
         html.Div("{{ Number(scale).toFixed(2) }}", classes="text-caption ml-1", style="width: 38px; text-align: right")
     html.Div("{{ label_text }}", classes="text-body-2 mt-1 pa-2 rounded bg-grey-lighten-4", id="label-text")
-    compare_row(studio)
+    compare_row(page)
     reads_as_panel()
 
 
-def character_toggles(studio) -> None:
+def character_toggles(page: LayoutParts) -> None:
     """Show or hide each of the three characters."""
     html.Div("Characters", classes="text-overline")
     for key, var in zip(CHARACTER_KEYS, ("show_leader", "show_ground_truth", "show_synthesized"), strict=True):
@@ -263,18 +289,18 @@ def character_toggles(studio) -> None:
     )
 
 
-def compare_row(studio) -> None:
+def compare_row(page: LayoutParts) -> None:
     """A/B: pin this mix (purple in the view), then move the sliders; swap or clear."""
     with html.Div(classes="d-flex align-center mt-1", style="gap: 4px"):
-        v3.VBtn("pin this mix", size="x-small", variant="tonal", prepend_icon="mdi-pin", click=studio.ctrl.pin_mix, id="pin-mix",
+        v3.VBtn("pin this mix", size="x-small", variant="tonal", prepend_icon="mdi-pin", click=page.ctrl.pin_mix, id="pin-mix",
                 title="keep this mix to compare the next ones with")
-        v3.VBtn("swap", size="x-small", variant="tonal", click=studio.ctrl.swap_mix, disabled=("!pinned_text",), id="swap-mix")
-        v3.VBtn("clear", size="x-small", variant="tonal", click=studio.ctrl.clear_pin, disabled=("!pinned_text",), id="clear-pin")
+        v3.VBtn("swap", size="x-small", variant="tonal", click=page.ctrl.swap_mix, disabled=("!pinned_text",), id="swap-mix")
+        v3.VBtn("clear", size="x-small", variant="tonal", click=page.ctrl.clear_pin, disabled=("!pinned_text",), id="clear-pin")
     html.Div("pinned: {{ pinned_text }} · {{ ab_text }}", v_if="pinned_text", classes="text-caption mt-1",
              style=f"color: {PINNED}", id="pinned-text")
 
 
-def scene_view(studio) -> None:
+def scene_view(page: LayoutParts) -> None:
     """The error alert and the 3D view (rendered on the server, or by vtk.js with --render local)."""
     v3.VAlert(
         "{{ error }}",
@@ -286,14 +312,13 @@ def scene_view(studio) -> None:
         id="error-alert",
     )
     with html.Div(classes="rounded border imm-scene"):
-        if studio.render_mode == "local":  # vtk.js in the browser (docs/experiments/studio-performance.md), through trame's PyVista view
+        if page.render_mode == "local":  # vtk.js in the browser (docs/experiments/studio-performance.md), through trame's PyVista view
             from trame.widgets import pyvista as pyvista_widgets  # only here: trame-pyvista's import is for this mode
 
-            view = pyvista_widgets.PyVistaLocalView(studio.scene.plotter)
+            view = pyvista_widgets.PyVistaLocalView(page.scene.plotter)
         else:  # rendered on the server, streamed as pictures (explorer/rendering/view_stream.py)
-            view = ViewStream(studio.server, studio.scene.render_window)
-        studio._view = view
-        studio.ctrl.view_update = studio.push_view
+            view = ViewStream(page.server, page.scene.render_window)
+        page.attach_view(view)
         with html.Div(style="position: absolute; left: 8px; top: 6px; pointer-events: none", classes="text-caption"):
             for key in CHARACTER_KEYS:
                 html.Span(
@@ -303,10 +328,10 @@ def scene_view(studio) -> None:
             html.Span("● pinned: {{ pinned_text }}", v_if="pinned_text", style=f"color: {PINNED}; font-weight: 600")
 
 
-def playback_bar(studio) -> None:
+def playback_bar(page: LayoutParts) -> None:
     """Play/pause, step, the frame slider, time, speed and loop."""
     with html.Div(classes="d-flex align-center", style="width: 100%; gap: 8px; flex: 0 0 auto"):
-        v3.VBtn(icon="mdi-skip-previous", size="small", variant="text", click=(studio.ctrl.step_frame, "[-1]"))
+        v3.VBtn(icon="mdi-skip-previous", size="small", variant="text", click=(page.ctrl.step_frame, "[-1]"))
         v3.VBtn(
             icon=("playing ? 'mdi-pause' : 'mdi-play'",),
             size="small",
@@ -314,7 +339,7 @@ def playback_bar(studio) -> None:
             click="playing = !playing",
             id="play-button",
         )
-        v3.VBtn(icon="mdi-skip-next", size="small", variant="text", click=(studio.ctrl.step_frame, "[1]"))
+        v3.VBtn(icon="mdi-skip-next", size="small", variant="text", click=(page.ctrl.step_frame, "[1]"))
         v3.VSlider(
             v_model=("frame",),
             min=0,
@@ -338,7 +363,7 @@ def playback_bar(studio) -> None:
         v3.VCheckbox(v_model=("loop",), label="loop", density="compact", hide_details=True, style="flex: 0 0 auto")
 
 
-def review_cards(studio) -> None:
+def review_cards(page: LayoutParts) -> None:
     """The per-frame error chart and the latent map."""
     with html.Div(classes="imm-review"):
         with v3.VCard(variant="outlined", classes="pa-1", id="chart-card"):
@@ -366,7 +391,7 @@ def review_cards(studio) -> None:
                     v3.VBtn("UMAP", value="umap", size="x-small", id="umap-button")
             with html.Div(classes="d-flex imm-fill", style="gap: 6px"):
                 latent_map()
-                selection_list(studio)
+                selection_list(page)
 
 
 # A click on the chart moves to the frame under the mouse.
@@ -397,7 +422,7 @@ def latent_map() -> None:
     client.ClientStateChange(value="latent_marks", change="utils.get('immLatent').marks(latent_marks)")
 
 
-def selection_list(studio) -> None:
+def selection_list(page: LayoutParts) -> None:
     """The sequences a box or lasso selected on the map: worst AFD first (or by id or class); a click opens one."""
     with html.Div(v_if="latent_rows.length", id="latent-selection",
                   style="flex: 0 0 200px; display: flex; flex-direction: column; min-height: 0; border-left: 1px solid #ddd"):
@@ -410,7 +435,7 @@ def selection_list(studio) -> None:
             v3.VBtn(icon="mdi-close", size="x-small", variant="text", title="clear the selection", click="latent_selection = []")
         with html.Div(style="overflow-y: auto; flex: 1 1 auto; min-height: 0"):
             with html.Div(v_for="row in latent_rows", key=("row.i",), classes="latent-row text-caption d-flex align-center px-1",
-                          style="cursor: pointer; gap: 4px; line-height: 18px", click=(studio.ctrl.open_listed, "[row.i]"),
+                          style="cursor: pointer; gap: 4px; line-height: 18px", click=(page.ctrl.open_listed, "[row.i]"),
                           title=("row.cls + (row.held ? ' · held out' : ' · seen in training')",)):
                 html.Span("●", style=("{color: row.color}",))
                 html.Span("{{ row.id }}", style="flex: 1 1 auto; white-space: nowrap")

@@ -11,11 +11,17 @@ around a slider's synthesis).
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from trame.widgets import client, html
 from trame.widgets import vuetify3 as v3
 
-from explorer.session.session import MAX_VARIATIONS, model_title
+from explorer.session.session import MAX_VARIATIONS, Session, model_title
+
+if TYPE_CHECKING:
+    from explorer.rendering.scene import Scene
+    from explorer.ui.panel_api import Page
 
 # The "computing" mark fades in only after 0.15 s: a reaction drawn sooner never makes the page blink.
 COMPUTING_CSS = """
@@ -25,10 +31,12 @@ COMPUTING_CSS = """
 
 
 class ModelSwitch:
-    def __init__(self, studio):
-        self.studio = studio
-        ses = studio.session
-        studio.state.update({
+    def __init__(self, page: Page, scene: Scene, *, show_review: Callable[[], bool]):
+        """`show_review()` writes the review panels' state for the current follower and says whether the view's
+        contact limbs changed (the view then needs one more picture)."""
+        self.page, self.scene, self.show_review = page, scene, show_review
+        ses = page.session
+        page.state.update({
             "model_name": ses.model_name,
             "model_items": [{"title": model_title(name), "value": name} for name in ses.models],
             "model_title": model_title(ses.model_name),
@@ -38,20 +46,20 @@ class ModelSwitch:
             "computing": False,  # a reaction is being drawn (COMPUTING_CSS)
             "variation_asked": 0,  # "new variation" presses
         })  # fmt: skip
-        studio.state.change("model_name")(self._settled(self.on_model_picked))
-        studio.state.change("seed")(self._settled(self.on_seed_typed))
-        studio.state.change("variation_count")(self._settled(self.on_count_picked))
+        page.state.change("model_name")(self._settled(self.on_model_picked))
+        page.state.change("seed")(self._settled(self.on_seed_typed))
+        page.state.change("variation_count")(self._settled(self.on_count_picked))
         # a state change, not a trigger: it reaches the server with the page's `computing`, which a trigger could overtake
-        studio.state.change("variation_asked")(self._settled(self.on_variation_asked))
+        page.state.change("variation_asked")(self._settled(self.on_variation_asked))
         self._asked = 0
 
     @property
     def state(self):
-        return self.studio.state
+        return self.page.state
 
     def _settled(self, handler):
-        """`handler` with its errors in the page's alert (studio.guarded) and `computing` off after it, whatever it did."""
-        guarded = self.studio.guarded(handler)
+        """`handler` with its errors in the page's alert (page.guarded) and `computing` off after it, whatever it did."""
+        guarded = self.page.guarded(handler)
 
         def call(*args, **kwargs):
             try:
@@ -63,7 +71,7 @@ class ModelSwitch:
 
     # ---- the page's controls ----------------------------------------------------------------
     def on_model_picked(self, model_name, **_):
-        ses = self.studio.session
+        ses = self.page.session
         if model_name == ses.model_name:
             return
         try:
@@ -74,7 +82,7 @@ class ModelSwitch:
 
     def on_seed_typed(self, seed, **_):
         """The seed field: an integer in range draws that variation; anything else is named in the page's alert."""
-        ses = self.studio.session
+        ses = self.page.session
         text = str(seed).strip() if seed is not None else ""
         if not text or text == str(ses.seed):
             return
@@ -93,14 +101,14 @@ class ModelSwitch:
         self.new_variation()
 
     def new_variation(self):
-        ses = self.studio.session
+        ses = self.page.session
         ses.new_variation()
         self.state.seed = ses.seed  # the field shows it; its change handler finds the session there already
         self.refresh()
 
     def on_count_picked(self, variation_count, **_):
         """N variations: drawn side by side (the overlay would put them on top of each other)."""
-        ses = self.studio.session
+        ses = self.page.session
         n = int(variation_count or 1)
         if n == ses.variation_count:
             return
@@ -112,38 +120,38 @@ class ModelSwitch:
     # ---- what the studio calls ----------------------------------------------------------------
     def show_variations(self) -> None:
         """The session's followers beyond the first into the scene (after any re-synthesis)."""
-        ses = self.studio.session
-        self.studio.scene.set_variations(ses.variation_followers, ses.variation_seeds() if ses.stochastic else None)
+        ses = self.page.session
+        self.scene.set_variations(ses.variation_followers, ses.variation_seeds() if ses.stochastic else None)
 
     def draw_variations(self) -> None:
         """The side-by-side variations of a slider's mix, drawn after its first picture (they cost a reaction each)."""
-        ses = self.studio.session
+        ses = self.page.session
         if ses.variations_due:
             ses.draw_variations()
             self.show_variations()
-            self.studio.ctrl.view_update()
+            self.page.ctrl.view_update()
 
     def refresh(self) -> None:
         """The followers after a switch, a seed or a count: the view, the pin's words, the review panels."""
-        studio, ses, s = self.studio, self.studio.session, self.state
-        studio.scene.set_synthesized(ses.synth)
-        studio.scene.set_pinned(ses.pinned)
+        page, ses, s = self.page, self.page.session, self.state
+        self.scene.set_synthesized(ses.synth)
+        self.scene.set_pinned(ses.pinned)
         self.show_variations()
-        studio.ctrl.view_update()  # the picture first, as after a slider; the panels follow it
+        page.ctrl.view_update()  # the picture first, as after a slider; the panels follow it
         with s:
             s.model_title = model_title(ses.model_name)
             s.stochastic = ses.stochastic
             s.seed, s.variation_count = ses.seed, ses.variation_count
             s.pinned_text = ses.pinned_text()
-            studio._after_mix()
+            contact_changed = self.show_review()
             s.error = ""
             s.computing = False
-        if studio._contact_changed:  # the new follower's orange limbs
-            studio.ctrl.view_update()
+        if contact_changed:  # the new follower's orange limbs
+            page.ctrl.view_update()
 
     async def announce(self) -> None:
         """Before a stochastic model's synthesis from a slider: the page learns it is computing (sent first)."""
-        if self.studio.session.stochastic:
+        if self.page.session.stochastic:
             with self.state:
                 self.state.computing = True
             await asyncio.sleep(0)
@@ -163,15 +171,15 @@ def model_chip() -> None:
     client.Style(COMPUTING_CSS)
 
 
-def model_panel(studio) -> None:
+def model_panel(session: Session) -> None:
     """The model switch above the label sliders, and the variation controls under it for a stochastic model."""
-    if len(studio.session.models) > 1:
+    if len(session.models) > 1:
         html.Div("Model", classes="text-overline")
         # A click sets the choice and `computing` together, so that both reach the server in one message (with
         # v_model the choice could overtake `computing`, which would then stay on).
         with v3.VBtnToggle(model_value=("model_name",), density="compact", mandatory=True, variant="outlined", divided=True,
                            classes="mb-2", id="model-switch"):
-            for name in studio.session.models:
+            for name in session.models:
                 v3.VBtn(model_title(name), value=name, size="x-small", id=f"model-{name}",
                         click=f"if (model_name !== '{name}') {{ computing = true; model_name = '{name}'; }}")
     with html.Div(v_if="stochastic", classes="mb-2", id="variation-controls"):

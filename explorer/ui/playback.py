@@ -5,9 +5,13 @@ from __future__ import annotations
 import asyncio
 import math
 import os
+from typing import TYPE_CHECKING, Any, Protocol
 
 from explorer.session.session import FPS
 from explorer.ui.layout import SPEEDS
+
+if TYPE_CHECKING:
+    from explorer.session.session import Session
 
 MIN_YIELD_S = 0.005  # even when late, give the image delivery and incoming messages a turn
 # Pictures per second at most. On a 2-core machine the browser and the server share the cores: asked for 30/s (2x),
@@ -24,7 +28,14 @@ def playback_speed(value) -> float:
     return min(max(speed, SPEEDS[0]), SPEEDS[-1]) if math.isfinite(speed) else 1.0
 
 
-async def play(studio) -> None:
+class Player(Protocol):
+    """What playback reads and moves: the page's frame, playing, speed and loop, and the session's frame count."""
+
+    state: Any
+    session: Session
+
+
+async def play(studio: Player) -> None:
     """Play in real time: the position advances with the wall clock (frames are skipped, not
     slowed down, when a picture takes longer than a frame), and the loop sleeps until the next
     frame is due (a loop that never yields starves the image delivery)."""

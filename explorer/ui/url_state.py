@@ -10,7 +10,14 @@ bad values are named in one line and left out, the rest still applies.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any, Protocol
 from urllib.parse import parse_qs, quote, urlencode
+
+if TYPE_CHECKING:
+    from explorer.rendering.scene import Scene
+    from explorer.session.session import Session
+
 
 MAX_QUERY = 2000  # characters; a longer query is refused as a whole
 LAYOUTS = ("overlay", "side_by_side")
@@ -94,7 +101,21 @@ def _fail(message: str):
     raise ValueError(message)
 
 
-def current_view(studio) -> dict:
+class ViewHolder(Protocol):
+    """What a link's view is read from and applied to (the Studio is one)."""
+
+    state: Any
+    session: Session
+    scene: Scene
+
+    def load_sequence(self, index: int) -> None: ...
+
+    def set_label(self, weights: Sequence[float], scale: float = 1.0) -> None: ...
+
+    def set_camera(self, preset: str) -> None: ...
+
+
+def current_view(studio: ViewHolder) -> dict:
     """What the studio shows now, as view_query takes it (an uploaded leader has no sequence id to link to)."""
     ses, s = studio.session, studio.state
     return {
@@ -111,7 +132,7 @@ def current_view(studio) -> dict:
     }
 
 
-def apply_view(studio, query: str) -> None:
+def apply_view(studio: ViewHolder, query: str) -> None:
     """Open the view a link describes; what cannot be applied is named in the page's alert."""
     from explorer.rendering.scene import CAMERA_PRESETS
 
