@@ -371,17 +371,15 @@ class DiffusionReactionModel(ReactionModel):
         return (x - mean) / std * mask[..., None], mask
 
     def _network(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int]) -> list[np.ndarray]:
-        from imm_model.model.diffusion_sampler import BodyRouting, initial_noise, sample
+        from imm_model.model.diffusion_sampler import initial_noise, sample
 
         d = self.config.pose_dim
-        routing = BodyRouting.of(self.skeleton, self.weights["follower_std"]) if self.guidance.composition == "parts" else None
         out: list[np.ndarray] = []
         for start in range(0, len(leaders), self.BATCH):
             rows = list(range(start, min(start + self.BATCH, len(leaders))))
             x, mask = self._normalize_leaders([leaders[i] for i in rows])
             noise, _ = self._padded([initial_noise(seeds[i], len(leaders[i]), d) for i in rows])
-            x0 = sample(self._denoiser(x, mask), x, mask, labels[rows], noise, self.guidance, self.config.diffusion_steps,
-                        routing)
+            x0 = sample(self._denoiser(x, mask), x, mask, labels[rows], noise, self.guidance, self.config.diffusion_steps)
             followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
             out += [followers[k, : len(leaders[i])].reshape(len(leaders[i]), -1, 3) for k, i in enumerate(rows)]
         return out
