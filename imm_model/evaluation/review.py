@@ -6,7 +6,8 @@ review"). The studio shows the rows as a sortable table with a "next worst" step
     worst = sort_rows(rows, "afd")[0]
     after = next_worst(rows, worst.index, "afd")
 
-Every row's follower comes from one batched synthesis call; the judge and the feature space read each follower once.
+Every row's follower comes from one batched synthesis call (a diffusion model sampling in numpy: a few, see
+CPU_SAMPLER_CHUNK); the judge and the feature space read each follower once.
 """
 
 from __future__ import annotations
@@ -32,6 +33,9 @@ PENETRATION_EXCESS = 0.2
 REACH_M = 0.15
 # The foot flag: foot skate above this quantile of the real followers' own foot skate (Kinect feet slide too).
 FOOT_QUANTILE = 0.95
+# Rows per sampler call for a diffusion model sampling in numpy: its batches of many rows run slower per row than small
+# ones on a CPU (benchmarks/review_table.py --chunk)
+CPU_SAMPLER_CHUNK = 2
 
 # Sort keys: the larger the worse, except the judge's probability of the asked class (`asked_p`), where smaller is worse.
 SORT_KEYS = ("afd", "feature_distance", "asked_p", "interpenetration", "foot_skate_mps", "flags")
@@ -161,8 +165,7 @@ def review_table(model, data: InteractionDataset, indices: Sequence[int] | np.nd
     pairs = [data.canonical(int(i)) for i in idx]
     leaders = [np.asarray(a, np.float64) for a, _ in pairs]
     reals = [np.asarray(b, np.float64) for _, b in pairs]
-    synth = [np.asarray(f, np.float64) for f in
-             model.synthesize_batch_canonical([a.astype(np.float32) for a in leaders], labels, [int(seed)] * len(idx))]
+    synth = _synthesize(model, leaders, labels, int(seed))
     distance = feature_distances(features, leaders, reals, synth, data.actions[idx]) if features else np.full(len(idx), np.nan)
     fps = frame_rate(data.dataset)
     rows = []
@@ -186,6 +189,21 @@ def review_table(model, data: InteractionDataset, indices: Sequence[int] | np.nd
             closest_m=float(close.min()), real_closest_m=float(real_close.min()), contact_flag=bool(reason), contact_reason=reason,
             foot_skate_mps=float(skate), foot_flag=bool(skate > thresholds.foot_skate_mps)))
     return rows
+
+
+def _synthesize(model, leaders: list[np.ndarray], labels: np.ndarray, seed: int) -> list[np.ndarray]:
+    """Every row's follower, in order of length (less padding). One batch call, except for a diffusion model sampling in
+    numpy on a CPU: there chunks of CPU_SAMPLER_CHUNK rows of similar length are faster than one batch
+    (benchmarks/review_table.py)."""
+    order = np.argsort([len(a) for a in leaders], kind="stable")
+    chunk = CPU_SAMPLER_CHUNK if getattr(model, "stochastic", False) and getattr(model, "fast", None) is not None else len(order)
+    out: list[np.ndarray | None] = [None] * len(leaders)
+    for start in range(0, len(order), chunk):
+        rows = order[start:start + chunk]
+        followers = model.synthesize_batch_canonical([leaders[k].astype(np.float32) for k in rows], labels[rows], [seed] * len(rows))
+        for k, f in zip(rows, followers, strict=True):
+            out[k] = np.asarray(f, np.float64)
+    return out  # type: ignore[return-value]
 
 
 def feature_distances(features: FeatureSpace, leaders: list[np.ndarray], reals: list[np.ndarray], synth: list[np.ndarray],
