@@ -22,7 +22,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--diffusion-checkpoint", default=None,
                    help="the diffusion model one switch away when --checkpoint is a GAN (default: the bundled one; "
                         "'none' leaves the switch out)")
-    p.add_argument("--port", type=int, default=8080, help="port to listen on; 0 picks a free one (printed). Default 8080")
+    p.add_argument("--port", type=int, default=None,
+                   help="port to listen on; 0 picks a free one (printed). Default 8080 (with --desktop: a free one)")
     p.add_argument(
         "--host", default="127.0.0.1",
         help="address to bind (default 127.0.0.1: this machine only; 0.0.0.0 exposes the studio to your network)",
@@ -34,6 +35,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="the address users open when a reverse proxy serves the studio under a path, e.g. "
                         "https://lab.example.org/imm/ (printed instead of the local address; every page URL is relative)")
     p.add_argument("--no-browser", action="store_true", help="do not open a browser window")
+    p.add_argument("--desktop", action="store_true",
+                   help="open the studio in a window of its own instead of a browser (needs a display and the "
+                        "'desktop' extra); closing the window stops the studio")
     p.add_argument("--cache-dir", type=Path, default=None, help="latent-map cache (default: ~/.cache/imm-studio)")
     p.add_argument("--export-dir", type=Path, default=Path("imm-exports"), help="where exports are also saved (default ./imm-exports)")
     p.add_argument("--max-clients", type=int, default=8, help="most browser tabs served at once (one process each). Default 8")
@@ -100,6 +104,8 @@ def run_explore(args: argparse.Namespace) -> int:
     if args.max_clients < 1:
         print(f"imm explore: error: --max-clients must be at least 1 (one browser tab), not {args.max_clients}", file=sys.stderr)
         return 2
+    if args.port is None:
+        args.port = 0 if args.desktop else 8080
     if not 0 <= args.port <= 65535:
         print(f"imm explore: error: --port must be 0..65535, not {args.port}", file=sys.stderr)
         return 2
@@ -120,8 +126,23 @@ def run_explore(args: argparse.Namespace) -> int:
         max_clients=args.max_clients, open_browser=not args.no_browser, sequence=args.sequence, render=args.render,
         judge=str(judge.resolve()) if judge else args.judge,
     )  # fmt: skip
+    window = None
+    if args.desktop:  # explorer/desktop.py: the launcher's "browser" is the studio window
+        from explorer.desktop import CLOSED, DesktopError, check, open_window
+
+        try:
+            check()
+        except DesktopError as err:
+            print(f"imm explore: error: {err}", file=sys.stderr)
+            return 2
+        window, config.open_browser = open_window(), True
     try:
-        return launch(config)
+        rc = launch(config)
     except LaunchError as err:
         print(f"imm explore: error: {err}", file=sys.stderr)
         return 2
+    finally:
+        closed = window.close() if window else None
+    if window is not None and closed not in (None, *CLOSED):
+        return 2  # the window failed to open, and said why
+    return rc
