@@ -127,15 +127,16 @@ def run_explore(args: argparse.Namespace) -> int:
         judge=str(judge.resolve()) if judge else args.judge,
     )  # fmt: skip
     window = None
-    if args.desktop:  # explorer/desktop.py: the launcher's "browser" is the studio window
-        from explorer.desktop import CLOSED, DesktopError, check, open_window
+    if args.desktop:  # explorer/desktop.py: the launcher opens the studio window instead of a browser
+        from explorer.desktop import CLOSED, DesktopError, Window, check
 
         try:
             check()
         except DesktopError as err:
             print(f"imm explore: error: {err}", file=sys.stderr)
             return 2
-        window, config.open_browser = open_window(), True
+        window = Window()
+        config.open_browser, config.open_url = True, window.open
     try:
         rc = launch(config)
     except LaunchError as err:

@@ -1,9 +1,8 @@
 """`imm explore --desktop`: the studio in a window of its own (pywebview), with the same one-port launcher behind it.
 
 As trame's own desktop mode does, the server stays in this process and the window runs in a process of its own: a GUI
-toolkit wants the main thread, and the launcher keeps its signal handling and its clean shutdown. The launcher opens
-"the browser" through Python's `webbrowser` once it is serving (explorer/serving/launcher.py); `open_window` registers
-the window as the preferred browser, so the window loads the launcher's ready URL. When the window closes (or its
+toolkit wants the main thread, and the launcher keeps its signal handling and its clean shutdown. The launcher calls
+the window's `open` with its ready URL instead of opening a browser (LaunchConfig.open_url). When the window closes (or its
 process ends) this process gets SIGTERM, which the launcher answers as it does Ctrl+C: every studio process stops,
 exit code 0. The window process, `python -m explorer.desktop URL`, closes its window when this process is gone.
 """
@@ -18,7 +17,6 @@ import subprocess
 import sys
 import threading
 import time
-import webbrowser
 
 TITLE = "IMM Studio"
 WIDTH, HEIGHT = 1366, 768
@@ -55,22 +53,20 @@ def check() -> None:
         raise DesktopError("--desktop needs a pywebview back end (Qt WebEngine or GTK WebKit): pip install 'imm-studio[desktop]'")
 
 
-class _Window(webbrowser.BaseBrowser):
-    """Stands in for the browser `webbrowser.open` starts: opens the studio window on the URL, once."""
+class Window:
+    """The studio window, in a process of its own: opened once on the launcher's ready URL."""
 
     def __init__(self):
-        super().__init__(TITLE)
         self.proc: subprocess.Popen | None = None
         self.stopping = False
 
-    def open(self, url, new=0, autoraise=True):
+    def open(self, url: str) -> None:
         if self.proc is not None:  # one window per studio
-            return True
+            return
         # its own session: Ctrl+C in the terminal reaches the launcher, which then closes the window (close())
         self.proc = subprocess.Popen([sys.executable, "-m", "explorer.desktop", "--parent", str(os.getpid()), url],
                                      start_new_session=True)  # fmt: skip
         threading.Thread(target=self._watch, name="imm-desktop-window", daemon=True).start()
-        return True
 
     def _watch(self) -> None:
         assert self.proc is not None
@@ -91,13 +87,6 @@ class _Window(webbrowser.BaseBrowser):
                 self.proc.kill()
                 self.proc.wait()
         return self.proc.returncode
-
-
-def open_window() -> _Window:
-    """Make the launcher's browser the studio window (see the module's docstring); call `close()` once it returned."""
-    window = _Window()
-    webbrowser.register("imm-studio-window", None, window, preferred=True)
-    return window
 
 
 def _close_when_gone(parent: int, window) -> None:

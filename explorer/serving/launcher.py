@@ -22,6 +22,7 @@ import signal
 import socket
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -86,6 +87,7 @@ class LaunchConfig:
     max_clients: int = 8
     spares: int = 1
     open_browser: bool = True
+    open_url: Callable[[str], None] | None = None  # what opens the ready URL (the desktop window); None: the system's browser
     sequence: str | None = None
     render: str = "remote"
     judge: str | None = None  # the 'reads as' classifier: a path, "none", or None for the bundled one
@@ -415,7 +417,7 @@ class Launcher:
         print(f"IMM Studio ready at {self.url} ({time.monotonic() - t0:.1f} s{behind}; one studio process per browser tab, "
               "Ctrl+C to stop)", flush=True)
         if self.config.open_browser:
-            _open_browser(self.url)
+            (self.config.open_url or _open_browser)(self.url)
         stop = asyncio.Event()
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGTERM, signal.SIGINT):
