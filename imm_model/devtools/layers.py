@@ -37,7 +37,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("studio rendering", ("explorer.rendering",)),
     ("studio session", ("explorer.session",)),
     ("studio serving", ("explorer.serving",)),
-    ("studio ui", ("explorer.ui", "explorer.review_panel")),
+    ("studio ui", ("explorer.ui",)),
     ("studio front ends", ("explorer.commands", "explorer.desktop")),
 )
 # A package's __main__ is an entry point (`python -m package`): it sits in this layer whatever its package.
