@@ -28,6 +28,7 @@ from explorer.ui.model_switch import ModelSwitch
 from explorer.ui.panel_api import Page
 from explorer.ui.playback import play
 from explorer.ui.reads_as_panel import reads_as_rows, unread_note
+from explorer.ui.review_panel import ReviewPanel
 from explorer.ui.url_state import apply_view, current_view, view_query
 
 PICTURE_S = 0.04  # after a new mix, the time its picture takes to leave (the next mix waits for it)
@@ -49,6 +50,8 @@ class Studio:
         self.compare = Compare(page, self.scene, set_label=self.set_label, update_review=self.update_review)
         self.model_switch = ModelSwitch(page, self.scene, show_review=self.show_review)
         self.latent_panel = LatentPanel(page, latent, open_sequence=self.load_sequence)
+        # a row of the review opens its sequence under the mix the table was computed with
+        self.review = ReviewPanel(page, open_sequence=functools.partial(self.load_sequence, keep_mix=True))
         self._view = None  # the 3D view widget, made by the layout (attach_view)
         self._mix_pending = False
         self._mix_task = None
@@ -317,6 +320,7 @@ class Studio:
         self._update_time()
         s.distance_chart = charts.distance_chart(self._distances, FPS, self._ab_distances, self._closest)
         self.latent_panel.redraw()
+        self.review.follow()
         s.mix_count = (s.mix_count or 0) + 1
 
     def show_review(self) -> bool:

@@ -25,6 +25,7 @@ if TYPE_CHECKING:
 from explorer.ui.keys import KEY_HELP, LISTENER_JS
 from explorer.ui.model_switch import model_chip, model_panel
 from explorer.ui.reads_as_panel import reads_as_panel
+from explorer.ui.review_panel import review_button, review_drawer
 
 SPEEDS = [0.25, 0.5, 1.0, 1.5, 2.0]
 # Sliders jump to a new value at once, as Vuetify's already do while dragged (a key or a click glides for 0.3 s), and
@@ -78,13 +79,15 @@ def build_layout(page: LayoutParts) -> VAppLayout:
             v3.VToolbarTitle("IMM Studio", style="flex: 0 0 auto")
             toolbar(page)
         with v3.VNavigationDrawer(v_model=("main_drawer", True), permanent=True, location="left", width=330):
-            with html.Div(classes="pa-3"):
+            with html.Div(classes="pa-3 pt-0"):
+                review_button()  # at the top of the side panel, however far it is scrolled
                 sequence_picker(page)
                 v3.VDivider(classes="my-3")
                 model_panel(page.session)
                 label_mix(page)
                 v3.VDivider(classes="my-3")
                 character_toggles(page)
+        review_drawer()
         with v3.VMain(classes="imm-main"):
             with html.Div(classes="imm-column"):
                 scene_view(page)

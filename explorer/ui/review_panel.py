@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from explorer.ui.panel_api import Page
 
 DEBOUNCE_S = 0.6  # a new mix recomputes an open table once the sliders have been still this long
-WIDTH = 560  # the review's side panel, pixels
+WIDTH = 600  # the review's side panel, pixels (its seven columns without a horizontal scroll)
 TABLE_CSS = """
 #review-table th, #review-table td { padding: 0 5px !important; white-space: nowrap; font-size: 11.5px; height: 26px !important; }
 #review-table th { line-height: 1.1; }
@@ -241,10 +241,11 @@ class ReviewPanel:
 
 
 def review_button() -> None:
-    """The side panel's button that opens the review (next to the drawer's first heading)."""
-    v3.VBtn("Review", id="review-open", size="x-small", variant="tonal", prepend_icon="mdi-table-search",
-            color=("review_open ? 'primary' : undefined",), click="review_open = !review_open",
-            title="every held-out sequence under this mix: worst first")
+    """The side panel's button that opens and closes the review; it stays at the top of the panel when that scrolls."""
+    with html.Div(style="position: sticky; top: 0; z-index: 3; background: rgb(var(--v-theme-surface))", classes="pt-3 pb-1"):
+        v3.VBtn("Review across sequences", id="review-open", size="small", variant="tonal", block=True,
+                prepend_icon="mdi-table-search", color=("review_open ? 'primary' : undefined",),
+                click="review_open = !review_open", title="every held-out sequence under this mix, worst first")
 
 
 def review_drawer(panel_prefix: str = "review") -> None:
