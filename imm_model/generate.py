@@ -147,7 +147,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
 def _generate_one(args: argparse.Namespace, model, leader_item, vec: np.ndarray, seed: int) -> int:
     _, leader, source = leader_item
     follower = _synthesize(model, [leader], vec, seed)[0]
-    _write(args.out, leader, follower, model, vec, args.scale, None if args.leader else source)
+    _write(args.out, leader, follower, model, vec, args.scale, None if args.leader else source, seed)
     desc = ", ".join(f"{n}={v:g}" for n, v in zip(model.class_names, vec, strict=True) if v != 0) or "all zero"
     beside = f" (the leader in {leader_copy(args.out)})" if args.out.suffix.lower() == ".bvh" else ""
     print(f"wrote {args.out}{beside}: follower {follower.shape[0]} frames x {follower.shape[1]} joints (label {desc})")
@@ -165,7 +165,7 @@ def _generate_batch(args: argparse.Namespace, model, leaders: list, labels: list
             for seed in seeds:
                 followers = _synthesize(model, [leader for _, leader, _ in leaders], vec, seed)
                 for k, ((_, leader, source), follower) in enumerate(zip(leaders, followers, strict=True)):
-                    _write(paths[k, c, seed], leader, follower, model, vec, args.scale, None if args.leader else source)
+                    _write(paths[k, c, seed], leader, follower, model, vec, args.scale, None if args.leader else source, seed)
                     bar.update()
     beside = ", each with its leader copy" if args.format == "bvh" else ""
     samples = f" x {len(seeds)} seeds" if len(seeds) > 1 else ""
@@ -189,7 +189,8 @@ def _synthesize(model, leaders: list[np.ndarray], vec: np.ndarray, seed: int = 0
             for f, b in zip(frames, followers, strict=True)]
 
 
-def _write(path: Path, leader: np.ndarray, follower: np.ndarray, model, vec: np.ndarray, scale: float, sid: str | None) -> None:
+def _write(path: Path, leader: np.ndarray, follower: np.ndarray, model, vec: np.ndarray, scale: float, sid: str | None,
+           seed: int) -> None:
     from imm_model.outputs import write_atomic, write_files
 
     if path.suffix.lower() == ".bvh":
@@ -204,4 +205,5 @@ def _write(path: Path, leader: np.ndarray, follower: np.ndarray, model, vec: np.
     frame = CanonicalFrame.from_leader(np.asarray(leader, np.float64), model.skeleton, model.canonical_mode)
     write_atomic(path, interaction_bytes(interaction_arrays(
         leader, follower, frame, model.skeleton, class_names=model.class_names, label=vec, scale=scale,
-        checkpoint=model.path.name if model.path else "", fps=15.0, sequence_id=sid)))
+        checkpoint=model.path.name if model.path else "", fps=15.0, sequence_id=sid,
+        seed=seed if model.stochastic else None)))

@@ -20,8 +20,10 @@ FORMAT = "imm-interaction-1"
 
 def interaction_arrays(leader: np.ndarray, follower: np.ndarray, frame: CanonicalFrame, skeleton: Skeleton, *,
                        class_names, label: np.ndarray, scale: float, checkpoint: str, fps: float,
-                       ground_truth: np.ndarray | None = None, sequence_id: str | None = None) -> dict[str, np.ndarray]:
-    """leader, follower (and ground truth): (T, J, 3) world metres -> the file's arrays."""
+                       ground_truth: np.ndarray | None = None, sequence_id: str | None = None,
+                       seed: int | None = None) -> dict[str, np.ndarray]:
+    """leader, follower (and ground truth): (T, J, 3) world metres -> the file's arrays. `seed`: the sampler seed that
+    drew the follower (stochastic models only), so the same reaction can be drawn again."""
     out = {
         "format": np.array(FORMAT),
         "leader": np.asarray(leader, np.float32),
@@ -41,6 +43,8 @@ def interaction_arrays(leader: np.ndarray, follower: np.ndarray, frame: Canonica
         out["ground_truth_canonical"] = frame.to_canonical(np.asarray(ground_truth, np.float64), skeleton).astype(np.float32)
     if sequence_id is not None:
         out["sequence_id"] = np.array(sequence_id)
+    if seed is not None:
+        out["seed"] = np.int64(seed)
     return out
 
 

@@ -355,8 +355,12 @@ def test_variations_are_the_seeds_side_by_side(two_models):
     ses.set_label(np.eye(6)[1])  # a new mix redraws them all
     np.testing.assert_allclose(ses.variation_followers[3],
                                ses.model.synthesize_canonical(ses.leader, ses.label_vector(), seed=43), atol=1e-4)
+    with np.load(io.BytesIO(ses.export_npz())) as z:  # the exported file says which variation it holds
+        assert int(z["seed"]) == 40
     ses.set_model("gan")  # a deterministic model: one reaction, whatever the seed
     assert len(ses.variation_followers) == 1 and all(f is ses.synth for f in ses.variations(4))
+    with np.load(io.BytesIO(ses.export_npz())) as z:
+        assert "seed" not in z.files
     for bad in (0, 5, 2.0):
         with pytest.raises(ValueError, match="1..4"):
             ses.set_variation_count(bad)

@@ -420,7 +420,8 @@ class Session:
             self.world(self.leader), self.world(self.synth), self.frame, self.data.skeleton,
             class_names=self.class_names, label=self.label_vector(), scale=self.scale, checkpoint=Path(path).name if path else "",
             fps=FPS, ground_truth=None if self.ground_truth is None else self.world(self.ground_truth),
-            sequence_id=None if self.upload else self.data.sequence_ids[self.index]))
+            sequence_id=None if self.upload else self.data.sequence_ids[self.index],
+            seed=self.seed if self.model.stochastic else None))
 
     def export_bvh(self, character: str = "follower") -> bytes:
         """The synthesized follower (or the leader) as a BVH file's bytes, world metres (imm_model/data/bvh.py)."""
