@@ -19,7 +19,7 @@ Measures, and prints with the machine's thread count and load:
      zygote they are forked from, and the PSS of all of them together (`--memory-only`: just this).
   6. (`--models`) the model switch: slider latency with the paper's GAN, with the diffusion model switched on, and
      with three of its variations side by side; the time from a click on "new variation" to its picture.
-Bars: slider p95 <= 60 ms idle, <= 100 ms with A/B or the 'reads as' panel, <= 150 ms with 5 tabs (issues 9, 12);
+Bars: slider p95 <= 60 ms idle, <= 100 ms with A/B or the 'reads as' panel, <= 150 ms with 5 tabs;
 warm start <= 4 s, cold <= 6 s; >= 30 fps render capability; RSS per tab <= 300 MB.
 """
 
