@@ -379,7 +379,8 @@ class DiffusionReactionModel(ReactionModel):
             rows = list(range(start, min(start + self.BATCH, len(leaders))))
             x, mask = self._normalize_leaders([leaders[i] for i in rows])
             noise, _ = self._padded([initial_noise(seeds[i], len(leaders[i]), d) for i in rows])
-            x0 = sample(self._denoiser(x, mask), x, mask, labels[rows], noise, self.guidance, self.config.diffusion_steps)
+            x0 = sample(self._denoiser(x, mask), x, mask, labels[rows], noise, self.guidance, self.config.diffusion_steps,
+                        seeds=[seeds[i] for i in rows])
             followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
             out += [followers[k, : len(leaders[i])].reshape(len(leaders[i]), -1, 3) for k, i in enumerate(rows)]
         return out

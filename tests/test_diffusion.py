@@ -109,10 +109,12 @@ def test_seeds_give_variations_and_repeat_exactly(tiny_model, leader):
     assert min(spread) > 1e-3  # other seeds are other reactions
 
 
-def test_a_moved_slider_moves_the_reaction_smoothly(tiny_model, leader):
+@pytest.mark.parametrize("eta", [0.0, 0.5])
+def test_a_moved_slider_moves_the_reaction_smoothly(tiny_model, leader, eta):
     """Same seed, label 1.0 -> 1.05 -> 1.10: the reaction changes by small, similar steps, far less than another
-    seed changes it (DDIM with eta 0 is a continuous function of the label)."""
+    seed changes it (DDIM is a continuous function of the label; with eta > 0 the seed fixes every step's noise too)."""
     model = ReactionModel.load(tiny_model)
+    model.guidance = replace(model.guidance, eta=eta)
     model.raw = True  # the clean-up's foot planting is a threshold: judge the sampler's own output
     steps = [model.synthesize(leader, {"pushing": v}, seed=0) for v in (1.0, 1.05, 1.10)]
     small = [np.abs(steps[k + 1] - steps[k]).mean() for k in range(2)]
@@ -133,6 +135,54 @@ def test_signed_composition(tiny_model, sample_data):
     assert np.allclose(plus - base, base - minus, atol=1e-4) and np.abs(plus - base).mean() > 1e-4
     on_torch = sample(torch_denoiser(model.net, leader, mask), leader, mask, label(1.0), noise, model.guidance, 100)
     assert np.allclose(on_torch, sample(denoise, leader, mask, label(1.0), noise, model.guidance, 100), atol=1e-4)
+
+
+def test_eta_zero_is_plain_ddim():
+    """eta 0 (the default, which checkpoints without an eta get) is the deterministic DDIM update, checked against
+    that update written out here on a synthetic linear denoiser; seeds play no part in it."""
+    rng = np.random.default_rng(0)
+    noise, leaders = rng.standard_normal((2, 3, 9, 6)).astype(np.float32)
+    mask = np.arange(9)[None] < np.array([[9], [5], [7]])
+    noise *= mask[..., None]
+    denoise = lambda x, step, *_: 0.6 * x + 0.01 * step  # noqa: E731 - synthetic x0 prediction
+    guidance = Guidance(sample_steps=5)
+    assert Guidance.from_dict({"label_scale": 2.5}).eta == 0.0
+    alpha_bar, steps = cosine_alpha_bar(100), np.linspace(99, 0, 5).round().astype(int)
+    x = noise.copy()
+    for i, step in enumerate(steps[:-1]):
+        x0 = np.clip(denoise(x, step), -6, 6) * mask[..., None]
+        a, a_next = alpha_bar[step], alpha_bar[steps[i + 1]]
+        eps = (x - np.sqrt(a) * x0) / np.sqrt(1 - a)
+        x = ((np.sqrt(a_next) * x0 + np.sqrt(1 - a_next) * eps) * mask[..., None]).astype(np.float32)
+    expected = np.clip(denoise(x, 0), -6, 6) * mask[..., None]
+    labels = np.zeros((3, 6), np.float32)
+    got = sample(denoise, leaders, mask, labels, noise, guidance, 100)
+    assert np.allclose(got, expected, atol=1e-6)
+    assert np.array_equal(got, sample(denoise, leaders, mask, labels, noise, guidance, 100, seeds=[4, 5, 6]))
+
+
+def test_stochastic_steps_follow_the_seed(tiny_model, sample_data):
+    """eta > 0: the same seed repeats exactly, alone or in a batch beside a longer sequence; with the starting noise
+    held fixed another seed still gives another reaction (the steps' noise is the seed's), where eta 0 gives the same
+    one; a row without a seed is refused."""
+    model = ReactionModel.load(tiny_model)
+    short, long = sample_data.canonical(0)[0], sample_data.canonical(1)[0]
+    assert len(short) != len(long)
+    x, mask = model._normalize_leaders([short, long])
+    label = np.array([[0, 1, 0, 0, 0, 0]] * 2, np.float32)
+    noise = np.stack([initial_noise(0, x.shape[1], 45)] * 2) * mask[..., None]
+    denoise = model._denoiser(x, mask)
+    run = lambda eta, seeds: sample(denoise, x, mask, label, noise, replace(model.guidance, eta=eta), 100, seeds=seeds)  # noqa: E731
+    a = run(0.5, [3, 3])
+    assert np.array_equal(a, run(0.5, [3, 3]))
+    alone_x, alone_mask = model._normalize_leaders([short])
+    alone = sample(model._denoiser(alone_x, alone_mask), alone_x, alone_mask, label[:1], noise[:1, : len(short)],
+                   replace(model.guidance, eta=0.5), 100, seeds=[3])
+    assert np.allclose(alone[0], a[0, : len(short)], atol=1e-5)
+    assert np.array_equal(run(0.0, [3, 3]), run(0.0, [4, 4]))
+    assert np.abs(run(0.5, [4, 4]) - a)[mask].mean() > 1e-3
+    with pytest.raises(ValueError, match="one seed per row"):
+        run(0.5, None)
 
 
 @pytest.mark.parametrize("frames_per_token", [1, 2])

@@ -13,9 +13,9 @@ class at +1 is a conjunction, at -1 a negation, fractions weigh it, the studio's
 `s` is the model's guidance strength. All-zero labels give the label-free reaction. The leader term itself can be
 guided too (x0(-, -) + g * (x0(A, -) - x0(-, -))) when g != 1.
 
-A sampler seed fixes the starting noise and nothing else, and DDIM (eta = 0) is deterministic given it, so the
-reaction is a continuous function of the label: a moved slider moves the reaction, it does not jump to another
-sample.
+A sampler seed fixes the starting noise and, with stochastic steps (eta > 0), each step's fresh noise from a stream
+of its own; both depend on the seed and the shape only, so the reaction is a continuous function of the label: a moved
+slider moves the reaction, it does not jump to another sample. eta 0 is plain DDIM, where the starting noise is all.
 """
 
 from __future__ import annotations
@@ -80,6 +80,7 @@ class Guidance:
     leader_scale: float = param(1.0, Interval(float, 0, 20))  # g: guidance on the leader term; 1 = the leader term alone
     sample_steps: int = param(20, Interval(int, 1, 1000))  # DDIM steps
     clip: float = param(6.0, Interval(float, 0.5, 100))  # x0 predictions clamped to this many training stds per coordinate
+    eta: float = param(0.0, Interval(float, 0, 1))  # DDIM's eta: fresh noise per step, 0 = deterministic, 1 = DDPM-like
 
     def __post_init__(self) -> None:
         validate(self, "guidance")
@@ -97,9 +98,25 @@ def initial_noise(seed: int, frames: int, dim: int) -> np.ndarray:
     return np.random.default_rng(int(seed)).standard_normal((frames, dim)).astype(np.float32)
 
 
+STEP_NOISE_STREAM = 1  # the per-step noise's generator is seeded from (seed, this), apart from the starting noise's
+
+
+def step_noise(seeds, lengths, shape: tuple[int, int, int]):
+    """A generator of the stochastic steps' noise, (B, T, D) float32 per call: row i from a numpy Generator of its own
+    seeded from (seeds[i], STEP_NOISE_STREAM), drawing (lengths[i], D) a step (zero padding beyond), so that a row's
+    noise depends on its seed and length only, not on its batch."""
+    gens = [np.random.default_rng((int(s), STEP_NOISE_STREAM)) for s in seeds]
+    while True:
+        z = np.zeros(shape, np.float32)
+        for i, g in enumerate(gens):
+            z[i, : lengths[i]] = g.standard_normal((int(lengths[i]), shape[2]))
+        yield z
+
+
 def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, noise: np.ndarray, guidance: Guidance,
-           diffusion_steps: int) -> np.ndarray:
-    """DDIM (eta 0) from `noise` (B, T, D) -> normalized followers x0 (B, T, D), numpy float32.
+           diffusion_steps: int, seeds=None) -> np.ndarray:
+    """DDIM from `noise` (B, T, D) -> normalized followers x0 (B, T, D), numpy float32. With guidance.eta > 0 each
+    step but the last adds noise drawn from the rows' `seeds` (B ints, required then; see step_noise).
 
     `denoise(x_t, step, leader_on, label, label_on)` is the network on a batch of the same rows repeated per term:
     x_t (N, T, D), step int, leader_on (N,) bool, label (N, C) one-hot, label_on (N,) bool -> x0 (N, T, D); it reads
@@ -125,6 +142,10 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
     steps = np.linspace(diffusion_steps - 1, 0, guidance.sample_steps).round().astype(int)
     m = mask[..., None].astype(np.float32)
     x = noise.astype(np.float32)
+    if guidance.eta > 0:
+        if seeds is None or len(seeds) != b:
+            raise ValueError(f"sampling with eta {guidance.eta} needs one seed per row ({b})")
+        fresh = step_noise(seeds, mask.sum(1), (b, t, d))
     for i, step in enumerate(steps):
         terms = denoise(np.tile(x, (n_terms, 1, 1)), int(step), leader_on, one_hot, label_on).reshape(n_terms, b, t, d)
         base = terms[0]
@@ -138,5 +159,10 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
             return x0.astype(np.float32)
         a, a_next = alpha_bar[step], alpha_bar[steps[i + 1]]
         eps = (x - np.sqrt(a) * x0) / np.sqrt(1 - a)
-        x = ((np.sqrt(a_next) * x0 + np.sqrt(1 - a_next) * eps) * m).astype(np.float32)
+        if guidance.eta > 0:  # Song et al. 2021, eq. 16: part of the direction term becomes fresh noise
+            sigma = guidance.eta * np.sqrt((1 - a_next) / (1 - a)) * np.sqrt(1 - a / a_next)
+            x = np.sqrt(a_next) * x0 + np.sqrt(max(1 - a_next - sigma**2, 0.0)) * eps + sigma * next(fresh)
+            x = (x * m).astype(np.float32)
+        else:
+            x = ((np.sqrt(a_next) * x0 + np.sqrt(1 - a_next) * eps) * m).astype(np.float32)
     raise AssertionError("unreachable: sample_steps >= 1")

@@ -2,13 +2,14 @@
 guidance, for the diffusion experiments (docs/experiments/).
 
     python docs/experiments/scripts/diffusion_fold.py --checkpoint runs/d/fold-s04/final.safetensors --fold s04 \\
-        --label-scale 2 3 --out results.jsonl
+        --label-scale 2 3 --eta 0.5 --out results.jsonl
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -61,6 +62,7 @@ def main() -> None:
     ap.add_argument("--fold", required=True)
     ap.add_argument("--label-scale", type=float, nargs="*", default=[], help="guidance strengths to score (diffusion)")
     ap.add_argument("--leader-scale", type=float, default=None)
+    ap.add_argument("--eta", type=float, default=None, help="DDIM's eta: 0 deterministic steps, up to 1 (diffusion)")
     ap.add_argument("--sample-steps", type=int, default=None)
     ap.add_argument("--baselines", default="nn1")
     ap.add_argument("--raw", action="store_true")
@@ -73,8 +75,12 @@ def main() -> None:
         model = ReactionModel.load(args.checkpoint)
         if model.stochastic:
             changes = {k: v for k, v in (("label_scale", scale), ("leader_scale", args.leader_scale),
-                                         ("sample_steps", args.sample_steps)) if v is not None}
-            model.guidance = replace(model.guidance, **changes)
+                                         ("sample_steps", args.sample_steps), ("eta", args.eta)) if v is not None}
+            try:
+                model.guidance = replace(model.guidance, **changes)
+            except ValueError as err:
+                print(err, file=sys.stderr)
+                raise SystemExit(2) from None
         row = {"checkpoint": str(args.checkpoint), "fold": args.fold, "raw": args.raw,
                "guidance": model.guidance.to_dict() if model.stochastic else None}
         row |= headline(evaluate_fold(model, data, args.fold, opts, latents=False))
