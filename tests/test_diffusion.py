@@ -316,6 +316,24 @@ def test_evaluation_reports_a_stochastic_models_variations_and_mixed_readings(ti
                         EvalOptions(baselines=("nn1",), progress=False, **judges), latents=False)
     assert "variations" not in gan and len(gan["mix_parts"]) == 15
 
+    from imm_model.evaluation.report import fold_figures  # what `imm reproduce --tables models` tabulates
+    from imm_model.reproduce.jobs import TrainJob
+    from imm_model.reproduce.report import models_section
+    from imm_model.reproduce.tasks import EvalJob
+
+    figures = fold_figures(result)
+    assert figures["fid"] == result["model"]["fid"] and figures["afd_best_of_n"] == v["afd_best_of_n"]
+    assert 0 <= figures["mixed_worst_pair"] <= figures["mixed"] <= 1 and "fid_nn1_hugging" in figures
+    assert "multimodality_ratio" not in fold_figures(gan)
+    results = {EvalJob(TrainJob(r, "s04", 0), "final", baselines=("nn1",)): res
+               for r, res in (("imm-steer", gan), ("imm-diffusion", result))}
+    table = models_section(results, list(sample_data.class_names))
+    assert "imm-steer, dev folds (1 runs)" in table and "imm-diffusion, dev folds (1 runs)" in table and "test folds (" not in table
+    cells = next(line for line in table.splitlines() if line.startswith("| variations")).split("|")
+    assert cells[2].strip() == "-" and cells[3].strip() == f"{figures['multimodality_ratio']:.2f}"
+    hugging = [fold_figures(gan)["fid_hugging"], figures["fid_hugging"], figures["fid_nn1_hugging"]]
+    assert "| hugging | " + " | ".join(f"{x:.2f}" for x in hugging) + " |" in table
+
 
 @pytest.mark.parametrize("override, message", [({"lr": -1}, "lr must be"), ({"model": {"width": 30, "heads": 4}}, "width must be"),
                                                ({"guidance": 5}, "guidance must be a JSON object"),

@@ -85,6 +85,25 @@ def test_job_key_changes_with_recipe_seed_split_and_data():
     assert len(keys) == 5 and base.key("d1") == TrainJob("imm", "s04", 0).key("d1")
 
 
+def test_the_models_table_trains_the_gan_and_the_diffusion_recipe_and_scores_each_against_the_1nn(tmp_path):
+    from imm_model.checkpoint import final_checkpoint
+    from imm_model.inference import ReactionModel
+    from imm_model.paths import SAMPLE_DATA
+    from imm_model.reproduce.plan import MODEL_RECIPES, PAPER_TABLES, ReproducePlan
+    from imm_model.reproduce.tasks import train_run
+
+    assert ReproducePlan().tables == PAPER_TABLES  # the paper's four unless asked
+    plan = ReproducePlan(tables=("models",), folds=("s04",), seeds=(0, 1), epochs=2)
+    assert {(j.recipe, j.seed) for j in plan.training_jobs()} == {(r, s) for r in MODEL_RECIPES for s in (0, 1)}
+    assert len(plan.eval_jobs()) == 4 and all(j.baselines == ("nn1",) and j.checkpoint == "final" for j in plan.eval_jobs())
+    job = TrainJob("imm-diffusion", "s04", 0, epochs=2)  # a diffusion recipe's "epochs" are its optimizer steps
+    assert job.config().steps == 2 and job.cost > TrainJob("imm-steer", "s04", 0).cost  # the longest first
+    assert len({job.key("d"), TrainJob("imm-diffusion", "s04", 1, epochs=2).key("d"), TrainJob("imm-diffusion", "s04", 0).key("d")}) == 3
+    info = train_run(job, tmp_path, SAMPLE_DATA, job.key("d"), threads=1)
+    assert info["steps"] == 2 and json.loads((job.run_dir(tmp_path) / "done.json").read_text())["key"] == job.key("d")
+    assert ReactionModel.load(final_checkpoint(job.run_dir(tmp_path))).stochastic
+
+
 def test_half_split_is_stratified_and_disjoint(sample_data):
     from imm_model.data.splits import half_split
 

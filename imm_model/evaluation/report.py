@@ -121,3 +121,38 @@ def summarize(results: list[dict], class_names: tuple[str, ...]) -> dict:
     summary |= summary["groups"]["all"]
     summary["per_fold"] = [{k: v for k, v in r.items() if not k.startswith("_")} for r in results]
     return summary
+
+
+def fold_figures(result: dict) -> dict[str, float]:
+    """The figures a model is compared by (the reaction diffusion model's bar, docs/model-cards/), from one fold's
+    result (evaluation/loso.py `evaluate_fold`, with the 1-NN among its baselines for the `*_nn1` entries). FID per
+    class as `fid_<class>`; for a stochastic model also its variations (multimodality and best-of-N AFD)."""
+    m, nn1 = result["model"], result["baselines"].get("nn1")
+    p = m["plausibility"]
+    mixes = result["mix_parts"]
+    out = {
+        "afd": float(np.mean([c["afd"] for c in m["classes"].values()])),
+        "fid": m["fid"],
+        "judge_real_accuracy": result["classifier"]["real_accuracy"]["follower_judge"],
+        "off_label": result["adherence_off_diagonal_judge"],
+        "true_label": float(np.nanmean(np.diag(np.array(result["adherence_matrix_judge"], dtype=float)))),
+        "mixed": float(np.mean([r["mixed"] for r in mixes])),
+        "mixed_whole_body": float(np.mean([r["whole"] for r in mixes])),
+        "mixed_worst_pair": float(min(r["mixed"] for r in mixes)),
+        "avoid_share_lowered": result["avoid_judge"]["share_lowered"],
+        "interior_limb_speed_ratio": p["interior_limb_speed_ratio"],
+        "lean_error_deg": p["lean_error_deg"],
+        "bone_error_cm": p["bone_error_cm"],
+        "foot_skate_mps": p["foot_skate_mps"],
+        "interpenetration": p["interpenetration"],
+        "real_interpenetration": p["real_interpenetration"],
+        "contact_ratio": p["interpenetration"] / p["real_interpenetration"] if p["real_interpenetration"] > 0 else float("nan"),
+        **{f"fid_{c}": v["fid"] for c, v in m["classes"].items()},
+    }
+    if nn1:
+        out |= {"afd_nn1": float(np.mean([c["afd"] for c in nn1["classes"].values()])), "fid_nn1": nn1["fid"],
+                **{f"fid_nn1_{c}": v["fid"] for c, v in nn1["classes"].items()}}
+    if "variations" in result:
+        v = result["variations"]
+        out |= {"multimodality_ratio": v["multimodality"] / v["real_class_diversity"], "afd_best_of_n": v["afd_best_of_n"]}
+    return out

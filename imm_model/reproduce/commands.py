@@ -24,7 +24,7 @@ def _name_list(text: str) -> tuple[str, ...]:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    from imm_model.reproduce.plan import SBU_SUBJECTS, TABLES
+    from imm_model.reproduce.plan import MODEL_RECIPES, PAPER_TABLES, SBU_SUBJECTS, TABLES
 
     p = subparsers.add_parser(
         "reproduce", help="the paper's four tables (AFD, FID, ablation, recognition): every run on Ray, resumable",
@@ -35,7 +35,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, required=True, help="report folder: report.md, summary.json, figures")
     p.add_argument("--runs", type=Path, default=None, help="where the training runs go (default OUT/runs)")
     p.add_argument("--seeds", type=_int_list, default=(0,), help="comma-separated training seeds (default 0)")
-    p.add_argument("--tables", type=_name_list, default=TABLES, help=f"comma-separated subset of {','.join(TABLES)}")
+    p.add_argument("--tables", type=_name_list, default=PAPER_TABLES,
+                   help=f"comma-separated subset of {','.join(TABLES)} (default: the paper's four; 'models' compares "
+                        f"{' and '.join(MODEL_RECIPES)} with the 1-NN, dev and test folds apart)")
     p.add_argument("--folds", type=_name_list, default=SBU_SUBJECTS, help="comma-separated LOSO subjects (default all 7)")
     p.add_argument("--address", default=None, help="join this Ray cluster (default: start Ray on this machine)")
     p.add_argument("--cpus-per-task", type=int, default=1, help="CPUs (torch threads) per job (default 1)")

@@ -24,10 +24,10 @@ HALF_SPLIT = "half"  # the recognition study's class-stratified half/half split 
 
 @dataclass(frozen=True)
 class TrainJob:
-    recipe: str  # a named recipe (training/config.py)
+    recipe: str  # a named recipe (training/config.py, or training/diffusion.py's)
     split: str  # a LOSO subject "sXX", HALF_SPLIT, or a K3HI split (reproduce/k3hi_table.py)
     seed: int
-    epochs: int | None = None  # override of the recipe's epochs (tiny runs in tests)
+    epochs: int | None = None  # override of the recipe's epochs, or a diffusion recipe's steps (tiny runs in tests)
 
     @property
     def name(self) -> str:
@@ -41,11 +41,25 @@ class TrainJob:
         return runs / f"{self.recipe}-seed{self.seed}" / f"fold-{self.split}"
 
     @property
+    def diffusion(self) -> bool:
+        from imm_model.training.diffusion import diffusion_recipe
+
+        return diffusion_recipe(self.recipe)
+
+    @property
     def cost(self) -> float:
-        """Expected seconds on one lane of this 2-core machine (seed 0's records), to run the longest first."""
+        """Expected seconds on one lane of this 2-core machine (seed 0's records; a diffusion fold's 6000 steps about
+        20 minutes), to run the longest first."""
+        if self.diffusion:
+            return 1200.0
         return 300.0 if self.dataset == "k3hi" else 220.0 if self.config().refit else 80.0
 
     def config(self):
+        """The recipe's TrainConfig, or DiffusionTrainConfig for a diffusion recipe."""
+        if self.diffusion:
+            from imm_model.training.diffusion import load_config as load_diffusion_config
+
+            return load_diffusion_config(self.recipe, steps=self.epochs, seed=self.seed)
         from imm_model.training.config import load_config
 
         return load_config(self.recipe, epochs=self.epochs, seed=self.seed)
@@ -53,9 +67,8 @@ class TrainJob:
     def key(self, data_hash: str) -> str:
         """Only the fields that differ from TrainConfig's defaults count, so adding an option (with a default that
         keeps today's behaviour) does not invalidate finished runs."""
-        from imm_model.training.config import TrainConfig
-
-        cfg, default = self.config().to_dict(), TrainConfig().to_dict()
+        config = self.config()
+        cfg, default = config.to_dict(), type(config)().to_dict()
         changed = {k: v for k, v in cfg.items() if v != default.get(k, object())}
         text = json.dumps({"config": changed, "split": self.split, "seed": self.seed,
                            "data": data_hash, "code": imm_model.__version__}, sort_keys=True, default=str)

@@ -9,7 +9,10 @@ from imm_model.reproduce import k3hi_table
 from imm_model.reproduce.jobs import HALF_SPLIT, TrainJob
 from imm_model.reproduce.tasks import EvalJob
 
-TABLES = ("afd", "fid", "ablation", "recognition")
+TABLES = ("afd", "fid", "ablation", "recognition", "models")
+PAPER_TABLES = TABLES[:4]  # what `imm reproduce` writes unless --tables says otherwise
+# the "models" table: the bundled GAN recipe beside the reaction diffusion model, each against the 1-NN retrieval
+MODEL_RECIPES = ("imm-steer", "imm-diffusion")
 ABLATION_RECIPES = ("imm-no-d", "imm-no-bone", "imm-no-continuity", "imm-no-fc", "imm-no-label")
 SBU_SUBJECTS = ("s01", "s02", "s03", "s04", "s05", "s06", "s07")
 
@@ -17,9 +20,9 @@ SBU_SUBJECTS = ("s01", "s02", "s03", "s04", "s05", "s06", "s07")
 @dataclass(frozen=True)
 class ReproducePlan:
     seeds: tuple[int, ...] = (0,)
-    tables: tuple[str, ...] = TABLES
+    tables: tuple[str, ...] = PAPER_TABLES
     folds: tuple[str, ...] = SBU_SUBJECTS
-    epochs: int | None = None  # override every recipe's epochs (tiny runs in tests)
+    epochs: int | None = None  # override every recipe's epochs (a diffusion recipe's optimizer steps; tiny runs in tests)
     classifier_epochs: int | None = None
     k3hi: bool = True  # the MoCap FID table on K3HI (with "fid"; needs ../shared/datasets/k3hi)
 
@@ -42,6 +45,8 @@ class ReproducePlan:
             recipes += ["imm", *ABLATION_RECIPES]
         if "recognition" in self.tables:
             recipes += ["imm"]
+        if "models" in self.tables:
+            recipes += list(MODEL_RECIPES)
         jobs = [self._run(r, f, s) for s in self.seeds for r in dict.fromkeys(recipes) for f in self.folds]
         if "recognition" in self.tables:
             jobs += [self._run("imm", HALF_SPLIT, s) for s in self.seeds]
@@ -62,6 +67,8 @@ class ReproducePlan:
                     jobs += [EvalJob(self._run(r, f, s), "best", classifier_epochs=n) for r in ("imm", *ABLATION_RECIPES)]
                 if "recognition" in self.tables:
                     jobs.append(EvalJob(imm, "final", kind="recognition", classifier_epochs=n))
+                if "models" in self.tables:
+                    jobs += [EvalJob(self._run(r, f, s), "final", baselines=("nn1",), classifier_epochs=n) for r in MODEL_RECIPES]
             if "recognition" in self.tables:
                 jobs.append(EvalJob(self._run("imm", HALF_SPLIT, s), "final", kind="recognition", classifier_epochs=n))
             if self.k3hi and "fid" in self.tables:

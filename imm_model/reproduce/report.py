@@ -10,12 +10,12 @@ from pathlib import Path
 
 import numpy as np
 
-from imm_model.evaluation.report import group_summary
+from imm_model.evaluation.report import fold_figures, group_summary
 from imm_model.evaluation.tables import BASELINE_TITLES, _pm
 from imm_model.outputs import write_files
 from imm_model.reproduce import paper_numbers as paper
 from imm_model.reproduce.jobs import HALF_SPLIT
-from imm_model.reproduce.plan import ABLATION_RECIPES, ReproducePlan
+from imm_model.reproduce.plan import ABLATION_RECIPES, MODEL_RECIPES, ReproducePlan
 
 REPORT_FILES = ("report.md", "summary.json")  # in OUT, beside the figures
 CLASS_TITLES = ("Kick", "Push", "Shake hands", "Hug", "Exchange obj.", "Punch")
@@ -142,6 +142,50 @@ def recognition_section(results: dict, class_names: list[str]) -> str:
             "(reproduce/recognition.py).")
 
 
+# the models table's rows: (title, evaluation/report.py fold_figures key, digits)
+MODEL_FIGURES = (
+    ("FID", "fid", 2), ("FID, 1-NN retrieval", "fid_nn1", 2), ("AFD, one sample", "afd", 3),
+    ("AFD, best of 5 samples", "afd_best_of_n", 3), ("AFD, 1-NN retrieval", "afd_nn1", 3),
+    ("judge's accuracy on real followers", "judge_real_accuracy", 2), ("asked for another class: reads as it", "off_label", 2),
+    ("asked for the leader's class: reads as it", "true_label", 2), ("two-class mixes read as mixed", "mixed", 2),
+    ("... by the whole-body judge alone", "mixed_whole_body", 2), ("... worst pair", "mixed_worst_pair", 2),
+    ("-1 lowers the class's reading", "avoid_share_lowered", 2),
+    ("limb speed between the ends / real", "interior_limb_speed_ratio", 2), ("lean error (degrees)", "lean_error_deg", 1),
+    ("bone error (cm)", "bone_error_cm", 1), ("feet sliding (m/s)", "foot_skate_mps", 3),
+    ("frames in contact / real", "contact_ratio", 2), ("variations: multimodality / real diversity", "multimodality_ratio", 2),
+)
+
+
+def models_section(results: dict, class_names: list[str]) -> str:
+    """The bundled GAN recipe beside the diffusion model (evaluation/report.py fold_figures), mean ± std over folds and
+    seeds, dev and test folds apart; then FID per class."""
+    figures = {(r, g): [fold_figures(res) for j, res in results.items() if res is not None and j.kind == "metrics"
+                        and j.run.recipe == r and res["group"] == g and j.baselines == ("nn1",)]
+               for g in ("dev", "test") for r in MODEL_RECIPES}
+    columns = [k for k, v in figures.items() if v]
+    if not columns:
+        return "No run of this table has finished."
+
+    def cell(key: tuple[str, str], name: str, digits: int) -> str:
+        values = [f[name] for f in figures[key] if name in f]
+        return _pm(*_stat(values), digits=digits) if values else "-"
+
+    titles = [f"{r}, {g} folds ({len(figures[r, g])} runs)" for r, g in columns]
+    rows = [[title, *(cell(k, name, d) for k in columns)] for title, name, d in MODEL_FIGURES]
+    retrieval = [k for k in columns if k[0] == MODEL_RECIPES[-1]]  # each group's 1-NN once (every run scores it)
+    per_class = [[c, *(cell(k, f"fid_{c}", 2) for k in columns), *(cell(k, f"fid_nn1_{c}", 2) for k in retrieval)]
+                 for c in class_names]
+    note = ("AFD in the paper's normalized units; FID over the interaction classifier's features "
+            "(docs/evaluation-protocol.md). Dev folds s01, s03, s04 chose the recipes; s02, s05, s06, s07 are test folds.")
+    return "\n\n".join([_table(["", *titles], rows), note, "FID per class:",
+                         _table(["class", *titles, *(f"1-NN, {g} folds" for _, g in retrieval)], per_class)])
+
+
+def _stat(values: list[float]) -> tuple[float, float | None]:
+    v = np.asarray([x for x in values if x is not None and np.isfinite(x)], dtype=np.float64)
+    return (float(v.mean()), float(v.std()) if len(v) > 1 else None) if len(v) else (float("nan"), None)
+
+
 def disagreements_section() -> str:
     rows = [[what, text, code, ours] for what, text, code, ours in paper.DISAGREEMENTS]
     return _table(["", "paper's text", "authors' code", "this project"], rows)
@@ -182,6 +226,8 @@ def write_report(plan: ReproducePlan, results: dict, out: Path, wall_s: float | 
         parts.append("## Ablation on SBU (paper Table 4)\n\n" + ablation_section(results, class_names))
     if "recognition" in plan.tables:
         parts.append("## Recognition with synthesized data (paper Table 5)\n\n" + recognition_section(results, class_names))
+    if "models" in plan.tables:
+        parts.append(f"## The models: {' and '.join(MODEL_RECIPES)} against the 1-NN retrieval\n\n" + models_section(results, class_names))
     parts.append("## Where the paper's text and its code disagree\n\n" + disagreements_section())
     missing = [j.name for j, r in results.items() if r is None]
     if missing:
