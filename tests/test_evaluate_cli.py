@@ -45,12 +45,14 @@ def test_evaluate_bundled_checkpoint_against_every_baseline(tmp_path, quick_clas
         best = min(e["baselines"], key=lambda b: e["baselines"][b]["afd"])
         assert e["strongest_baseline"] == best and e["ratio_strongest"] == pytest.approx(e["afd"] / e["baselines"][best]["afd"])
         assert e["afd"] ** 2 <= e["afd_squared"] + 1e-9  # Jensen: mean of squares >= square of the mean
+        assert 0 <= e["contact"] <= 1 and 0 <= e["real_contact"] <= 1
+    assert r["classes"]["hugging"]["real_contact"] > r["classes"]["kicking"]["real_contact"]  # hugs touch, kicks rarely
     assert set(r["classifier"]["real_accuracy"]) == {"interaction", "follower", "follower_judge", "upper_judge", "lower_judge"}
     assert 0 <= r["adherence_off_diagonal"] <= 1 and len(r["adherence_matrix"]) == 6
     assert len(r["mix"]) == 15 and {"p_zero", "p_avoid", "change"} <= set(r["avoid"])
     assert {"bone_error_cm", "interpenetration", "foot_skate_mps", "speed_ratio"} <= set(r["plausibility"])
     text = md.read_text()
-    assert "### FID per class" in text and "### Mix" in text and "label-free (Men-style)" in text
+    assert "### FID per class" in text and "### Mix" in text and "label-free (Men-style)" in text and "### Contact per class" in text
     assert {p.name for p in fig.glob("*.png")} == {"afd.png", "fid.png", "adherence.png", "mix.png", "latent_tsne.png"}
 
 

@@ -26,7 +26,7 @@ from imm_model.evaluation.baselines import (
     sequence_afds,
 )
 from imm_model.evaluation.metrics import afd_parts, per_class_mean
-from imm_model.evaluation.plausibility import frame_rate, plausibility
+from imm_model.evaluation.plausibility import frame_rate, interpenetration, plausibility
 from imm_model.model import classifier as classifiers
 from imm_model.model import classifier_config as classifier_configs
 
@@ -112,10 +112,14 @@ def method_scores(data: InteractionDataset, judges: FoldJudges, predictions: dic
                         ("accuracy", _per_class(probs.argmax(-1) == y, test, data))):
         for c, v in values.items():
             per_class[c][key] = v
+    reals = [data.canonical(int(i))[1] for i in test]
+    contact = np.array([interpenetration(a, b, data.skeleton) for a, b in zip(judges.leaders, followers, strict=True)])
+    real_contact = np.array([interpenetration(a, b, data.skeleton) for a, b in zip(judges.leaders, reals, strict=True)])
     for c in per_class:
         members = y == data.class_names.index(c)
         per_class[c]["fid"] = distribution.fid(judges.real_features[members], feats[members])
-    reals = [data.canonical(int(i))[1] for i in test]
+        # contact counts against a method only beyond what real pairs of the class show (hugs touch, kicks rarely)
+        per_class[c]["contact"], per_class[c]["real_contact"] = float(contact[members].mean()), float(real_contact[members].mean())
     parts = [afd_parts(f, r, data.skeleton.root) for f, r in zip(followers, reals, strict=True)]
     return {"classes": per_class, "fid": distribution.fid(judges.real_features, feats),
             "accuracy": distribution.accuracy(probs, y), "diversity": distribution.diversity(feats),

@@ -12,7 +12,7 @@ import numpy as np
 
 from imm_model.reads_as import MIX_SHARE
 
-PER_CLASS_METRICS = ("afd", "afd_squared", "fid", "accuracy")
+PER_CLASS_METRICS = ("afd", "afd_squared", "fid", "accuracy", "contact", "real_contact")
 
 
 def _stat(values: list[float]) -> tuple[float, float]:
@@ -30,7 +30,8 @@ def _method_classes(results: list[dict], get, class_names) -> dict[str, dict]:
     for c in class_names:
         entry: dict = {}
         for metric in PER_CLASS_METRICS:
-            _with_std(entry, metric, [get(r)["classes"][c][metric] for r in results if c in get(r)["classes"]])
+            # results saved before a metric was measured have none of it
+            _with_std(entry, metric, [get(r)["classes"][c][metric] for r in results if metric in get(r)["classes"].get(c, {})])
         classes[c] = entry
     return classes
 
@@ -149,6 +150,9 @@ def fold_figures(result: dict) -> dict[str, float]:
         "contact_ratio": p["interpenetration"] / p["real_interpenetration"] if p["real_interpenetration"] > 0 else float("nan"),
         **{f"fid_{c}": v["fid"] for c, v in m["classes"].items()},
     }
+    contact = [v["contact"] / v["real_contact"] for v in m["classes"].values() if v.get("real_contact", 0) > 0]
+    if contact:  # per class, the share of frames in contact over the real pairs' (the bar: <= 1.25 in every class)
+        out["contact_ratio_worst_class"] = float(max(contact))
     if nn1:
         out |= {"afd_nn1": float(np.mean([c["afd"] for c in nn1["classes"].values()])), "fid_nn1": nn1["fid"],
                 **{f"fid_nn1_{c}": v["fid"] for c, v in nn1["classes"].items()}}

@@ -118,6 +118,19 @@ def afd_parts_table(group: dict) -> str:
     return "\n".join(lines)
 
 
+def contact_table(group: dict) -> str:
+    """Per class, the share of frames in which the two bodies touch (plausibility.interpenetration), the model beside
+    the real pairs of the class; empty for results saved before it was measured."""
+    classes = group["classes"]
+    if not all(np.isfinite(e.get("real_contact", np.nan)) for e in classes.values()):
+        return ""
+    lines = ["| class | model | real pairs | model / real |", "|---|---:|---:|---:|"]
+    for c, e in classes.items():
+        ratio = e["contact"] / e["real_contact"] if e["real_contact"] > 0 else float("nan")
+        lines.append(f"| {c} | {_pm(e['contact'], e['contact_std'])} | {_pm(e['real_contact'])} | {_pm(ratio, digits=2)} |")
+    return "\n".join(lines)
+
+
 def overall_table(group: dict) -> str:
     lines = ["| method | FID (all classes) | recognition accuracy | diversity (real: {:.2f}) |".format(group["real_diversity"]),
              "|---|---:|---:|---:|"]
@@ -163,5 +176,6 @@ def markdown_report(summary: dict) -> str:
                   "### Mix", "", mix_table(s), "",
                   *_section("Mixed, by the whole body or by body parts (share of leaders)", part_mix_table(s)),
                   *_section("Variations (stochastic models)", variations_table(s)),
-                  "### Plausibility", "", plausibility_table(s), ""]
+                  "### Plausibility", "", plausibility_table(s), "",
+                  *_section("Contact per class (share of frames the bodies touch)", contact_table(s))]
     return "\n".join(parts)

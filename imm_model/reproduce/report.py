@@ -152,7 +152,8 @@ MODEL_FIGURES = (
     ("-1 lowers the class's reading", "avoid_share_lowered", 2),
     ("limb speed between the ends / real", "interior_limb_speed_ratio", 2), ("lean error (degrees)", "lean_error_deg", 1),
     ("bone error (cm)", "bone_error_cm", 1), ("feet sliding (m/s)", "foot_skate_mps", 3),
-    ("frames in contact / real", "contact_ratio", 2), ("variations: multimodality / real diversity", "multimodality_ratio", 2),
+    ("frames in contact / real", "contact_ratio", 2), ("... in the worst class", "contact_ratio_worst_class", 2),
+    ("variations: multimodality / real diversity", "multimodality_ratio", 2),
 )
 
 
