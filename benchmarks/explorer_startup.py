@@ -84,7 +84,7 @@ def main() -> int:
             # a cold cache's map is fitted after the page opens: wait for it, so that the warm start finds it cached
             page.wait_for_selector(probe.LATENT_POINTS, timeout=120000)
             drawn = time.monotonic() - t0
-            plotly_js = page.evaluate("""() => performance.getEntriesByType('resource').filter(e => e.name.endsWith('plotly.min.js'))
+            plotly_js = page.evaluate("""() => performance.getEntriesByType('resource').filter(e => /plotly[^/]*[.]min[.]js$/.test(e.name))
                 .map(e => [Math.round(e.startTime), Math.round(e.responseEnd)])[0] || null""")
             if plotly_js:
                 print(f"  {plotly_js[0]:6d}  plotly.min.js requested (after the first picture); loaded at {plotly_js[1]} ms")

@@ -21,7 +21,14 @@ def test_the_shell_is_built_once_and_keeps_trames_files(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == [first.name]  # no half-built copy left behind
 
 
-def test_the_studio_serves_plotly_js_from_the_plotly_package():
-    """static/latent_map.js loads imm_plotly/plotly.min.js; the studio serves that folder."""
-    assert (page_shell.plotly_js_dir() / "plotly.min.js").stat().st_size > 1_000_000
-    assert f"'{page_shell.PLOTLY_URL}/plotly.min.js'" in page_shell.LATENT_SCRIPT.read_text()
+def test_the_page_loads_plotly_js_by_its_version_from_the_launchers_static_path():
+    """static/latent_map.js names plotly.min.js above the tab's /s/<id>/ (one URL for every tab, so the browser's
+    cache serves the next one); the page names it with the plotly package's plotly.js version."""
+    import re
+
+    head = page_shell.plotly_js().read_bytes()[:200]
+    version = re.search(rb"plotly\.js v(\S+)", head).group(1).decode()
+    assert page_shell.plotly_name() == f"plotly-{version}.min.js"
+    assert f"'../../{page_shell.PLOTLY_SRC}'" in page_shell.LATENT_SCRIPT.read_text()
+    index = page_shell.shell_index(f"<head>{page_shell.ANCHOR}</head>")
+    assert f"'../../static/plotly-{version}.min.js'" in index and page_shell.PLOTLY_SRC not in index

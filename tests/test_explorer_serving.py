@@ -101,6 +101,7 @@ def test_behind_a_reverse_proxy_with_a_path_prefix(browser, tmp_path):
             n_mix = probe.state(pg, "mix_count")
             probe.press_slider(pg, f".slider-{names[2].replace(' ', '_')}", "End")
             pg.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=15000)
+            pg.wait_for_selector(probe.LATENT_POINTS, timeout=30000)  # plotly.js from the launcher's /imm/static/
             pg.close()
     finally:
         proxy.close()
@@ -197,3 +198,83 @@ def test_a_hostile_upload_is_one_red_line_and_closed_tabs_leave_no_error(studio,
         other.close()
     time.sleep(1.0)
     assert not [ln for ln in studio.lines if "Traceback" in ln or "never retrieved" in ln], studio.lines[-20:]
+
+
+def _plotly_loads(page) -> list[dict]:
+    """plotly.min.js's requests in `page` as Chromium's network log sees them: URL, bytes over the wire, from cache."""
+    cdp = page.context.new_cdp_session(page)
+    cdp.send("Network.enable")
+    loads: dict[str, dict] = {}
+
+    def sent(e):
+        if "plotly" in e["request"]["url"]:
+            loads[e["requestId"]] = {"url": e["request"]["url"], "cached": False}
+
+    def cached(e):
+        if e["requestId"] in loads:
+            loads[e["requestId"]]["cached"] = True
+
+    def received(e):
+        if e["requestId"] in loads and e["response"].get("fromDiskCache"):
+            loads[e["requestId"]]["cached"] = True
+
+    def finished(e):
+        if e["requestId"] in loads:
+            loads[e["requestId"]]["bytes"] = e["encodedDataLength"]
+
+    for event, handler in (("requestWillBeSent", sent), ("requestServedFromCache", cached),
+                           ("responseReceived", received), ("loadingFinished", finished)):
+        cdp.on(f"Network.{event}", handler)
+    return loads  # filled in as the page loads
+
+
+def test_a_second_tab_takes_plotly_js_from_the_browsers_cache(studio, browser):
+    """plotly.js (4.8 MB) is served by the launcher at one versioned path for every tab (not under the tab's own
+    /s/<id>/): a second tab in the same browser takes it from the cache, downloading none of it, and draws its map."""
+    context = browser.new_context(viewport={"width": 1400, "height": 900})  # a cache of its own, empty
+    try:
+        tabs = []
+        for _ in range(2):
+            pg = context.new_page()
+            loads = _plotly_loads(pg)
+            pg.goto(studio.url, timeout=90000)
+            pg.wait_for_selector(probe.LATENT_POINTS, timeout=60000)
+            deadline = time.monotonic() + 5  # the network log's last events arrive as Playwright waits
+            while not (loads and all("bytes" in x for x in loads.values())) and time.monotonic() < deadline:
+                pg.wait_for_timeout(100)
+            tabs.append((pg.url, list(loads.values())))
+        (first_url, [first]), (second_url, [second]) = tabs
+        assert first_url != second_url and first["url"] == second["url"] and "/s/" not in first["url"], (first, second)
+        assert first["url"].startswith(studio.url + "static/plotly-") and not first["cached"] and first["bytes"] > 1_000_000
+        assert second["cached"] and second["bytes"] < 1000, second
+    finally:
+        context.close()
+
+
+def test_the_static_path_answers_cache_headers_and_unknown_names_404(studio):
+    """/static/<name>: immutable for a year with an ETag (a revalidation is 304); no token or cookie needed, but
+    another web origin or host name is refused; an unknown name is a plain 404, with no traceback in the log."""
+    import urllib.error
+    import urllib.request
+
+    from explorer.serving.page_shell import plotly_js, plotly_name
+
+    def get(path, **headers):
+        request = urllib.request.Request(studio.url + path, headers=headers)
+        try:
+            with urllib.request.urlopen(request, timeout=30) as r:
+                return r.status, r.headers, r.read()
+        except urllib.error.HTTPError as err:
+            return err.code, err.headers, err.read()
+
+    status, headers, body = get(f"static/{plotly_name()}")
+    assert status == 200 and body == plotly_js().read_bytes()
+    assert headers["Cache-Control"] == "public, max-age=31536000, immutable" and headers["Content-Type"].startswith("text/javascript")
+    assert get(f"static/{plotly_name()}", **{"If-None-Match": headers["ETag"]})[0] == 304
+    assert get(f"static/{plotly_name()}", Origin="http://evil.example.com")[0] == 403
+    assert get(f"static/{plotly_name()}", Host="rebound.example.com")[0] == 403  # a DNS-rebinding page's own name
+    for unknown in ("static/plotly.min.js", "static/nope.js", "static/", "static/a/b.js", "static/..%2Fclaim"):
+        status, _, body = get(unknown)
+        assert status == 404 and len(body) < 100, (unknown, status, body[:100])
+    time.sleep(0.3)
+    assert not [ln for ln in studio.lines if "Traceback" in ln or "Error handling request" in ln]

@@ -130,6 +130,7 @@ class Launcher:
         self.last_traffic = 0.0  # time.monotonic() of the last websocket message through the proxy
         self.page_secret = secrets.token_urlsafe(18)  # the front page's cookie (PAGE_COOKIE)
         self.claim_tokens, self.claim_refilled = float(CLAIM_BURST), time.monotonic()
+        self.assets: dict[str, Path] = {}  # /static/<name> -> its file (public libraries the page loads)
 
     # ---- workers -------------------------------------------------------------------------
     async def spawn(self) -> Worker:
@@ -352,6 +353,21 @@ class Launcher:
             if not w.sockets:
                 asyncio.get_running_loop().call_later(RECONNECT_GRACE_S, self._retire_if_gone, w)
 
+    async def static(self, request):
+        """/static/<name>: a public library the page loads (plotly.js), at one versioned path for every tab, cached by
+        the browser for a year. No token or cookie (nothing in it is secret), but another web origin and, without a
+        token, a host name this studio does not serve are refused as on every other path."""
+        from aiohttp import web
+
+        if not self.same_origin(request) or not (self.config.token or self.host_served(request)):
+            return web.Response(status=403, text="refused: the studio only answers its own page")
+        path = self.assets.get(request.match_info["name"])
+        if path is None:
+            return web.Response(status=404, text="not found")
+        # aiohttp answers If-None-Match (its ETag: the file's mtime and size) with 304, and Range requests
+        return web.FileResponse(path, headers={"Cache-Control": "public, max-age=31536000, immutable",
+                                               "Content-Type": "text/javascript; charset=utf-8"})
+
     def allowed_hosts(self) -> set[str]:
         return {"localhost", "127.0.0.1", "::1", "[::1]", self.config.host} - {"0.0.0.0", "::"}
 
@@ -373,17 +389,23 @@ class Launcher:
             return True
         return hmac.compare_digest(request.cookies.get(PAGE_COOKIE, "").encode(), self.page_secret.encode())
 
+    def same_origin(self, request) -> bool:
+        origin = request.headers.get("Origin", "null")
+        return origin == "null" or origin.lower() in self.origins(request)
+
+    def host_served(self, request) -> bool:
+        return self.config.no_auth or (request.url.host or "") in self.allowed_hosts()
+
     def authorized(self, request) -> bool:
         """Another web origin is always refused ("null", an origin a browser withholds, counts as none: a claim then
         needs the page's cookie, and a studio's pages its unguessable session path). Then: the access token (first URL
         or cookie) if there is one; without one, a host name this studio serves (a DNS-rebinding page names its own)."""
-        origin = request.headers.get("Origin", "null")
-        if origin != "null" and origin.lower() not in self.origins(request):
+        if not self.same_origin(request):
             return False
         if self.config.no_auth:
             return True
         if self.config.token is None:
-            return (request.url.host or "") in self.allowed_hosts()
+            return self.host_served(request)
         given = request.query.get("token") or request.cookies.get(TOKEN_COOKIE) or ""
         return hmac.compare_digest(given.encode(), self.config.token.encode())
 
@@ -394,6 +416,13 @@ class Launcher:
             self.spares.append(first)
             from aiohttp import web
 
+            from explorer.serving.page_shell import plotly_js, plotly_name
+
+            try:
+                self.assets = {plotly_name(): plotly_js()}
+            except (ImportError, OSError) as err:
+                raise LaunchError(str(err)) from None
+
             await first.ready  # bad data/checkpoint fail here, before any URL is printed
         except LaunchError:
             await self.shutdown()
@@ -402,6 +431,7 @@ class Launcher:
         app.router.add_get("/", self.handle)
         app.router.add_post("/claim", self.claim)
         app.router.add_get("/s/{token}/{tail:.*}", self.studio)
+        app.router.add_get("/static/{name}", self.static)
         runner = web.AppRunner(app, access_log=None)
         await runner.setup()
         await web.SockSite(runner, sock).start()

@@ -4,9 +4,11 @@
 // server to open and play it (trigger `latent_pick`); a box or lasso selection sets `latent_selection`.
 //
 // plotly.js is 4.8 MB: it is fetched and evaluated only once the 3D view shows its first picture, so the page
-// opens as fast as it does without it (benchmarks/explorer_startup.py); the browser caches the file.
+// opens as fast as it does without it (benchmarks/explorer_startup.py). The launcher serves it for every tab at one
+// path above the tab's /s/<id>/ (a reverse proxy's prefix kept: the path is relative), so the browser's cache
+// serves a second tab; explorer/serving/page_shell.py puts plotly.js's version into its name.
 (() => {
-  const PLOTLY_SRC = 'imm_plotly/plotly.min.js';  // served by the studio (explorer/serving/page_shell.py)
+  const PLOTLY_SRC = '../../static/plotly.min.js';  // explorer/serving/launcher.py, `static`
   const VIEW_IMG = '.imm-scene img';
   const PLOT_ID = 'latent-plotly';
   const FIRST_PICTURE_WAIT_MS = 8000;  // load it anyway after this long (a page with no picture still gets its map)
