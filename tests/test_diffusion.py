@@ -325,6 +325,8 @@ def test_evaluation_reports_a_stochastic_models_variations_and_mixed_readings(ti
     assert figures["fid"] == result["model"]["fid"] and figures["afd_best_of_n"] == v["afd_best_of_n"]
     assert 0 <= figures["mixed_worst_pair"] <= figures["mixed"] <= 1 and "fid_nn1_hugging" in figures
     assert "multimodality_ratio" not in fold_figures(gan)
+    assert 0 <= figures["classes_beyond_real_contact"] <= 6
+    assert figures["contact_ratio_worst_class"] <= 1.25 or figures["classes_beyond_real_contact"] >= 1
     results = {EvalJob(TrainJob(r, "s04", 0), "final", baselines=("nn1",)): res
                for r, res in (("imm-steer", gan), ("imm-diffusion", result))}
     table = models_section(results, list(sample_data.class_names))

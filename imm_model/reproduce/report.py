@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from imm_model.evaluation.report import fold_figures, group_summary
+from imm_model.evaluation.report import CONTACT_TOLERANCE, fold_figures, group_summary
 from imm_model.evaluation.tables import BASELINE_TITLES, _pm
 from imm_model.outputs import write_files
 from imm_model.reproduce import paper_numbers as paper
@@ -153,6 +153,7 @@ MODEL_FIGURES = (
     ("limb speed between the ends / real", "interior_limb_speed_ratio", 2), ("lean error (degrees)", "lean_error_deg", 1),
     ("bone error (cm)", "bone_error_cm", 1), ("feet sliding (m/s)", "foot_skate_mps", 3),
     ("frames in contact / real", "contact_ratio", 2), ("... in the worst class", "contact_ratio_worst_class", 2),
+    (f"classes with contact beyond {CONTACT_TOLERANCE:g} x the real pairs'", "classes_beyond_real_contact", 1),
     ("variations: multimodality / real diversity", "multimodality_ratio", 2),
 )
 
