@@ -28,6 +28,9 @@ the installed packages still have each thing below, naming the package and its v
    carries `secret` (wslink/protocol.py).
 8. What the zygote imports before forking (PRELOAD): trame's server, trame-rca's image scheduler and wslink's
    websocket protocol, by module path.
+9. The page's module scripts and styles (trame-server + trame-client). trame's client loads the URLs in the state's
+   ASSET_LISTS (`trame__scripts`, ...: paths relative to the page, each under a folder of `server.serve`) once it has
+   the state; rewritten there before the server starts, they load from the launcher's one path for every tab.
 
 Nothing here imports trame, trame-rca or wslink at module level: the launcher reads the wire-format constants
 without loading them.
@@ -44,6 +47,7 @@ CLIENT_FIRST_SCRIPT = '<script src="vue.global.js"></script>'  # 1: trame's firs
 WSLINK_HEADER = 12  # 7: bytes of wslink's chunk header
 WSLINK_HELLO = "wslink.hello"  # 7: the method of the browser's first message
 PRELOAD = ("trame.app", "trame_rca.schedulers.image_scheduler", "wslink.websocket")  # 8
+ASSET_LISTS = ("trame__scripts", "trame__module_scripts", "trame__styles")  # 9: URLs trame's client loads
 
 
 # ---- 1. the page ---------------------------------------------------------------------------------------------------
@@ -61,6 +65,22 @@ def serve_page(server, www: Path, serve: dict[str, str]) -> None:
 
     server.enable_module(module)  # trame's client, which the server would enable when it starts; its page is replaced
     server.enable_module({"www": str(www), "serve": serve})
+
+
+def module_assets(server) -> dict[str, str]:
+    """9. {url: folder}: the folders `server` serves that its page's module scripts and styles come from (trame's
+    client module enabled first, as serve_page enables it)."""
+    from trame_client import module
+
+    server.enable_module(module)
+    used = {url.split("/", 1)[0] for key in ASSET_LISTS for url in server.state[key] or [] if "/" in url}
+    return {top: str(folder) for top, folder in server.serve.items() if top in used}
+
+
+def relocate_assets(server, folders: dict[str, str], prefix: str) -> None:
+    """9. The page's module scripts and styles under `folders` load from `prefix` + their path instead."""
+    for key in ASSET_LISTS:
+        server.state[key] = [prefix + url if url.split("/", 1)[0] in folders else url for url in server.state[key] or []]
 
 
 # ---- 3, 4. the picture stream ---------------------------------------------------------------------------------------

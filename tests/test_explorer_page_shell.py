@@ -21,6 +21,22 @@ def test_the_shell_is_built_once_and_keeps_trames_files(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == [first.name]  # no half-built copy left behind
 
 
+def test_the_shells_index_names_trames_files_under_the_launchers_static_key(tmp_path):
+    """Each file of trame's client that index.html loads comes from ../../static/<the shell's key>/ (one URL for every
+    tab); the module folders the page loads from are linked in the shell, and another set of them is another key."""
+    module = tmp_path / "module"  # a stand-in for a trame module's served folder (synthetic)
+    module.mkdir()
+    (module / "lib.js").write_text("// a module's script")
+    shell = page_shell.page_shell(tmp_path / "cache", {"__trame_lib_1.0": str(module)})
+    key = page_shell.shell_key(shell)
+    index = (shell / "index.html").read_text()
+    assert f'src="../../static/{key}/vue.global.js"' in index and index.index("BytesWebSocket") < index.index("vue.global.js")
+    named = [m[2] for m in page_shell.FILE_URL.finditer(index) if m[2] != "."]  # not <base href=".">
+    assert named and all(n.startswith(f"../../static/{key}/") and (shell / n.split("/", 4)[4]).is_file() for n in named), named
+    assert (shell / "__trame_lib_1.0" / "lib.js").read_text() == "// a module's script"
+    assert page_shell.page_shell(tmp_path / "cache", {"__trame_lib_1.1": str(module)}) != shell
+
+
 def test_the_page_loads_plotly_js_by_its_version_from_the_launchers_static_path():
     """static/latent_map.js names plotly.min.js above the tab's /s/<id>/ (one URL for every tab, so the browser's
     cache serves the next one); the page names it with the plotly package's plotly.js version."""

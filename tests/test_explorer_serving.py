@@ -200,64 +200,75 @@ def test_a_hostile_upload_is_one_red_line_and_closed_tabs_leave_no_error(studio,
     assert not [ln for ln in studio.lines if "Traceback" in ln or "never retrieved" in ln], studio.lines[-20:]
 
 
-def _plotly_loads(page) -> list[dict]:
-    """plotly.min.js's requests in `page` as Chromium's network log sees them: URL, bytes over the wire, from cache."""
+def _network_log(page) -> dict[str, dict]:
+    """The page's HTTP requests as Chromium's network log sees them: URL, bytes over the wire, from the cache."""
     cdp = page.context.new_cdp_session(page)
     cdp.send("Network.enable")
-    loads: dict[str, dict] = {}
+    log: dict[str, dict] = {}
 
     def sent(e):
-        if "plotly" in e["request"]["url"]:
-            loads[e["requestId"]] = {"url": e["request"]["url"], "cached": False}
+        log[e["requestId"]] = {"url": e["request"]["url"].split("?")[0], "cached": False}
 
     def cached(e):
-        if e["requestId"] in loads:
-            loads[e["requestId"]]["cached"] = True
+        if e["requestId"] in log:
+            log[e["requestId"]]["cached"] = True
 
     def received(e):
-        if e["requestId"] in loads and e["response"].get("fromDiskCache"):
-            loads[e["requestId"]]["cached"] = True
+        if e["requestId"] in log and e["response"].get("fromDiskCache"):
+            log[e["requestId"]]["cached"] = True
 
     def finished(e):
-        if e["requestId"] in loads:
-            loads[e["requestId"]]["bytes"] = e["encodedDataLength"]
+        if e["requestId"] in log:
+            log[e["requestId"]]["bytes"] = e["encodedDataLength"]
 
     for event, handler in (("requestWillBeSent", sent), ("requestServedFromCache", cached),
                            ("responseReceived", received), ("loadingFinished", finished)):
         cdp.on(f"Network.{event}", handler)
-    return loads  # filled in as the page loads
+    return log  # filled in as the page loads
 
 
-def test_a_second_tab_takes_plotly_js_from_the_browsers_cache(studio, browser):
-    """plotly.js (4.8 MB) is served by the launcher at one versioned path for every tab (not under the tab's own
-    /s/<id>/): a second tab in the same browser takes it from the cache, downloading none of it, and draws its map."""
+def _libraries(log: dict[str, dict]) -> list[dict]:
+    """What the page loads beside itself: plotly, vue, vuetify and its fonts, trame's client."""
+    return [x for x in log.values() if x["url"].endswith((".js", ".css", ".woff2", ".ttf"))]
+
+
+def test_a_second_tab_takes_plotly_and_trames_files_from_the_browsers_cache(studio, browser):
+    """plotly.js (4.8 MB) and trame's client files (vue, vuetify and its fonts: 2.3 MB) are served by the launcher at
+    one path for every tab, not under the tab's own /s/<id>/: a second tab in the same browser takes every one of them
+    from the cache, downloads next to nothing, and draws its map."""
     context = browser.new_context(viewport={"width": 1400, "height": 900})  # a cache of its own, empty
     try:
         tabs = []
         for _ in range(2):
             pg = context.new_page()
-            loads = _plotly_loads(pg)
+            log = _network_log(pg)
             pg.goto(studio.url, timeout=90000)
             pg.wait_for_selector(probe.LATENT_POINTS, timeout=60000)
             deadline = time.monotonic() + 5  # the network log's last events arrive as Playwright waits
-            while not (loads and all("bytes" in x for x in loads.values())) and time.monotonic() < deadline:
+            while not all("bytes" in x for x in _libraries(log)) and time.monotonic() < deadline:
                 pg.wait_for_timeout(100)
-            tabs.append((pg.url, list(loads.values())))
-        (first_url, [first]), (second_url, [second]) = tabs
-        assert first_url != second_url and first["url"] == second["url"] and "/s/" not in first["url"], (first, second)
-        assert first["url"].startswith(studio.url + "static/plotly-") and not first["cached"] and first["bytes"] > 1_000_000
-        assert second["cached"] and second["bytes"] < 1000, second
+            tabs.append((pg.url, _libraries(log), sum(x.get("bytes", 0) for x in log.values())))
+        (first_url, first, first_bytes), (second_url, second, second_bytes) = tabs
+        assert first_url != second_url and sorted(x["url"] for x in first) == sorted(x["url"] for x in second)
+        assert len(first) >= 8 and all(x["url"].startswith(studio.url + "static/") for x in first), first
+        plotly = [x for x in first if "/plotly-" in x["url"]]
+        assert len(plotly) == 1 and not plotly[0]["cached"] and plotly[0]["bytes"] > 1_000_000, plotly
+        assert all(x["cached"] and x["bytes"] < 1000 for x in second), [x for x in second if not x["cached"]]
+        assert first_bytes > 5_000_000 and second_bytes < first_bytes / 50, (first_bytes, second_bytes)
     finally:
         context.close()
 
 
-def test_the_static_path_answers_cache_headers_and_unknown_names_404(studio):
-    """/static/<name>: immutable for a year with an ETag (a revalidation is 304); no token or cookie needed, but
-    another web origin or host name is refused; an unknown name is a plain 404, with no traceback in the log."""
+def test_the_static_paths_answer_cache_headers_and_unknown_names_404(studio, page):
+    """/static/<name> (plotly.js) and /static/<key>/<path> (trame's client files, the key the page's): immutable for a
+    year with an ETag (a revalidation is 304); no token or cookie needed, but another web origin or host name is
+    refused; an unknown name, the page itself or a path out of the folder is a plain 404, with no traceback."""
+    import re
     import urllib.error
     import urllib.request
 
     from explorer.serving.page_shell import plotly_js, plotly_name
+    from explorer.trame_adapter import client_www
 
     def get(path, **headers):
         request = urllib.request.Request(studio.url + path, headers=headers)
@@ -267,13 +278,22 @@ def test_the_static_path_answers_cache_headers_and_unknown_names_404(studio):
         except urllib.error.HTTPError as err:
             return err.code, err.headers, err.read()
 
-    status, headers, body = get(f"static/{plotly_name()}")
-    assert status == 200 and body == plotly_js().read_bytes()
-    assert headers["Cache-Control"] == "public, max-age=31536000, immutable" and headers["Content-Type"].startswith("text/javascript")
-    assert get(f"static/{plotly_name()}", **{"If-None-Match": headers["ETag"]})[0] == 304
-    assert get(f"static/{plotly_name()}", Origin="http://evil.example.com")[0] == 403
-    assert get(f"static/{plotly_name()}", Host="rebound.example.com")[0] == 403  # a DNS-rebinding page's own name
-    for unknown in ("static/plotly.min.js", "static/nope.js", "static/", "static/a/b.js", "static/..%2Fclaim"):
+    vue = page.evaluate("() => [...document.scripts].map((s) => s.src).find((src) => src.endsWith('/vue.global.js'))")
+    key = re.fullmatch(re.escape(studio.url) + r"static/([0-9a-f]{16})/vue\.global\.js", vue)[1]
+    vuetify = [u for u in probe.state(page, "trame__scripts") if "vuetify" in u][0]  # as trame's client loads it
+    assert vuetify.startswith(f"../../static/{key}/"), vuetify
+    for path, content in ((f"static/{plotly_name()}", plotly_js().read_bytes()),
+                          (f"static/{key}/vue.global.js", (client_www() / "vue.global.js").read_bytes()),
+                          (vuetify.removeprefix("../../"), None)):
+        status, headers, body = get(path)
+        assert status == 200 and (body == content if content else len(body) > 100_000), (path, status)
+        assert headers["Cache-Control"] == "public, max-age=31536000, immutable" and "javascript" in headers["Content-Type"]
+        assert get(path, **{"If-None-Match": headers["ETag"]})[0] == 304
+        assert get(path, Origin="http://evil.example.com")[0] == 403
+        assert get(path, Host="rebound.example.com")[0] == 403  # a DNS-rebinding page's own name
+    for unknown in ("static/plotly.min.js", "static/nope.js", "static/", "static/a/b.js", "static/..%2Fclaim",
+                    f"static/{key}/index.html", f"static/{key}/nope.js", f"static/{key}/", f"static/{'0' * 16}/vue.global.js",
+                    f"static/{key}/assets/..%2F..%2F..%2Fclaim", f"static/{key}/.%2E/index.html"):
         status, _, body = get(unknown)
         assert status == 404 and len(body) < 100, (unknown, status, body[:100])
     time.sleep(0.3)

@@ -153,6 +153,17 @@ def test_the_origin_check_accepts_the_scheme_the_page_was_served_over():
     assert not behind.authorized(_request(Origin="https://evil.example.org"))
 
 
+def test_static_files_need_no_token_but_the_studios_origin_and_host_names():
+    """/static/ (plotly.js, trame's client files) is public: with --token it is served without the token, on any host
+    name the token admits; without a token only on this studio's host names; never to another web origin."""
+    plain, tokened = _launcher(), _launcher(token="a-long-token", host="0.0.0.0")
+    assert plain.public(_request(method="GET")) and not plain.public(_request(method="GET", host="rebound.example.com:8080"))
+    assert not plain.authorized(_request(method="GET", host="rebound.example.com:8080"))
+    assert tokened.public(_request(method="GET", host="lab.example.org:8080")) and not tokened.authorized(_request(method="GET"))
+    for front in (plain, tokened):
+        assert not front.public(_request(method="GET", Origin="http://evil.example.com"))
+
+
 def test_claims_need_the_page_and_are_rate_limited(monkeypatch):
     """A bare POST (no Origin, no cookie) is refused; the page's Origin or, without one, its cookie is admitted; past
     the burst, claims are refused until the bucket refills."""

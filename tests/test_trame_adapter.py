@@ -54,6 +54,25 @@ def test_the_last_www_enabled_is_the_page_trame_serves(tmp_path):
         f"{where('trame-server', 1)}: Server no longer enables trame_client's module only when no page is set")
 
 
+def test_module_scripts_and_styles_are_still_urls_in_the_state_that_the_client_loads(tmp_path):
+    """9: a module's scripts and styles land in the state's ASSET_LISTS as page-relative URLs under a folder the server
+    serves, and trame's client bundle still loads the state's lists; relocate_assets renames those under `folders`."""
+    from trame.app import get_server
+
+    server = get_server("trame-adapter-assets-test", client_type="vue3")
+    server.enable_module({"serve": {"__imm_lib": str(tmp_path)}, "scripts": ["__imm_lib/a.js"], "styles": ["__imm_lib/a.css"],
+                          "module_scripts": ["__imm_lib/m.js"]})
+    folders = trame_adapter.module_assets(server)
+    assert folders.get("__imm_lib") == str(tmp_path), f"{where('trame-server', 9)}: a module's scripts are not under server.serve"
+    trame_adapter.relocate_assets(server, folders, "../../static/k/")
+    lists = {key: server.state[key] for key in trame_adapter.ASSET_LISTS}
+    assert lists == {"trame__scripts": ["../../static/k/__imm_lib/a.js"], "trame__module_scripts": ["../../static/k/__imm_lib/m.js"],
+                     "trame__styles": ["../../static/k/__imm_lib/a.css"]}, f"{where('trame-server', 9)}: {lists}"
+    bundle = "".join(p.read_text() for p in (trame_adapter.client_www() / "assets").glob("index-*.js"))
+    for key in trame_adapter.ASSET_LISTS:
+        assert key in bundle, f"{where('trame-client', 9)}: the client bundle no longer loads the state's {key}"
+
+
 def test_trames_client_bundle_reads_binary_messages_as_the_bytes_script_expects():
     bundles = [p.read_text(errors="replace") for p in (trame_adapter.client_www() / "assets").glob("*.js")]
     assert any(re.search(r"binaryType\s*=\s*[`'\"]blob[`'\"]", b) for b in bundles), (

@@ -54,6 +54,7 @@ SPARE_DELAY_S = 3.0
 SPARE_QUIET_S = 1.0
 SPARE_LATEST_S = 60.0
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
+IMMUTABLE = "public, max-age=31536000, immutable"  # /static/: every name there changes with its content
 
 
 class LaunchError(Exception):
@@ -131,6 +132,7 @@ class Launcher:
         self.page_secret = secrets.token_urlsafe(18)  # the front page's cookie (PAGE_COOKIE)
         self.claim_tokens, self.claim_refilled = float(CLAIM_BURST), time.monotonic()
         self.assets: dict[str, Path] = {}  # /static/<name> -> its file (public libraries the page loads)
+        self.shells: dict[str, Path] = {}  # /static/<key>/... -> the page folder the studio processes serve
 
     # ---- workers -------------------------------------------------------------------------
     async def spawn(self) -> Worker:
@@ -188,7 +190,10 @@ class Launcher:
 
     def _worker_says(self, w: Worker, kind: str, rest: str) -> None:
         if kind == "READY" and not w.ready.done():
-            w.port = int(rest)
+            port, _, shell = rest.partition(" ")
+            w.port = int(port)
+            if shell:  # the page's folder: the files it loads from /static/<key>/ (explorer/serving/page_shell.py)
+                self.shells[Path(shell).name.removeprefix("page-")] = Path(shell)
             w.ready.set_result(True)
         elif kind == "ERROR" and not w.ready.done():
             w.ready.set_exception(LaunchError(rest))
@@ -359,14 +364,30 @@ class Launcher:
         token, a host name this studio does not serve are refused as on every other path."""
         from aiohttp import web
 
-        if not self.same_origin(request) or not (self.config.token or self.host_served(request)):
+        if not self.public(request):
             return web.Response(status=403, text="refused: the studio only answers its own page")
         path = self.assets.get(request.match_info["name"])
         if path is None:
             return web.Response(status=404, text="not found")
         # aiohttp answers If-None-Match (its ETag: the file's mtime and size) with 304, and Range requests
-        return web.FileResponse(path, headers={"Cache-Control": "public, max-age=31536000, immutable",
-                                               "Content-Type": "text/javascript; charset=utf-8"})
+        return web.FileResponse(path, headers={"Cache-Control": IMMUTABLE, "Content-Type": "text/javascript; charset=utf-8"})
+
+    async def page_file(self, request):
+        """/static/<key>/<path>: a file the page loads (vue, vuetify and its fonts, trame's client), from the page
+        folder the studio processes serve (explorer/serving/page_shell.py), at one path for every tab and cached by
+        the browser for a year: the key changes with the folder's content. Checked as `static`; not the page itself."""
+        from aiohttp import web
+
+        if not self.public(request):
+            return web.Response(status=403, text="refused: the studio only answers its own page")
+        shell = self.shells.get(request.match_info["key"])
+        parts = request.match_info["tail"].split("/")
+        if shell is None or parts == ["index.html"] or any(not p or p.startswith(".") for p in parts):
+            return web.Response(status=404, text="not found")
+        path = shell.joinpath(*parts)
+        if not path.is_file():
+            return web.Response(status=404, text="not found")
+        return web.FileResponse(path, headers={"Cache-Control": IMMUTABLE})
 
     def allowed_hosts(self) -> set[str]:
         return {"localhost", "127.0.0.1", "::1", "[::1]", self.config.host} - {"0.0.0.0", "::"}
@@ -395,6 +416,10 @@ class Launcher:
 
     def host_served(self, request) -> bool:
         return self.config.no_auth or (request.url.host or "") in self.allowed_hosts()
+
+    def public(self, request) -> bool:
+        """What /static/ needs: no token (nothing there is secret), but this studio's origin and host names."""
+        return self.same_origin(request) and bool(self.config.token or self.host_served(request))
 
     def authorized(self, request) -> bool:
         """Another web origin is always refused ("null", an origin a browser withholds, counts as none: a claim then
@@ -432,6 +457,7 @@ class Launcher:
         app.router.add_post("/claim", self.claim)
         app.router.add_get("/s/{token}/{tail:.*}", self.studio)
         app.router.add_get("/static/{name}", self.static)
+        app.router.add_get("/static/{key}/{tail:.+}", self.page_file)
         runner = web.AppRunner(app, access_log=None)
         await runner.setup()
         await web.SockSite(runner, sock).start()

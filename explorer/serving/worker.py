@@ -2,7 +2,7 @@
 loopback port.
 
 Forked per browser tab by the zygote (explorer/serving/zygote.py), which loaded everything once. It says
-`IMM-WORKER READY <id> <port>` (or `ERROR <id> <message>`) to the launcher. The launcher ends it when its tab has
+`IMM-WORKER READY <id> <port> <page folder>` (or `ERROR <id> <message>`) to the launcher. The launcher ends it when its tab has
 gone (through the zygote: explorer/serving/launcher.py); it exits by itself when the zygote goes away (its stdin closes).
 """
 
@@ -122,7 +122,7 @@ def serve(data, model, latent, reader, others, args: argparse.Namespace, *, secr
     session = Session(data, model, args.start, reader, others)
     session.upload_reader = uploads
     Studio(server, session, latent, export_dir=args.export_dir, render=args.render)
-    use_page_shell(server, args.cache_dir or default_cache_dir())
+    shell = use_page_shell(server, args.cache_dir or default_cache_dir())  # the launcher serves its shared files
 
     def stdin_watch():
         sys.stdin.read()  # the zygote writes nothing: end of file means it is gone
@@ -132,7 +132,7 @@ def serve(data, model, latent, reader, others, args: argparse.Namespace, *, secr
 
     def ready(**_) -> None:
         gc.freeze()  # the page, scene and server objects built since the fork: out of every later full collection
-        say("READY", server.port)
+        say("READY", server.port, shell)
 
     server.controller.on_server_ready.add(ready)
     server.start(host=args.host, port=args.port, open_browser=False, show_connection_info=False, disable_logging=True)

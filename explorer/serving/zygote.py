@@ -12,7 +12,7 @@ The launcher (launcher.py) talks to it with lines on its stdin and stdout:
                                                still there (busy: its server's signal handler runs on its event loop)
                        end of file             the launcher is gone: every studio process ends, then this one
   zygote -> launcher   "IMM-WORKER LOADED" or "IMM-WORKER ERROR - <message>" once, after loading
-                       "IMM-WORKER READY <id> <port>", "IMM-WORKER ERROR <id> <message>", "IMM-WORKER EXIT <id> <code>"
+                       "IMM-WORKER READY <id> <port> <page folder>", "IMM-WORKER ERROR <id> <message>", "IMM-WORKER EXIT <id> <code>"
 This process stays single-threaded (a select loop): forking a process with threads is unsafe.
 """
 
