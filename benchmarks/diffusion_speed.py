@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 import torch
+from threadpoolctl import threadpool_limits
 
 from imm_model.data.dataset import InteractionDataset
 from imm_model.device import add_device_argument, resolve_device
@@ -42,11 +43,12 @@ def main() -> None:
     add_device_argument(ap, default="cpu")
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
+    threadpool_limits(args.threads)  # numpy's BLAS too: the numpy denoiser's products would otherwise use every core
     device = str(resolve_device(args.device))
     data = InteractionDataset.load(SAMPLE_DATA)
     model, gan = ReactionModel.load(args.checkpoint, device=device), ReactionModel.load(args.gan, device=device)
     leader = data.canonical(int(np.argmax(data.lengths)))[0]
-    print(f"checkpoint {args.checkpoint}; {len(leader)} frames; torch threads {torch.get_num_threads()}; device {device}; "
+    print(f"checkpoint {args.checkpoint}; {len(leader)} frames; torch and BLAS threads {args.threads}; device {device}; "
           f"{model.guidance.sample_steps} sampler steps")
     for k in range(4):
         label = np.zeros(len(model.class_names), np.float32)

@@ -345,13 +345,16 @@ class DiffusionReactionModel(ReactionModel):
 
             return torch_denoiser(self.net, leaders, mask)
 
-        tiled: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # leaders and mask repeated once per term count, not per step
+        # the network conditioned on the leaders, mask and terms once per sample call, not once per step
+        conditioned: dict[bytes, Any] = {}
 
         def denoise(x_t, step, leader_on, label, label_on):
-            reps = len(x_t) // len(leaders)
-            if reps not in tiled:
-                tiled[reps] = np.tile(leaders, (reps, 1, 1)), np.tile(mask, (reps, 1))
-            return self.fast(x_t, step, tiled[reps][0], leader_on, label, label_on, tiled[reps][1])
+            terms = b"".join(np.ascontiguousarray(a).tobytes() for a in (leader_on, label, label_on))
+            if terms not in conditioned:
+                reps = len(x_t) // len(leaders)
+                conditioned[terms] = self.fast.conditioned(np.tile(leaders, (reps, 1, 1)), leader_on, label, label_on,
+                                                           np.tile(mask, (reps, 1)))
+            return conditioned[terms](x_t, step)
 
         return denoise
 

@@ -203,6 +203,60 @@ def test_numpy_denoiser_matches_torch(frames_per_token):
     assert np.allclose(fast(x, 30, leader, on, label, on[::-1].copy(), mask)[mask], ref[mask], atol=1e-5)
 
 
+@pytest.mark.parametrize("frames_per_token", [1, 2])
+def test_conditioned_denoiser_reused_across_steps_matches_torch(frames_per_token):
+    """The leader's and the label's share computed once and reused for several steps (one of them met twice, from
+    the step cache) gives the torch module's prediction at each step (random weights and inputs)."""
+    torch.manual_seed(2)
+    cfg = DiffusionConfig(width=16, layers=2, heads=2, frames_per_token=frames_per_token)
+    net = ReactionDenoiser(cfg).eval()
+    for block in net.blocks:
+        torch.nn.init.normal_(block.modulation.weight, std=0.3)
+    fast = NumpyDenoiser({k: v.numpy() for k, v in net.state_dict().items()}, cfg)
+    rng = np.random.default_rng(1)
+    leader = rng.standard_normal((3, 9, 45)).astype(np.float32)
+    mask = np.arange(9)[None] < np.array([[9], [5], [8]])
+    on, label = np.array([True, True, False]), np.eye(6, dtype=np.float32)[[0, 3, 5]] * np.float32(0.7)
+    label_on = np.array([False, True, True])
+    conditioned = fast.conditioned(leader, on, label, label_on, mask)
+    for step in (99, 40, 99, 0):
+        x = rng.standard_normal((3, 9, 45)).astype(np.float32)
+        with torch.no_grad():
+            ref = net(*map(torch.as_tensor, (x, np.full(3, step), leader, on, label, label_on, mask))).numpy()
+        assert np.allclose(conditioned(x, step)[mask], ref[mask], atol=1e-5)
+
+
+def test_attention_softmax_with_and_without_the_max_shift():
+    """The numpy attention skips the softmax's max shift only where every score is small: with small and with large
+    scores (random queries scaled up until exp would overflow), and padded keys, it equals a float64 softmax."""
+    from imm_model.model.diffusion_numpy import _attention
+
+    rng = np.random.default_rng(0)
+    q, k, v = rng.standard_normal((3, 2, 2, 7, 4)).astype(np.float32)
+    pad = np.where(np.arange(7) < np.array([[7], [4]]), 0.0, -np.inf).astype(np.float32)[:, None, :, None]
+    for scale in (1.0, 60.0):
+        scores = (q * scale).astype(np.float64) @ k.swapaxes(-1, -2) + pad.swapaxes(-1, -2)
+        weights = np.exp(scores - scores.max(-1, keepdims=True))
+        ref = weights / weights.sum(-1, keepdims=True) @ v
+        out = _attention(q * np.float32(scale), k, v, pad)
+        assert np.isfinite(out).all() and np.allclose(out, ref, atol=1e-4), scale
+
+
+def test_the_models_network_call_conditions_once_per_set_of_terms(tiny_model, sample_data):
+    """`sample`'s network call conditions on the leaders once per set of terms: a call with other terms, and the first
+    terms again, each give what the network gives for them afresh."""
+    model = ReactionModel.load(tiny_model)
+    x, mask = model._normalize_leaders([sample_data.canonical(0)[0], sample_data.canonical(1)[0]])
+    denoise = model._denoiser(x, mask)
+    rng = np.random.default_rng(0)
+    terms = [(np.ones(4, bool), np.eye(6, dtype=np.float32)[[0, 0, 2, 2]], np.array([False, False, True, True])),
+             (np.array([True, True, False, False]), np.zeros((4, 6), np.float32), np.zeros(4, bool))]
+    for leader_on, label, label_on in (*terms, terms[0]):
+        x_t = rng.standard_normal((4, *x.shape[1:])).astype(np.float32)
+        fresh = model.fast(x_t, 50, np.tile(x, (2, 1, 1)), leader_on, label, label_on, np.tile(mask, (2, 1)))
+        assert np.allclose(denoise(x_t, 50, leader_on, label, label_on), fresh, atol=1e-6)
+
+
 def test_resume_continues_exactly(sample_data, tmp_path):
     cfg = replace(TINY, steps=8, checkpoint_every=4)
     whole = DiffusionTrainer(cfg, sample_data, "s04", tmp_path / "whole")
