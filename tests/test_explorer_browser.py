@@ -390,7 +390,11 @@ def test_a_class_filter_narrows_the_list_and_keeps_the_mix(page):
 
 
 def test_screenshot_downloads_the_view_as_png(page, tmp_path):
+    """The picture carries the legend and the label along its top (explorer/rendering/annotation.py); the view on
+    the page does not (its legend is the page's own)."""
     from PIL import Image
+
+    from explorer.rendering.palette import LEADER
 
     with page.expect_download(timeout=20000) as download:
         page.locator("#screenshot").click()
@@ -398,6 +402,12 @@ def test_screenshot_downloads_the_view_as_png(page, tmp_path):
     download.value.save_as(path)
     with Image.open(path) as im:
         assert im.format == "PNG" and min(im.size) > 100
+        png = np.asarray(im.convert("RGB"))
+    strip = png[: png.shape[0] // 6]
+    dark = int((strip.max(-1) < 100).sum())  # the label's dark text
+    assert dark > 200 and probe.count_colors(strip, [LEADER])[0] > 20
+    view = probe.view_pixels(page)[: strip.shape[0]]
+    assert int((view.max(-1) < 100).sum()) < dark / 4
 
 
 def test_pin_a_mix_then_compare_swap_and_clear(page):

@@ -139,3 +139,46 @@ def test_variations_stand_right_of_the_synthesized_follower_with_their_seeds(sce
     finally:
         scene.set_layout("overlay")
         scene.set_camera("default")
+
+
+def test_exported_pictures_carry_the_legend_and_the_frame_number_and_the_view_stays_plain(scene, sample_data, tmp_path):
+    """Every frame of an exported GIF carries its own number in the strip along the top (here the figures stand still,
+    so only the number changes); a PNG's legend names only the figures shown; the view itself gets no strip."""
+    from types import SimpleNamespace
+
+    import imageio.v3 as iio
+
+    from explorer.rendering.palette import GROUND_TRUTH, LEADER, SYNTHESIZED
+    from explorer.session.session import Session, load_model
+    from explorer.ui.exports import Exports
+    from imm_model.paths import SAMPLE_CHECKPOINT
+
+    if not SAMPLE_CHECKPOINT.exists():
+        pytest.skip(f"bundled checkpoint missing: {SAMPLE_CHECKPOINT}")
+    session = Session(sample_data, load_model(SAMPLE_CHECKPOINT, sample_data), index=0)
+    page = SimpleNamespace(session=session, state=SimpleNamespace(notice=""), guarded=lambda fn: fn,
+                           trigger=lambda name: (lambda fn: fn), ctrl=SimpleNamespace(view_update=lambda: None))
+    exports = Exports(page, scene, tmp_path, attach=bytes)
+    keep = dict(scene.sequences)
+    scene.set_sequence(*(np.repeat(m[:1], 4, 0) for m in (session.leader, session.ground_truth, session.synth)))
+    try:
+        plain = scene.screenshot()
+        frames = iio.imread(exports.export_video("gif"), index=None)[..., :3]
+        assert frames.shape == (4, *plain.shape)
+        text_rows = np.flatnonzero(np.abs(frames[0].astype(int) - plain).max(axis=(1, 2)) > 100)  # dark text on light
+        top = text_rows.max() + 1
+        assert len(text_rows) > 10 and top < 0.2 * plain.shape[0]
+        strips = {f[:top].tobytes() for f in frames}
+        assert len(strips) == len(frames)  # frame 1 / 4, 2 / 4, ...
+        assert np.abs(frames[1:, top + 10:].astype(int) - frames[0, top + 10:]).max() < 40  # the scene did not move
+        assert all(_count(frames[0][:top], c) > 10 for c in (LEADER, GROUND_TRUTH, SYNTHESIZED))
+        np.testing.assert_array_equal(scene.screenshot(), plain)
+
+        scene.set_visible("ground_truth", False)
+        png = iio.imread(exports.export_png())
+        assert _count(png[:top], LEADER) > 10 and _count(png, GROUND_TRUTH) == 0
+        assert sorted(p.suffix for p in tmp_path.iterdir()) == [".gif", ".png"]
+    finally:
+        scene.set_visible("ground_truth", True)
+        scene.set_sequence(keep["leader"], keep["ground_truth"], keep["synthesized"])
+        scene.set_camera("default")

@@ -213,6 +213,9 @@ def test_uploaded_leader_has_no_ground_truth_and_bad_files_change_nothing(sessio
     with np.load(io.BytesIO(session.export_npz())) as z:
         assert "ground_truth" not in z.files and "sequence_id" not in z.files
     assert session.export_name("bvh").startswith("l_")
+    from explorer.ui.exports import about_text
+
+    assert about_text(session).endswith(" · l.bvh")  # exported pictures name the uploaded file
     session.select(0)
     assert session.upload is None and session.ground_truth is not None
 
@@ -307,6 +310,19 @@ def test_switching_models_keeps_the_sequence_mix_and_pin(two_models):
     with pytest.raises(ValueError, match="no model 'x'"):
         ses.set_model("x")
     assert ses.model_name == "gan"
+
+
+def test_exported_pictures_name_the_model_its_seed_and_the_leader(two_models):
+    from explorer.ui.exports import about_text
+
+    ses = two_models
+    assert about_text(ses) == f"the paper's GAN · {ses.data.sequence_ids[3]}"
+    ses.set_model("diffusion")
+    ses.set_seed(7)
+    assert about_text(ses) == f"the diffusion model, seed 7 · {ses.data.sequence_ids[3]}"
+    ses.set_cleanup(False)
+    assert "no clean-up" in about_text(ses)
+    ses.set_cleanup(True)
 
 
 def test_a_seed_picks_a_variation_and_a_moved_slider_moves_it_smoothly(two_models):

@@ -223,6 +223,17 @@ class Scene:
                 cap.position = (spot[0], top, spot[2])
                 cap.SetVisibility(self.visible["synthesized" if k in VARIATION_KEYS else k])
 
+    def shown(self, every_frame: bool = False) -> list[str]:
+        """What the view shows: the figures of CHARACTER_KEYS and "pinned" that are drawn, then "contact" while limbs
+        are drawn orange (at the current frame; `every_frame`: at any frame of the sequence)."""
+        keys = [k for k in (*CHARACTER_KEYS, "pinned") if self.figures[k].actors[0].GetVisibility()]
+        c = self.contact
+        if every_frame:
+            touching = c.enabled and c.flags is not None and any(bool(f.any()) for f in c.flags)
+        else:
+            touching = bool(c.actor.GetVisibility())
+        return keys + ["contact"] * touching
+
     def _slots(self) -> int:
         """Spots side by side: leader, ground truth, synthesized, and its variations."""
         return len(CHARACTER_KEYS) + sum(k in self.sequences for k in VARIATION_KEYS)

@@ -1,6 +1,9 @@
 """What the studio's Export menu and screenshot button hand to the browser: the reaction as .npz or .bvh, the
 animation as .gif or .mp4, the current 3D view as .png. Each is also saved into --export-dir.
 
+Pictures and video frames carry a strip naming the figures, the mix, the model, the sequence and the frame
+(explorer/rendering/annotation.py), which the page shows around the view and a picture on its own would lose.
+
 They are trame triggers, not controllers: the page awaits the returned bytes to download them.
 """
 
@@ -13,7 +16,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from explorer.session.session import FPS, one_line
+from explorer.rendering.palette import CHARACTER_TITLES, PINNED, WARNING, display_name
+from explorer.rendering.palette import CHARACTERS as CHARACTER_COLORS
+from explorer.session.session import FPS, model_title, one_line
 
 if TYPE_CHECKING:
     from explorer.rendering.scene import Scene
@@ -51,7 +56,8 @@ class Exports:
         """The 3D view as the user sees it now (the server renders it; no browser canvas needed)."""
         import imageio.v3 as iio
 
-        return self._send(self.session.export_name("png"), iio.imwrite("<bytes>", self.scene.screenshot(), extension=".png"))
+        image = self._annotator(every_frame=False)(self.scene.screenshot(), self.scene.frame)
+        return self._send(self.session.export_name("png"), iio.imwrite("<bytes>", image, extension=".png"))
 
     def export_video(self, fmt: str = "gif"):
         import imageio.v3 as iio
@@ -59,7 +65,8 @@ class Exports:
         if fmt not in VIDEO_FORMATS:
             raise ValueError(f"unknown video format {fmt!r}: {' or '.join(VIDEO_FORMATS)}")
 
-        images = self.scene.frames()
+        annotate = self._annotator(every_frame=True)
+        images = [annotate(im, f) for f, im in enumerate(self.scene.frames())]
         self.page.ctrl.view_update()
         if fmt == "mp4":
             images = [im[: im.shape[0] // 2 * 2, : im.shape[1] // 2 * 2] for im in images]  # even sizes for yuv420p
@@ -67,6 +74,22 @@ class Exports:
         else:
             data = iio.imwrite("<bytes>", np.stack(images), extension=".gif", duration=1000.0 / FPS, loop=0)
         return self._send(self.session.export_name(fmt), data)
+
+    def _annotator(self, every_frame: bool) -> Callable[[np.ndarray, int], np.ndarray]:
+        """The strip for this view's export: the legend of the figures shown (side by side their captions name them,
+        so there only the pinned one's), the mix, the model and the sequence; -> draws it on the picture of frame f."""
+        from explorer.rendering.annotation import annotate
+
+        ses, scene = self.session, self.scene
+        titles = {**CHARACTER_TITLES, "pinned": f"pinned: {ses.pinned_text()}", "contact": "limbs in contact"}
+        colors = {**CHARACTER_COLORS, "pinned": PINNED, "contact": WARNING}
+        shown = scene.shown(every_frame)
+        if scene.layout == "side_by_side":
+            shown = [k for k in shown if k == "pinned"]
+        legend = [(titles[k], colors[k]) for k in shown]
+        mix, about = mix_text(ses.weights, ses.class_names, ses.scale), about_text(ses)
+        n = len(scene.sequences["leader"])
+        return lambda image, f: annotate(image, legend, mix, about, f"frame {f + 1} / {n}")
 
     def _save_copy(self, name: str, data: bytes) -> None:
         """Saved under a name made of safe characters only (it comes partly from an upload's file name), beside
@@ -80,6 +103,24 @@ class Exports:
             state.notice = f"saved {path}"
         except (OSError, IMMError) as err:
             state.notice = f"download only (could not save a copy: {one_line(err)})"
+
+
+def mix_text(weights, class_names, scale: float) -> str:
+    """The mix as the page's sliders write it: 'kicking +1.00, hugging +0.50 · scale 1.00'."""
+    parts = [f"{display_name(n)} {w:+.2f}" for n, w in zip(class_names, weights, strict=True) if abs(w) > 1e-6]
+    return f"{', '.join(parts) or 'neutral (all classes 0)'} · scale {scale:.2f}"
+
+
+def about_text(session) -> str:
+    """Which model drew the follower (and its seed, for a stochastic one), and of which leader: 'the diffusion model,
+    seed 7 · s01s02/03/001' (an uploaded leader: its file's name)."""
+    model = model_title(session.model_name)
+    if session.stochastic:
+        model += f", seed {session.seed}"
+    if not session.cleaned_up:
+        model += ", no clean-up"
+    leader = Path(session.upload.name).name if session.upload else session.data.sequence_ids[session.index]
+    return f"{model} · {leader}"
 
 
 def safe_file_name(name: str) -> str:
