@@ -234,7 +234,7 @@ def test_attention_softmax_with_and_without_the_max_shift():
     rng = np.random.default_rng(0)
     q, k, v = rng.standard_normal((3, 2, 2, 7, 4)).astype(np.float32)
     pad = np.where(np.arange(7) < np.array([[7], [4]]), 0.0, -np.inf).astype(np.float32)[:, None, :, None]
-    for scale in (1.0, 60.0):
+    for scale in (1.0, 60.0):  # scores within +-7; within +-380, past the shift-free range
         scores = (q * scale).astype(np.float64) @ k.swapaxes(-1, -2) + pad.swapaxes(-1, -2)
         weights = np.exp(scores - scores.max(-1, keepdims=True))
         ref = weights / weights.sum(-1, keepdims=True) @ v
