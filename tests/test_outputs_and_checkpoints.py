@@ -297,10 +297,12 @@ def test_resume_refuses_a_mismatched_pair(overwritten_run, capsys):
     tensors, meta = load_checkpoint(fold / "last.safetensors")
     save_checkpoint(d / "other.safetensors", {k: v + 1 if v.is_floating_point() else v for k, v in tensors.items()}, meta)
     shutil.copy(d / "other.json", fold / "last.json")  # the sidecar of another save
-    before = _files(fold)
+    before, config = _files(fold), (fold.parent / "config.json").stat()
     assert main([*base, "--resume", "--epochs", "2"]) == 2
     _refused(capsys, "last.safetensors", "come from different saves")
     assert _files(fold) == before
+    after = (fold.parent / "config.json").stat()  # the run's config not rewritten for a resume that was refused
+    assert (after.st_ino, after.st_mtime_ns) == (config.st_ino, config.st_mtime_ns)
 
 
 # ---- imm reproduce -------------------------------------------------------------------------------------------------

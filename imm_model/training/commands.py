@@ -138,6 +138,10 @@ def check_run_dirs(out: Path, folds: list, config: dict, resume: bool, overwrite
             raise ValueError(f"{fold} already holds a run ({', '.join(present)}): --resume continues it, --overwrite replaces it")
         if resume and present and "last.safetensors" not in present:
             raise ValueError(f"--resume: {fold} has no last.safetensors to continue from; --overwrite starts it again")
+        if resume and "last.safetensors" in present:  # a mismatched pair is refused before config.json is rewritten
+            from imm_model.checkpoint import load_checkpoint
+
+            load_checkpoint(fold / "last.safetensors", framework="np")
 
 
 def check_export_path(path: Path, num_folds: int, overwrite: bool, inputs: list[Path]) -> None:
