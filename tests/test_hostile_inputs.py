@@ -273,6 +273,7 @@ def bundle_variants(tmp: Path) -> dict[str, tuple[str, Path]]:
     put("a length of -5", lambda a, m: a["lengths"].__setitem__(0, -5))
     put("positions 1e30", lambda a, m: a.__setitem__("leader", a["leader"] * np.float32(1e30)))
     put("class index 99", lambda a, m: a["actions"].__setitem__(0, 99))
+    put("a follower value NaN", lambda a, m: a["follower"].__setitem__((a["lengths"][0] + 2, 4, 1), np.nan))
     put("canonical mode unknown", lambda a, m: m.__setitem__("canonical_mode", "sideways"))
     declaring = tmp / "bundle_declares.npz"
     _zip_declaring(declaring, {f"{k}.npy": _npy(v) for k, v in arrays.items()}, "follower.npy", (1 << 32) - 1)
@@ -320,7 +321,7 @@ def test_every_hostile_file_is_refused_in_one_line_naming_it_within_seconds_and_
     assert len(outcomes) > 80
 
 
-def test_the_messages_name_the_field(outcomes):
+def test_the_messages_name_the_field(outcomes, sample_data):
     def message(name: str) -> str:
         return outcomes[name][1].get("message", "")
 
@@ -334,6 +335,9 @@ def test_the_messages_name_the_field(outcomes):
     assert "cycle" in message("bundle: skeleton parents cycle") and "vertical_axis" in message("bundle: skeleton vertical axis 7")
     assert "facing_joints must be joint indices below the joint count" in message("bundle: skeleton joint 99")
     assert "class_names names" in message("bundle: class names twice")
+    first, second = sample_data.sequence_ids[:2]
+    assert f"leader of sequence {first} has positions beyond 1000 m" in message("bundle: positions 1e30")
+    assert f"follower of sequence {second} holds NaN" in message("bundle: a follower value NaN")
     assert "MB uncompressed; interaction bundle files up to 256 MB" in message("bundle: a member declares 4 GB")
     assert "declares shape (17000000, 15, 3)" in message("npz: header claims shape x 1e6")
     assert "characters for 96 channels" in message("bvh: a row of 3 million values")

@@ -263,13 +263,24 @@ class InteractionDataset:
             raise DataFormatError(f"{where}: pose arrays have shape {self.leader.shape}, expected ({f}, {self.skeleton.num_joints}, 3)")
         if len(self.yaw) != f or self.origin.shape != (f, 3) or len(self.frame_numbers) != f:
             raise DataFormatError(f"{where}: canonical-frame arrays do not match the {f} frames")
-        if not (np.isfinite(self.leader).all() and np.isfinite(self.follower).all()):
-            raise DataFormatError(f"{where}: NaN or infinite positions")
-        if np.abs(self.origin).max(initial=0) > MAX_COORDINATE_M or np.abs(self.leader).max(initial=0) > MAX_COORDINATE_M \
-                or np.abs(self.follower).max(initial=0) > MAX_COORDINATE_M or not np.isfinite(self.yaw).all():
-            raise DataFormatError(f"{where}: positions beyond {MAX_COORDINATE_M:g} m or a non-finite canonical frame")
+        # each message names the array and the first sequence that breaks the bound
+        for name in ("leader", "follower", "origin", "yaw") if f else ():
+            values = getattr(self, name).reshape(f, -1)
+            finite = np.isfinite(values).all(axis=1)
+            if not finite.all():
+                raise DataFormatError(f"{where}: {name} of sequence {self._sequence_at(int(np.argmin(finite)))} holds NaN "
+                                      f"or infinity")
+            far = np.abs(values).max(axis=1, initial=0) > MAX_COORDINATE_M
+            if name != "yaw" and far.any():
+                raise DataFormatError(f"{where}: {name} of sequence {self._sequence_at(int(np.argmax(far)))} has positions "
+                                      f"beyond {MAX_COORDINATE_M:g} m; positions within {MAX_COORDINATE_M:g} m are accepted")
         if n and (self.actions.dtype.kind not in "iu" or self.actions.min() < 0 or self.actions.max() >= len(self.class_names)):
             raise DataFormatError(f"{where}: class index outside 0..{len(self.class_names) - 1}")
+
+
+    def _sequence_at(self, frame: int) -> str:
+        """The id of the sequence that holds `frame` of the concatenated pose arrays."""
+        return str(self.sequence_ids[int(np.searchsorted(np.cumsum(self.lengths), frame, side="right"))])
 
 
 def _strings(values, field: str, unique: bool = False) -> tuple[str, ...]:
