@@ -63,7 +63,10 @@ def label_vectors(args: argparse.Namespace, model) -> list[np.ndarray]:
     from imm_model.inference import parse_label
 
     if args.grid:
-        return [np.eye(len(model.class_names), dtype=np.float32)[c] * args.scale for c in range(len(model.class_names))]
+        if args.label:
+            raise ValueError("--grid makes its own labels (one per class): give --label or --grid, not both")
+        # through label_vector, so the scale meets the same finite and range checks as a given label
+        return [model.label_vector({name: 1.0}, args.scale) for name in model.class_names]
     if not args.label:
         raise ValueError("give --label (repeat it for several) or --grid")
     return [model.label_vector(parse_label(text, model.class_names), args.scale) for text in args.label]

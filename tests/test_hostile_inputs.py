@@ -511,7 +511,11 @@ def test_cli_answers_hostile_inputs_with_rc_2_one_line_and_writes_nothing(tmp_pa
         ["generate", "--sequence", "s01s02/03/001", "--label", "kicking=1e300", "--out", str(out / "d.npz")],
         ["generate", "--sequence", "s01s02/03/001", *label, "--data", str(BVH), "--out", str(out / "e.npz")],
         ["data", "summary", "--data", outcomes["bundle: skeleton parents cycle"][0]],
+        ["generate", "--sequence", "s01s02/03/001", "--grid", "--scale", "1e300", "--out", str(out / "f")],
+        ["generate", "--sequence", "s01s02/03/001", "--grid", "--scale", "nan", "--out", str(out / "g")],
+        ["generate", "--sequence", "s01s02/03/001", "--grid", *label, "--out", str(out / "h")],
     ]
+    expected = {"f": "outside the range of label values", "g": "must be finite", "h": "give --label or --grid, not both"}
     run = subprocess.run([sys.executable, "-c", CLI_CHILD, json.dumps(argvs)], capture_output=True, text=True, timeout=120,
                          env=os.environ | {"OMP_NUM_THREADS": "1"})
     assert run.returncode == 0, run.stderr[-3000:]
@@ -519,4 +523,5 @@ def test_cli_answers_hostile_inputs_with_rc_2_one_line_and_writes_nothing(tmp_pa
         lines = result["err"].strip().splitlines()
         assert result["rc"] == 2 and len(lines) == 1 and lines[0].startswith("imm "), (argv, result)
         assert result["seconds"] < 10, (argv, result)
+        assert expected.get(Path(argv[-1]).name, "") in lines[0], (argv, result)
     assert not out.exists() or not any(out.iterdir())
