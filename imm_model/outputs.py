@@ -140,3 +140,37 @@ def check_finite(values: np.ndarray, what: str) -> np.ndarray:
     if not np.isfinite(arr).all():
         raise IMMError(f"{what} is not finite (NaN or infinity): refusing to write or report it")
     return arr
+
+
+# One writer at a time per run folder: two trainers in one folder (two `imm train`, two `imm reproduce`, or one of
+# each) would interleave their logs and checkpoints. An advisory lock (flock) on a file in the folder, released by the
+# kernel when its holder ends, however it ends, so a killed command never leaves a stale lock behind.
+LOCK_NAME = ".imm.lock"
+
+
+class FolderLock:
+    """`with FolderLock(folder, "--runs", "imm reproduce"):` holds the folder's lock, or refuses with one line naming
+    the command and pid that hold it."""
+
+    def __init__(self, folder: Path, what: str, command: str = "imm reproduce"):
+        self.folder, self.what, self.command, self._fd = Path(folder), what, command, -1
+
+    def __enter__(self) -> FolderLock:
+        import fcntl
+
+        self.folder.mkdir(parents=True, exist_ok=True)
+        fd = os.open(self.folder / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            pid, _, command = os.read(fd, 200).decode(errors="replace").strip().partition(" ")
+            os.close(fd)
+            raise IMMError(f"{self.what} {self.folder}: in use by another `{command or 'imm command'}` (pid {pid or '?'}); "
+                           f"wait for it to finish or stop it") from None
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()} {self.command}\n".encode())
+        self._fd = fd
+        return self
+
+    def __exit__(self, *exc) -> None:
+        os.close(self._fd)  # closing the file releases the lock

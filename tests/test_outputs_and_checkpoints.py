@@ -305,9 +305,24 @@ def test_resume_refuses_a_mismatched_pair(overwritten_run, capsys):
     assert (after.st_ino, after.st_mtime_ns) == (config.st_ino, config.st_mtime_ns)
 
 
+def test_train_refuses_a_fold_another_trainer_is_working_in(overwritten_run, capsys):
+    from imm_model.outputs import FolderLock
+
+    d, fold, base = overwritten_run
+    before, config = _files(fold), (fold.parent / "config.json").stat()
+    with FolderLock(fold, "run"):  # as `imm reproduce` holds a run it trains
+        assert main([*base, "--overwrite"]) == 2
+        _refused(capsys, "fold-s04: in use by another `imm reproduce`", f"pid {os.getpid()}")
+    with FolderLock(fold, "--out", "imm train"):
+        assert main([*base, "--overwrite", "--epochs", "2"]) == 2
+        _refused(capsys, "in use by another `imm train`")
+    after = (fold.parent / "config.json").stat()
+    assert _files(fold) == before and (after.st_ino, after.st_mtime_ns) == (config.st_ino, config.st_mtime_ns)
+
+
 # ---- imm reproduce -------------------------------------------------------------------------------------------------
 def test_reproduce_refuses_a_folder_another_reproduce_holds(tmp_path, capsys):
-    from imm_model.reproduce.lock import LOCK_NAME, FolderLock
+    from imm_model.outputs import LOCK_NAME, FolderLock
 
     args = ["reproduce", "--folds", "s04", "--epochs", "1", "--tables", "afd", "--backend", "local"]
     with FolderLock(tmp_path / "rep", "--out"):

@@ -55,10 +55,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _cmd_reproduce(args: argparse.Namespace) -> int:
     from imm_model.cache import dataset_hash
     from imm_model.data.dataset import InteractionDataset
-    from imm_model.outputs import Output, plan_outputs
+    from imm_model.outputs import FolderLock, Output, plan_outputs
     from imm_model.paths import SAMPLE_DATA, k3hi_raw_root
     from imm_model.reproduce.jobs import copy_records
-    from imm_model.reproduce.lock import FolderLock
     from imm_model.reproduce.plan import ReproducePlan
     from imm_model.reproduce.report import REPORT_FILES, write_report
     from imm_model.reproduce.runner import Runner

@@ -12,9 +12,8 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from imm_model.outputs import write_atomic
+from imm_model.outputs import FolderLock, write_atomic
 from imm_model.reproduce.jobs import HALF_SPLIT, TrainJob, mark_done, stamp_job
-from imm_model.reproduce.lock import FolderLock
 
 
 def training_data(data_path: Path, split: str):

@@ -33,21 +33,18 @@ def fold_dir(out: Path, subject: str | None) -> Path:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    import json
+    import contextlib
 
     import torch
 
-    from imm_model.checkpoint import export_generator, final_checkpoint
     from imm_model.data.dataset import InteractionDataset
     from imm_model.data.splits import all_subjects, normalize_fold
     from imm_model.device import resolve_device
-    from imm_model.outputs import write_atomic
+    from imm_model.outputs import FolderLock
     from imm_model.paths import SAMPLE_DATA
     from imm_model.training.config import load_config
-    from imm_model.training.diffusion import DiffusionTrainer, diffusion_recipe
+    from imm_model.training.diffusion import diffusion_recipe
     from imm_model.training.diffusion import load_config as load_diffusion_config
-    from imm_model.training.refit import refit
-    from imm_model.training.trainer import Trainer
 
     if args.threads < 1:
         raise ValueError(f"--threads must be >= 1, not {args.threads}")
@@ -83,6 +80,21 @@ def _cmd_train(args: argparse.Namespace) -> int:
         reads = [args.data or SAMPLE_DATA, *config_file, *(fold_dir(args.out, s) / f for s in folds for f in RUN_OWNS)]
         check_export_path(args.export, len(folds), args.overwrite, reads)
     check_run_dirs(args.out, folds, cfg.to_dict(), args.resume, args.overwrite)
+    with contextlib.ExitStack() as locks:  # a trainer already at work in a fold is not cleared or joined
+        for subject in folds:
+            locks.enter_context(FolderLock(fold_dir(args.out, subject), "--out", "imm train"))
+        return _train_folds(args, cfg, data, folds, diffusion, device)
+
+
+def _train_folds(args: argparse.Namespace, cfg, data, folds: list, diffusion: bool, device) -> int:
+    import json
+
+    from imm_model.checkpoint import export_generator, final_checkpoint
+    from imm_model.outputs import write_atomic
+    from imm_model.training.diffusion import DiffusionTrainer
+    from imm_model.training.refit import refit
+    from imm_model.training.trainer import Trainer
+
     if args.overwrite:  # so that no model of the replaced run is shipped, exported or evaluated as this one's
         for subject in folds:
             clear_run(fold_dir(args.out, subject))
