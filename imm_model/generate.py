@@ -116,6 +116,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     import torch
 
     from imm_model.device import resolve_device
+    from imm_model.errors import DataFormatError
     from imm_model.inference import ReactionModel, check_seeds
     from imm_model.outputs import Output, plan_outputs
 
@@ -131,6 +132,11 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         raise ValueError(f"--samples {args.samples}: {model.path.name if model.path else 'this model'} is deterministic "
                          "(the paper's GAN): every seed gives the same reaction")
     leaders, labels = _leaders(args), label_vectors(args, model)
+    for _, leader, source in leaders:  # all checked before anything is written, each refusal naming its file
+        try:
+            model.check_leader(leader)
+        except DataFormatError as err:
+            raise DataFormatError(f"{source}: {err}") from None
     if single:
         paths = {(0, 0, seeds[0]): args.out}
         outputs = [Output(args.out)]

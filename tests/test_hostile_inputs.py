@@ -504,6 +504,7 @@ def test_cli_answers_hostile_inputs_with_rc_2_one_line_and_writes_nothing(tmp_pa
     cycle = _checkpoint_with(tmp_path, meta)
     out = tmp_path / "out"
     label = ["--label", "kicking=1"]
+    np.savez(tmp_path / "one_frame.npz", leader=np.zeros((1, 15, 3), np.float32))  # synthetic: a leader of one frame
     argvs = [
         ["generate", "--leader", outcomes["bvh: frames off by one"][0], *label, "--out", str(out / "a.bvh")],
         ["generate", "--leader", outcomes["npz: 3e6 zero frames"][0], *label, "--out", str(out / "b.npz")],
@@ -514,8 +515,10 @@ def test_cli_answers_hostile_inputs_with_rc_2_one_line_and_writes_nothing(tmp_pa
         ["generate", "--sequence", "s01s02/03/001", "--grid", "--scale", "1e300", "--out", str(out / "f")],
         ["generate", "--sequence", "s01s02/03/001", "--grid", "--scale", "nan", "--out", str(out / "g")],
         ["generate", "--sequence", "s01s02/03/001", "--grid", *label, "--out", str(out / "h")],
+        ["generate", "--leader", str(tmp_path / "one_frame.npz"), str(BVH), *label, "--out", str(out / "i")],
     ]
-    expected = {"f": "outside the range of label values", "g": "must be finite", "h": "give --label or --grid, not both"}
+    expected = {"f": "outside the range of label values", "g": "must be finite", "h": "give --label or --grid, not both",
+                "i": "one_frame.npz: leader motion has 1 frame"}
     run = subprocess.run([sys.executable, "-c", CLI_CHILD, json.dumps(argvs)], capture_output=True, text=True, timeout=120,
                          env=os.environ | {"OMP_NUM_THREADS": "1"})
     assert run.returncode == 0, run.stderr[-3000:]
