@@ -320,6 +320,17 @@ def test_train_refuses_a_fold_another_trainer_is_working_in(overwritten_run, cap
     assert _files(fold) == before and (after.st_ino, after.st_mtime_ns) == (config.st_ino, config.st_mtime_ns)
 
 
+def test_resume_refuses_a_checkpoint_of_another_recipe_before_writing(overwritten_run, capsys):
+    d, fold, base = overwritten_run
+    tensors, meta = load_checkpoint(fold / "best.safetensors")
+    save_checkpoint(fold / "last.safetensors", tensors, meta | {"train_config": meta["train_config"] | {"lr_g": 0.5}})
+    before, config = _files(fold), (fold.parent / "config.json").stat()
+    assert main([*base, "--resume", "--epochs", "2"]) == 2
+    _refused(capsys, "last.safetensors: saved with a different training config")
+    after = (fold.parent / "config.json").stat()
+    assert _files(fold) == before and (after.st_ino, after.st_mtime_ns) == (config.st_ino, config.st_mtime_ns)
+
+
 # ---- imm reproduce -------------------------------------------------------------------------------------------------
 def test_reproduce_refuses_a_folder_another_reproduce_holds(tmp_path, capsys):
     from imm_model.outputs import LOCK_NAME, FolderLock

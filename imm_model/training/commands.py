@@ -150,10 +150,14 @@ def check_run_dirs(out: Path, folds: list, config: dict, resume: bool, overwrite
             raise ValueError(f"{fold} already holds a run ({', '.join(present)}): --resume continues it, --overwrite replaces it")
         if resume and present and "last.safetensors" not in present:
             raise ValueError(f"--resume: {fold} has no last.safetensors to continue from; --overwrite starts it again")
-        if resume and "last.safetensors" in present:  # a mismatched pair is refused before config.json is rewritten
+        if resume and "last.safetensors" in present:  # a mismatched pair or recipe, before config.json is rewritten
             from imm_model.checkpoint import load_checkpoint
+            from imm_model.training.config import same_recipe
 
-            load_checkpoint(fold / "last.safetensors", framework="np")
+            _, meta = load_checkpoint(fold / "last.safetensors", framework="np")
+            if not same_recipe(meta.get("train_config") or {}, config):
+                raise ValueError(f"{fold / 'last.safetensors'}: saved with a different training config; resume with "
+                                 f"the same --config/--seed")
 
 
 def check_export_path(path: Path, num_folds: int, overwrite: bool, inputs: list[Path]) -> None:
