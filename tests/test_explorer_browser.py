@@ -266,6 +266,47 @@ def test_play_advances_frames(page):
     page.wait_for_function("() => window.trame.state.get('playing') === false", timeout=5000)
 
 
+def test_playback_sends_a_picture_once_the_page_showed_the_one_before_drafts_while_playing_full_size_paused(page):
+    """explorer/rendering/view_stream.py: while the page does not report a picture shown, the view holds the next
+    (at most one a ACK_TIMEOUT_S); reported, it plays on; playing, its pictures are drafts (DRAFT_SCALE of the view's
+    width, stretched over it), and once paused a full-size one follows."""
+    from explorer.rendering.view_stream import ACK_TIMEOUT_S, DRAFT_SCALE
+
+    # pictures reaching the page (trame-rca makes a blob URL for each); a switch that keeps the view's image loads
+    # from the view's acknowledgement (a capture listener on the document runs before the view's own; an element's
+    # load never reaches the window)
+    page.evaluate(f"""() => {{ window.__pics = 0; window.__muted = false; window.__playSizes = [];
+        if (!window.__picsOn) {{ window.__picsOn = true; const make = URL.createObjectURL;
+            URL.createObjectURL = (b) => {{ if (b && String(b.type).startsWith('image/')) window.__pics++; return make(b); }};
+            document.addEventListener('load', e => {{ if (window.__muted && e.target.tagName === 'IMG') e.stopPropagation(); }}, true); }}
+        const i = document.querySelector('{probe.VIEW_IMG}');
+        i.addEventListener('load', () => window.__playSizes.push([i.naturalWidth, i.clientWidth, window.trame.state.get('playing')]));
+    }}""")
+    probe.set_state(page, "loop", True)
+    seconds = 2.0
+    try:
+        page.evaluate("() => { window.__muted = true; }")
+        page.click("#play-button")
+        probe.wait_state(page, "s.get('playing') === true")
+        n0 = page.evaluate("() => window.__pics")
+        time.sleep(seconds)
+        muted = page.evaluate("() => window.__pics") - n0
+        page.evaluate("() => { window.__muted = false; window.__playSizes = []; }")
+        time.sleep(0.5)
+        n1 = page.evaluate("() => window.__pics")
+        time.sleep(seconds)
+        acknowledged = page.evaluate("() => window.__pics") - n1
+    finally:
+        page.click("#play-button")
+        probe.set_state(page, "loop", False)
+    probe.wait_state(page, "s.get('playing') === false")
+    page.wait_for_function("() => window.__playSizes.some(([n, w, playing]) => !playing && n === w)", timeout=10000)
+    assert muted <= seconds / ACK_TIMEOUT_S + 2 < acknowledged, (muted, acknowledged)
+    sizes = page.evaluate("() => window.__playSizes")
+    playing = [(n, w) for n, w, p in sizes if p]
+    assert len(playing) >= 5 and all(abs(n - round(w * DRAFT_SCALE)) <= 1 for n, w in playing), sizes
+
+
 def test_export_bvh_downloads_a_file_that_reimports(page, tmp_path):
     from imm_model.data.bvh import read_bvh
 

@@ -132,6 +132,14 @@ def test_interactive_frames_go_through_the_wrapper_and_keys_never_reach_vtk():
         f"{where('trame-rca', 4)}: RcaViewAdapter.on_interaction(origin, event) changed")
     assert isinstance(FakeWindow(), RemoteControlledAreaProtocol), f"{where('trame-rca', 4)}: RemoteControlledAreaProtocol changed"
 
+    class FakeStreamer:
+        pushed = []
+
+        def push_content(self, name, meta, content):
+            self.pushed.append((name, content))
+
+    streamer, delivered = FakeStreamer(), []
+
     async def run():
         window, area, wrapped, after = FakeWindow(), FakeArea(), [], []
 
@@ -143,8 +151,9 @@ def test_interactive_frames_go_through_the_wrapper_and_keys_never_reach_vtk():
             return result
 
         handler = trame_adapter.stream_view(area, window, wrap_interactive=wrap, target_fps=30, interactive_quality=70,
-                                            still_quality=85)
+                                            still_quality=85, deliver=delivered.append)
         assert area.handlers == [handler]
+        handler.set_streamer(streamer)
         handler.update()
         for _ in range(100):  # the scheduler's loop renders the interactive frame, then the still one
             await asyncio.sleep(0.01)
@@ -156,6 +165,13 @@ def test_interactive_frames_go_through_the_wrapper_and_keys_never_reach_vtk():
         return window, wrapped, after
 
     window, wrapped, after = asyncio.run(run())
+    assert len(delivered) == 2 and not streamer.pushed, (
+        f"{where('trame-rca', 4)}: the encoded pictures did not go through the push callback ({len(delivered)} handed over, "
+        f"{len(streamer.pushed)} pushed past it)")
+    for send in delivered:
+        send()
+    assert [name for name, _ in streamer.pushed] == ["view", "view"] and all(len(c) > 0 for _, c in streamer.pushed), (
+        f"{where('trame-rca', 4)}: a picture handed over did not reach the page's stream (RcaViewAdapter.push)")
     assert wrapped == [1], f"{where('trame-rca', 3)}: the interactive frame did not render through the wrapper ({wrapped})"
     assert window.grabs > after[-1], f"{where('trame-rca', 3)}: the still frame after it was not rendered (outside the wrapper)"
     assert [e["type"] for e in window.events] == ["LeftButtonPress"], (

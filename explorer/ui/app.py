@@ -351,8 +351,14 @@ class Studio:
 
     def on_frame_change(self, frame, **_):
         self.scene.set_frame(int(frame or 0))
-        self.ctrl.view_update()
+        self.ctrl.view_update(draft=bool(self.state.playing))  # playback's pictures are drafts; the still one is full size
         self._update_time()
+
+    async def picture_encoded(self) -> None:
+        """Wait until the picture asked for last is encoded (a streamed view's; vtk.js draws in the page)."""
+        wait = getattr(self._view, "wait_encoded", None)
+        if wait is not None:
+            await wait()
 
     def step_frame(self, delta: int):
         n = self.session.num_frames

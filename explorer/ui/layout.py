@@ -331,6 +331,13 @@ def scene_view(page: LayoutParts) -> None:
             html.Span("● pinned: {{ pinned_text }}", v_if="pinned_text", style=f"color: {PINNED}; font-weight: 600")
 
 
+def per_frame():
+    """A wrapper for what changes with every frame while playing (the frame slider, the time, the chart's cursor): its
+    contents are a slot, rendered by a component of their own, so a new frame re-renders them and not the page's whole
+    template (which took ~10 ms of the browser's main thread a frame on 2 cores: docs/experiments/studio-performance.md)."""
+    return v3.VDefaultsProvider()
+
+
 def playback_bar(page: LayoutParts) -> None:
     """Play/pause, step, the frame slider, time, speed and loop."""
     with html.Div(classes="d-flex align-center", style="width: 100%; gap: 8px; flex: 0 0 auto"):
@@ -343,17 +350,18 @@ def playback_bar(page: LayoutParts) -> None:
             id="play-button",
         )
         v3.VBtn(icon="mdi-skip-next", size="small", variant="text", click=(page.ctrl.step_frame, "[1]"))
-        v3.VSlider(
-            v_model=("frame",),
-            min=0,
-            max=("num_frames - 1",),
-            step=1,
-            hide_details=True,
-            density="compact",
-            id="frame-slider",
-            style="flex: 1 1 auto",
-        )
-        html.Div("{{ time_text }}", classes="text-caption", style="width: 190px", id="time-text")
+        with per_frame():
+            v3.VSlider(
+                v_model=("frame",),
+                min=0,
+                max=("num_frames - 1",),
+                step=1,
+                hide_details=True,
+                density="compact",
+                id="frame-slider",
+                style="flex: 1 1 auto",
+            )
+            html.Div("{{ time_text }}", classes="text-caption", style="width: 190px", id="time-text")
         v3.VSelect(
             v_model=("speed",),
             items=("speeds", [{"title": f"{x:g}×", "value": x} for x in SPEEDS]),
@@ -408,7 +416,8 @@ def distance_chart() -> None:
     with html.Div(classes="imm-fill", id="distance-chart"):
         html.Div(v_html=("distance_chart",))
         with html.Div(classes="imm-plot", style=f"{DISTANCE_BOX}; cursor: crosshair", click=SEEK_JS, id="distance-seek"):
-            html.Div(classes="imm-cursor", style=("{left: (100 * frame / Math.max(1, num_frames - 1)) + '%'}",))
+            with per_frame():
+                html.Div(classes="imm-cursor", style=("{left: (100 * frame / Math.max(1, num_frames - 1)) + '%'}",))
 
 
 def latent_map() -> None:

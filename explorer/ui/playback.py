@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
-import os
 from typing import TYPE_CHECKING, Any, Protocol
 
 from explorer.session.session import FPS
@@ -14,9 +14,11 @@ if TYPE_CHECKING:
     from explorer.session.session import Session
 
 MIN_YIELD_S = 0.005  # even when late, give the image delivery and incoming messages a turn
-# Pictures per second at most. On a 2-core machine the browser and the server share the cores: asked for 30/s (2x),
-# the page showed 6-8 of them a second, asked for 15/s it showed 12-13 (docs/experiments/studio-performance.md).
-MAX_PICTURES_PER_S = 30 if (os.cpu_count() or 1) >= 4 else 15
+# Each frame waits until its picture is encoded (explorer/rendering/view_stream.py: the view holds a picture back
+# until the page has shown the one before), so the next frame renders while the page shows this one, and playback
+# shows what the page can, skipping frames beyond that. A fixed rate ran ahead of a busy page, whose <img> then
+# cancelled most pictures: asked for 30/s on 2 cores, it showed 6-8 (docs/experiments/studio-performance.md).
+ENCODED_TIMEOUT_S = 0.5  # plays on at this pace at least if a picture never comes
 
 
 def playback_speed(value) -> float:
@@ -29,10 +31,13 @@ def playback_speed(value) -> float:
 
 
 class Player(Protocol):
-    """What playback reads and moves: the page's frame, playing, speed and loop, and the session's frame count."""
+    """What playback reads and moves: the page's frame, playing, speed and loop, and the session's frame count; and
+    what it waits for: the picture of the frame it set, encoded."""
 
     state: Any
     session: Session
+
+    async def picture_encoded(self) -> None: ...
 
 
 async def play(studio: Player) -> None:
@@ -48,7 +53,8 @@ async def play(studio: Player) -> None:
             pos = shown = int(studio.state.frame or 0)
         now = loop.time()
         pos, last = pos + (now - last) * rate, now
-        await asyncio.sleep(max(MIN_YIELD_S, (math.floor(pos) + 1 - pos) / rate, 1 / MAX_PICTURES_PER_S))
+        due = 0.0 if int(pos) != shown else (math.floor(pos) + 1 - pos) / rate  # now, if the picture took over a frame
+        await asyncio.sleep(max(MIN_YIELD_S, due))
         now = loop.time()
         pos, last = pos + (now - last) * rate, now
         if not studio.state.playing:
@@ -63,3 +69,5 @@ async def play(studio: Player) -> None:
                     studio.state.playing = False
             shown = int(pos)
             studio.state.frame = shown
+        with contextlib.suppress(TimeoutError):
+            await asyncio.wait_for(studio.picture_encoded(), ENCODED_TIMEOUT_S)

@@ -1,0 +1,68 @@
+"""explorer/rendering/view_stream.py's PictureGate: at most one picture on its way to the page, the latest held back
+until the page reports the one before shown (or a timeout), and playback's wait for its picture to be encoded.
+No trame server: the gate is given stand-in send() callables."""
+
+from __future__ import annotations
+
+import asyncio
+
+import pytest
+
+pytest.importorskip("trame_rca")
+
+from explorer.rendering.view_stream import PictureGate  # noqa: E402
+
+
+def picture(sent: list, name: str):
+    return lambda: sent.append(name)
+
+
+def test_one_picture_in_flight_and_the_latest_held_back_goes_when_the_page_shows_it():
+    async def run():
+        gate, sent = PictureGate(timeout_s=10), []
+        gate.deliver(picture(sent, "a"))  # nothing in flight: goes at once
+        gate.deliver(picture(sent, "b"))  # a not shown yet: held
+        gate.deliver(picture(sent, "c"))  # replaces b (the latest wins)
+        assert sent == ["a"] and gate.in_flight
+        gate.shown()  # the page showed a: c goes, b never
+        assert sent == ["a", "c"] and gate.in_flight and gate.held is None
+        gate.shown()
+        assert not gate.in_flight
+        gate.deliver(picture(sent, "d"))  # nothing in flight again: at once
+        return sent, gate
+
+    sent, gate = asyncio.run(run())
+    assert sent == ["a", "c", "d"] and (gate.sent, gate.shown_count, gate.replaced) == (3, 2, 1)
+
+
+def test_a_picture_never_reported_shown_holds_the_next_only_until_the_timeout():
+    async def run():
+        gate, sent = PictureGate(timeout_s=0.05), []
+        gate.deliver(picture(sent, "a"))
+        gate.deliver(picture(sent, "b"))
+        await asyncio.sleep(0.01)
+        held_then = list(sent)
+        await asyncio.sleep(0.1)  # no acknowledgement (a hidden tab): b goes after the timeout
+        return held_then, sent
+
+    held_then, sent = asyncio.run(run())
+    assert held_then == ["a"] and sent == ["a", "b"]
+
+
+def test_playback_waits_for_its_picture_encoded_not_for_the_one_before_to_be_shown():
+    async def run():
+        gate, sent = PictureGate(timeout_s=10), []
+        await asyncio.wait_for(gate.wait_encoded(), 1)  # nothing asked for: no wait
+        gate.asked()
+        waiter = asyncio.ensure_future(gate.wait_encoded())
+        await asyncio.sleep(0.01)
+        waiting = not waiter.done()
+        gate.deliver(picture(sent, "a"))
+        await asyncio.wait_for(waiter, 1)
+        gate.asked()
+        gate.deliver(picture(sent, "b"))  # held (a is not shown) but encoded: the next frame may render meanwhile
+        await asyncio.wait_for(gate.wait_encoded(), 1)
+        return waiting, sent
+
+    waiting, sent = asyncio.run(run())
+    assert waiting and sent == ["a"]
