@@ -66,3 +66,44 @@ def test_playback_waits_for_its_picture_encoded_not_for_the_one_before_to_be_sho
 
     waiting, sent = asyncio.run(run())
     assert waiting and sent == ["a"]
+
+
+def test_playback_sets_no_new_frame_until_the_last_ones_picture_is_encoded(monkeypatch):
+    """explorer/ui/playback.py over a stand-in studio (synthetic: a 1000-frame session, 2x): while the view has not
+    encoded the picture of the frame just set, playback sets no other; once it has, playback goes on."""
+    from types import SimpleNamespace
+
+    from explorer.ui import playback
+    from explorer.ui.playback import play
+
+    monkeypatch.setattr(playback, "ENCODED_TIMEOUT_S", 10.0)  # the wait below is not a lost picture
+
+    class State(SimpleNamespace):
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+    async def run():
+        encoded = asyncio.Event()
+        studio = SimpleNamespace(state=State(frame=0, playing=True, speed=2.0, loop=False),
+                                 session=SimpleNamespace(num_frames=1000), frames=[])
+
+        async def picture_encoded():
+            studio.frames.append(studio.state.frame)
+            await encoded.wait()
+            return True
+
+        studio.picture_encoded = picture_encoded
+        task = asyncio.ensure_future(play(studio))
+        await asyncio.sleep(0.3)  # 9 frames' time at 2x
+        blocked = list(studio.frames)
+        encoded.set()
+        await asyncio.sleep(0.3)
+        studio.state.playing = False
+        await asyncio.wait_for(task, 2)
+        return blocked, studio.frames
+
+    blocked, frames = asyncio.run(run())
+    assert len(blocked) == 1 and len(frames) >= 4 and frames == sorted(frames), (blocked, frames)

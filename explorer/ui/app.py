@@ -354,11 +354,14 @@ class Studio:
         self.ctrl.view_update(draft=bool(self.state.playing))  # playback's pictures are drafts; the still one is full size
         self._update_time()
 
-    async def picture_encoded(self) -> None:
-        """Wait until the picture asked for last is encoded (a streamed view's; vtk.js draws in the page)."""
+    async def picture_encoded(self) -> bool:
+        """Wait until the picture asked for last is encoded (a streamed view's) -> True; False at once for vtk.js
+        drawing in the page (--render local), which cannot tell."""
         wait = getattr(self._view, "wait_encoded", None)
-        if wait is not None:
-            await wait()
+        if wait is None:
+            return False
+        await wait()
+        return True
 
     def step_frame(self, delta: int):
         n = self.session.num_frames

@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
+import os
 from typing import TYPE_CHECKING, Any, Protocol
 
 from explorer.session.session import FPS
@@ -19,6 +20,8 @@ MIN_YIELD_S = 0.005  # even when late, give the image delivery and incoming mess
 # shows what the page can, skipping frames beyond that. A fixed rate ran ahead of a busy page, whose <img> then
 # cancelled most pictures: asked for 30/s on 2 cores, it showed 6-8 (docs/experiments/studio-performance.md).
 ENCODED_TIMEOUT_S = 0.5  # plays on at this pace at least if a picture never comes
+# A view that cannot tell (vtk.js drawing in the page, --render local) keeps the earlier fixed cap: frames a second.
+UNPACED_PER_S = 30 if (os.cpu_count() or 1) >= 4 else 15
 
 
 def playback_speed(value) -> float:
@@ -37,7 +40,7 @@ class Player(Protocol):
     state: Any
     session: Session
 
-    async def picture_encoded(self) -> None: ...
+    async def picture_encoded(self) -> bool: ...  # False: the view cannot tell (no wait)
 
 
 async def play(studio: Player) -> None:
@@ -46,7 +49,7 @@ async def play(studio: Player) -> None:
     frame is due (a loop that never yields starves the image delivery)."""
     loop = asyncio.get_running_loop()
     pos, last = float(studio.state.frame or 0), loop.time()
-    shown = int(pos)
+    shown, earliest = int(pos), last
     while studio.state.playing:
         rate = FPS * playback_speed(studio.state.speed)
         if int(studio.state.frame or 0) != shown:  # the user scrubbed while playing
@@ -54,7 +57,7 @@ async def play(studio: Player) -> None:
         now = loop.time()
         pos, last = pos + (now - last) * rate, now
         due = 0.0 if int(pos) != shown else (math.floor(pos) + 1 - pos) / rate  # now, if the picture took over a frame
-        await asyncio.sleep(max(MIN_YIELD_S, due))
+        await asyncio.sleep(max(MIN_YIELD_S, due, earliest - now))
         now = loop.time()
         pos, last = pos + (now - last) * rate, now
         if not studio.state.playing:
@@ -69,5 +72,7 @@ async def play(studio: Player) -> None:
                     studio.state.playing = False
             shown = int(pos)
             studio.state.frame = shown
+        earliest = loop.time()
         with contextlib.suppress(TimeoutError):
-            await asyncio.wait_for(studio.picture_encoded(), ENCODED_TIMEOUT_S)
+            if not await asyncio.wait_for(studio.picture_encoded(), ENCODED_TIMEOUT_S):
+                earliest += 1 / UNPACED_PER_S
