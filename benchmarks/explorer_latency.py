@@ -281,36 +281,24 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp, sync_playwright() as p:
         browser = probe.launch_chromium(p)
         cache = Path(tmp) / "cache"
-        if args.models:
+        def playback_alone(studio) -> None:
+            page = probe.open_studio(browser, studio.url, *VIEW_SIZE)
+            probe.watch_view_images(page)
+            probe.wait_state(page, "!s.get('projection_busy')", 180000)  # the map's fit off the cores first
+            measure_playback(page, args.play_seconds, res)
+
+        alone = (lambda st: measure_models(browser, st, args.trials, res)) if args.models else \
+            playback_alone if args.playback_only else \
+            (lambda st: measure_tabs(browser, st, 0, res)) if args.memory_only else None
+        if alone is not None:  # one part of the benchmark, in one studio
             studio = probe.StudioProcess(*model, cache_dir=cache, timeout=120)
             try:
-                measure_models(browser, studio, args.trials, res)
+                alone(studio)
             finally:
                 studio.stop()
                 browser.close()
-            if args.json:
+            if args.json and not args.memory_only:
                 args.json.write_text(json.dumps(res, indent=2))
-            return 0
-        if args.playback_only:
-            studio = probe.StudioProcess(*model, cache_dir=cache, timeout=120)
-            try:
-                page = probe.open_studio(browser, studio.url, *VIEW_SIZE)
-                probe.watch_view_images(page)
-                probe.wait_state(page, "!s.get('projection_busy')", 180000)  # the map's fit off the cores first
-                measure_playback(page, args.play_seconds, res)
-            finally:
-                studio.stop()
-                browser.close()
-            if args.json:
-                args.json.write_text(json.dumps(res, indent=2))
-            return 0
-        if args.memory_only:
-            studio = probe.StudioProcess(*model, cache_dir=cache, timeout=120)
-            try:
-                measure_tabs(browser, studio, 0, res)
-            finally:
-                studio.stop()
-                browser.close()
             return 0
         studio = measure_start(browser, cache, res, model)
         try:
