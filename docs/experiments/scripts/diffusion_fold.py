@@ -16,6 +16,14 @@ from pathlib import Path
 import numpy as np
 
 
+def record(row: dict, out: Path | None) -> None:
+    """Print one result row as a JSON line, and append it to `out` when given (the experiments' data files)."""
+    print(json.dumps(row), flush=True)
+    if out:
+        with open(out, "a") as fh:
+            fh.write(json.dumps(row) + "\n")
+
+
 def headline(result: dict) -> dict:
     """The numbers the diffusion model's bar reads, from one evaluate_fold result."""
     m, nn1 = result["model"], result["baselines"].get("nn1", {})
@@ -84,10 +92,7 @@ def main() -> None:
         row = {"checkpoint": str(args.checkpoint), "fold": args.fold, "raw": args.raw,
                "guidance": model.guidance.to_dict() if model.stochastic else None}
         row |= headline(evaluate_fold(model, data, args.fold, opts, latents=False))
-        print(json.dumps(row), flush=True)
-        if args.out:
-            with open(args.out, "a") as fh:
-                fh.write(json.dumps(row) + "\n")
+        record(row, args.out)
 
 
 if __name__ == "__main__":

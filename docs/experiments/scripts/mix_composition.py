@@ -14,7 +14,6 @@ routed sampler with one positive class, or with p = 0, gives the library's sum r
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from dataclasses import dataclass
 from itertools import combinations
@@ -215,6 +214,7 @@ def jitter_m(followers: list[np.ndarray], skeleton) -> float:
 
 def main() -> None:
     import torch
+    from diffusion_fold import record  # the script beside this one
 
     from imm_model import cache
     from imm_model.data.dataset import InteractionDataset
@@ -292,10 +292,7 @@ def main() -> None:
                    "mix_raw_bone_error_cm": bone_error_cm(raw_mix, model.skeleton, lengths),
                    "mix_jitter_m": jitter_m(clean_mix, model.skeleton),
                    "seconds": round(time.time() - start, 1)}
-            print(json.dumps(row), flush=True)
-            if args.out:
-                with open(args.out, "a") as fh:
-                    fh.write(json.dumps(row) + "\n")
+            record(row, args.out)
 
 
 if __name__ == "__main__":

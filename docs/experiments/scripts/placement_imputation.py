@@ -14,7 +14,6 @@ model as shipped.
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
@@ -70,6 +69,7 @@ def imputed_network(model, gan, mode: str):
 
 def main() -> None:
     import torch
+    from diffusion_fold import record  # the script beside this one
 
     from imm_model.data.dataset import InteractionDataset
     from imm_model.evaluation.loso import EvalOptions, evaluate_fold
@@ -95,10 +95,7 @@ def main() -> None:
         row = {"checkpoint": str(args.checkpoint), "gan": str(args.gan), "fold": args.fold, "mode": mode,
                "guidance": model.guidance.to_dict(), "first_frame_root_m": result["model"]["afd_parts"]["start_root_m"],
                "limb_m": result["model"]["afd_parts"]["limb_m"]} | fold_figures(result)
-        print(json.dumps(row), flush=True)
-        if args.out:
-            with open(args.out, "a") as fh:
-                fh.write(json.dumps(row) + "\n")
+        record(row, args.out)
 
 
 if __name__ == "__main__":
