@@ -345,7 +345,9 @@ class Launcher:
         tail = request.match_info["tail"]
         w.last_seen = time.monotonic()
         if request.headers.get("Upgrade", "").lower() != "websocket":
-            w.reloading = w.reloading or (w.connected and not w.sockets)
+            # the page asked for again once a websocket had connected is a reload, even while the closing one is still
+            # being torn down here (the browser sends the new request as soon as the old page unloads)
+            w.reloading = w.reloading or (w.connected and (not w.sockets or tail in ("", "index.html")))
             return await forward_http(request, w.port, tail)
         w.sockets += 1
         w.connected, w.reloading = True, False

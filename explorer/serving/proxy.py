@@ -36,9 +36,11 @@ async def forward_http(request: web.Request, port: int, tail: str) -> web.Stream
             if "Content-Encoding" in upstream.headers:
                 response.headers["Content-Encoding"] = upstream.headers["Content-Encoding"]
             await response.prepare(request)
-            async for chunk in upstream.content.iter_chunked(1 << 16):
-                await response.write(chunk)
-            await response.write_eof()
+            # a tab closed or reloaded mid-answer (a large script still streaming) is not an error: stop sending
+            with contextlib.suppress(ConnectionResetError):
+                async for chunk in upstream.content.iter_chunked(1 << 16):
+                    await response.write(chunk)
+                await response.write_eof()
             return response
 
 
