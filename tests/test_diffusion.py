@@ -161,6 +161,30 @@ def test_eta_zero_is_plain_ddim():
     assert np.array_equal(got, sample(denoise, leaders, mask, labels, noise, guidance, 100, seeds=[4, 5, 6]))
 
 
+def test_guidance_in_a_limited_interval():
+    """guided_below: above that noise level every class term weighs its label value alone (s = 1), below it s. On a
+    synthetic denoiser whose class term adds a fixed offset, guided only at the last step the reaction is the s = 1
+    one plus (s - 1) times the offset; guided at every step (the default, 1) it is the plain guided one."""
+    rng = np.random.default_rng(0)
+    noise, leaders = rng.standard_normal((2, 2, 9, 6)).astype(np.float32)
+    mask = np.ones((2, 9), bool)
+    offset = np.float32(0.05) * np.arange(6, dtype=np.float32)
+
+    def denoise(x, step, leader_on, label, label_on):  # synthetic x0 prediction: the class term adds `offset`
+        return 0.6 * x + 0.01 * step + (label_on[:, None] * label)[:, :1, None] * offset
+
+    labels = np.array([[1, 0, 0, 0, 0, 0], [0.5, 0, 0, 0, 0, 0]], np.float32)
+    run = lambda **g: sample(denoise, leaders, mask, labels, noise, Guidance(sample_steps=5, **g), 100)  # noqa: E731
+    plain = run(label_scale=1.0)
+    last_only = run(label_scale=2.5, guided_below=0.0)
+    assert np.allclose(last_only - plain, 1.5 * labels[:, :1, None] * offset, atol=1e-5)
+    assert np.array_equal(run(label_scale=2.5), run(label_scale=2.5, guided_below=1.0))
+    middle = run(label_scale=2.5, guided_below=0.5)
+    assert not np.allclose(middle, last_only, atol=1e-4) and not np.allclose(middle, run(label_scale=2.5), atol=1e-4)
+    with pytest.raises(ValueError, match="guided_below"):
+        Guidance(guided_below=1.5)
+
+
 def test_stochastic_steps_follow_the_seed(tiny_model, sample_data):
     """eta > 0: the same seed repeats exactly, alone or in a batch beside a longer sequence; with the starting noise
     held fixed another seed still gives another reaction (the steps' noise is the seed's), where eta 0 gives the same

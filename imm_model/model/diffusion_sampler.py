@@ -10,8 +10,9 @@ diffusion step and a label. Training drops the label and the leader independentl
 
 the composable-diffusion rule (Liu et al., ECCV 2022) on top of the leader-conditioned, label-free reaction: a
 class at +1 is a conjunction, at -1 a negation, fractions weigh it, the studio's scale multiplies every w_c and
-`s` is the model's guidance strength. All-zero labels give the label-free reaction. The leader term itself can be
-guided too (x0(-, -) + g * (x0(A, -) - x0(-, -))) when g != 1.
+`s` is the model's guidance strength (at every step, or only below a noise level: `Guidance.guided_below`). All-zero
+labels give the label-free reaction. The leader term itself can be guided too (x0(-, -) + g * (x0(A, -) - x0(-, -)))
+when g != 1.
 
 A sampler seed fixes the starting noise and, with stochastic steps (eta > 0), each step's fresh noise from a stream
 of its own; both depend on the seed and the shape only, so the reaction is a continuous function of the label: a moved
@@ -81,6 +82,9 @@ class Guidance:
     sample_steps: int = param(20, Interval(int, 1, 1000))  # DDIM steps
     clip: float = param(6.0, Interval(float, 0.5, 100))  # x0 predictions clamped to this many training stds per coordinate
     eta: float = param(0.0, Interval(float, 0, 1))  # DDIM's eta: fresh noise per step, 0 = deterministic, 1 = DDPM-like
+    # label_scale applies at the steps whose noise level t / (T - 1) is at most this; above it each class term weighs
+    # its label value alone (guidance in a limited interval, Kynkaanniemi et al. 2024); 1 = at every step
+    guided_below: float = param(1.0, Interval(float, 0, 1))
 
     def __post_init__(self) -> None:
         validate(self, "guidance")
@@ -136,7 +140,8 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
     if guidance.leader_scale != 1.0:
         leader_on[-1] = False
     one_hot, label_on, leader_on = one_hot.reshape(-1, c), label_on.reshape(-1), leader_on.reshape(-1)
-    weights = (labels[:, classes].T * guidance.label_scale)[..., None, None].astype(np.float32)  # (K, B, 1, 1)
+    unguided = labels[:, classes].T[..., None, None].astype(np.float32)  # (K, B, 1, 1): the class terms at s = 1
+    guided = unguided * np.float32(guidance.label_scale)
 
     alpha_bar = cosine_alpha_bar(diffusion_steps)
     steps = np.linspace(diffusion_steps - 1, 0, guidance.sample_steps).round().astype(int)
@@ -151,6 +156,7 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
         base = terms[0]
         x0 = base
         if classes:
+            weights = guided if step <= guidance.guided_below * (diffusion_steps - 1) else unguided
             x0 = x0 + (weights * (terms[1:1 + len(classes)] - base)).sum(0)
         if guidance.leader_scale != 1.0:
             x0 = terms[-1] + guidance.leader_scale * (x0 - terms[-1])

@@ -28,11 +28,12 @@ from imm_model.errors import CheckpointError, TrainingError
 from imm_model.model.diffusion import ReactionDenoiser, q_sample
 from imm_model.model.diffusion_sampler import DiffusionConfig, Guidance, cosine_alpha_bar
 from imm_model.training.data import Augmenter, PaddedData, data_meta
+from imm_model.training.geometry import GeometricTerms
 from imm_model.training.trainer import derive_seed
 from imm_model.typed_config import FieldsOf, Interval, ListOf, Name, OneOf, checked_kwargs, param, validate
 
 FAMILY = "diffusion"
-LOG_FIELDS = ("step", "loss", "x0", "velocity", "lr", "seconds")
+LOG_FIELDS = ("step", "loss", "x0", "velocity", "foot_contact", "torso", "lr", "seconds")
 
 
 FRACTION = Interval(float, 0, 1)
@@ -55,6 +56,10 @@ class DiffusionTrainConfig:
     label_drop: float = param(0.15, BELOW_1)  # probability a training row sees the "absent" label (the label-free term)
     leader_drop: float = param(0.25, BELOW_1)  # probability a training row sees the "absent" leader (the unconditioned term)
     lambda_velocity: float = param(1.0, Interval(float, 0, None))  # weight of the frame-to-frame velocity error beside x0's
+    # weights of the geometric terms on the x0 prediction in metres (training/geometry.py): a planted foot's drag (per
+    # m^2) and the torso direction's error
+    lambda_foot_contact: float = param(0.0, Interval(float, 0, None))
+    lambda_torso: float = param(0.0, Interval(float, 0, None))
     ema_decay: float = param(0.999, BELOW_1)  # the shipped model is this exponential moving average of the weights
     mirror_prob: float = param(0.5, FRACTION)  # swap left/right joints and flip the lateral axis
     # SBU's handshakes are all right-handed: never mirrored
@@ -123,6 +128,7 @@ class DiffusionTrainer:
         self.augment = Augmenter(data.skeleton, cfg.mirror_prob, cfg.rotate_deg, cfg.role_swap_prob, swap, cfg.time_warp,
                                  cfg.scale_jitter, mirror)
         self.alpha_bar = torch.as_tensor(cosine_alpha_bar(self.model_cfg.diffusion_steps), dtype=torch.float32, device=self.device)
+        self.geometry = GeometricTerms(data.skeleton)
         self.bone_lengths = follower_bone_lengths([data.follower[data.frames(i)] for i in self.train_idx], data.skeleton)
         self.step = 0
 
@@ -158,6 +164,11 @@ class DiffusionTrainer:
         mv = m[:, 1:] * m[:, :-1]
         vel_loss = (((pred[:, 1:] - pred[:, :-1]) - (x0[:, 1:] - x0[:, :-1])) ** 2 * mv).sum() / (mv.sum() * x0.shape[-1])
         loss = x0_loss + cfg.lambda_velocity * vel_loss
+        geometric = {"foot_contact": torch.zeros(()), "torso": torch.zeros(())}
+        if cfg.lambda_foot_contact or cfg.lambda_torso:
+            joints = (b, t, -1, 3)
+            geometric = self.geometry(net.denormalize_follower(pred).reshape(joints), follower.reshape(joints), mask)
+            loss = loss + cfg.lambda_foot_contact * geometric["foot_contact"] + cfg.lambda_torso * geometric["torso"]
         if not torch.isfinite(loss):
             raise TrainingError(f"training stopped: the loss is not finite at step {self.step}")
         lr = self.lr_at(self.step)
@@ -172,7 +183,8 @@ class DiffusionTrainer:
             for e, p in zip(self.ema.parameters(), net.parameters(), strict=True):
                 e.lerp_(p, 1 - decay)
         self.step += 1
-        return {"loss": loss.item(), "x0": x0_loss.item(), "velocity": vel_loss.item(), "lr": lr}
+        return {"loss": loss.item(), "x0": x0_loss.item(), "velocity": vel_loss.item(),
+                **{k: v.item() for k, v in geometric.items()}, "lr": lr}
 
     # ---- the run --------------------------------------------------------------------------
     def fit(self, progress: bool = True) -> Path:
@@ -198,7 +210,7 @@ class DiffusionTrainer:
                 count += 1
                 bar.update(1)
                 if self.step % 100 == 0 or self.step == self.cfg.steps:
-                    row = {k: totals[k] / count for k in ("loss", "x0", "velocity")} | {"lr": parts["lr"]}
+                    row = {k: totals[k] / count for k in ("loss", "x0", "velocity", "foot_contact", "torso")} | {"lr": parts["lr"]}
                     writer.writerow({"step": self.step, **{k: f"{v:.5g}" for k, v in row.items()}, "seconds": f"{time.time() - t0:.1f}"})
                     fh.flush()
                     bar.set_postfix(loss=f"{row['loss']:.4f}")
