@@ -90,17 +90,22 @@ def mean_speed(motion: np.ndarray, fps: float, reference: int | list[int] | None
     return float(speeds.mean() * fps) if len(speeds) else float("nan")
 
 
-def torso_lean_deg(motion: np.ndarray, skeleton: Skeleton) -> float:
-    """(T, J, 3) -> the mean over frames of the torso's angle from the vertical (degrees, + = towards its own facing):
-    the vector from the hips' centre (the root's neighbours other than the top one) to the highest neighbour (the neck)."""
+def torso_lean_per_frame_deg(motion: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    """(T, J, 3) -> (T,) the torso's angle from the vertical (degrees, + = towards its own facing): the vector from the
+    hips' centre (the root's neighbours other than the top one) to the highest neighbour (the neck); NaN without one."""
     up = skeleton.vertical_axis
     neighbours = skeleton.root_neighbours
     if len(neighbours) < 2:
-        return float("nan")
+        return np.full(len(motion), np.nan)
     top = max(neighbours, key=lambda j: motion[:, j, up].mean())
     torso = motion[:, top] - motion[:, [j for j in neighbours if j != top]].mean(1)
     forward = (torso * facing_direction(motion, skeleton)).sum(-1)
-    return float(np.degrees(np.arctan2(forward, torso[:, up])).mean())
+    return np.degrees(np.arctan2(forward, torso[:, up]))
+
+
+def torso_lean_deg(motion: np.ndarray, skeleton: Skeleton) -> float:
+    """(T, J, 3) -> the mean over frames of torso_lean_per_frame_deg."""
+    return float(torso_lean_per_frame_deg(motion, skeleton).mean())
 
 
 def plausibility(leaders: list[np.ndarray], followers: list[np.ndarray], reals: list[np.ndarray],

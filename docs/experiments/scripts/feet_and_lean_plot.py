@@ -27,16 +27,6 @@ def lowest_foot_speed(motion: np.ndarray, skeleton, fps: float) -> np.ndarray:
     return step[np.arange(len(step)), lower]
 
 
-def lean_per_frame(motion: np.ndarray, skeleton) -> np.ndarray:
-    from imm_model.data.canonical import facing_direction
-
-    up, neighbours = skeleton.vertical_axis, skeleton.root_neighbours
-    top = max(neighbours, key=lambda j: motion[:, j, up].mean())
-    torso = motion[:, top] - motion[:, [j for j in neighbours if j != top]].mean(1)
-    forward = (torso * facing_direction(motion, skeleton)).sum(-1)
-    return np.degrees(np.arctan2(forward, torso[:, up]))
-
-
 def main() -> None:
     import matplotlib
 
@@ -45,6 +35,7 @@ def main() -> None:
 
     from imm_model.data.dataset import InteractionDataset
     from imm_model.data.splits import loso_fold
+    from imm_model.evaluation.plausibility import torso_lean_per_frame_deg
     from imm_model.inference import ReactionModel
     from imm_model.paths import SAMPLE_DATA
 
@@ -73,7 +64,7 @@ def main() -> None:
         for name, follower in curves.items():
             style = dict(color="black", lw=2) if name == "real" else {}
             axes[0, col].plot(lowest_foot_speed(follower, data.skeleton, fps), label=name, **style)
-            axes[1, col].plot(lean_per_frame(follower, data.skeleton), label=name, **style)
+            axes[1, col].plot(torso_lean_per_frame_deg(follower, data.skeleton), label=name, **style)
         axes[0, col].set_title(f"{cls}, held-out sequence {i} (fold {args.fold})")
         axes[0, col].set_ylabel("lower foot, horizontal m/s")
         axes[1, col].set_ylabel("torso lean, degrees")
