@@ -185,6 +185,36 @@ def test_guidance_in_a_limited_interval():
         Guidance(guided_below=1.5)
 
 
+def test_the_leader_conditions_below_a_noise_level_only():
+    """leader_below: the steps above that noise level see every term's leader absent, the others see it present (but
+    the unconditioned term of a leader scale != 1); the default, 1, conditions every step on the leader."""
+    rng = np.random.default_rng(0)
+    noise, leaders = rng.standard_normal((2, 2, 9, 6)).astype(np.float32)
+    mask = np.ones((2, 9), bool)
+    labels = np.array([[1, 0, 0, 0, 0, 0], [0, 0, -1, 0, 0, 0]], np.float32)
+    seen: list[tuple[int, np.ndarray]] = []
+
+    def denoise(x, step, leader_on, label, label_on):  # synthetic: the leader term adds 0.1
+        seen.append((step, leader_on.copy()))
+        return 0.6 * x + 0.1 * leader_on[:, None, None]
+
+    def run(**g):
+        seen.clear()
+        out = sample(denoise, leaders, mask, labels, noise, Guidance(sample_steps=5, **g), 100)
+        return out, [(step, bool(on.any()), bool(on.all())) for step, on in seen]
+
+    everywhere, steps = run()
+    assert [s for s, _, _ in steps] == [99, 74, 50, 25, 0] and all(all_on for _, _, all_on in steps)
+    assert np.array_equal(everywhere, run(leader_below=1.0)[0])
+    late, steps = run(leader_below=0.6)  # 74 / 99 > 0.6 >= 50 / 99
+    assert [any_on for _, any_on, _ in steps] == [False, False, True, True, True]
+    assert not np.allclose(late, everywhere, atol=1e-4)
+    _, steps = run(leader_below=0.6, leader_scale=2.0)
+    assert [(any_on, all_on) for _, any_on, all_on in steps][2:] == [(True, False)] * 3  # the unconditioned term stays off
+    with pytest.raises(ValueError, match="leader_below"):
+        Guidance(leader_below=-0.1)
+
+
 def test_stochastic_steps_follow_the_seed(tiny_model, sample_data):
     """eta > 0: the same seed repeats exactly, alone or in a batch beside a longer sequence; with the starting noise
     held fixed another seed still gives another reaction (the steps' noise is the seed's), where eta 0 gives the same

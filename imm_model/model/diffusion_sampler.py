@@ -12,7 +12,7 @@ the composable-diffusion rule (Liu et al., ECCV 2022) on top of the leader-condi
 class at +1 is a conjunction, at -1 a negation, fractions weigh it, the studio's scale multiplies every w_c and
 `s` is the model's guidance strength (at every step, or only below a noise level: `Guidance.guided_below`). All-zero
 labels give the label-free reaction. The leader term itself can be guided too (x0(-, -) + g * (x0(A, -) - x0(-, -)))
-when g != 1.
+when g != 1. Above the noise level `Guidance.leader_below` every term is the leader-absent one.
 
 A sampler seed fixes the starting noise and, with stochastic steps (eta > 0), each step's fresh noise from a stream
 of its own; both depend on the seed and the shape only, so the reaction is a continuous function of the label: a moved
@@ -85,6 +85,10 @@ class Guidance:
     # label_scale applies at the steps whose noise level t / (T - 1) is at most this; above it each class term weighs
     # its label value alone (guidance in a limited interval, Kynkaanniemi et al. 2024); 1 = at every step
     guided_below: float = param(1.0, Interval(float, 0, 1))
+    # the leader conditions the steps whose noise level t / (T - 1) is at most this; above it every term takes the
+    # learned absent-leader input, so that the first steps draw the reaction's coarse shape from the label alone and
+    # the leader shapes it after (wider variations); 1 = the leader at every step
+    leader_below: float = param(1.0, Interval(float, 0, 1))
 
     def __post_init__(self) -> None:
         validate(self, "guidance")
@@ -140,6 +144,7 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
     if guidance.leader_scale != 1.0:
         leader_on[-1] = False
     one_hot, label_on, leader_on = one_hot.reshape(-1, c), label_on.reshape(-1), leader_on.reshape(-1)
+    no_leader = np.zeros_like(leader_on)
     unguided = labels[:, classes].T[..., None, None].astype(np.float32)  # (K, B, 1, 1): the class terms at s = 1
     guided = unguided * np.float32(guidance.label_scale)
 
@@ -152,7 +157,8 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
             raise ValueError(f"sampling with eta {guidance.eta} needs one seed per row ({b})")
         fresh = step_noise(seeds, mask.sum(1), (b, t, d))
     for i, step in enumerate(steps):
-        terms = denoise(np.tile(x, (n_terms, 1, 1)), int(step), leader_on, one_hot, label_on).reshape(n_terms, b, t, d)
+        with_leader = leader_on if step <= guidance.leader_below * (diffusion_steps - 1) else no_leader
+        terms = denoise(np.tile(x, (n_terms, 1, 1)), int(step), with_leader, one_hot, label_on).reshape(n_terms, b, t, d)
         base = terms[0]
         x0 = base
         if classes:

@@ -73,6 +73,7 @@ def main() -> None:
     ap.add_argument("--eta", type=float, default=None, help="DDIM's eta: 0 deterministic steps, up to 1 (diffusion)")
     ap.add_argument("--sample-steps", type=int, default=None)
     ap.add_argument("--guided-below", type=float, default=None, help="noise level t/(T-1) under which the label is guided")
+    ap.add_argument("--leader-below", type=float, default=None, help="noise level t/(T-1) under which the leader conditions")
     ap.add_argument("--baselines", default="nn1")
     ap.add_argument("--raw", action="store_true")
     ap.add_argument("--out", type=Path, default=None, help="append one JSON line per run here")
@@ -85,7 +86,8 @@ def main() -> None:
         if model.stochastic:
             changes = {k: v for k, v in (("label_scale", scale), ("leader_scale", args.leader_scale),
                                          ("sample_steps", args.sample_steps), ("eta", args.eta),
-                                         ("guided_below", args.guided_below)) if v is not None}
+                                         ("guided_below", args.guided_below), ("leader_below", args.leader_below))
+                       if v is not None}
             try:
                 model.guidance = replace(model.guidance, **changes)
             except ValueError as err:
