@@ -90,11 +90,15 @@ class DiffusionTrainConfig:
         return cls(**d)
 
 
-# The reaction diffusion model as shipped: 128 wide, 4 blocks, one frame a token, 6000 steps of batch 32; guidance 2.5 on
-# each class term, 10 DDIM steps (docs/experiments/reaction-diffusion.md has the variants measured).
+# The reaction diffusion model as shipped: 128 wide, 4 blocks, one frame a token, 6000 steps of batch 32, a planted
+# foot's drag and the torso's direction weighed beside the x0 error; guidance 3 on each class term over the last 30 % of
+# the noise levels, 7 DDIM steps (docs/experiments/reaction-diffusion.md and diffusion-geometric-terms.md have the
+# variants measured).
 IMM_DIFFUSION = DiffusionTrainConfig(
     model=dict(width=128, layers=4, heads=4, ff_mult=2, dropout=0.1),
-    guidance=dict(label_scale=2.5, leader_scale=1.0, sample_steps=10),
+    guidance=dict(label_scale=3.0, leader_scale=1.0, sample_steps=7, guided_below=0.3),
+    lambda_foot_contact=20.0,
+    lambda_torso=1.0,
 )
 
 NAMED: dict[str, DiffusionTrainConfig] = {"imm-diffusion": IMM_DIFFUSION}
