@@ -77,7 +77,8 @@ def test_a_tilted_torso_costs_two_minus_twice_its_cosine(real):
 
 
 def test_the_trainer_adds_the_terms_only_when_weighted(sample_data, tmp_path):
-    plain = DiffusionTrainer(replace(TINY, steps=1), sample_data, "s04", tmp_path / "plain").train_step()
+    unweighted = replace(TINY, steps=1, lambda_foot_contact=0.0, lambda_torso=0.0)
+    plain = DiffusionTrainer(unweighted, sample_data, "s04", tmp_path / "plain").train_step()
     assert plain["foot_contact"] == 0 and plain["torso"] == 0
     assert plain["loss"] == pytest.approx(plain["x0"] + plain["velocity"], rel=1e-6)
     cfg = replace(TINY, steps=1, lambda_foot_contact=20.0, lambda_torso=1.0)
