@@ -49,6 +49,11 @@ def main() -> None:
     root, hand = sk.joint_names.index("torso"), sk.joint_names.index("right_hand")
     ground = [a for a in range(3) if a != sk.vertical_axis]
     settings = [parse_setting(s) for s in args.setting]
+    models = []  # one model per setting, its guidance replaced
+    for _, changes in settings:
+        model = ReactionModel.load(args.checkpoint)
+        model.guidance = replace(model.guidance, **changes)
+        models.append(model)
     fig, axes = plt.subplots(len(args.classes), len(settings), figsize=(4.2 * len(settings), 3.6 * len(args.classes)),
                              squeeze=False)
     colors = plt.cm.viridis(np.linspace(0, 0.9, args.seeds))
@@ -57,9 +62,7 @@ def main() -> None:
         i = int(next(j for j in held_out if data.actions[j] == c))  # the fold's first sequence of the class
         leader, real = data.canonical(i)
         label = np.eye(len(data.class_names), dtype=np.float32)[c]
-        for col, (name, changes) in enumerate(settings):
-            model = ReactionModel.load(args.checkpoint)
-            model.guidance = replace(model.guidance, **changes)
+        for col, ((name, _), model) in enumerate(zip(settings, models, strict=True)):
             followers = model.synthesize_batch_canonical([leader] * args.seeds, np.tile(label, (args.seeds, 1)),
                                                          list(range(args.seeds)))
             ax = axes[row, col]
