@@ -155,9 +155,9 @@ def test_interactive_frames_go_through_the_wrapper_and_keys_never_reach_vtk():
         assert area.handlers == [handler]
         handler.set_streamer(streamer)
         handler.update()
-        for _ in range(100):  # the scheduler's loop renders the interactive frame, then the still one
-            await asyncio.sleep(0.01)
-            if after and window.grabs > after[-1]:
+        for _ in range(500):  # the scheduler's loop renders the interactive frame, then the still one, and hands
+            await asyncio.sleep(0.01)  # each encoded picture over: wait for the second hand-over, not the grab before it
+            if after and window.grabs > after[-1] and len(delivered) >= 2:
                 break
         handler.on_interaction(None, {"type": "KeyPress", "key": "r"})
         handler.on_interaction(None, {"type": "LeftButtonPress", "x": 1, "y": 1})
