@@ -338,12 +338,13 @@ class DiffusionReactionModel(ReactionModel):
             model.net  # noqa: B018 - built (and moved to the GPU) now, not at the first synthesis
         return model
 
-    def _denoiser(self, leaders: np.ndarray, mask: np.ndarray):
-        """`sample`'s network call for these (normalized) leaders: numpy on a CPU, torch elsewhere."""
+    def _denoiser(self, leaders: np.ndarray, mask: np.ndarray, leader_level: int = 0):
+        """`sample`'s network call for these (normalized) leaders, carrying the forward process's noise at step
+        `leader_level`: numpy on a CPU, torch elsewhere."""
         if self.fast is None:
             from imm_model.model.diffusion import torch_denoiser
 
-            return torch_denoiser(self.net, leaders, mask)
+            return torch_denoiser(self.net, leaders, mask, leader_level)
 
         # the network conditioned on the leaders, mask and terms once per sample call, not once per step
         conditioned: dict[bytes, Any] = {}
@@ -353,7 +354,7 @@ class DiffusionReactionModel(ReactionModel):
             if terms not in conditioned:
                 reps = len(x_t) // len(leaders)
                 conditioned[terms] = self.fast.conditioned(np.tile(leaders, (reps, 1, 1)), leader_on, label, label_on,
-                                                           np.tile(mask, (reps, 1)))
+                                                           np.tile(mask, (reps, 1)), leader_on * np.float32(leader_level))
             return conditioned[terms](x_t, step)
 
         return denoise
@@ -374,15 +375,21 @@ class DiffusionReactionModel(ReactionModel):
         return (x - mean) / std * mask[..., None], mask
 
     def _network(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int]) -> list[np.ndarray]:
-        from imm_model.model.diffusion_sampler import initial_noise, sample
+        from imm_model.model.diffusion_sampler import initial_noise, leader_noise_step, noised_leaders, sample
 
-        d = self.config.pose_dim
+        d, steps = self.config.pose_dim, self.config.diffusion_steps
+        level = leader_noise_step(self.guidance.leader_noise, steps)
+        if level and not self.config.leader_noise:
+            raise LabelError(f"leader noise {self.guidance.leader_noise:g} needs a model trained with noised leaders "
+                             "(this one reads only the clean leader)")
         out: list[np.ndarray] = []
         for start in range(0, len(leaders), self.BATCH):
             rows = list(range(start, min(start + self.BATCH, len(leaders))))
             x, mask = self._normalize_leaders([leaders[i] for i in rows])
+            if level:
+                x = noised_leaders(x, mask, [seeds[i] for i in rows], level, steps)
             noise, _ = self._padded([initial_noise(seeds[i], len(leaders[i]), d) for i in rows])
-            x0 = sample(self._denoiser(x, mask), x, mask, labels[rows], noise, self.guidance, self.config.diffusion_steps,
+            x0 = sample(self._denoiser(x, mask, level), x, mask, labels[rows], noise, self.guidance, steps,
                         seeds=[seeds[i] for i in rows])
             followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
             out += [followers[k, : len(leaders[i])].reshape(len(leaders[i]), -1, 3) for k, i in enumerate(rows)]

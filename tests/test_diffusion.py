@@ -239,10 +239,10 @@ def test_stochastic_steps_follow_the_seed(tiny_model, sample_data):
         run(0.5, None)
 
 
-@pytest.mark.parametrize("frames_per_token", [1, 2])
-def test_numpy_denoiser_matches_torch(frames_per_token):
+@pytest.mark.parametrize("frames_per_token, leader_noise", [(1, False), (2, False), (1, True)])
+def test_numpy_denoiser_matches_torch(frames_per_token, leader_noise):
     torch.manual_seed(1)
-    cfg = DiffusionConfig(width=16, layers=2, heads=2, frames_per_token=frames_per_token)
+    cfg = DiffusionConfig(width=16, layers=2, heads=2, frames_per_token=frames_per_token, leader_noise=leader_noise)
     net = ReactionDenoiser(cfg).eval()
     for block in net.blocks:
         torch.nn.init.normal_(block.modulation.weight, std=0.3)
@@ -252,9 +252,14 @@ def test_numpy_denoiser_matches_torch(frames_per_token):
     x, leader = np.random.default_rng(0).standard_normal((2, 2, 9, 45)).astype(np.float32)
     mask = np.arange(9)[None] < np.array([[9], [6]])
     on, label = np.array([True, False]), np.eye(6, dtype=np.float32)[:2]
+    levels = np.array([40.0, 0.0], np.float32)
     with torch.no_grad():
-        ref = net(*map(torch.as_tensor, (x, np.array([30, 30]), leader, on, label, on[::-1].copy(), mask))).numpy()
-    assert np.allclose(fast(x, 30, leader, on, label, on[::-1].copy(), mask)[mask], ref[mask], atol=1e-5)
+        ref = net(*map(torch.as_tensor, (x, np.array([30, 30]), leader, on, label, on[::-1].copy(), mask)),
+                  leader_level=torch.as_tensor(levels)).numpy()
+        clean = net(*map(torch.as_tensor, (x, np.array([30, 30]), leader, on, label, on[::-1].copy(), mask))).numpy()
+    assert np.allclose(fast(x, 30, leader, on, label, on[::-1].copy(), mask, leader_level=levels)[mask], ref[mask], atol=1e-5)
+    # the leader's noise level enters the prediction only where the network reads it
+    assert np.allclose(ref, clean) != leader_noise
 
 
 @pytest.mark.parametrize("frames_per_token", [1, 2])
@@ -455,3 +460,40 @@ def test_a_bad_diffusion_recipe_is_one_line_and_trains_nothing(tmp_path, capsys,
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and message in err and "Traceback" not in err, err
     assert not (tmp_path / "run").exists()
+
+
+@pytest.fixture(scope="module")
+def leader_noise_model(tmp_path_factory):
+    from imm_model.data.dataset import InteractionDataset
+    from imm_model.paths import SAMPLE_DATA
+
+    torch.set_num_threads(1)
+    cfg = replace(TINY, model=TINY.model | {"leader_noise": True}, leader_noise_prob=0.5)
+    trainer = DiffusionTrainer(cfg, InteractionDataset.load(SAMPLE_DATA), "s04", tmp_path_factory.mktemp("noised") / "fold-s04")
+    return trainer.fit(progress=False)
+
+
+def test_a_noised_leader_widens_the_variations_and_follows_the_seed(leader_noise_model, tiny_model, leader):
+    """With Guidance.leader_noise the network sees its leader through noise drawn from the seed: the same seed repeats
+    exactly, the reaction differs from the clean leader's, and a moved slider still moves it smoothly. A model trained
+    on clean leaders only refuses the setting in one line."""
+    model = ReactionModel.load(leader_noise_model)
+    model.raw = True
+    clean = model.synthesize(leader, {"kicking": 1}, seed=3)
+    model.guidance = replace(model.guidance, leader_noise=0.6)
+    noised = model.synthesize(leader, {"kicking": 1}, seed=3)
+    assert np.array_equal(noised, model.synthesize(leader, {"kicking": 1}, seed=3))
+    assert np.abs(noised - clean).mean() > 1e-3
+    steps = [model.synthesize(leader, {"kicking": v}, seed=3) for v in (1.0, 1.05, 1.10)]
+    small = [np.abs(steps[k + 1] - steps[k]).mean() for k in range(2)]
+    other_seed = np.abs(model.synthesize(leader, {"kicking": 1.0}, seed=4) - steps[0]).mean()
+    assert max(small) < 0.2 * other_seed
+    plain = ReactionModel.load(tiny_model)
+    plain.guidance = replace(plain.guidance, leader_noise=0.6)
+    with pytest.raises(LabelError, match="leader noise 0.6 needs a model trained with noised leaders"):
+        plain.synthesize(leader, {"kicking": 1}, seed=3)
+
+
+def test_noised_leader_training_needs_the_network_that_reads_the_level():
+    with pytest.raises(ValueError, match="leader_noise_prob must be 0 unless model.leader_noise is true"):
+        replace(TINY, leader_noise_prob=0.5)

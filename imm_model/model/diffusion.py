@@ -55,7 +55,9 @@ class Block(nn.Module):
 class ReactionDenoiser(nn.Module):
     """x_t (B, T, D) normalized follower + leader (B, T, D) normalized + step (B,) + label (B, C) -> x0 (B, T, D).
 
-    `leader_on` / `label_on` (B,) bool select the real input or the learned "absent" one per row. The pose
+    `leader_on` / `label_on` (B,) bool select the real input or the learned "absent" one per row. With
+    `cfg.leader_noise`, `leader_level` (B,) is the step of the forward process whose noise the leader carries
+    (0 = clean), embedded like the step. The pose
     normalization (per-coordinate mean and std of the training followers and leaders) lives in buffers, so the
     checkpoint carries it."""
 
@@ -66,6 +68,8 @@ class ReactionDenoiser(nn.Module):
         self.input = nn.Linear(k * (2 * d + 1), w)  # k frames of [x_t, leader, leader present]
         self.absent_leader = nn.Parameter(torch.zeros(d))
         self.step_mlp = nn.Sequential(nn.Linear(w, w), nn.SiLU(), nn.Linear(w, w))
+        if cfg.leader_noise:
+            self.leader_noise_mlp = nn.Sequential(nn.Linear(w, w), nn.SiLU(), nn.Linear(w, w))
         self.label = nn.Linear(cfg.num_classes, w)
         self.absent_label = nn.Parameter(torch.zeros(w))
         self.blocks = nn.ModuleList(Block(w, cfg.heads, cfg.ff_mult, cfg.dropout) for _ in range(cfg.layers))
@@ -90,7 +94,7 @@ class ReactionDenoiser(nn.Module):
 
     def forward(self, x_t: torch.Tensor, step: torch.Tensor, leader: torch.Tensor, leader_on: torch.Tensor,
                 label: torch.Tensor, label_on: torch.Tensor, mask: torch.Tensor | None = None,
-                return_hidden: bool = False) -> torch.Tensor:
+                return_hidden: bool = False, leader_level: torch.Tensor | None = None) -> torch.Tensor:
         b, t, d = x_t.shape
         k = self.cfg.frames_per_token
         mask = torch.ones(b, t, dtype=torch.bool, device=x_t.device) if mask is None else mask
@@ -105,6 +109,9 @@ class ReactionDenoiser(nn.Module):
         h = self.input(frames.reshape(b, tokens, -1)) + sinusoid(torch.arange(tokens, device=x_t.device) * k, self.cfg.width)
         cond = self.step_mlp(sinusoid(step, self.cfg.width))
         cond = cond + torch.where(label_on[:, None], self.label(label), self.absent_label)
+        if self.cfg.leader_noise:
+            level = torch.zeros(b, device=x_t.device) if leader_level is None else leader_level
+            cond = cond + self.leader_noise_mlp(sinusoid(level, self.cfg.width))
         token_mask = mask.reshape(b, tokens, k).any(-1)
         pad = None
         if not bool(token_mask.all()):
@@ -117,8 +124,9 @@ class ReactionDenoiser(nn.Module):
         return self.output(h).reshape(b, tokens * k, d)[:, :t]
 
 
-def torch_denoiser(net: ReactionDenoiser, leaders: np.ndarray, mask: np.ndarray):
-    """`sample`'s denoise function for the torch network (training checks, GPUs): leaders (B, T, D) normalized."""
+def torch_denoiser(net: ReactionDenoiser, leaders: np.ndarray, mask: np.ndarray, leader_level: int = 0):
+    """`sample`'s denoise function for the torch network (training checks, GPUs): leaders (B, T, D) normalized,
+    carrying the forward process's noise at step `leader_level` (0: clean)."""
     device = next(net.parameters()).device
     leaders_t, mask_t = torch.as_tensor(leaders, device=device), torch.as_tensor(mask, device=device)
 
@@ -130,8 +138,9 @@ def torch_denoiser(net: ReactionDenoiser, leaders: np.ndarray, mask: np.ndarray)
         if reps not in tiled:
             tiled[reps] = leaders_t.repeat(reps, 1, 1), mask_t.repeat(reps, 1)
         as_t = lambda a: torch.as_tensor(a, device=device)  # noqa: E731
-        x0 = net(as_t(x_t), torch.full((len(x_t),), step, device=device), tiled[reps][0], as_t(leader_on),
-                 as_t(label), as_t(label_on), tiled[reps][1])
+        on = as_t(leader_on)
+        x0 = net(as_t(x_t), torch.full((len(x_t),), step, device=device), tiled[reps][0], on, as_t(label),
+                 as_t(label_on), tiled[reps][1], leader_level=on.float() * leader_level)
         return x0.cpu().numpy()
 
     return denoise

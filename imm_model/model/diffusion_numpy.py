@@ -131,7 +131,9 @@ class NumpyDenoiser:
         w, d, k, c = cfg.width, cfg.pose_dim, cfg.frames_per_token, cfg.num_classes
         shapes: dict[str, tuple[int, ...]] = {
             "input.weight": (w, k * (2 * d + 1)), "input.bias": (w,), "absent_leader": (d,),
-            "step_mlp.0.weight": (w, w), "step_mlp.0.bias": (w,), "step_mlp.2.weight": (w, w), "step_mlp.2.bias": (w,),
+            **{f"{mlp}.{i}.{kind}": (w, w) if kind == "weight" else (w,)
+               for mlp in ("step_mlp",) + (("leader_noise_mlp",) if cfg.leader_noise else ()) for i in (0, 2)
+               for kind in ("weight", "bias")},
             "label.weight": (w, c), "label.bias": (w,), "absent_label": (w,),
             "out_norm.weight": (w,), "out_norm.bias": (w,), "output.weight": (k * d, w), "output.bias": (k * d,),
             **{f"{who}_{stat}": (d,) for who in ("follower", "leader") for stat in ("mean", "std")},
@@ -152,20 +154,22 @@ class NumpyDenoiser:
         return self._step_modulation[step]
 
     def conditioned(self, leader: np.ndarray, leader_on: np.ndarray, label: np.ndarray, label_on: np.ndarray,
-                    mask: np.ndarray) -> ConditionedDenoiser:
-        """The network for these rows' leaders, labels and mask: a function of (x_t, step) alone."""
-        return ConditionedDenoiser(self, leader, leader_on, label, label_on, mask)
+                    mask: np.ndarray, leader_level: np.ndarray | None = None) -> ConditionedDenoiser:
+        """The network for these rows' leaders, labels, mask and leader noise steps (B,): a function of (x_t, step)
+        alone."""
+        return ConditionedDenoiser(self, leader, leader_on, label, label_on, mask, leader_level)
 
     def __call__(self, x_t: np.ndarray, step: int, leader: np.ndarray, leader_on: np.ndarray, label: np.ndarray,
-                 label_on: np.ndarray, mask: np.ndarray, return_hidden: bool = False):
-        return self.conditioned(leader, leader_on, label, label_on, mask)(x_t, step, return_hidden)
+                 label_on: np.ndarray, mask: np.ndarray, return_hidden: bool = False,
+                 leader_level: np.ndarray | None = None):
+        return self.conditioned(leader, leader_on, label, label_on, mask, leader_level)(x_t, step, return_hidden)
 
 
 class ConditionedDenoiser:
     """NumpyDenoiser with its leaders, labels and mask fixed: (x_t (B, T, D), step) -> x0 (B, T, D) float32."""
 
     def __init__(self, net: NumpyDenoiser, leader: np.ndarray, leader_on: np.ndarray, label: np.ndarray,
-                 label_on: np.ndarray, mask: np.ndarray):
+                 label_on: np.ndarray, mask: np.ndarray, leader_level: np.ndarray | None = None):
         cfg, w = net.cfg, net.w
         b, t, _ = leader.shape
         k = cfg.frames_per_token
@@ -183,6 +187,9 @@ class ConditionedDenoiser:
         self.leader_input = (frames.reshape(b, self.tokens, -1) @ net.input_leader + net.linear["input"][1]
                              + sinusoid(np.arange(self.tokens) * k, cfg.width))
         cond = np.where(label_on[:, None], net._lin("label", label), w["absent_label"])  # (B, W)
+        if cfg.leader_noise:
+            level = np.zeros(b, np.float32) if leader_level is None else np.asarray(leader_level, np.float32)
+            cond = cond + net._lin("leader_noise_mlp.2", _silu(net._lin("leader_noise_mlp.0", sinusoid(level, cfg.width))))
         # (layers, 6, B, 1, W): the label's share of every block's modulation, with the biases
         self.label_modulation = (cond @ net.modulation + net.modulation_bias).reshape(b, cfg.layers, 6, 1, -1).transpose(1, 2, 0, 3, 4)
         self.token_mask = mask.reshape(b, self.tokens, k).any(-1)

@@ -27,7 +27,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from imm_model.typed_config import Interval, checked_kwargs, param, validate
+from imm_model.typed_config import Flag, Interval, checked_kwargs, param, validate
 
 MAX_WIDTH = 2048
 
@@ -43,6 +43,9 @@ class DiffusionConfig:
     dropout: float = param(0.1, Interval(float, 0, 1, closed="left"))  # on attention and MLP outputs, training only
     diffusion_steps: int = param(100, Interval(int, 2, 10_000))  # T of the cosine noise schedule the network is trained on
     frames_per_token: int = param(1, Interval(int, 1, 8))  # consecutive frames one transformer token carries
+    # the network reads how much noise is on its leader input (trained with noised leaders: training's
+    # leader_noise_prob); the sampler's Guidance.leader_noise then widens the variations
+    leader_noise: bool = param(False, Flag())
 
     RULES: ClassVar = (("width", lambda c: c.width % c.heads == 0, "a multiple of heads"),)
 
@@ -89,6 +92,10 @@ class Guidance:
     # learned absent-leader input, so that the first steps draw the reaction's coarse shape from the label alone and
     # the leader shapes it after (wider variations); 1 = the leader at every step
     leader_below: float = param(1.0, Interval(float, 0, 1))
+    # the noise level t / (T - 1) the network sees its leader through, drawn from the sampler seed and the same at
+    # every step (a model with DiffusionConfig.leader_noise only): the reaction follows the leader's coarse motion and
+    # samples its detail, so seeds differ more; 0 = the clean leader
+    leader_noise: float = param(0.0, Interval(float, 0, 1))
 
     def __post_init__(self) -> None:
         validate(self, "guidance")
@@ -107,6 +114,22 @@ def initial_noise(seed: int, frames: int, dim: int) -> np.ndarray:
 
 
 STEP_NOISE_STREAM = 1  # the per-step noise's generator is seeded from (seed, this), apart from the starting noise's
+LEADER_NOISE_STREAM = 2  # and the leader noise's from (seed, this)
+
+
+def leader_noise_step(level: float, diffusion_steps: int) -> int:
+    """Guidance.leader_noise (a fraction of the schedule) -> the step index whose noise the leader carries."""
+    return int(round(level * (diffusion_steps - 1)))
+
+
+def noised_leaders(leaders: np.ndarray, mask: np.ndarray, seeds, step: int, diffusion_steps: int) -> np.ndarray:
+    """Normalized leaders (B, T, D) -> the forward process at `step` applied to them, row i's noise drawn from
+    (seeds[i], LEADER_NOISE_STREAM) for its own length, so that it depends on its seed and length only."""
+    a = cosine_alpha_bar(diffusion_steps)[step]
+    z = np.zeros_like(leaders, dtype=np.float32)
+    for i, (s, n) in enumerate(zip(seeds, mask.sum(1), strict=True)):
+        z[i, :n] = np.random.default_rng((int(s), LEADER_NOISE_STREAM)).standard_normal((int(n), leaders.shape[2]))
+    return ((np.sqrt(a) * leaders + np.sqrt(1 - a) * z) * mask[..., None]).astype(np.float32)
 
 
 def step_noise(seeds, lengths, shape: tuple[int, int, int]):

@@ -13,7 +13,7 @@ import csv
 import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import torch
@@ -55,6 +55,9 @@ class DiffusionTrainConfig:
     weight_decay: float = param(1e-4, Interval(float, 0, None))  # AdamW weight decay
     label_drop: float = param(0.15, BELOW_1)  # probability a training row sees the "absent" label (the label-free term)
     leader_drop: float = param(0.25, BELOW_1)  # probability a training row sees the "absent" leader (the unconditioned term)
+    # probability a training row sees its leader through the forward process's noise at a uniform step, told the step
+    # (model.leader_noise): what the sampler's Guidance.leader_noise draws variations from
+    leader_noise_prob: float = param(0.0, FRACTION)
     lambda_velocity: float = param(1.0, Interval(float, 0, None))  # weight of the frame-to-frame velocity error beside x0's
     # weights of the geometric terms on the x0 prediction in metres (training/geometry.py): a planted foot's drag (per
     # m^2) and the torso direction's error
@@ -71,6 +74,9 @@ class DiffusionTrainConfig:
     role_swap_classes: tuple[str, ...] = param((), ListOf(Name(), unique=True))  # the classes whose roles may swap
     checkpoint_every: int = param(1000, Interval(int, 1, None))  # steps between resumable checkpoints
     seed: int = param(0, Interval(int, 0, 2**31 - 1))  # initial weights, batches, noise and augmentation
+
+    RULES: ClassVar = (("leader_noise_prob", lambda c: c.leader_noise_prob == 0 or c.model.get("leader_noise") is True,
+                        "0 unless model.leader_noise is true"),)
 
     def __post_init__(self) -> None:
         validate(self, "training config")
@@ -162,7 +168,15 @@ class DiffusionTrainer:
         m = mask[..., None].float()
         x0 = net.normalize(follower, "follower") * m
         x_t = q_sample(x0, step, noise, self.alpha_bar) * m
-        pred = net(x_t, step, net.normalize(leader, "leader") * m, leader_on, label, label_on, mask) * m
+        leader = net.normalize(leader, "leader") * m
+        leader_level = None
+        if cfg.leader_noise_prob:  # drawn only then, so that recipes without it keep their random stream
+            noised = (torch.rand(b, generator=gen) < cfg.leader_noise_prob).to(self.device) & leader_on
+            level = torch.randint(self.model_cfg.diffusion_steps, (b,), generator=gen).to(self.device)
+            leader_noise = torch.randn(leader.shape, generator=gen).to(self.device)
+            leader = torch.where(noised[:, None, None], q_sample(leader, level, leader_noise, self.alpha_bar) * m, leader)
+            leader_level = noised.float() * level
+        pred = net(x_t, step, leader, leader_on, label, label_on, mask, leader_level=leader_level) * m
         n = m.sum() * x0.shape[-1]
         x0_loss = ((pred - x0) ** 2).sum() / n
         mv = m[:, 1:] * m[:, :-1]

@@ -8,6 +8,7 @@ guidance, for the diffusion experiments (docs/experiments/).
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import sys
 from dataclasses import replace
@@ -74,6 +75,8 @@ def main() -> None:
     ap.add_argument("--sample-steps", type=int, default=None)
     ap.add_argument("--guided-below", type=float, default=None, help="noise level t/(T-1) under which the label is guided")
     ap.add_argument("--leader-below", type=float, default=None, help="noise level t/(T-1) under which the leader conditions")
+    ap.add_argument("--leader-noise", type=float, nargs="*", default=[],
+                    help="noise levels t/(T-1) on the leader to score (models trained with noised leaders)")
     ap.add_argument("--baselines", default="nn1")
     ap.add_argument("--raw", action="store_true")
     ap.add_argument("--out", type=Path, default=None, help="append one JSON line per run here")
@@ -81,12 +84,13 @@ def main() -> None:
     torch.set_num_threads(1)
     data = InteractionDataset.load(SAMPLE_DATA)
     opts = EvalOptions(baselines=tuple(b for b in args.baselines.split(",") if b), progress=False, raw=args.raw)
-    for scale in args.label_scale or [None]:
+    for scale, leader_noise in itertools.product(args.label_scale or [None], args.leader_noise or [None]):
         model = ReactionModel.load(args.checkpoint)
         if model.stochastic:
             changes = {k: v for k, v in (("label_scale", scale), ("leader_scale", args.leader_scale),
                                          ("sample_steps", args.sample_steps), ("eta", args.eta),
-                                         ("guided_below", args.guided_below), ("leader_below", args.leader_below))
+                                         ("guided_below", args.guided_below), ("leader_below", args.leader_below),
+                                         ("leader_noise", leader_noise))
                        if v is not None}
             try:
                 model.guidance = replace(model.guidance, **changes)
