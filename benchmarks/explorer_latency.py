@@ -182,6 +182,9 @@ def measure_models(browser, studio: probe.StudioProcess, trials: int, res: dict)
     """6.: the same slider, first with the GAN, then with the diffusion model, then with three variations drawn."""
     page = probe.open_studio(browser, studio.url, *VIEW_SIZE)
     probe.watch_view_images(page)
+    # a fresh cache's latent-map fit runs in a process of its own for its first seconds: the first series would
+    # measure the fit's share of the cores, not the model's
+    probe.wait_state(page, "!s.get('projection_busy')", 180000)
     res["models_slider_ms_gan"] = _p(lat := slider_latency(page, trials))
     _say("slider -> redrawn follower, the paper's GAN", lat, "p95 <= 100 ms")
     page.locator("#model-diffusion").click()

@@ -5,8 +5,9 @@
         --where label_scale=2.5 --where sample_steps=10
 
 A model is NAME=PATTERNS: rows whose checkpoint path contains one of the |-separated patterns. --where keeps rows whose
-guidance has that value (GAN rows, without guidance, are kept). Where a fold has several matching rows, the last
-one counts.
+guidance has that value (GAN rows, without guidance, are kept). Where a checkpoint has several matching rows on a
+fold, the last one counts; the checkpoints of one model on a fold (its seeds) are averaged, and the fold's row says how
+many there are.
 """
 
 from __future__ import annotations
@@ -25,10 +26,23 @@ COLUMNS = (("AFD", "afd", 3), ("AFD 1-NN", "afd_nn1", 3), ("best of 5", "afd_bes
 
 
 def rows_of(paths: list[Path], patterns: list[str], where: dict[str, float]) -> dict[str, dict]:
+    """{fold: the mean over its checkpoints (seeds) of each figure, with "seeds": how many}."""
+    runs = runs_of(paths, patterns, where)
+    by_fold: dict[str, dict] = {}
+    for fold, rows in runs.items():
+        mean = {"seeds": len(rows)}
+        for _, key, _ in COLUMNS:
+            values = [r[key] for r in rows.values() if r.get(key) is not None]
+            mean[key] = sum(values) / len(values) if len(values) == len(rows) else None
+        by_fold[fold] = mean
+    return by_fold
+
+
+def runs_of(paths: list[Path], patterns: list[str], where: dict[str, float]) -> dict[str, dict[str, dict]]:
     from imm_model.model.diffusion_sampler import Guidance
 
     defaults = Guidance().to_dict()  # rows from before a guidance field existed sampled with its default
-    by_fold: dict[str, dict] = {}
+    by_fold: dict[str, dict[str, dict]] = {}
     for path in paths:
         for line in path.read_text().splitlines():
             row = json.loads(line)
@@ -39,7 +53,7 @@ def rows_of(paths: list[Path], patterns: list[str], where: dict[str, float]) -> 
                 continue
             if row.get("multimodality") is not None:
                 row["multimodality_ratio"] = row["multimodality"] / row["real_class_diversity"]
-            by_fold[row["fold"]] = row
+            by_fold.setdefault(row["fold"], {})[row["checkpoint"]] = row
     return by_fold
 
 
@@ -61,7 +75,9 @@ def main() -> None:
     for fold in (*DEV, *TEST):
         for name, rows in models.items():
             if fold in rows:
-                print(f"| {fold} | {name} | " + " | ".join(fmt(rows[fold].get(key), d) for _, key, d in COLUMNS) + " |")
+                seeds = rows[fold]["seeds"]
+                cells = " | ".join(fmt(rows[fold].get(key), d) for _, key, d in COLUMNS)
+                print(f"| {fold} | {name}{f' ({seeds} seeds)' if seeds > 1 else ''} | {cells} |")
     for group, folds in (("dev mean", DEV), ("test mean", TEST)):
         for name, rows in models.items():
             present = [rows[f] for f in folds if f in rows]
