@@ -41,6 +41,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--samples", type=int, default=1,
                    help="reactions per leader and label, drawn with seeds --seed, --seed + 1, ... (a stochastic model; "
                         "more than 1 writes a folder, each file named with its seed)")
+    p.add_argument("--spread", type=float, default=None,
+                   help="how loosely a diffusion model trained with noised leaders follows the leader, 0..1: higher "
+                        "draws wider variations (default: the model's own)")
     p.add_argument("--force", action="store_true", help="replace outputs that exist")
     add_device_argument(p)
     p.set_defaults(func=_cmd_generate)
@@ -131,6 +134,11 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     if len(seeds) > 1 and not model.stochastic:
         raise ValueError(f"--samples {args.samples}: {model.path.name if model.path else 'this model'} is deterministic "
                          "(the paper's GAN): every seed gives the same reaction")
+    if args.spread is not None:
+        if model.spread is None:
+            raise ValueError(f"--spread: {model.path.name if model.path else 'this model'} has no spread setting (it needs "
+                             "a diffusion model trained with noised leaders)")
+        model.spread = args.spread
     leaders, labels = _leaders(args), label_vectors(args, model)
     for _, leader, source in leaders:  # all checked before anything is written, each refusal naming its file
         try:
@@ -215,4 +223,4 @@ def _write(path: Path, leader: np.ndarray, follower: np.ndarray, model, vec: np.
     write_atomic(path, interaction_bytes(interaction_arrays(
         leader, follower, frame, model.skeleton, class_names=model.class_names, label=vec, scale=scale,
         checkpoint=model.path.name if model.path else "", fps=15.0, sequence_id=sid,
-        seed=seed if model.stochastic else None)))
+        seed=seed if model.stochastic else None, spread=model.spread)))

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +41,7 @@ class ReactionModel:
 
     family = "gan"
     stochastic = False  # True: `seed` picks among reactions; False: every seed gives the same one
+    spread: float | None = None  # how loosely a sampler follows the leader (DiffusionReactionModel); None: no such setting
 
     def __init__(self, weights: dict[str, np.ndarray], config, meta: dict[str, Any], path: Path | None = None, device: str = "cpu"):
         from imm_model.model.numpy_runtime import NumpyGenerator
@@ -313,6 +315,20 @@ class DiffusionReactionModel(ReactionModel):
         self.device = str(device)
         self.fast = NumpyDenoiser(weights, config) if self.device == "cpu" else None
         self._read_meta(meta, path)
+
+    @property
+    def spread(self) -> float | None:
+        """How loosely the sampler follows the leader (Guidance.leader_noise, 0..1), for a model trained with noised
+        leaders; None for one that reads only the clean leader."""
+        return float(self.guidance.leader_noise) if self.config.leader_noise else None
+
+    @spread.setter
+    def spread(self, level: float) -> None:
+        if not self.config.leader_noise:
+            raise LabelError("spread needs a diffusion model trained with noised leaders (this one reads only the clean leader)")
+        if isinstance(level, bool) or not isinstance(level, int | float | np.floating) or not 0 <= level <= 1:
+            raise LabelError(f"spread must be a number in 0..1, not {level!r}")
+        self.guidance = replace(self.guidance, leader_noise=float(level))
 
     @functools.cached_property
     def net(self):

@@ -497,3 +497,21 @@ def test_a_noised_leader_widens_the_variations_and_follows_the_seed(leader_noise
 def test_noised_leader_training_needs_the_network_that_reads_the_level():
     with pytest.raises(ValueError, match="leader_noise_prob must be 0 unless model.leader_noise is true"):
         replace(TINY, leader_noise_prob=0.5)
+
+
+def test_generate_takes_a_spread_and_the_file_records_it(leader_noise_model, tiny_model, sample_data, tmp_path, capsys):
+    sid = sample_data.sequence_ids[0]
+    base = ["generate", "--sequence", sid, "--label", "hugging", "--seed", "2"]
+    assert main(base + ["--checkpoint", str(leader_noise_model), "--spread", "0.5", "--out", str(tmp_path / "loose.npz")]) == 0
+    assert main(base + ["--checkpoint", str(leader_noise_model), "--spread", "0", "--out", str(tmp_path / "close.npz")]) == 0
+    loose, close = np.load(tmp_path / "loose.npz"), np.load(tmp_path / "close.npz")
+    assert float(loose["spread"]) == 0.5 and float(close["spread"]) == 0.0
+    assert np.abs(loose["follower"] - close["follower"]).mean() > 1e-4
+    model = ReactionModel.load(leader_noise_model)
+    model.spread = 0.5
+    assert np.allclose(model.synthesize(sample_data.world(0)[0], {"hugging": 1}, seed=2), loose["follower"], atol=1e-5)
+    capsys.readouterr()
+    for checkpoint, spread, message in ((tiny_model, "0.5", "has no spread setting"), (leader_noise_model, "1.5", "spread must be")):
+        assert main(base + ["--checkpoint", str(checkpoint), "--spread", spread, "--out", str(tmp_path / "no.npz")]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and message in err and not (tmp_path / "no.npz").exists(), err

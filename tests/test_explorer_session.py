@@ -418,3 +418,63 @@ def test_a_sliders_variations_can_wait_for_its_first_picture(two_models):
     np.testing.assert_allclose(ses.variation_followers[2],
                                ses.model.synthesize_canonical(ses.leader, ses.label_vector(), seed=ses.seed + 2), atol=1e-4)
     ses.set_variation_count(1)
+
+
+@pytest.fixture(scope="module")
+def spreading(sample_data, tmp_path_factory):
+    """A tiny diffusion model trained a few steps with noised leaders (real data; its reactions are not results)."""
+    from dataclasses import replace
+
+    import torch
+
+    from explorer.session.session import load_model
+    from imm_model.training.diffusion import IMM_DIFFUSION, DiffusionTrainer
+
+    torch.set_num_threads(1)
+    cfg = replace(IMM_DIFFUSION, name="tiny-spread", model=dict(width=16, layers=1, heads=2, ff_mult=1, dropout=0.0,
+                                                                leader_noise=True),
+                  guidance=dict(label_scale=2.5, sample_steps=4, leader_noise=0.2), leader_noise_prob=0.5, steps=12,
+                  batch_size=8, warmup_steps=2)
+    path = DiffusionTrainer(cfg, sample_data, "s04", tmp_path_factory.mktemp("spread") / "fold-s04").fit(progress=False)
+    return load_model(path, sample_data)
+
+
+def test_the_spread_moves_the_reaction_and_travels_with_the_pin_link_and_export(sample_data, model, spreading):
+    """The spread (a model trained with noised leaders) redraws the follower with the same seed; a bad value or a model
+    without the setting is refused in one line and changes nothing; the pin keeps its own spread; links and the
+    exported file carry it."""
+    from explorer.session.session import Session
+    from explorer.ui.url_state import parse_view, view_query
+    from imm_model.errors import LabelError
+
+    ses = Session(sample_data, model, index=3, others={"diffusion": spreading})
+    assert ses.spread is None
+    with pytest.raises(LabelError, match="has no spread setting"):
+        ses.set_spread(0.5)
+    ses.set_model("diffusion")
+    assert ses.spread == pytest.approx(0.2)  # the model's own default
+    ses.set_label(np.eye(6)[1])
+    loose = ses.synth.copy()
+    ses.set_spread(0.0)
+    close = ses.synth.copy()
+    assert np.abs(close - loose).mean() > 1e-4
+    ses.set_spread(0.2)
+    assert np.array_equal(ses.synth, loose)  # the same seed and spread draw the same reaction again
+    for bad in (1.5, float("nan"), "wide"):
+        with pytest.raises(LabelError, match="spread must be a number in 0..1"):
+            ses.set_spread(bad)
+        assert ses.spread == pytest.approx(0.2) and np.array_equal(ses.synth, loose)
+    ses.pin()
+    ses.set_spread(0.0)
+    assert ses.pinned_text().endswith("spread 0.2") and np.array_equal(ses.pinned, loose)
+    ses.select(5)  # the pinned follower is redrawn for the new leader with its own spread, not the current one
+    pinned_at_5 = ses.pinned.copy()
+    ses.set_label(np.eye(6)[1])  # a new sequence opens on its own class: back to the pinned mix
+    ses.set_spread(0.2)
+    assert np.array_equal(ses.synth, pinned_at_5) and ses.spread == pytest.approx(0.2)
+    with np.load(io.BytesIO(ses.export_npz())) as f:
+        assert float(f["spread"]) == pytest.approx(0.2)
+    query = view_query({"seq": "s01s02/03/001", "weights": {"kicking": 1.0}, "model": "diffusion", "seed": 4, "spread": 0.35})
+    assert query.endswith("&seed=4&spread=0.35")
+    view, problems = parse_view(query.replace("0.35", "2"), ("kicking",), {"s01s02/03/001"}, ("default",), ("gan", "diffusion"))
+    assert "spread" not in view and problems == ["spread '2' is outside 0..1"]

@@ -15,7 +15,7 @@ import numpy as np
 from explorer.rendering.palette import display_name
 from imm_model.data.canonical import CanonicalFrame
 from imm_model.data.dataset import InteractionDataset
-from imm_model.errors import CheckpointError, DataFormatError, IMMError
+from imm_model.errors import CheckpointError, DataFormatError, IMMError, LabelError
 from imm_model.evaluation.metrics import afd
 from imm_model.inference import check_compatible, check_seeds
 
@@ -74,6 +74,7 @@ class ReactionModelLike(Protocol):
     raw: bool  # True: the network's own follower, without the clean-up (imm_model/cleanup.py)
     family: str  # "gan" or "diffusion" (MODEL_TITLES)
     stochastic: bool  # True: a seed picks one of many reactions; False: every seed gives the same one
+    spread: float | None  # how loosely its sampler follows the leader, 0..1, settable; None: the model has no such setting
 
     def label_vector(self, label: Any, scale: float = 1.0) -> np.ndarray: ...
     def synthesize_canonical(self, leader: np.ndarray, label_vector: np.ndarray, seed: int = 0) -> np.ndarray: ...
@@ -165,8 +166,9 @@ class Session:
         # A/B: a pinned mix and its follower for the current leader (None: nothing pinned)
         self.pinned_weights: np.ndarray | None = None
         self.pinned_scale = 1.0
-        self.pinned_model = self.model_name  # the pinned follower keeps its model and seed: A/B can compare models
+        self.pinned_model = self.model_name  # the pinned follower keeps its model, seed and spread: A/B can compare models
         self.pinned_seed = 0
+        self.pinned_spread: float | None = None
         self.pinned: np.ndarray | None = None
         self.select(index)
 
@@ -289,6 +291,20 @@ class Session:
         self.seed = int(seed)
         return self.synthesize()
 
+    @property
+    def spread(self) -> float | None:
+        """How loosely the current model follows the leader (0..1: wider variations as it grows); None: no such setting."""
+        return self.model.spread
+
+    def set_spread(self, level: float, synthesize: bool = True) -> None:
+        """The current model's spread (LabelError, one line, for a model without one or a value outside 0..1: nothing
+        changes); `synthesize` False: the caller draws the follower."""
+        if self.model.spread is None:
+            raise LabelError(f"{model_title(self.model_name)} has no spread setting")
+        self.model.spread = level
+        if synthesize:
+            self.synthesize()
+
     def new_variation(self) -> np.ndarray:
         """A fresh seed: another reaction for the same leader and mix."""
         seed = self.seed
@@ -357,7 +373,7 @@ class Session:
     def pin(self) -> None:
         """Keep the current mix and its follower, to compare the next mixes with."""
         self.pinned_weights, self.pinned_scale, self.pinned = self.weights.copy(), self.scale, self.synth.copy()
-        self.pinned_model, self.pinned_seed = self.model_name, self.seed
+        self.pinned_model, self.pinned_seed, self.pinned_spread = self.model_name, self.seed, self.spread
 
     def clear_pin(self) -> None:
         self.pinned_weights = self.pinned = None
@@ -367,7 +383,14 @@ class Session:
         if self.pinned_weights is not None:
             model = self.models[self.pinned_model]
             vec = np.asarray(model.label_vector([float(x) for x in self.pinned_weights], scale=self.pinned_scale), np.float32)
-            self.pinned = np.asarray(model.synthesize_canonical(self.leader, vec, seed=self.pinned_seed), np.float32)
+            spread = model.spread
+            if spread is not None:
+                model.spread = self.pinned_spread
+            try:
+                self.pinned = np.asarray(model.synthesize_canonical(self.leader, vec, seed=self.pinned_seed), np.float32)
+            finally:
+                if spread is not None:
+                    model.spread = spread
 
     def pinned_text(self) -> str:
         """The pinned mix in words, and its model (and seed) when they are not the current ones."""
@@ -378,6 +401,8 @@ class Session:
             text += f" · {model_title(self.pinned_model)}"
         if self.models[self.pinned_model].stochastic and (self.pinned_model != self.model_name or self.pinned_seed != self.seed):
             text += f" · seed {self.pinned_seed}"
+        if self.pinned_spread is not None and (self.pinned_model != self.model_name or self.pinned_spread != self.spread):
+            text += f" · spread {self.pinned_spread:.2g}"
         return text
 
     def ab_distances_m(self) -> np.ndarray:
@@ -421,7 +446,7 @@ class Session:
             class_names=self.class_names, label=self.label_vector(), scale=self.scale, checkpoint=Path(path).name if path else "",
             fps=FPS, ground_truth=None if self.ground_truth is None else self.world(self.ground_truth),
             sequence_id=None if self.upload else self.data.sequence_ids[self.index],
-            seed=self.seed if self.model.stochastic else None))
+            seed=self.seed if self.model.stochastic else None, spread=self.spread))
 
     def export_bvh(self, character: str = "follower") -> bytes:
         """The synthesized follower (or the leader) as a BVH file's bytes, world metres (imm_model/data/bvh.py)."""

@@ -137,7 +137,7 @@ class Studio:
         s.change("sequence_index")(self.on_sequence_picked)
         s.change("upload_file")(self.on_leader_uploaded)
         s.change("frame")(self.on_frame_change)
-        s.change(*[f"w_{i}" for i in range(len(self.session.class_names))], "scale")(self.on_mix_change)
+        s.change(*[f"w_{i}" for i in range(len(self.session.class_names))], "scale", "spread")(self.on_mix_change)
         s.change("scene_layout")(self.on_layout_change)
         s.change("show_leader", "show_ground_truth", "show_synthesized")(self.on_visibility_change)
         s.change("playing")(self.on_playing_change)
@@ -285,8 +285,12 @@ class Studio:
         s, ses = self.state, self.session
         weights = [float(s[f"w_{i}"] or 0.0) for i in range(len(ses.class_names))]
         scale = float(s.scale if s.scale is not None else 1.0)
-        if np.allclose(weights, ses.weights) and abs(scale - ses.scale) < 1e-9 and ses.synth is not None and s.mix_count:
+        spread = float(s.spread or 0.0) if ses.spread is not None else None
+        if (np.allclose(weights, ses.weights) and abs(scale - ses.scale) < 1e-9 and spread == ses.spread and ses.synth is not None
+                and s.mix_count):
             return False
+        if spread is not None:
+            ses.set_spread(spread, synthesize=False)
         ses.set_label(weights, scale, variations=False)  # the side-by-side variations follow with the review
         self.scene.set_synthesized(ses.synth)
         self.model_switch.show_variations()

@@ -1,6 +1,7 @@
 """The model switch (the paper's GAN / the diffusion model) and, for a stochastic model, its variations: the seed, a
-"new variation" button, and N followers drawn at once (seeds seed .. seed + N - 1) side by side, each captioned with
-its seed. The session (explorer/session/session.py) holds the models and draws the followers; this maps them onto the page.
+"new variation" button, N followers drawn at once (seeds seed .. seed + N - 1) side by side, each captioned with
+its seed, and, for a model trained with noised leaders, the spread (how loosely the reaction follows the leader).
+The session (explorer/session/session.py) holds the models and draws the followers; this maps them onto the page.
 
 A diffusion reaction costs ~10x the GAN's (benchmarks/explorer_latency.py): slider moves are coalesced as for any
 model (app.py, the latest mix wins), a slider's further variations are drawn after its first picture, with the
@@ -42,6 +43,8 @@ class ModelSwitch:
             "model_title": model_title(ses.model_name),
             "stochastic": ses.stochastic,
             "seed": ses.seed,
+            "spread": ses.spread or 0.0,  # the mix's handler (app.py) applies it, as a slider of the mix
+            "spread_available": ses.spread is not None,
             "variation_count": ses.variation_count,
             "computing": False,  # a reaction is being drawn (COMPUTING_CSS)
             "variation_asked": 0,  # "new variation" presses
@@ -142,6 +145,9 @@ class ModelSwitch:
             s.model_title = model_title(ses.model_name)
             s.stochastic = ses.stochastic
             s.seed, s.variation_count = ses.seed, ses.variation_count
+            s.spread_available = ses.spread is not None
+            if ses.spread is not None:
+                s.spread = ses.spread
             s.pinned_text = ses.pinned_text()
             contact_changed = self.show_review()
             s.error = ""
@@ -189,6 +195,12 @@ def model_panel(session: Session) -> None:
                           title="the same seed with a moved slider moves the reaction smoothly")
             v3.VBtn("new variation", size="x-small", variant="tonal", prepend_icon="mdi-dice-multiple", id="new-variation",
                     click="computing = true; variation_asked += 1")
+        with html.Div(v_if="spread_available", classes="d-flex align-center mb-1", style="gap: 6px", id="spread-row",
+                      title="how loosely the reaction follows the leader's motion: 0 follows it closely, higher "
+                            "draws wider variations"):
+            html.Div("spread", classes="text-body-2", style="width: 48px")
+            v3.VSlider(v_model=("spread",), min=0, max=1, step=0.05, density="compact", hide_details=True, id="spread-slider")
+            html.Div("{{ Number(spread).toFixed(2) }}", classes="text-caption ml-1", style="width: 38px; text-align: right")
         with html.Div(classes="d-flex align-center", style="gap: 6px"):
             html.Div("variations side by side", classes="text-body-2")
             with v3.VBtnToggle(model_value=("variation_count",), density="compact", mandatory=True, variant="outlined",

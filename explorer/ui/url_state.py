@@ -1,7 +1,7 @@
 """The view in the URL's query string, so a link reopens what its sender saw:
 `?seq=s01s02/03/001&mix=kicking:1,hugging:0.5&scale=1&frame=12&layout=overlay&camera=front&map=tsne`, `&raw=1`
-when the clean-up is off, `&model=diffusion` when another model than the studio's first draws, and `&seed=12` for a
-stochastic model.
+when the clean-up is off, `&model=diffusion` when another model than the studio's first draws, `&seed=12` for a
+stochastic model and `&spread=0.3` for one with a spread setting.
 
 Everything read from a URL is validated here (it comes from whoever wrote the link): unknown keys are ignored,
 bad values are named in one line and left out, the rest still applies.
@@ -26,14 +26,14 @@ MAX_SEED = 2**31 - 5  # room for the side-by-side variations after it (explorer/
 
 
 def view_query(view: dict) -> str:
-    """{seq, weights: {class: w}, scale, frame, layout, camera, map, raw, model, seed} -> "?..." (None values are left
-    out)."""
+    """{seq, weights: {class: w}, scale, frame, layout, camera, map, raw, model, seed, spread} -> "?..." (None values
+    are left out)."""
     parts = {}
     if view.get("seq"):
         parts["seq"] = view["seq"]
     mix = ",".join(f"{name}:{w:g}" for name, w in view.get("weights", {}).items() if w)
     parts["mix"] = mix or "none"
-    for key in ("scale", "frame", "layout", "camera", "map", "raw", "model", "seed"):
+    for key in ("scale", "frame", "layout", "camera", "map", "raw", "model", "seed", "spread"):
         if view.get(key) is not None:
             parts[key] = f"{view[key]:g}" if isinstance(view[key], float) else str(view[key])
     return "?" + urlencode(parts, safe=":,/", quote_via=quote)
@@ -78,6 +78,7 @@ def parse_view(query: str, class_names, sequence_ids, cameras, models=()) -> tup
         "raw": lambda v: {"1": True, "0": False}[v] if v in ("0", "1") else _fail(f"raw {v!r} is not 0 or 1"),
         "model": lambda v: v if v in models else _fail(f"model {v!r} is not one of {', '.join(models) or 'this studio'}"),
         "seed": _seed,
+        "spread": lambda v: _number(v, 0.0, 1.0, "spread"),
     }
     view, problems = {}, []
     for key, parse in parsers.items():
@@ -129,12 +130,14 @@ def current_view(studio: ViewHolder) -> dict:
         "raw": None if ses.cleaned_up else 1,  # left out of the link while the clean-up is on, as by default
         "model": None if ses.model is ses.map_model else ses.model_name,  # left out for the model the studio opens with
         "seed": ses.seed if ses.stochastic else None,
+        "spread": None if ses.spread is None else round(float(ses.spread), 3),
     }
 
 
 def apply_view(studio: ViewHolder, query: str) -> None:
     """Open the view a link describes; what cannot be applied is named in the page's alert."""
     from explorer.rendering.scene import CAMERA_PRESETS
+    from explorer.session.session import model_title
 
     ses, s = studio.session, studio.state
     view, problems = parse_view(query, ses.class_names, set(ses.data.sequence_ids), CAMERA_PRESETS, tuple(ses.models))
@@ -143,6 +146,12 @@ def apply_view(studio: ViewHolder, query: str) -> None:
             s.model_name = view["model"]
         if "seed" in view:
             s.seed = view["seed"]
+    if "spread" in view:
+        if ses.spread is None:
+            problems.append(f"spread: {model_title(ses.model_name)} has no spread setting")
+        else:
+            with s:
+                s.spread = view["spread"]  # applied with the mix below (app.py's mix handler)
     if "seq" in view:
         studio.load_sequence(ses.data.index_of(view["seq"]))
     if "mix" in view or "scale" in view:
