@@ -402,11 +402,12 @@ class DiffusionReactionModel(ReactionModel):
         for start in range(0, len(leaders), self.BATCH):
             rows = list(range(start, min(start + self.BATCH, len(leaders))))
             x, mask = self._normalize_leaders([leaders[i] for i in rows])
+            denoise = self._denoiser(x, mask)
             if level:
-                x = noised_leaders(x, mask, [seeds[i] for i in rows], level, steps)
+                noisy = self._denoiser(noised_leaders(x, mask, [seeds[i] for i in rows], level, steps), mask, level)
+                denoise = _clean_at_the_last_step(noisy, denoise)
             noise, _ = self._padded([initial_noise(seeds[i], len(leaders[i]), d) for i in rows])
-            x0 = sample(self._denoiser(x, mask, level), x, mask, labels[rows], noise, self.guidance, steps,
-                        seeds=[seeds[i] for i in rows])
+            x0 = sample(denoise, x, mask, labels[rows], noise, self.guidance, steps, seeds=[seeds[i] for i in rows])
             followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
             out += [followers[k, : len(leaders[i])].reshape(len(leaders[i]), -1, 3) for k, i in enumerate(rows)]
         return out
@@ -432,6 +433,12 @@ class DiffusionReactionModel(ReactionModel):
                 h, tokens = h.cpu().numpy(), tokens.cpu().numpy()
         m = tokens[..., None].astype(np.float32)
         return (h * m).sum(1) / m.sum(1)
+
+
+def _clean_at_the_last_step(noisy, clean):
+    """`sample`'s network call from the noised leader's network call, except at the last step (step 0), whose prediction
+    is the output: there the clean leader's, or the leader's noise would show in the reaction as jitter."""
+    return lambda x_t, step, *terms: (clean if step == 0 else noisy)(x_t, step, *terms)
 
 
 def _described_weights(arrays: dict[str, np.ndarray], meta: dict[str, Any], path: Path, config_class, prefix: str):

@@ -93,8 +93,9 @@ class Guidance:
     # the leader shapes it after (wider variations); 1 = the leader at every step
     leader_below: float = param(1.0, Interval(float, 0, 1))
     # the noise level t / (T - 1) the network sees its leader through, drawn from the sampler seed and the same at
-    # every step (a model with DiffusionConfig.leader_noise only): the reaction follows the leader's coarse motion and
-    # samples its detail, so seeds differ more; 0 = the clean leader
+    # every step but the last (a model with DiffusionConfig.leader_noise only): the reaction follows the leader's
+    # coarse motion and samples its detail, so seeds differ more; the last step, whose prediction is the output, reads
+    # the clean leader so that the leader's noise does not show as jitter; 0 = the clean leader throughout
     leader_noise: float = param(0.0, Interval(float, 0, 1))
 
     def __post_init__(self) -> None:

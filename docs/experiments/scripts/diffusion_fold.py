@@ -47,6 +47,9 @@ def headline(result: dict) -> dict:
         "upper_judge_accuracy": result["classifier"]["real_accuracy"]["upper_judge"],
         "lower_judge_accuracy": result["classifier"]["real_accuracy"]["lower_judge"],
         "interior_limb_speed_ratio": p["interior_limb_speed_ratio"], "lean_error_deg": p["lean_error_deg"],
+        # root-relative limb speed, and the same with the generated motion smoothed like the real: jitter lowers the
+        # second below the first
+        "limb_speed_ratio": p["limb_speed_ratio"], "smooth_limb_speed_ratio": p["smooth_limb_speed_ratio"],
         "bone_error_cm": p["bone_error_cm"], "foot_skate_mps": p["foot_skate_mps"], "interpenetration": p["interpenetration"],
         "real_interpenetration": p["real_interpenetration"],
         "start_root_m": m["afd_parts"]["start_root_m"], "limb_m": m["afd_parts"]["limb_m"],
