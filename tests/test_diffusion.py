@@ -494,6 +494,30 @@ def test_a_noised_leader_widens_the_variations_and_follows_the_seed(leader_noise
         plain.synthesize(leader, {"kicking": 1}, seed=3)
 
 
+def test_the_last_step_reads_the_clean_leader(leader_noise_model, leader, monkeypatch):
+    """With a spread, every sampler step but the last sees the noised leader and is told its level; the last step, whose
+    prediction is the output, sees the clean leader (else the leader's noise shows in the reaction as jitter)."""
+    model = ReactionModel.load(leader_noise_model)
+    model.spread = 0.6
+    seen, network = [], model._denoiser
+
+    def spy(leaders, mask, leader_level=0):
+        call = network(leaders, mask, leader_level)
+
+        def denoise(x_t, step, *terms):
+            seen.append((step, leader_level, leaders.copy()))
+            return call(x_t, step, *terms)
+        return denoise
+
+    monkeypatch.setattr(model, "_denoiser", spy)
+    model.synthesize(leader, {"kicking": 1}, seed=3)
+    steps = [step for step, _, _ in seen]
+    assert steps == sorted(steps, reverse=True) and steps[-1] == 0 and len(steps) == model.guidance.sample_steps
+    assert [level for _, level, _ in seen] == [round(0.6 * 99)] * (len(steps) - 1) + [0]  # 0.6 of steps 0..99, then clean
+    noised, clean = seen[0][2], seen[-1][2]
+    assert np.abs(noised - clean).mean() > 0.1
+
+
 def test_noised_leader_training_needs_the_network_that_reads_the_level():
     with pytest.raises(ValueError, match="leader_noise_prob must be 0 unless model.leader_noise is true"):
         replace(TINY, leader_noise_prob=0.5)
