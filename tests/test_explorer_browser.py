@@ -614,6 +614,39 @@ def test_switch_to_the_diffusion_model_draw_variations_and_back(page):
     assert int((back ^ gan).sum()) < 0.1 * int(gan.sum()), "the GAN's follower is not the one it drew before"
 
 
+def test_the_spread_slider_redraws_the_follower_and_enters_the_link(page):
+    """The bundled diffusion model reads a noised leader: its spread slider shows with it (not with the GAN), a moved
+    slider redraws the follower with the same seed, and a link carries the value."""
+    from explorer.rendering.palette import SYNTHESIZED
+    from tests.studio_probe import color_mask
+
+    def still_green():
+        time.sleep(0.8)  # the still picture after the draft
+        return color_mask(probe.view_pixels(page), SYNTHESIZED)
+
+    _load_sequence(page, 3)
+    probe.set_state(page, "scene_layout", "overlay")
+    assert page.locator("#spread-row").count() == 0  # the GAN has no spread
+    n = probe.state(page, "mix_count")
+    page.locator("#model-diffusion").click()
+    probe.wait_state(page, f"s.get('model_name') === 'diffusion' && s.get('mix_count') > {n} && !s.get('computing')")
+    assert page.locator("#spread-row").is_visible() and probe.state(page, "spread_available")
+    seed, default = probe.state(page, "seed"), probe.state(page, "spread")
+    assert 0 < default < 1 and f"spread={default:g}" in probe.state(page, "url_query")
+    before = still_green()
+    n = probe.state(page, "mix_count")
+    probe.press_slider(page, "#spread-row", "End")
+    probe.wait_state(page, f"s.get('spread') === 1 && s.get('mix_count') > {n} && !s.get('computing')")
+    assert probe.state(page, "seed") == seed and probe.state(page, "url_query").endswith(f"&seed={seed}&spread=1")
+    assert int((before ^ still_green()).sum()) > 100, "the spread did not change the follower"
+    probe.shot(page, "studio-diffusion-spread")
+    probe.set_state(page, "spread", default)
+    probe.wait_state(page, f"s.get('spread') === {default} && !s.get('computing')")
+    page.locator("#model-gan").click()
+    probe.wait_state(page, "s.get('model_name') === 'gan' && !s.get('computing')")
+    assert page.locator("#spread-row").count() == 0 and "spread=" not in probe.state(page, "url_query")
+
+
 REVIEW_ORDER_JS = "() => [...document.querySelectorAll('#review-table tbody tr.review-row')].map((r) => Number(r.dataset.index))"
 REVIEW_AFD_JS = "() => [...document.querySelectorAll('#review-table tbody tr.review-row td.review-afd')].map((c) => Number(c.textContent))"
 
