@@ -593,7 +593,7 @@ def test_switch_to_the_diffusion_model_draw_variations_and_back(page):
     page.locator("#new-variation").click()
     probe.wait_state(page, f"s.get('seed') !== {seed} && s.get('mix_count') > {n} && !s.get('computing')")
     assert f"seed {probe.state(page, 'seed')}" in chip.inner_text()
-    assert probe.state(page, "url_query").endswith(f"&model=diffusion&seed={probe.state(page, 'seed')}")  # a link keeps both
+    assert f"&model=diffusion&seed={probe.state(page, 'seed')}&" in probe.state(page, "url_query")  # a link keeps both
     assert int((diffusion ^ still_green()).sum()) > 100, "a new variation drew the same follower"
     probe.shot(page, "studio-diffusion-variation")
 
@@ -624,7 +624,7 @@ def test_the_spread_slider_redraws_the_follower_and_enters_the_link(page):
         time.sleep(0.8)  # the still picture after the draft
         return color_mask(probe.view_pixels(page), SYNTHESIZED)
 
-    _load_sequence(page, 3)
+    _load_sequence(page, 6 if probe.state(page, "sequence_index") != 6 else 7)
     probe.set_state(page, "scene_layout", "overlay")
     assert page.locator("#spread-row").count() == 0  # the GAN has no spread
     n = probe.state(page, "mix_count")
@@ -632,19 +632,21 @@ def test_the_spread_slider_redraws_the_follower_and_enters_the_link(page):
     probe.wait_state(page, f"s.get('model_name') === 'diffusion' && s.get('mix_count') > {n} && !s.get('computing')")
     assert page.locator("#spread-row").is_visible() and probe.state(page, "spread_available")
     seed, default = probe.state(page, "seed"), probe.state(page, "spread")
-    assert 0 < default < 1 and f"spread={default:g}" in probe.state(page, "url_query")
+    assert 0 < default < 1
+    probe.wait_state(page, f"s.get('url_query').endsWith('&spread={default:g}')")
     before = still_green()
     n = probe.state(page, "mix_count")
     probe.press_slider(page, "#spread-row", "End")
-    probe.wait_state(page, f"s.get('spread') === 1 && s.get('mix_count') > {n} && !s.get('computing')")
-    assert probe.state(page, "seed") == seed and probe.state(page, "url_query").endswith(f"&seed={seed}&spread=1")
+    probe.wait_state(page, f"s.get('spread') === 1 && s.get('mix_count') > {n} && !s.get('computing') "
+                           f"&& s.get('url_query').endsWith('&seed={seed}&spread=1')")  # the same seed, and a link has it
     assert int((before ^ still_green()).sum()) > 100, "the spread did not change the follower"
     probe.shot(page, "studio-diffusion-spread")
     probe.set_state(page, "spread", default)
     probe.wait_state(page, f"s.get('spread') === {default} && !s.get('computing')")
     page.locator("#model-gan").click()
-    probe.wait_state(page, "s.get('model_name') === 'gan' && !s.get('computing')")
-    assert page.locator("#spread-row").count() == 0 and "spread=" not in probe.state(page, "url_query")
+    probe.wait_state(page, "s.get('model_name') === 'gan' && !s.get('spread_available') && !s.get('computing')")
+    page.wait_for_selector("#spread-row", state="detached", timeout=5000)
+    assert "spread=" not in probe.state(page, "url_query")
 
 
 REVIEW_ORDER_JS = "() => [...document.querySelectorAll('#review-table tbody tr.review-row')].map((r) => Number(r.dataset.index))"
