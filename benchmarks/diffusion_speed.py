@@ -1,7 +1,7 @@
 """Diffusion sampling speed: one 46-frame reaction with 0-3 classes composed, against the GAN in the same run.
 
     .venv/bin/python benchmarks/diffusion_speed.py --checkpoint sample_data/imm_diffusion.safetensors [--threads 1]
-        [--repeats 30] [--device cpu|cuda] [--gan sample_data/imm_sbu.safetensors]
+        [--repeats 30] [--device cpu|cuda] [--gan sample_data/imm_sbu.safetensors] [--spread S]
 
 Prints the median and p90 of `ReactionModel.synthesize_canonical` (clean-up included) for each number of classes
 composed (each class is one more network term per sampler step), the sampler's steps, and the GAN's median on the same
@@ -40,6 +40,7 @@ def main() -> None:
     ap.add_argument("--gan", default=str(SAMPLE_CHECKPOINT))
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--repeats", type=int, default=30)
+    ap.add_argument("--spread", type=float, default=None, help="the sampler's spread (default: the model's own)")
     add_device_argument(ap, default="cpu")
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
@@ -47,9 +48,11 @@ def main() -> None:
     device = str(resolve_device(args.device))
     data = InteractionDataset.load(SAMPLE_DATA)
     model, gan = ReactionModel.load(args.checkpoint, device=device), ReactionModel.load(args.gan, device=device)
+    if args.spread is not None:
+        model.spread = args.spread
     leader = data.canonical(int(np.argmax(data.lengths)))[0]
     print(f"checkpoint {args.checkpoint}; {len(leader)} frames; torch and BLAS threads {args.threads}; device {device}; "
-          f"{model.guidance.sample_steps} sampler steps")
+          f"{model.guidance.sample_steps} sampler steps; spread {model.spread}")
     for k in range(4):
         label = np.zeros(len(model.class_names), np.float32)
         label[:k] = 1.0
