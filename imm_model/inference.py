@@ -41,7 +41,15 @@ class ReactionModel:
 
     family = "gan"
     stochastic = False  # True: `seed` picks among reactions; False: every seed gives the same one
-    spread: float | None = None  # how loosely a sampler follows the leader (DiffusionReactionModel); None: no such setting
+
+    @property
+    def spread(self) -> float | None:
+        """How loosely a sampler follows the leader (DiffusionReactionModel); None: this model has no such setting."""
+        return None
+
+    @spread.setter
+    def spread(self, level: float) -> None:  # refused here, not silently stored beside a deterministic generator
+        raise LabelError("the paper's GAN draws one reaction per leader and label: it has no spread setting")
 
     def __init__(self, weights: dict[str, np.ndarray], config, meta: dict[str, Any], path: Path | None = None, device: str = "cpu"):
         from imm_model.model.numpy_runtime import NumpyGenerator

@@ -451,6 +451,9 @@ def test_the_spread_moves_the_reaction_and_travels_with_the_pin_link_and_export(
     assert ses.spread is None
     with pytest.raises(LabelError, match="has no spread setting"):
         ses.set_spread(0.5)
+    with pytest.raises(LabelError, match="has no spread setting"):
+        model.spread = 0.5  # the model itself refuses it: nothing is stored beside the GAN
+    assert ses.spread is None
     ses.set_model("diffusion")
     assert ses.spread == pytest.approx(0.2)  # the model's own default
     ses.set_label(np.eye(6)[1])

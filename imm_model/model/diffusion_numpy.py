@@ -131,13 +131,13 @@ class NumpyDenoiser:
         w, d, k, c = cfg.width, cfg.pose_dim, cfg.frames_per_token, cfg.num_classes
         shapes: dict[str, tuple[int, ...]] = {
             "input.weight": (w, k * (2 * d + 1)), "input.bias": (w,), "absent_leader": (d,),
-            **{f"{mlp}.{i}.{kind}": (w, w) if kind == "weight" else (w,)
-               for mlp in ("step_mlp",) + (("leader_noise_mlp",) if cfg.leader_noise else ()) for i in (0, 2)
-               for kind in ("weight", "bias")},
+            "step_mlp.0.weight": (w, w), "step_mlp.0.bias": (w,), "step_mlp.2.weight": (w, w), "step_mlp.2.bias": (w,),
             "label.weight": (w, c), "label.bias": (w,), "absent_label": (w,),
             "out_norm.weight": (w,), "out_norm.bias": (w,), "output.weight": (k * d, w), "output.bias": (k * d,),
             **{f"{who}_{stat}": (d,) for who in ("follower", "leader") for stat in ("mean", "std")},
         }
+        if cfg.leader_noise:  # the leader's noise level is embedded by an MLP shaped like the step's
+            shapes |= {k.replace("step_mlp", "leader_noise_mlp"): v for k, v in shapes.items() if k.startswith("step_mlp.")}
         ff = cfg.ff_mult * w
         for i in range(cfg.layers):
             for name, (out, inp) in (("qkv", (3 * w, w)), ("proj", (w, w)), ("mlp.0", (ff, w)), ("mlp.2", (w, ff)),
