@@ -44,9 +44,27 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--spread", type=float, default=None,
                    help="how loosely a diffusion model trained with noised leaders follows the leader, 0..1: higher "
                         "draws wider variations (default: the model's own)")
+    p.add_argument("--memory", type=float, default=None, metavar="LEVEL",
+                   help="start a diffusion model's sampler from a real reaction to a similar leader (the reaction memory: "
+                        "the pairs of --data, or of the bundled data, that the model was trained on), noised to LEVEL 0..1; "
+                        "lower keeps more of the real reaction (default: the model's own, 1 = from pure noise)")
     p.add_argument("--force", action="store_true", help="replace outputs that exist")
     add_device_argument(p)
     p.set_defaults(func=_cmd_generate)
+
+
+def _use_memory(model, args: argparse.Namespace) -> None:
+    """--memory: the sampler's start level, and the memory of the training pairs it starts from."""
+    from dataclasses import replace
+
+    from imm_model.data.dataset import InteractionDataset
+    from imm_model.paths import SAMPLE_DATA
+
+    if not model.stochastic:
+        raise ValueError(f"--memory: {model.path.name if model.path else 'this model'} is the paper's GAN, which has no "
+                         "sampler to start from a real reaction")
+    model.guidance = replace(model.guidance, memory_level=args.memory)
+    model.attach_memory(InteractionDataset.load(args.data or SAMPLE_DATA))
 
 
 def leader_files(paths: list[Path]) -> list[Path]:
@@ -139,6 +157,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
             raise ValueError(f"--spread: {model.path.name if model.path else 'this model'} has no spread setting (it needs "
                              "a diffusion model trained with noised leaders)")
         model.spread = args.spread
+    if args.memory is not None:
+        _use_memory(model, args)
     leaders, labels = _leaders(args), label_vectors(args, model)
     for _, leader, source in leaders:  # all checked before anything is written, each refusal naming its file
         try:
@@ -223,4 +243,5 @@ def _write(path: Path, leader: np.ndarray, follower: np.ndarray, model, vec: np.
     write_atomic(path, interaction_bytes(interaction_arrays(
         leader, follower, frame, model.skeleton, class_names=model.class_names, label=vec, scale=scale,
         checkpoint=model.path.name if model.path else "", fps=15.0, sequence_id=sid,
-        seed=seed if model.stochastic else None, spread=model.spread)))
+        seed=seed if model.stochastic else None, spread=model.spread,
+        memory=model.guidance.memory_level if model.stochastic and model.guidance.uses_memory else None)))

@@ -323,6 +323,7 @@ class DiffusionReactionModel(ReactionModel):
         self.device = str(device)
         self.fast = NumpyDenoiser(weights, config) if self.device == "cpu" else None
         self._read_meta(meta, path)
+        self.memory = None  # the reaction memory (model/reaction_memory.py) its sampler may start from
 
     @property
     def spread(self) -> float | None:
@@ -399,7 +400,14 @@ class DiffusionReactionModel(ReactionModel):
         return (x - mean) / std * mask[..., None], mask
 
     def _network(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int]) -> list[np.ndarray]:
-        from imm_model.model.diffusion_sampler import initial_noise, leader_noise_step, noised_leaders, sample
+        from imm_model.model.diffusion_sampler import (
+            initial_noise,
+            leader_noise_step,
+            memory_start_step,
+            noised_leaders,
+            noised_start,
+            sample,
+        )
 
         d, steps = self.config.pose_dim, self.config.diffusion_steps
         level = leader_noise_step(self.guidance.leader_noise, steps)
@@ -415,10 +423,34 @@ class DiffusionReactionModel(ReactionModel):
                 noisy = self._denoiser(noised_leaders(x, mask, [seeds[i] for i in rows], level, steps), mask, level)
                 denoise = _clean_at_the_last_step(noisy, denoise)
             noise, _ = self._padded([initial_noise(seeds[i], len(leaders[i]), d) for i in rows])
+            if self.guidance.uses_memory:
+                noise = noised_start(self._memory_starts([leaders[i] for i in rows], labels[rows], [seeds[i] for i in rows]),
+                                     noise, mask, memory_start_step(self.guidance, steps), steps)
             x0 = sample(denoise, x, mask, labels[rows], noise, self.guidance, steps, seeds=[seeds[i] for i in rows])
             followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
             out += [followers[k, : len(leaders[i])].reshape(len(leaders[i]), -1, 3) for k, i in enumerate(rows)]
         return out
+
+    def _memory_starts(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int]) -> np.ndarray:
+        """The reaction memory's starting reactions for these rows -> (B, T_max, D) normalized, zero-padded."""
+        if self.memory is None:
+            raise LabelError(f"guidance memory_level {self.guidance.memory_level:g} starts the sampler from the model's "
+                             "reaction memory, and none is attached (attach_memory, or memory_level 1)")
+        starts = [self.memory.start(np.asarray(a).reshape(len(a), -1, 3), w, s).reshape(len(a), -1)
+                  for a, w, s in zip(leaders, labels, seeds, strict=True)]
+        x, mask = self._padded(starts)
+        return (x - self.weights["follower_mean"]) / self.weights["follower_std"] * mask[..., None]
+
+    def attach_memory(self, data, indices=None) -> None:
+        """Give the sampler its reaction memory: `data`'s pairs `indices`, by default every pair of the subjects the
+        model was trained on (never its held-out subject's)."""
+        from imm_model.data.splits import loso_fold
+        from imm_model.model.reaction_memory import ReactionMemory
+
+        check_compatible(self, data, "reaction memory")
+        if indices is None:
+            indices = np.arange(len(data)) if self.held_out_subject is None else loso_fold(data.subject_pairs, self.held_out_subject).train
+        self.memory = ReactionMemory.from_dataset(data, indices)
 
     def latent_canonical_batch(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> np.ndarray:
         """N canonical leaders + (N, C) labels -> (N, width): the denoiser's last hidden state, averaged over frames,

@@ -21,10 +21,12 @@ FORMAT = "imm-interaction-1"
 def interaction_arrays(leader: np.ndarray, follower: np.ndarray, frame: CanonicalFrame, skeleton: Skeleton, *,
                        class_names, label: np.ndarray, scale: float, checkpoint: str, fps: float,
                        ground_truth: np.ndarray | None = None, sequence_id: str | None = None,
-                       seed: int | None = None, spread: float | None = None) -> dict[str, np.ndarray]:
+                       seed: int | None = None, spread: float | None = None,
+                       memory: float | None = None) -> dict[str, np.ndarray]:
     """leader, follower (and ground truth): (T, J, 3) world metres -> the file's arrays. `seed`: the sampler seed that
     drew the follower (stochastic models only), so the same reaction can be drawn again; `spread`: the sampler's
-    leader noise it was drawn with (models trained with noised leaders only)."""
+    leader noise it was drawn with (models trained with noised leaders only); `memory`: the noise level its sampler
+    started at from the reaction memory (only when it did)."""
     out = {
         "format": np.array(FORMAT),
         "leader": np.asarray(leader, np.float32),
@@ -48,6 +50,8 @@ def interaction_arrays(leader: np.ndarray, follower: np.ndarray, frame: Canonica
         out["seed"] = np.int64(seed)
     if spread is not None:
         out["spread"] = np.float32(spread)
+    if memory is not None:
+        out["memory"] = np.float32(memory)
     return out
 
 

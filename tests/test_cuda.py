@@ -1,6 +1,7 @@
 """Training and inference on a CUDA device. CI has no GPU, so these skip there; they run wherever torch sees
 one (`pytest tests/test_cuda.py`). They were written after a CUDA-only failure: cuDNN refuses to backpropagate
-through a recurrent network in eval mode, which the frozen label critic is."""
+through a recurrent network in eval mode (the frozen label critic's GRU now runs in training mode with its dropout
+at 0, the same function, so that cuDNN runs it)."""
 
 from __future__ import annotations
 

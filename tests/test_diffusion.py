@@ -422,7 +422,7 @@ def test_evaluation_reports_a_stochastic_models_variations_and_mixed_readings(ti
                            EvalOptions(baselines=("nn1",), progress=False, **judges), latents=False)
     v = result["variations"]
     assert v["samples"] == 5 and v["afd_best_of_n"] <= v["afd_single"] and v["multimodality"] > 0 < v["multimodality_m"]
-    assert v["real_class_diversity"] > 0
+    assert v["real_class_diversity"] > 0 < v["real_same_leader_diversity"]
     rows = result["mix_parts"]
     assert len(rows) == 15 and all(max(r["whole"], r["parts"]) <= r["mixed"] <= r["whole"] + r["parts"] + 1e-9 for r in rows)
     assert 0 <= result["avoid_judge"]["share_lowered"] <= 1

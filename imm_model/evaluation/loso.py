@@ -189,7 +189,28 @@ def variations(model, data: InteractionDataset, judges: FoldJudges, seed0: dict[
     afds = np.array([[v for _, v in sorted(sequence_afds(data, dict(zip(map(int, test), d, strict=True))).items())]
                      for d in draws])  # (n, N)
     return {"samples": n, "multimodality": float(multimodality), "real_class_diversity": float(distances[same].mean()),
+            "real_same_leader_diversity": real_same_leader_diversity(data, judges),
             "multimodality_m": float(metres), "afd_single": float(afds[0].mean()), "afd_best_of_n": float(afds.min(0).mean())}
+
+
+def real_same_leader_diversity(data: InteractionDataset, judges: FoldJudges) -> float:
+    """How far apart real reactions of one class are when they answer the same leader: each test leader paired with
+    the other test followers of its class (resampled to its length), the mean interaction-feature distance between
+    two such pairs, averaged over the leaders. multimodality's reference for a fixed leader: real_class_diversity
+    also counts the differences between the leaders, which no reaction to one leader can show."""
+    from imm_model.model.reaction_memory import resample
+
+    test, y = judges.test, data.actions[judges.test]
+    reals = [data.canonical(int(i))[1] for i in test]
+    per_leader = []
+    for k, leader in enumerate(judges.leaders):
+        others = [resample(reals[j], len(leader)) for j in np.flatnonzero(y == y[k]) if j != k]
+        if len(others) < 2:
+            continue
+        feats = classifiers.classify(judges.interaction, classifiers.motion_inputs([leader] * len(others), others, "interaction"))[1]
+        d = np.linalg.norm(feats[:, None] - feats[None], axis=-1)
+        per_leader.append(d[np.triu_indices(len(others), 1)].mean())
+    return float(np.mean(per_leader)) if per_leader else float("nan")
 
 
 def prepare_model(model, data: InteractionDataset, subject: str, opts: EvalOptions) -> None:

@@ -98,7 +98,8 @@ def group_summary(results: list[dict], class_names: tuple[str, ...]) -> dict:
         out["mix_parts"] = _mean_mix(results, "mix_parts")
         out["mix_mixed_mean"] = float(np.mean([row["mixed"] for row in out["mix_parts"]]))
     if all("variations" in r for r in results):  # stochastic models: multimodality and best-of-N AFD
-        out["variations"] = {k: _stat([r["variations"][k] for r in results])[0] for k in results[0]["variations"]}
+        keys = [k for k in results[0]["variations"] if all(k in r["variations"] for r in results)]  # older results lack some
+        out["variations"] = {k: _stat([r["variations"][k] for r in results])[0] for k in keys}
     _with_std(out, "adherence_off_diagonal", [r["adherence_off_diagonal"] for r in results])
     _with_std(out, "adherence_off_diagonal_judge", [r["adherence_off_diagonal_judge"] for r in results])
     out["plausibility"] = out["model_overall"]["plausibility"]
@@ -163,4 +164,6 @@ def fold_figures(result: dict) -> dict[str, float]:
     if "variations" in result:
         v = result["variations"]
         out |= {"multimodality_ratio": v["multimodality"] / v["real_class_diversity"], "afd_best_of_n": v["afd_best_of_n"]}
+        if "real_same_leader_diversity" in v:
+            out["multimodality_same_leader_ratio"] = v["multimodality"] / v["real_same_leader_diversity"]
     return out

@@ -80,11 +80,12 @@ def variations_table(group: dict) -> str:
     v = group.get("variations")
     if not v:
         return ""
+    same_leader = v.get("real_same_leader_diversity", float("nan"))
     return "\n".join([
-        f"| reactions per leader | multimodality (features) | real within-class diversity | multimodality (m) | AFD, one sample "
-        f"| AFD, best of {v['samples']:.0f} |", "|---:|---:|---:|---:|---:|---:|",
-        f"| {v['samples']:.0f} | {v['multimodality']:.3f} | {v['real_class_diversity']:.3f} | {v['multimodality_m']:.3f} "
-        f"| {v['afd_single']:.3f} | {v['afd_best_of_n']:.3f} |"])
+        f"| reactions per leader | multimodality (features) | real within-class diversity | the same, against one leader "
+        f"| multimodality (m) | AFD, one sample | AFD, best of {v['samples']:.0f} |", "|---:|---:|---:|---:|---:|---:|---:|",
+        f"| {v['samples']:.0f} | {v['multimodality']:.3f} | {v['real_class_diversity']:.3f} | {same_leader:.3f} "
+        f"| {v['multimodality_m']:.3f} | {v['afd_single']:.3f} | {v['afd_best_of_n']:.3f} |"])
 
 
 def plausibility_table(group: dict) -> str:

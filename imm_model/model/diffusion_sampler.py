@@ -97,9 +97,16 @@ class Guidance:
     # coarse motion and samples its detail, so seeds differ more; the last step, whose prediction is the output, reads
     # the clean leader so that the leader's noise does not show as jitter; 0 = the clean leader throughout
     leader_noise: float = param(0.0, Interval(float, 0, 1))
+    # the noise level t / (T - 1) the sampler starts from: a real reaction to a similar leader, from the model's
+    # reaction memory (model/reaction_memory.py), noised to this level; 1 = from pure noise, without the memory
+    memory_level: float = param(1.0, Interval(float, 0, 1))
 
     def __post_init__(self) -> None:
         validate(self, "guidance")
+
+    @property
+    def uses_memory(self) -> bool:
+        return self.memory_level < 1
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -145,10 +152,22 @@ def step_noise(seeds, lengths, shape: tuple[int, int, int]):
         yield z
 
 
+def memory_start_step(guidance: Guidance, diffusion_steps: int) -> int:
+    """The step the sampler starts at: the last one of the schedule, or Guidance.memory_level's."""
+    return int(round(guidance.memory_level * (diffusion_steps - 1)))
+
+
+def noised_start(start: np.ndarray, noise: np.ndarray, mask: np.ndarray, step: int, diffusion_steps: int) -> np.ndarray:
+    """Normalized starting reactions (B, T, D) and the seeds' noise (B, T, D) -> x_step of the forward process."""
+    a = cosine_alpha_bar(diffusion_steps)[step]
+    return ((np.sqrt(a) * start + np.sqrt(1 - a) * noise) * mask[..., None]).astype(np.float32)
+
+
 def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, noise: np.ndarray, guidance: Guidance,
            diffusion_steps: int, seeds=None) -> np.ndarray:
-    """DDIM from `noise` (B, T, D) -> normalized followers x0 (B, T, D), numpy float32. With guidance.eta > 0 each
-    step but the last adds noise drawn from the rows' `seeds` (B ints, required then; see step_noise).
+    """DDIM from `noise` (B, T, D), x_t at the start step (memory_start_step), -> normalized followers x0 (B, T, D),
+    numpy float32. With guidance.eta > 0 each step but the last adds noise drawn from the rows' `seeds` (B ints,
+    required then; see step_noise).
 
     `denoise(x_t, step, leader_on, label, label_on)` is the network on a batch of the same rows repeated per term:
     x_t (N, T, D), step int, leader_on (N,) bool, label (N, C) one-hot, label_on (N,) bool -> x0 (N, T, D); it reads
@@ -173,7 +192,7 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
     guided = unguided * np.float32(guidance.label_scale)
 
     alpha_bar = cosine_alpha_bar(diffusion_steps)
-    steps = np.linspace(diffusion_steps - 1, 0, guidance.sample_steps).round().astype(int)
+    steps = np.linspace(memory_start_step(guidance, diffusion_steps), 0, guidance.sample_steps).round().astype(int)
     m = mask[..., None].astype(np.float32)
     x = noise.astype(np.float32)
     if guidance.eta > 0:

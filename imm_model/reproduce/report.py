@@ -155,6 +155,7 @@ MODEL_FIGURES = (
     ("frames in contact / real", "contact_ratio", 2), ("... in the worst class", "contact_ratio_worst_class", 2),
     (f"classes with contact beyond {CONTACT_TOLERANCE:g} x the real pairs'", "classes_beyond_real_contact", 1),
     ("variations: multimodality / real diversity", "multimodality_ratio", 2),
+    ("... / real diversity against one leader", "multimodality_same_leader_ratio", 2),
 )
 
 

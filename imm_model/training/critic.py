@@ -11,6 +11,8 @@ labels, which have no ground truth. The evaluation judges adherence with a diffe
 
 from __future__ import annotations
 
+import copy
+
 import torch
 import torch.nn.functional as F
 
@@ -21,7 +23,13 @@ class LabelCritic:
     """A frozen follower classifier whose cross-entropy for the asked-for label the generator minimizes."""
 
     def __init__(self, classifier: MotionClassifier):
-        self.classifier = classifier.eval().requires_grad_(False)
+        self.classifier = copy.deepcopy(classifier).eval().requires_grad_(False)
+        if isinstance(self.classifier.body, torch.nn.RNNBase):
+            # cuDNN backpropagates through a recurrent network in training mode only. With its between-layer dropout
+            # at 0 the GRU computes in training mode exactly what it computes in eval mode, so the frozen critic (no
+            # dropout anywhere) keeps cuDNN's kernels on a GPU.
+            self.classifier.body.dropout = 0.0
+            self.classifier.body.train()
 
     @classmethod
     def for_fold(cls, data, subject: str | None, device) -> LabelCritic:
@@ -34,10 +42,7 @@ class LabelCritic:
 
     def loss(self, follower: torch.Tensor, lengths: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         """follower (B, T, 3J) canonical metres, target (B, C) class probabilities -> soft cross-entropy (mean)."""
-        # cuDNN refuses to backpropagate through an RNN in eval mode, and the frozen critic must stay in eval
-        # mode (no dropout); PyTorch's own RNN kernels compute the same function on the GPU.
-        with torch.backends.cudnn.flags(enabled=False):
-            return F.cross_entropy(self.classifier(follower, lengths), target, reduction="none").mean()
+        return F.cross_entropy(self.classifier(follower, lengths), target, reduction="none").mean()
 
 
 def drawn_labels(actions: torch.Tensor, num_classes: int, mix_prob: float, gen: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:

@@ -57,6 +57,7 @@ def headline(result: dict) -> dict:
     if "variations" in result:
         v = result["variations"]
         out |= {"multimodality": v["multimodality"], "real_class_diversity": v["real_class_diversity"],
+                "real_same_leader_diversity": v["real_same_leader_diversity"],
                 "multimodality_m": v["multimodality_m"], "afd_best_of_5": v["afd_best_of_n"]}
     return out
 
@@ -80,6 +81,8 @@ def main() -> None:
     ap.add_argument("--leader-below", type=float, default=None, help="noise level t/(T-1) under which the leader conditions")
     ap.add_argument("--leader-noise", type=float, nargs="*", default=[],
                     help="noise levels t/(T-1) on the leader to score (models trained with noised leaders)")
+    ap.add_argument("--memory-level", type=float, nargs="*", default=[],
+                    help="noise levels t/(T-1) to start the sampler at from the reaction memory (the fold's training pairs)")
     ap.add_argument("--baselines", default="nn1")
     ap.add_argument("--raw", action="store_true")
     ap.add_argument("--out", type=Path, default=None, help="append one JSON line per run here")
@@ -87,19 +90,22 @@ def main() -> None:
     torch.set_num_threads(1)
     data = InteractionDataset.load(SAMPLE_DATA)
     opts = EvalOptions(baselines=tuple(b for b in args.baselines.split(",") if b), progress=False, raw=args.raw)
-    for scale, leader_noise in itertools.product(args.label_scale or [None], args.leader_noise or [None]):
+    grid = itertools.product(args.label_scale or [None], args.leader_noise or [None], args.memory_level or [None])
+    for scale, leader_noise, memory_level in grid:
         model = ReactionModel.load(args.checkpoint)
         if model.stochastic:
             changes = {k: v for k, v in (("label_scale", scale), ("leader_scale", args.leader_scale),
                                          ("sample_steps", args.sample_steps), ("eta", args.eta),
                                          ("guided_below", args.guided_below), ("leader_below", args.leader_below),
-                                         ("leader_noise", leader_noise))
+                                         ("leader_noise", leader_noise), ("memory_level", memory_level))
                        if v is not None}
             try:
                 model.guidance = replace(model.guidance, **changes)
             except ValueError as err:
                 print(err, file=sys.stderr)
                 raise SystemExit(2) from None
+            if model.guidance.uses_memory:
+                model.attach_memory(data)  # the fold's training pairs: the checkpoint's held-out subject is never in it
         row = {"checkpoint": str(args.checkpoint), "fold": args.fold, "raw": args.raw,
                "guidance": model.guidance.to_dict() if model.stochastic else None}
         row |= headline(evaluate_fold(model, data, args.fold, opts, latents=False))

@@ -22,7 +22,9 @@ COLUMNS = (("AFD", "afd", 3), ("AFD 1-NN", "afd_nn1", 3), ("best of 5", "afd_bes
            ("mixed", "mix_mixed", 2), ("avoid lowers", "avoid_share_lowered", 2),
            ("limb speed", "interior_limb_speed_ratio", 2), ("lean deg", "lean_error_deg", 1),
            ("feet m/s", "foot_skate_mps", 3), ("bones cm", "bone_error_cm", 2),
-           ("multimodality / real", "multimodality_ratio", 2), ("smoothed / raw limb speed", "smooth_share", 2))
+           ("multimodality / real", "multimodality_ratio", 2),
+           ("multimodality / real, one leader", "multimodality_same_leader_ratio", 2),
+           ("smoothed / raw limb speed", "smooth_share", 2))
 
 
 def rows_of(paths: list[Path], patterns: list[str], where: dict[str, float]) -> dict[str, dict]:
@@ -53,6 +55,8 @@ def runs_of(paths: list[Path], patterns: list[str], where: dict[str, float]) -> 
                 continue
             if row.get("multimodality") is not None:
                 row["multimodality_ratio"] = row["multimodality"] / row["real_class_diversity"]
+                if row.get("real_same_leader_diversity") is not None:
+                    row["multimodality_same_leader_ratio"] = row["multimodality"] / row["real_same_leader_diversity"]
             if row.get("smooth_limb_speed_ratio") is not None:  # 1: no jitter; lower: part of the motion is jitter
                 row["smooth_share"] = row["smooth_limb_speed_ratio"] / row["limb_speed_ratio"]
             by_fold.setdefault(row["fold"], {})[row["checkpoint"]] = row
