@@ -426,7 +426,8 @@ class DiffusionReactionModel(ReactionModel):
             if self.guidance.uses_memory:
                 noise = noised_start(self._memory_starts([leaders[i] for i in rows], labels[rows], [seeds[i] for i in rows]),
                                      noise, mask, memory_start_step(self.guidance, steps), steps)
-            x0 = sample(denoise, x, mask, labels[rows], noise, self.guidance, steps, seeds=[seeds[i] for i in rows])
+            x0 = sample(denoise, x, mask, labels[rows], noise, self.guidance, steps, seeds=[seeds[i] for i in rows],
+                        pair_terms=self.config.pair_terms)
             followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
             out += [followers[k, : len(leaders[i])].reshape(len(leaders[i]), -1, 3) for k, i in enumerate(rows)]
         return out

@@ -21,6 +21,7 @@ slider moves the reaction, it does not jump to another sample. eta 0 is plain DD
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import asdict, dataclass
 from typing import ClassVar
@@ -46,6 +47,9 @@ class DiffusionConfig:
     # the network reads how much noise is on its leader input (trained with noised leaders: training's
     # leader_noise_prob); the sampler's Guidance.leader_noise then widens the variations
     leader_noise: bool = param(False, Flag())
+    # the network was trained on two-class composites (training's mix_prob) and reads two-hot labels: the sampler adds,
+    # for each pair of performed classes, the joint pair term (see `sample`)
+    pair_terms: bool = param(False, Flag())
 
     RULES: ClassVar = (("width", lambda c: c.width % c.heads == 0, "a multiple of heads"),)
 
@@ -164,7 +168,7 @@ def noised_start(start: np.ndarray, noise: np.ndarray, mask: np.ndarray, step: i
 
 
 def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, noise: np.ndarray, guidance: Guidance,
-           diffusion_steps: int, seeds=None) -> np.ndarray:
+           diffusion_steps: int, seeds=None, pair_terms: bool = False) -> np.ndarray:
     """DDIM from `noise` (B, T, D), x_t at the start step (memory_start_step), -> normalized followers x0 (B, T, D),
     numpy float32. With guidance.eta > 0 each step but the last adds noise drawn from the rows' `seeds` (B ints,
     required then; see step_noise).
@@ -173,23 +177,37 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
     x_t (N, T, D), step int, leader_on (N,) bool, label (N, C) one-hot, label_on (N,) bool -> x0 (N, T, D); it reads
     `leaders` (normalized, B rows, repeated alike) and `mask` from its closure. labels (B, C) are signed weights
     (already times the scale). Each step evaluates, in one batch, the leader-only term, one term per class any row
-    weighs, and (with leader_scale != 1) the unconditioned term."""
+    weighs, and (with leader_scale != 1) the unconditioned term.
+
+    With `pair_terms` (a network trained on two-class composites, DiffusionConfig.pair_terms) each pair of classes
+    that some row performs (both values > 0) adds the term s * min(w_i, w_j) * (x0(A, e_i + e_j) - x0(A, e_i) -
+    x0(A, e_j) + x0(A, -)): zero while either value is 0, so the reaction moves continuously from the sum rule, and at
+    w_i = w_j = 1 the two class terms and the pair term add up to guidance on the joint two-class condition,
+    x0(A, -) + s * (x0(A, e_i + e_j) - x0(A, -)), which the network learned from the composites."""
     b, t, d = noise.shape
     c = labels.shape[1]
     classes = np.flatnonzero(np.abs(labels).sum(0) > 0).tolist()  # classes some row asks about
-    n_terms = 1 + len(classes) + (guidance.leader_scale != 1.0)
+    performed = np.maximum(labels, 0)
+    pairs = [(i, j) for i, j in itertools.combinations(classes, 2) if (performed[:, i] * performed[:, j] > 0).any()] \
+        if pair_terms else []
+    n_terms = 1 + len(classes) + len(pairs) + (guidance.leader_scale != 1.0)
     one_hot = np.zeros((n_terms, b, c), np.float32)
     label_on = np.zeros((n_terms, b), bool)
     for k, cls in enumerate(classes, start=1):
         one_hot[k, :, cls] = 1.0
         label_on[k] = True
+    for k, pair in enumerate(pairs, start=1 + len(classes)):
+        one_hot[k, :, list(pair)] = 1.0
+        label_on[k] = True
+    term_of = {cls: k for k, cls in enumerate(classes, start=1)}
+    pair_unguided = np.stack([np.minimum(performed[:, p], performed[:, q]) for p, q in pairs])[..., None, None] \
+        if pairs else None  # (P, B, 1, 1)
     leader_on = np.ones((n_terms, b), bool)
     if guidance.leader_scale != 1.0:
         leader_on[-1] = False
     one_hot, label_on, leader_on = one_hot.reshape(-1, c), label_on.reshape(-1), leader_on.reshape(-1)
     no_leader = np.zeros_like(leader_on)
     unguided = labels[:, classes].T[..., None, None].astype(np.float32)  # (K, B, 1, 1): the class terms at s = 1
-    guided = unguided * np.float32(guidance.label_scale)
 
     alpha_bar = cosine_alpha_bar(diffusion_steps)
     steps = np.linspace(memory_start_step(guidance, diffusion_steps), 0, guidance.sample_steps).round().astype(int)
@@ -204,9 +222,12 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
         terms = denoise(np.tile(x, (n_terms, 1, 1)), int(step), with_leader, one_hot, label_on).reshape(n_terms, b, t, d)
         base = terms[0]
         x0 = base
+        strength = np.float32(guidance.label_scale) if step <= guidance.guided_below * (diffusion_steps - 1) else np.float32(1)
         if classes:
-            weights = guided if step <= guidance.guided_below * (diffusion_steps - 1) else unguided
-            x0 = x0 + (weights * (terms[1:1 + len(classes)] - base)).sum(0)
+            x0 = x0 + (unguided * strength * (terms[1:1 + len(classes)] - base)).sum(0)
+        for k, (first, second) in enumerate(pairs):
+            joint = terms[1 + len(classes) + k] - terms[term_of[first]] - terms[term_of[second]] + base
+            x0 = x0 + pair_unguided[k] * strength * joint
         if guidance.leader_scale != 1.0:
             x0 = terms[-1] + guidance.leader_scale * (x0 - terms[-1])
         x0 = np.clip(x0, -guidance.clip, guidance.clip) * m

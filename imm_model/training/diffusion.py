@@ -29,6 +29,7 @@ from imm_model.model.diffusion import ReactionDenoiser, q_sample
 from imm_model.model.diffusion_sampler import DiffusionConfig, Guidance, cosine_alpha_bar
 from imm_model.training.data import Augmenter, PaddedData, data_meta
 from imm_model.training.geometry import GeometricTerms
+from imm_model.training.part_mix import mixed_rows
 from imm_model.training.trainer import derive_seed
 from imm_model.typed_config import FieldsOf, Interval, ListOf, Name, OneOf, checked_kwargs, param, validate
 
@@ -58,6 +59,9 @@ class DiffusionTrainConfig:
     # probability a training row sees its leader through the forward process's noise at a uniform step, told the step
     # (model.leader_noise): what the sampler's Guidance.leader_noise draws variations from
     leader_noise_prob: float = param(0.0, FRACTION)
+    # probability a training row becomes a two-class composite by body parts, labelled with both classes
+    # (training/part_mix.py; model.pair_terms): what the sampler's pair terms read
+    mix_prob: float = param(0.0, FRACTION)
     lambda_velocity: float = param(1.0, Interval(float, 0, None))  # weight of the frame-to-frame velocity error beside x0's
     # weights of the geometric terms on the x0 prediction in metres (training/geometry.py): a planted foot's drag (per
     # m^2) and the torso direction's error
@@ -76,7 +80,8 @@ class DiffusionTrainConfig:
     seed: int = param(0, Interval(int, 0, 2**31 - 1))  # initial weights, batches, noise and augmentation
 
     RULES: ClassVar = (("leader_noise_prob", lambda c: c.leader_noise_prob == 0 or c.model.get("leader_noise") is True,
-                        "0 unless model.leader_noise is true"),)
+                        "0 unless model.leader_noise is true"),
+             ("mix_prob", lambda c: c.mix_prob == 0 or c.model.get("pair_terms") is True, "0 unless model.pair_terms is true"))
 
     def __post_init__(self) -> None:
         validate(self, "training config")
@@ -163,7 +168,11 @@ class DiffusionTrainer:
         noise = torch.randn(follower.shape, generator=gen)
         label_on = torch.rand(b, generator=gen) >= cfg.label_drop
         leader_on = torch.rand(b, generator=gen) >= cfg.leader_drop
-        label = torch.nn.functional.one_hot(actions, len(self.data.class_names)).float()
+        if cfg.mix_prob:  # drawn only then, so that recipes without it keep their random stream
+            follower, label = mixed_rows(follower, lengths, actions, len(self.data.class_names), cfg.mix_prob,
+                                         self.data.skeleton, gen)
+        else:
+            label = torch.nn.functional.one_hot(actions, len(self.data.class_names)).float()
         to = lambda *ts: [x.to(self.device) for x in ts]  # noqa: E731
         leader, follower, mask, step, noise, label_on, leader_on, label = to(leader, follower, mask, step, noise, label_on,
                                                                           leader_on, label)

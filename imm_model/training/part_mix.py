@@ -1,0 +1,73 @@
+"""Two-class training examples composed by body parts: the data that a mix has none of in SBU.
+
+SBU records one class per reaction, so the network never sees a reaction that is two classes at once, and a
+two-class label composed at sampling time reads as one class for most leaders. Real reactions composed by body parts
+(one class's trunk and arms around the body centre, another class's legs and placement) do read as mixed to the
+body-part judges (docs/experiments/reaction-memory.md). With probability `mix_prob` a training row becomes such a
+composite of its own follower and the follower of another row of the batch whose class differs (resampled in time to
+the row's length; which of the two gives the upper body is drawn), labelled with both classes (two-hot), beside its
+own leader.
+"""
+
+from __future__ import annotations
+
+import torch
+
+
+def part_indices(skeleton) -> tuple[list[int], list[int], list[int]]:
+    """-> (the trunk's and arms' joints, the legs' joints, the body-centre joints: the root's neighbours)."""
+    legs = sorted({j for name, joints in skeleton.body_parts.items() if name.endswith("leg") for j in joints})
+    return [j for j in range(skeleton.num_joints) if j not in legs], legs, list(skeleton.root_neighbours)
+
+
+def compose(upper_from: torch.Tensor, lower_from: torch.Tensor, upper: list[int], centre: list[int]) -> torch.Tensor:
+    """(B, T, J, 3) each -> (B, T, J, 3): `lower_from`'s legs and placement with `upper_from`'s trunk and arms moved to
+    a centre delta at which the result's own body centre is delta itself (the hips among the centre joints are legs),
+    so that each part reads as its source does around the body centre."""
+    relative = upper_from - upper_from[:, :, centre].mean(2, keepdim=True)
+    in_legs = [j for j in centre if j not in upper]
+    in_upper = [j for j in centre if j in upper]
+    if in_legs:
+        delta = (relative[:, :, in_upper].sum(2) + lower_from[:, :, in_legs].sum(2)) / len(in_legs)
+    else:
+        delta = lower_from[:, :, centre].mean(2)
+    out = lower_from.clone()
+    out[:, :, upper] = relative[:, :, upper] + delta[:, :, None]
+    return out
+
+
+def resample_rows(motion: torch.Tensor, lengths: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """(B, T, D) padded motions of `lengths` -> each resampled (linearly) to its `target` length, padded to T."""
+    b, t, _ = motion.shape
+    out = torch.zeros_like(motion)
+    for i in range(b):
+        n, m = int(lengths[i]), int(target[i])
+        pos = torch.linspace(0, n - 1, m) if n > 1 else torch.zeros(m)
+        lo = pos.floor().long()
+        hi = (lo + 1).clamp(max=n - 1)
+        frac = (pos - lo)[:, None]
+        out[i, :m] = motion[i, lo] * (1 - frac) + motion[i, hi] * frac
+    return out
+
+
+def mixed_rows(follower: torch.Tensor, lengths: torch.Tensor, actions: torch.Tensor, num_classes: int, mix_prob: float,
+               skeleton, gen: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+    """Followers (B, T, 3J) and classes (B,) -> (followers with some rows composed, labels (B, C): one-hot, or two-hot
+    for the composed rows)."""
+    b = len(follower)
+    donor = torch.randint(b, (b,), generator=gen)
+    composed = (torch.rand(b, generator=gen) < mix_prob) & (actions[donor] != actions)
+    own_upper = torch.rand(b, generator=gen) < 0.5
+    labels = torch.nn.functional.one_hot(actions, num_classes).float()
+    if not composed.any():
+        return follower, labels
+    upper, _, centre = part_indices(skeleton)
+    other = resample_rows(follower[donor], lengths[donor], lengths).unflatten(-1, (-1, 3))
+    own = follower.unflatten(-1, (-1, 3))
+    first = torch.where(own_upper[:, None, None, None], own, other)
+    second = torch.where(own_upper[:, None, None, None], other, own)
+    mixed = compose(first, second, upper, centre).flatten(-2)
+    mask = (torch.arange(follower.shape[1])[None] < lengths[:, None])[..., None]
+    follower = torch.where(composed[:, None, None], mixed * mask, follower)
+    labels = labels + composed[:, None].float() * torch.nn.functional.one_hot(actions[donor], num_classes).float()
+    return follower, labels
