@@ -29,15 +29,15 @@ def test_resample_keeps_the_ends_and_interpolates():
 
 def test_a_seed_picks_one_of_each_classs_nearest_leaders(memory, sample_data):
     test = loso_fold(sample_data.subject_pairs, "s04").test
-    leader = sample_data.canonical(int(test[0]))[0]
-    picks = np.stack([memory.picks(leader, seed)[0] for seed in range(40)])  # (seeds, C)
-    query = resample(leader, RESAMPLED_FRAMES).reshape(RESAMPLED_FRAMES, -1, 3)
+    query_leader = sample_data.canonical(int(test[0]))[0]
+    picks = np.stack([memory.picks(query_leader, seed)[0] for seed in range(40)])  # (seeds, C)
+    query = resample(query_leader, RESAMPLED_FRAMES).reshape(RESAMPLED_FRAMES, -1, 3)
     dist = np.linalg.norm(memory.leaders.reshape(len(memory.leaders), RESAMPLED_FRAMES, -1, 3) - query, axis=-1).mean((1, 2))
     for c in range(memory.num_classes):
         members = np.flatnonzero(memory.classes == c)
         nearest = set(members[np.argsort(dist[members])[:NEIGHBOURS]].tolist())
         assert set(picks[:, c].tolist()) == nearest  # every seed picks among them, and 40 seeds reach all of them
-    assert np.array_equal(memory.picks(leader, 7)[0], memory.picks(leader, 7)[0])
+    assert np.array_equal(memory.picks(query_leader, 7)[0], memory.picks(query_leader, 7)[0])
 
 
 def test_the_mixture_follows_the_signed_label_continuously(memory):
@@ -57,10 +57,10 @@ def test_the_mixture_follows_the_signed_label_continuously(memory):
 
 
 def test_the_start_is_a_real_reaction_fitted_to_the_leaders_length(memory, sample_data):
-    leader = resample(sample_data.canonical(0)[0], 30)  # another length than any follower it retrieves
-    index, _ = memory.picks(leader, 0)
-    start = memory.start(leader, np.eye(6)[2], 0)
-    assert start.shape == leader.shape
+    short_leader = resample(sample_data.canonical(0)[0], 30)  # another length than any follower it retrieves
+    index, _ = memory.picks(short_leader, 0)
+    start = memory.start(short_leader, np.eye(6)[2], 0)
+    assert start.shape == short_leader.shape
     assert np.allclose(start, resample(memory.followers[index[2]], 30), atol=1e-6)
 
 
