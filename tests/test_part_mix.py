@@ -12,7 +12,7 @@ import torch
 from imm_model.model.classifier import body_part_view
 from imm_model.model.diffusion_sampler import Guidance, sample
 from imm_model.training.diffusion import IMM_DIFFUSION, DiffusionTrainConfig
-from imm_model.training.part_mix import compose, mixed_rows, part_indices, resample_rows
+from imm_model.training.part_mix import compose, mixed_rows, part_indices, resample_rows, upper_shares
 
 
 def batch(sample_data, rows):
@@ -46,9 +46,12 @@ def test_resampling_keeps_the_ends(sample_data):
 def test_mixed_rows_compose_only_rows_with_another_class(sample_data):
     rows = list(range(0, 197, 7))
     follower, lengths, actions = batch(sample_data, rows)
-    untouched, one_hot = mixed_rows(follower, lengths, actions, 6, 0.0, sample_data.skeleton, torch.Generator().manual_seed(0))
+    shares = upper_shares([sample_data.follower[sample_data.frames(i)] for i in range(len(sample_data))], sample_data.actions,
+                          6, sample_data.skeleton)
+    assert shares.shape == (6,) and ((shares > 0) & (shares < 1)).all()
+    untouched, one_hot = mixed_rows(follower, lengths, actions, shares, 0.0, sample_data.skeleton, torch.Generator().manual_seed(0))
     assert torch.equal(untouched, follower) and torch.equal(one_hot, torch.nn.functional.one_hot(actions, 6).float())
-    mixed, labels = mixed_rows(follower, lengths, actions, 6, 1.0, sample_data.skeleton, torch.Generator().manual_seed(0))
+    mixed, labels = mixed_rows(follower, lengths, actions, shares, 1.0, sample_data.skeleton, torch.Generator().manual_seed(0))
     two_hot = labels.sum(1) == 2
     assert two_hot.any() and set(labels.sum(1).tolist()) <= {1.0, 2.0} and labels.max() == 1
     assert (labels[torch.arange(len(rows)), actions] == 1).all()  # a row keeps its own class
@@ -56,6 +59,13 @@ def test_mixed_rows_compose_only_rows_with_another_class(sample_data):
     assert torch.equal(changed, two_hot)  # exactly the composed rows differ
     mask = torch.arange(follower.shape[1])[None] >= lengths[:, None]
     assert (mixed[mask] == 0).all()  # padding stays zero
+    upper, legs, centre = part_indices(sample_data.skeleton)
+    for i in torch.nonzero(two_hot).flatten().tolist():  # the class with the larger upper-body share gives the trunk and arms
+        n, own = int(lengths[i]), mixed[i, : lengths[i]].unflatten(-1, (-1, 3))
+        mine = follower[i, :n].unflatten(-1, (-1, 3))
+        keeps_legs = torch.allclose(own[:, legs], mine[:, legs])
+        other = int(torch.nonzero(labels[i] * (torch.arange(6) != actions[i])).item())
+        assert keeps_legs == bool(shares[other] > shares[actions[i]])
 
 
 def test_mixing_needs_the_network_that_reads_two_hot_labels():

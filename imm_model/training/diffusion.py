@@ -29,7 +29,7 @@ from imm_model.model.diffusion import ReactionDenoiser, q_sample
 from imm_model.model.diffusion_sampler import DiffusionConfig, Guidance, cosine_alpha_bar
 from imm_model.training.data import Augmenter, PaddedData, data_meta
 from imm_model.training.geometry import GeometricTerms
-from imm_model.training.part_mix import mixed_rows
+from imm_model.training.part_mix import mixed_rows, upper_shares
 from imm_model.training.trainer import derive_seed
 from imm_model.typed_config import FieldsOf, Interval, ListOf, Name, OneOf, checked_kwargs, param, validate
 
@@ -146,6 +146,8 @@ class DiffusionTrainer:
                                  cfg.scale_jitter, mirror)
         self.alpha_bar = torch.as_tensor(cosine_alpha_bar(self.model_cfg.diffusion_steps), dtype=torch.float32, device=self.device)
         self.geometry = GeometricTerms(data.skeleton)
+        self.upper_shares = upper_shares([data.follower[data.frames(i)] for i in self.train_idx], data.actions[self.train_idx],
+                                         len(data.class_names), data.skeleton)
         self.bone_lengths = follower_bone_lengths([data.follower[data.frames(i)] for i in self.train_idx], data.skeleton)
         self.step = 0
 
@@ -169,8 +171,7 @@ class DiffusionTrainer:
         label_on = torch.rand(b, generator=gen) >= cfg.label_drop
         leader_on = torch.rand(b, generator=gen) >= cfg.leader_drop
         if cfg.mix_prob:  # drawn only then, so that recipes without it keep their random stream
-            follower, label = mixed_rows(follower, lengths, actions, len(self.data.class_names), cfg.mix_prob,
-                                         self.data.skeleton, gen)
+            follower, label = mixed_rows(follower, lengths, actions, self.upper_shares, cfg.mix_prob, self.data.skeleton, gen)
         else:
             label = torch.nn.functional.one_hot(actions, len(self.data.class_names)).float()
         to = lambda *ts: [x.to(self.device) for x in ts]  # noqa: E731

@@ -5,8 +5,10 @@ two-class label composed at sampling time reads as one class for most leaders. R
 (one class's trunk and arms around the body centre, another class's legs and placement) do read as mixed to the
 body-part judges (docs/experiments/reaction-memory.md). With probability `mix_prob` a training row becomes such a
 composite of its own follower and the follower of another row of the batch whose class differs (resampled in time to
-the row's length; which of the two gives the upper body is drawn), labelled with both classes (two-hot), beside its
-own leader.
+the row's length), labelled with both classes (two-hot), beside its own leader. Which of the two classes gives the
+trunk and arms is fixed per pair, not drawn: the class whose real followers move their trunk and arms more, for the
+motion of their legs and placement (`upper_shares`). A drawn side would teach the network, which regresses the clean
+reaction, the average of the two composites for a two-hot label: a blend again.
 """
 
 from __future__ import annotations
@@ -36,6 +38,21 @@ def compose(upper_from: torch.Tensor, lower_from: torch.Tensor, upper: list[int]
     return out
 
 
+def upper_shares(followers: list, classes, num_classes: int, skeleton) -> torch.Tensor:
+    """Real followers (T_i, J, 3) and their classes -> (C,) per class, the mean share of the trunk's and arms' speed
+    around the body centre in the whole body's (that and the legs' speed around the centre, and the centre's own)."""
+    upper, legs, centre = part_indices(skeleton)
+    totals, counts = torch.zeros(num_classes, dtype=torch.float64), torch.zeros(num_classes, dtype=torch.float64)
+    for follower, c in zip(followers, classes, strict=True):
+        b = torch.as_tensor(follower, dtype=torch.float64)
+        middle = b[:, centre].mean(1, keepdim=True)
+        speed = lambda x: (x[1:] - x[:-1]).norm(dim=-1).mean()  # noqa: E731
+        arms, rest = speed(b[:, upper] - middle), speed(b[:, legs] - middle) + speed(middle)
+        totals[int(c)] += float(arms / (arms + rest + 1e-9))
+        counts[int(c)] += 1
+    return (totals / counts.clamp(min=1)).float()
+
+
 def resample_rows(motion: torch.Tensor, lengths: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     """(B, T, D) padded motions of `lengths` -> each resampled (linearly) to its `target` length, padded to T."""
     b, t, _ = motion.shape
@@ -50,14 +67,14 @@ def resample_rows(motion: torch.Tensor, lengths: torch.Tensor, target: torch.Ten
     return out
 
 
-def mixed_rows(follower: torch.Tensor, lengths: torch.Tensor, actions: torch.Tensor, num_classes: int, mix_prob: float,
+def mixed_rows(follower: torch.Tensor, lengths: torch.Tensor, actions: torch.Tensor, shares: torch.Tensor, mix_prob: float,
                skeleton, gen: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
-    """Followers (B, T, 3J) and classes (B,) -> (followers with some rows composed, labels (B, C): one-hot, or two-hot
-    for the composed rows)."""
-    b = len(follower)
+    """Followers (B, T, 3J), classes (B,) and the classes' upper-body shares (C,) -> (followers with some rows
+    composed, labels (B, C): one-hot, or two-hot for the composed rows)."""
+    b, num_classes = len(follower), len(shares)
     donor = torch.randint(b, (b,), generator=gen)
     composed = (torch.rand(b, generator=gen) < mix_prob) & (actions[donor] != actions)
-    own_upper = torch.rand(b, generator=gen) < 0.5
+    own_upper = shares[actions] >= shares[actions[donor]]
     labels = torch.nn.functional.one_hot(actions, num_classes).float()
     if not composed.any():
         return follower, labels
