@@ -11,7 +11,7 @@ from imm_model.device import add_device_argument
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("train", help="train the reaction model (one LOSO fold, all folds, or all data)")
     p.add_argument("--config", default="imm",
-                   help="named recipe (imm, imm-steer, imm-move, imm-control, imm-critic, men, paper, imm-diffusion) "
+                   help="named recipe (imm, imm-steer, imm-move, imm-control, imm-critic, men, paper, imm-diffusion, imm-diffusion-mixed) "
                         "or a JSON file of overrides")
     p.add_argument("--fold", default="s04", help="held-out subject sXX, 'all' (the 7 LOSO folds) or 'none' (all data)")
     p.add_argument("--out", type=Path, required=True, help="run directory (fold-sXX/ subfolders are created in it)")

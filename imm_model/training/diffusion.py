@@ -114,7 +114,12 @@ IMM_DIFFUSION = DiffusionTrainConfig(
     leader_noise_prob=0.5,
 )
 
-NAMED: dict[str, DiffusionTrainConfig] = {"imm-diffusion": IMM_DIFFUSION}
+# The same with a share of its training rows made two-class composites by body parts, and the sampler's pair terms
+# that read them: mixes read as mixed more often, at a cost in limb speed (docs/experiments/part-mix-training.md).
+IMM_DIFFUSION_MIXED = replace(IMM_DIFFUSION, name="imm-diffusion-mixed", model=IMM_DIFFUSION.model | {"pair_terms": True},
+                              mix_prob=0.3)
+
+NAMED: dict[str, DiffusionTrainConfig] = {"imm-diffusion": IMM_DIFFUSION, "imm-diffusion-mixed": IMM_DIFFUSION_MIXED}
 
 
 class DiffusionTrainer:

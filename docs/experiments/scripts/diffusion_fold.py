@@ -44,6 +44,7 @@ def headline(result: dict) -> dict:
         "mix_parts": float(np.mean([r["parts"] for r in result["mix_parts"]])),
         "mix_mixed": float(np.mean([r["mixed"] for r in result["mix_parts"]])),
         "mix_worst_pair": float(min(r["mixed"] for r in result["mix_parts"])),
+        "mix_per_pair": {"+".join(r["pair"]): round(float(r["mixed"]), 4) for r in result["mix_parts"]},
         "upper_judge_accuracy": result["classifier"]["real_accuracy"]["upper_judge"],
         "lower_judge_accuracy": result["classifier"]["real_accuracy"]["lower_judge"],
         "interior_limb_speed_ratio": p["interior_limb_speed_ratio"], "lean_error_deg": p["lean_error_deg"],
