@@ -1,11 +1,13 @@
 """Diffusion sampling speed: one 46-frame reaction with 0-3 classes composed, against the GAN in the same run.
 
     .venv/bin/python benchmarks/diffusion_speed.py --checkpoint sample_data/imm_diffusion.safetensors [--threads 1]
-        [--repeats 30] [--device cpu|cuda] [--gan sample_data/imm_sbu.safetensors] [--spread S]
+        [--repeats 30] [--device cpu|cuda] [--gan sample_data/imm_sbu.safetensors] [--spread S] [--memory LEVEL]
 
 Prints the median and p90 of `ReactionModel.synthesize_canonical` (clean-up included) for each number of classes
-composed (each class is one more network term per sampler step), the sampler's steps, and the GAN's median on the same
-leader, interleaved so that both see the same machine load.
+composed (each class is one more network term per sampler step, and so is each pair of classes for a model with pair
+terms, such as `imm-diffusion-mixed`'s), the sampler's steps, and the GAN's median on the same leader, interleaved so
+that both see the same machine load. `--memory` starts the sampler from the reaction memory (the bundled data's
+pairs of the model's training subjects), its retrieval included in the time.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
+from dataclasses import replace
 
 import numpy as np
 import torch
@@ -41,6 +44,7 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--repeats", type=int, default=30)
     ap.add_argument("--spread", type=float, default=None, help="the sampler's spread (default: the model's own)")
+    ap.add_argument("--memory", type=float, default=None, help="the sampler's memory_level (default: the model's own)")
     add_device_argument(ap, default="cpu")
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
@@ -50,9 +54,13 @@ def main() -> None:
     model, gan = ReactionModel.load(args.checkpoint, device=device), ReactionModel.load(args.gan, device=device)
     if args.spread is not None:
         model.spread = args.spread
+    if args.memory is not None:
+        model.guidance = replace(model.guidance, memory_level=args.memory)
+        model.attach_memory(data)
     leader = data.canonical(int(np.argmax(data.lengths)))[0]
     print(f"checkpoint {args.checkpoint}; {len(leader)} frames; torch and BLAS threads {args.threads}; device {device}; "
-          f"{model.guidance.sample_steps} sampler steps; spread {model.spread}")
+          f"{model.guidance.sample_steps} sampler steps; spread {model.spread}; memory {model.guidance.memory_level}; "
+          f"pair terms {model.config.pair_terms}")
     for k in range(4):
         label = np.zeros(len(model.class_names), np.float32)
         label[:k] = 1.0
