@@ -400,17 +400,10 @@ class DiffusionReactionModel(ReactionModel):
         return (x - mean) / std * mask[..., None], mask
 
     def _network(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int]) -> list[np.ndarray]:
-        from imm_model.model.diffusion_sampler import (
-            initial_noise,
-            leader_noise_step,
-            memory_start_step,
-            noised_leaders,
-            noised_start,
-            sample,
-        )
+        from imm_model.model.diffusion_sampler import forward_noised, initial_noise, noised_leaders, sample, schedule_step
 
         d, steps = self.config.pose_dim, self.config.diffusion_steps
-        level = leader_noise_step(self.guidance.leader_noise, steps)
+        level = schedule_step(self.guidance.leader_noise, steps)
         if level and not self.config.leader_noise:
             raise LabelError(f"leader noise {self.guidance.leader_noise:g} needs a model trained with noised leaders "
                              "(this one reads only the clean leader)")
@@ -424,8 +417,8 @@ class DiffusionReactionModel(ReactionModel):
                 denoise = _clean_at_the_last_step(noisy, denoise)
             noise, _ = self._padded([initial_noise(seeds[i], len(leaders[i]), d) for i in rows])
             if self.guidance.uses_memory:
-                noise = noised_start(self._memory_starts([leaders[i] for i in rows], labels[rows], [seeds[i] for i in rows]),
-                                     noise, mask, memory_start_step(self.guidance, steps), steps)
+                noise = forward_noised(self._memory_starts([leaders[i] for i in rows], labels[rows], [seeds[i] for i in rows]),
+                                       noise, mask, schedule_step(self.guidance.memory_level, steps), steps)
             x0 = sample(denoise, x, mask, labels[rows], noise, self.guidance, steps, seeds=[seeds[i] for i in rows],
                         pair_terms=self.config.pair_terms)
             followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]

@@ -99,6 +99,11 @@ class Skeleton:
         return [j for j, p in enumerate(self.parents) if p == self.root]
 
     @property
+    def leg_joints(self) -> list[int]:
+        """The joints of the body parts named "...leg" (Kinect: hips, knees, feet), sorted."""
+        return sorted({j for name, joints in self.body_parts.items() if name.endswith("leg") for j in joints})
+
+    @property
     def bones(self) -> list[tuple[int, int]]:
         """(parent, child) pairs, one per non-root joint."""
         return [(p, j) for j, p in enumerate(self.parents) if p >= 0]

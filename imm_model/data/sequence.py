@@ -8,6 +8,17 @@ import numpy as np
 
 from imm_model.errors import DataFormatError
 
+
+def resample(motion: np.ndarray, length: int) -> np.ndarray:
+    """(T, ...) -> (length, ...) by linear interpolation in time (endpoints kept; a one-frame motion is repeated), in
+    the motion's own float type."""
+    src = np.linspace(0.0, len(motion) - 1.0, length)
+    lo = np.floor(src).astype(int)
+    hi = np.minimum(lo + 1, len(motion) - 1)
+    w = (src - lo).astype(motion.dtype).reshape(-1, *([1] * (motion.ndim - 1)))
+    return (1 - w) * motion[lo] + w * motion[hi]
+
+
 MAX_COORDINATE_M = 1000.0  # a joint further than this from the origin is not a person's motion (wrong units, garbage)
 
 

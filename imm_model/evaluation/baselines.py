@@ -22,20 +22,12 @@ from pathlib import Path
 import numpy as np
 
 from imm_model.data.dataset import InteractionDataset
+from imm_model.data.sequence import resample
 from imm_model.data.splits import Fold
 from imm_model.evaluation.metrics import afd, per_class_mean
 
 HEURISTIC_BASELINES = ("nn1", "knn_dtw", "template")
 KNN = 3
-
-
-def resample(motion: np.ndarray, length: int) -> np.ndarray:
-    """(T, ...) -> (length, ...) by linear interpolation in time (endpoints kept)."""
-    src = np.linspace(0.0, len(motion) - 1.0, length)
-    lo = np.floor(src).astype(int)
-    hi = np.minimum(lo + 1, len(motion) - 1)
-    w = (src - lo).reshape(-1, *([1] * (motion.ndim - 1)))
-    return (1.0 - w) * motion[lo] + w * motion[hi]
 
 
 def _same_class_pool(data: InteractionDataset, train_idx: np.ndarray, i: int) -> list[int]:

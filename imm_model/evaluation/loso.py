@@ -198,7 +198,7 @@ def real_same_leader_diversity(data: InteractionDataset, judges: FoldJudges) -> 
     the other test followers of its class (resampled to its length), the mean interaction-feature distance between
     two such pairs, averaged over the leaders. multimodality's reference for a fixed leader: real_class_diversity
     also counts the differences between the leaders, which no reaction to one leader can show."""
-    from imm_model.model.reaction_memory import resample
+    from imm_model.data.sequence import resample
 
     test, y = judges.test, data.actions[judges.test]
     reals = [data.canonical(int(i))[1] for i in test]

@@ -86,8 +86,7 @@ def body_part_view(follower: np.ndarray, part: str, skeleton=None) -> np.ndarray
     skeleton = skeleton or KINECT15
     b = np.asarray(follower, np.float32)
     centre = b[:, skeleton.root_neighbours].mean(1, keepdims=True)
-    parts = skeleton.body_parts
-    legs = [j for name, joints in parts.items() if name.endswith("leg") for j in joints]
+    legs = skeleton.leg_joints
     out = np.zeros_like(b)
     if part == "upper":
         upper = [j for j in range(b.shape[1]) if j not in legs]

@@ -129,19 +129,24 @@ STEP_NOISE_STREAM = 1  # the per-step noise's generator is seeded from (seed, th
 LEADER_NOISE_STREAM = 2  # and the leader noise's from (seed, this)
 
 
-def leader_noise_step(level: float, diffusion_steps: int) -> int:
-    """Guidance.leader_noise (a fraction of the schedule) -> the step index whose noise the leader carries."""
+def schedule_step(level: float, diffusion_steps: int) -> int:
+    """A noise level as a fraction of the schedule (Guidance.leader_noise, memory_level) -> its step index."""
     return int(round(level * (diffusion_steps - 1)))
+
+
+def forward_noised(x0: np.ndarray, noise: np.ndarray, mask: np.ndarray, step: int, diffusion_steps: int) -> np.ndarray:
+    """Normalized poses (B, T, D) and noise (B, T, D) -> the forward process at `step`, x_step (padding zero)."""
+    a = cosine_alpha_bar(diffusion_steps)[step]
+    return ((np.sqrt(a) * x0 + np.sqrt(1 - a) * noise) * mask[..., None]).astype(np.float32)
 
 
 def noised_leaders(leaders: np.ndarray, mask: np.ndarray, seeds, step: int, diffusion_steps: int) -> np.ndarray:
     """Normalized leaders (B, T, D) -> the forward process at `step` applied to them, row i's noise drawn from
     (seeds[i], LEADER_NOISE_STREAM) for its own length, so that it depends on its seed and length only."""
-    a = cosine_alpha_bar(diffusion_steps)[step]
     z = np.zeros_like(leaders, dtype=np.float32)
     for i, (s, n) in enumerate(zip(seeds, mask.sum(1), strict=True)):
         z[i, :n] = np.random.default_rng((int(s), LEADER_NOISE_STREAM)).standard_normal((int(n), leaders.shape[2]))
-    return ((np.sqrt(a) * leaders + np.sqrt(1 - a) * z) * mask[..., None]).astype(np.float32)
+    return forward_noised(leaders, z, mask, step, diffusion_steps)
 
 
 def step_noise(seeds, lengths, shape: tuple[int, int, int]):
@@ -156,20 +161,9 @@ def step_noise(seeds, lengths, shape: tuple[int, int, int]):
         yield z
 
 
-def memory_start_step(guidance: Guidance, diffusion_steps: int) -> int:
-    """The step the sampler starts at: the last one of the schedule, or Guidance.memory_level's."""
-    return int(round(guidance.memory_level * (diffusion_steps - 1)))
-
-
-def noised_start(start: np.ndarray, noise: np.ndarray, mask: np.ndarray, step: int, diffusion_steps: int) -> np.ndarray:
-    """Normalized starting reactions (B, T, D) and the seeds' noise (B, T, D) -> x_step of the forward process."""
-    a = cosine_alpha_bar(diffusion_steps)[step]
-    return ((np.sqrt(a) * start + np.sqrt(1 - a) * noise) * mask[..., None]).astype(np.float32)
-
-
 def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, noise: np.ndarray, guidance: Guidance,
            diffusion_steps: int, seeds=None, pair_terms: bool = False) -> np.ndarray:
-    """DDIM from `noise` (B, T, D), x_t at the start step (memory_start_step), -> normalized followers x0 (B, T, D),
+    """DDIM from `noise` (B, T, D), x_t at the start step (Guidance.memory_level's), -> normalized followers x0 (B, T, D),
     numpy float32. With guidance.eta > 0 each step but the last adds noise drawn from the rows' `seeds` (B ints,
     required then; see step_noise).
 
@@ -210,7 +204,7 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
     unguided = labels[:, classes].T[..., None, None].astype(np.float32)  # (K, B, 1, 1): the class terms at s = 1
 
     alpha_bar = cosine_alpha_bar(diffusion_steps)
-    steps = np.linspace(memory_start_step(guidance, diffusion_steps), 0, guidance.sample_steps).round().astype(int)
+    steps = np.linspace(schedule_step(guidance.memory_level, diffusion_steps), 0, guidance.sample_steps).round().astype(int)
     m = mask[..., None].astype(np.float32)
     x = noise.astype(np.float32)
     if guidance.eta > 0:

@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from imm_model.data.sequence import resample as resample_time
+
 RESAMPLED_FRAMES = 24  # leaders are compared at this many frames, whatever their lengths
 NEIGHBOURS = 3  # nearest training leaders per class a seed picks among
 TEMPERATURE_M = 0.05  # metres per joint: how sharply the label-free share favours the nearest class
@@ -31,15 +33,8 @@ MEMORY_STREAM = 3  # a seed's picks are drawn from (seed, this), apart from the 
 
 
 def resample(motion: np.ndarray, frames: int) -> np.ndarray:
-    """(T, ...) -> (frames, ...) by linear interpolation along time (a one-frame motion is repeated)."""
-    motion = np.asarray(motion, np.float32)
-    if len(motion) == 1:
-        return np.repeat(motion, frames, axis=0)
-    pos = np.linspace(0, len(motion) - 1, frames)
-    lo = np.floor(pos).astype(int)
-    hi = np.minimum(lo + 1, len(motion) - 1)
-    frac = (pos - lo).astype(np.float32).reshape(-1, *([1] * (motion.ndim - 1)))
-    return motion[lo] * (1 - frac) + motion[hi] * frac
+    """(T, ...) -> (frames, ...) float32, linearly in time."""
+    return resample_time(np.asarray(motion, np.float32), frames)
 
 
 @dataclass(frozen=True)

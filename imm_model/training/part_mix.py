@@ -18,7 +18,7 @@ import torch
 
 def part_indices(skeleton) -> tuple[list[int], list[int], list[int]]:
     """-> (the trunk's and arms' joints, the legs' joints, the body-centre joints: the root's neighbours)."""
-    legs = sorted({j for name, joints in skeleton.body_parts.items() if name.endswith("leg") for j in joints})
+    legs = skeleton.leg_joints
     return [j for j in range(skeleton.num_joints) if j not in legs], legs, list(skeleton.root_neighbours)
 
 
