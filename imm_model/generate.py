@@ -63,7 +63,10 @@ def _use_memory(model, args: argparse.Namespace) -> None:
     if not model.stochastic:
         raise ValueError(f"--memory: {model.path.name if model.path else 'this model'} is the paper's GAN, which has no "
                          "sampler to start from a real reaction")
-    model.guidance = replace(model.guidance, memory_level=args.memory)
+    try:
+        model.guidance = replace(model.guidance, memory_level=args.memory)
+    except ValueError as err:
+        raise ValueError(f"--memory: {err}") from None
     model.attach_memory(InteractionDataset.load(args.data or SAMPLE_DATA))
 
 
