@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     import torch
+    from torch import nn
 
 CHOICES = ("auto", "cpu", "cuda")
 
@@ -22,6 +23,21 @@ def resolve_device(name: str) -> torch.device:
     if name == "cuda" and not torch.cuda.is_available():
         raise ValueError("--device cuda: this torch build sees no CUDA device (a CPU wheel, or no GPU); use --device cpu")
     return torch.device(name)
+
+
+def move_module(module: nn.Module, device: torch.device | str) -> nn.Module:
+    """`module.to(device)`, then its recurrent layers' weights packed into one cuDNN buffer each.
+
+    `.to()` and `copy.deepcopy` leave an RNN's weights in separate tensors; cuDNN then copies them into one buffer on
+    every call (and warns). On a CPU the packing is a no-op. Returns the module, moved in place.
+    """
+    from torch import nn
+
+    module = module.to(device)
+    for layer in module.modules():
+        if isinstance(layer, nn.RNNBase):
+            layer.flatten_parameters()
+    return module
 
 
 def add_device_argument(parser: argparse.ArgumentParser, default: str = "auto") -> None:

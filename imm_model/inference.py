@@ -97,10 +97,11 @@ class ReactionModel:
         import torch
 
         from imm_model.checkpoint import load_module_state
+        from imm_model.device import move_module
 
         module = module_class(self.config)
         load_module_state(module, {k: torch.from_numpy(v) for k, v in self.weights.items()}, what, self.path)
-        return module.eval().to(self.device)
+        return move_module(module.eval(), self.device)
 
     # ---- loading --------------------------------------------------------------------------
     @classmethod

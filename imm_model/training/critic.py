@@ -16,6 +16,7 @@ import copy
 import torch
 import torch.nn.functional as F
 
+from imm_model.device import move_module
 from imm_model.model.classifier import MotionClassifier
 
 
@@ -23,7 +24,8 @@ class LabelCritic:
     """A frozen follower classifier whose cross-entropy for the asked-for label the generator minimizes."""
 
     def __init__(self, classifier: MotionClassifier):
-        self.classifier = copy.deepcopy(classifier).eval().requires_grad_(False)
+        device = next(classifier.parameters()).device
+        self.classifier = move_module(copy.deepcopy(classifier).eval().requires_grad_(False), device)
         if isinstance(self.classifier.body, torch.nn.RNNBase):
             # cuDNN backpropagates through a recurrent network in training mode only. With its between-layer dropout
             # at 0 the GRU computes in training mode exactly what it computes in eval mode, so the frozen critic (no

@@ -24,6 +24,7 @@ from imm_model.cleanup import follower_bone_lengths
 from imm_model.data.batching import LengthBucketSampler
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold, validation_split
+from imm_model.device import move_module
 from imm_model.errors import CheckpointError, TrainingError
 from imm_model.model import Discriminator, Generator, model_config_for
 from imm_model.training import losses
@@ -88,8 +89,8 @@ class Trainer:
         self.padded = PaddedData.from_dataset(data)
         self.G, self.D = build_models(cfg, data, cfg.seed)
         self._set_normalization()
-        self.G, self.D = self.G.to(self.device), self.D.to(self.device)
-        self.G_ema = copy.deepcopy(self.G).requires_grad_(False) if cfg.ema_decay > 0 else None
+        self.G, self.D = move_module(self.G, self.device), move_module(self.D, self.device)
+        self.G_ema = move_module(copy.deepcopy(self.G).requires_grad_(False), self.device) if cfg.ema_decay > 0 else None
         self.opt_g = make_optimizer(cfg, self.G.parameters(), cfg.lr_g)
         self.opt_d = make_optimizer(cfg, self.D.parameters(), cfg.lr_d)
         swap = torch.tensor([c in cfg.role_swap_classes for c in data.class_names])
