@@ -19,7 +19,8 @@ from pathlib import Path
 DEV, TEST = ("s01", "s03", "s04"), ("s02", "s05", "s06", "s07")
 COLUMNS = (("AFD", "afd", 3), ("AFD 1-NN", "afd_nn1", 3), ("best of 5", "afd_best_of_5", 3), ("FID", "fid", 2),
            ("FID 1-NN", "fid_nn1", 2), ("off-label", "off_label", 2), ("true label", "true_label", 2),
-           ("mixed", "mix_mixed", 2), ("avoid lowers", "avoid_share_lowered", 2),
+           ("mixed", "mix_mixed", 2), ("mixed, whole body", "mix_whole", 2), ("worst pair", "mix_worst_pair", 2),
+           ("avoid lowers", "avoid_share_lowered", 2),
            ("limb speed", "interior_limb_speed_ratio", 2), ("lean deg", "lean_error_deg", 1),
            ("feet m/s", "foot_skate_mps", 3), ("bones cm", "bone_error_cm", 2),
            ("multimodality / real", "multimodality_ratio", 2),
@@ -44,22 +45,26 @@ def runs_of(paths: list[Path], patterns: list[str], where: dict[str, float]) -> 
     from imm_model.model.diffusion_sampler import Guidance
 
     defaults = Guidance().to_dict()  # rows from before a guidance field existed sampled with its default
+    rows = [json.loads(line) for path in paths for line in path.read_text().splitlines()]
+    # the real followers' spread against one leader depends on the fold's data and judges alone: rows scored before
+    # it was reported take it from any row of their fold
+    same_leader = {r["fold"]: r["real_same_leader_diversity"] for r in rows if r.get("real_same_leader_diversity")}
     by_fold: dict[str, dict[str, dict]] = {}
-    for path in paths:
-        for line in path.read_text().splitlines():
-            row = json.loads(line)
-            if not any(p in row["checkpoint"] for p in patterns):
-                continue
-            guidance = row.get("guidance")
-            if guidance and any(float(guidance.get(k, defaults.get(k, float("nan")))) != v for k, v in where.items()):
-                continue
-            if row.get("multimodality") is not None:
-                row["multimodality_ratio"] = row["multimodality"] / row["real_class_diversity"]
-                if row.get("real_same_leader_diversity") is not None:
-                    row["multimodality_same_leader_ratio"] = row["multimodality"] / row["real_same_leader_diversity"]
-            if row.get("smooth_limb_speed_ratio") is not None:  # 1: no jitter; lower: part of the motion is jitter
-                row["smooth_share"] = row["smooth_limb_speed_ratio"] / row["limb_speed_ratio"]
-            by_fold.setdefault(row["fold"], {})[row["checkpoint"]] = row
+    for row in rows:
+        if row["fold"] in same_leader:
+            row.setdefault("real_same_leader_diversity", same_leader[row["fold"]])
+        if not any(p in row["checkpoint"] for p in patterns):
+            continue
+        guidance = row.get("guidance")
+        if guidance and any(float(guidance.get(k, defaults.get(k, float("nan")))) != v for k, v in where.items()):
+            continue
+        if row.get("multimodality") is not None:
+            row["multimodality_ratio"] = row["multimodality"] / row["real_class_diversity"]
+            if row.get("real_same_leader_diversity") is not None:
+                row["multimodality_same_leader_ratio"] = row["multimodality"] / row["real_same_leader_diversity"]
+        if row.get("smooth_limb_speed_ratio") is not None:  # 1: no jitter; lower: part of the motion is jitter
+            row["smooth_share"] = row["smooth_limb_speed_ratio"] / row["limb_speed_ratio"]
+        by_fold.setdefault(row["fold"], {})[row["checkpoint"]] = row
     return by_fold
 
 
