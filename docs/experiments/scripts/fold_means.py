@@ -41,18 +41,24 @@ def rows_of(paths: list[Path], patterns: list[str], where: dict[str, float]) -> 
     return by_fold
 
 
+def read_rows(paths: list[Path]) -> list[dict]:
+    """Every JSON line of the files, each with "file" (its file's stem) and, where its fold has one anywhere,
+    "real_same_leader_diversity": the real followers' spread against one leader depends on the fold's data and judges
+    alone, so rows scored before it was reported take it from any row of their fold."""
+    rows = [json.loads(line) | {"file": path.stem} for path in paths for line in path.read_text().splitlines()]
+    same_leader = {r["fold"]: r["real_same_leader_diversity"] for r in rows if r.get("real_same_leader_diversity")}
+    for row in rows:
+        if row["fold"] in same_leader:
+            row.setdefault("real_same_leader_diversity", same_leader[row["fold"]])
+    return rows
+
+
 def runs_of(paths: list[Path], patterns: list[str], where: dict[str, float]) -> dict[str, dict[str, dict]]:
     from imm_model.model.diffusion_sampler import Guidance
 
     defaults = Guidance().to_dict()  # rows from before a guidance field existed sampled with its default
-    rows = [json.loads(line) for path in paths for line in path.read_text().splitlines()]
-    # the real followers' spread against one leader depends on the fold's data and judges alone: rows scored before
-    # it was reported take it from any row of their fold
-    same_leader = {r["fold"]: r["real_same_leader_diversity"] for r in rows if r.get("real_same_leader_diversity")}
     by_fold: dict[str, dict[str, dict]] = {}
-    for row in rows:
-        if row["fold"] in same_leader:
-            row.setdefault("real_same_leader_diversity", same_leader[row["fold"]])
+    for row in read_rows(paths):
         if not any(p in row["checkpoint"] for p in patterns):
             continue
         guidance = row.get("guidance")

@@ -33,6 +33,11 @@ def shares(read: np.ndarray, names: tuple[str, ...]) -> str:
     return ", ".join(f"{names[c]} {counts[c]:.2f}" for c in np.argsort(-counts) if counts[c] >= 0.05)
 
 
+def part_readings(judges: FoldJudges, followers: list) -> tuple[np.ndarray, np.ndarray]:
+    """Followers to the fold's held-out leaders -> the class each part judge reads, (trunk and arms, legs and placement)."""
+    return tuple(judges.part_view(part, followers).argmax(-1) for part in ("upper", "lower"))
+
+
 def model_readings(checkpoint: str, fold: str, labels: list[str]) -> None:
     """Per --label, the body-part judges' readings of the model's reactions to the fold's held-out leaders."""
     from imm_model.inference import ReactionModel
@@ -46,11 +51,11 @@ def model_readings(checkpoint: str, fold: str, labels: list[str]) -> None:
         vector = np.zeros(len(names), dtype=np.float32)
         vector[[names.index(c) for c in label.split("+")]] = 1
         followers = model.synthesize_batch_canonical(judges.leaders, np.tile(vector, (len(judges.leaders), 1)))
-        upper, lower = (judges.part_view(part, followers).argmax(-1) for part in ("upper", "lower"))
+        upper, lower = part_readings(judges, followers)
         print(f"| {label} | {shares(upper, names)} | {shares(lower, names)} |")
     reals = [data.canonical(int(i))[1] for i in judges.test]
     y = data.actions[judges.test]
-    upper, lower = (judges.part_view(part, reals).argmax(-1) for part in ("upper", "lower"))
+    upper, lower = part_readings(judges, reals)
     for c in sorted({names.index(c) for label in labels for c in label.split("+")}):
         print(f"| real {names[c]} followers | {shares(upper[y == c], names)} | {shares(lower[y == c], names)} |")
 
@@ -64,19 +69,18 @@ def real_recall() -> None:
         judges = FoldJudges(data, fold, EvalOptions(progress=False))
         reals = [data.canonical(int(i))[1] for i in judges.test]
         y = data.actions[judges.test]
-        for part, counts in hits.items():
-            read = judges.part_view(part, reals).argmax(-1)
+        for read, counts in zip(part_readings(judges, reals), hits.values(), strict=True):
             for c in range(len(names)):
                 counts[c] += ((read[y == c] == c).sum(), (y == c).sum())
     recall = {part: counts[:, 0] / counts[:, 1] for part, counts in hits.items()}
     followers = [torch.from_numpy(data.canonical(i)[1]) for i in range(len(data))]
-    shares = upper_shares(followers, torch.as_tensor(data.actions), len(names), data.skeleton).numpy()
+    motion_share = upper_shares(followers, torch.as_tensor(data.actions), len(names), data.skeleton).numpy()
     print("| class | upper-body judge | lower-body judge | trunk-and-arms share of motion |\n|---|---:|---:|---:|")
     for c, name in enumerate(names):
-        print(f"| {name} | {recall['upper'][c]:.2f} | {recall['lower'][c]:.2f} | {shares[c]:.3f} |")
+        print(f"| {name} | {recall['upper'][c]:.2f} | {recall['lower'][c]:.2f} | {motion_share[c]:.3f} |")
     print("\n| pair | upper body by motion | upper body by the judges' recall | product, kept / swapped |\n|---|---|---|---:|")
     for i, j in itertools.combinations(range(len(names)), 2):
-        by_motion = i if shares[i] >= shares[j] else j
+        by_motion = i if motion_share[i] >= motion_share[j] else j
         keep = recall["upper"][i] * recall["lower"][j]
         swap = recall["upper"][j] * recall["lower"][i]
         by_recall = i if keep >= swap else j
@@ -89,6 +93,12 @@ def main() -> None:
     ap.add_argument("--fold", default="s04", help="with --checkpoint: the fold whose held-out leaders it reacts to")
     ap.add_argument("--label", action="append", default=[], help="with --checkpoint: classes joined by '+', each at +1")
     args = ap.parse_args()
+    names = InteractionDataset.load(SAMPLE_DATA).class_names
+    unknown = sorted({c for label in args.label for c in label.split("+")} - set(names))
+    if unknown:
+        ap.error(f"--label: unknown class {', '.join(unknown)}; expected classes among {', '.join(names)} joined by '+'")
+    if args.checkpoint and not args.label:
+        ap.error("--checkpoint needs at least one --label")
     if args.checkpoint:
         model_readings(args.checkpoint, args.fold, args.label)
     else:

@@ -13,12 +13,14 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
+import sys
 from pathlib import Path
 
 import numpy as np
 
-DEV = ("s01", "s03", "s04")
+sys.path.insert(0, str(Path(__file__).parent))
+from fold_means import DEV, read_rows  # noqa: E402
+
 # each figure's bar: (threshold, True when the bar is an upper limit)
 BARS = {"afd": (0.8, True), "variations": (0.5, False), "fid": (1.0, True), "limbs": (0.8, False)}
 
@@ -29,15 +31,13 @@ def meets(point: dict, figure: str) -> bool:
 
 
 def points(paths: list[Path]) -> list[dict]:
-    """Rows with every figure both planes need, the same-leader spread filled in from any row of the fold."""
-    rows = [json.loads(line) | {"file": p.stem} for p in paths for line in p.read_text().splitlines()]
-    same_leader = {r["fold"]: r["real_same_leader_diversity"] for r in rows if r.get("real_same_leader_diversity")}
+    """Rows with every figure both planes need, as ratios to their references."""
     out = []
-    for r in rows:
-        if r.get("multimodality") is None or not r.get("afd_nn1") or not r.get("fid_nn1") or r["fold"] not in same_leader:
+    for r in read_rows(paths):
+        if r.get("multimodality") is None or not r.get("afd_nn1") or not r.get("fid_nn1") or not r.get("real_same_leader_diversity"):
             continue
         out.append({"file": r["file"], "dev": r["fold"] in DEV, "afd": r["afd"] / r["afd_nn1"],
-                    "variations": r["multimodality"] / same_leader[r["fold"]], "fid": r["fid"] / r["fid_nn1"],
+                    "variations": r["multimodality"] / r["real_same_leader_diversity"], "fid": r["fid"] / r["fid_nn1"],
                     "limbs": r["interior_limb_speed_ratio"]})
     return out
 
