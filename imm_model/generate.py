@@ -71,9 +71,11 @@ def _use_memory(model, args: argparse.Namespace) -> None:
 
 
 def leader_files(paths: list[Path]) -> list[Path]:
-    """Files as given, folders expanded to their leader files (sorted); nothing found is an error."""
+    """Files as given, folders expanded to their leader files (sorted); a missing path or nothing found is an error."""
     files = []
     for path in paths:
+        if not path.exists():
+            raise DataFormatError(f"{path}: leader file not found")
         if path.is_dir():
             files += sorted(f for f in path.iterdir() if f.suffix.lower() in LEADER_SUFFIXES and ".leader." not in f.name)
         else:
@@ -145,6 +147,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     from imm_model.outputs import Output, plan_outputs
 
     seeds = check_seeds(args.seed, args.samples)
+    if args.leader:  # a missing leader is named before any check of what --out can hold
+        leader_files(args.leader)
     one_leader = bool(args.sequence) or bool(args.leader and len(args.leader) == 1 and args.leader[0].is_file())
     single = one_leader and not args.grid and len(args.label or []) <= 1 and len(seeds) == 1
     if not single and args.out.suffix.lower() in (".npz", ".bvh"):

@@ -54,5 +54,8 @@ def test_folder_of_bvh_leaders_and_several_labels(tmp_path, capsys):
     assert main(args[:-1] + [str(tmp_path / "x.npz")]) == 2
     assert "need a folder" in capsys.readouterr().err
     assert main(["generate", "--leader", str(tmp_path / "empty_dir_missing"), "--label", "kicking", "--out", str(out / "z")]) == 2
+    # a missing leader is named as such, also where --out is a file name
+    assert main(["generate", "--leader", str(tmp_path / "missing.bvh"), "--label", "kicking", "--out", str(out / "z.bvh")]) == 2
+    assert "missing.bvh: leader file not found" in capsys.readouterr().err
     assert main(["generate", "--sequences", "all", "--out", str(out / "n")]) == 2
     assert "--label" in capsys.readouterr().err
