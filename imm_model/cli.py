@@ -18,7 +18,7 @@ from imm_model.errors import IMMError
 # (torch, VTK, trame) inside their command functions so `imm --help` and `imm data` stay fast.
 COMMAND_MODULES: dict[str, str] = {
     "data": "imm_model.cli",
-    "train": "imm_model.training.commands",
+    "train": "imm_model.train",
     "evaluate": "imm_model.evaluation.commands",
     "generate": "imm_model.generate",
     "reproduce": "imm_model.reproduce.commands",

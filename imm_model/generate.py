@@ -53,23 +53,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_generate)
 
 
-def _use_memory(model, args: argparse.Namespace) -> None:
-    """--memory: the sampler's start level, and the memory of the training pairs it starts from."""
-    from dataclasses import replace
-
-    from imm_model.data.dataset import InteractionDataset
-    from imm_model.paths import SAMPLE_DATA
-
-    if not model.stochastic:
-        raise ValueError(f"--memory: {model.path.name if model.path else 'this model'} is the paper's GAN, which has no "
-                         "sampler to start from a real reaction")
-    try:
-        model.guidance = replace(model.guidance, memory_level=args.memory)
-    except ValueError as err:
-        raise ValueError(f"--memory: {err}") from None
-    model.attach_memory(InteractionDataset.load(args.data or SAMPLE_DATA))
-
-
 def leader_files(paths: list[Path]) -> list[Path]:
     """Files as given, folders expanded to their leader files (sorted); a missing path or nothing found is an error."""
     files = []
@@ -86,6 +69,7 @@ def leader_files(paths: list[Path]) -> list[Path]:
 
 
 def label_vectors(args: argparse.Namespace, model) -> list[np.ndarray]:
+    """The labels asked for, each parsed and checked once."""
     from imm_model.inference import parse_label
 
     if args.grid:
@@ -142,9 +126,10 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     import torch
 
     from imm_model.device import resolve_device
-    from imm_model.errors import DataFormatError
+    from imm_model.errors import DataFormatError, LabelError
     from imm_model.inference import ReactionModel, check_seeds
     from imm_model.outputs import Output, plan_outputs
+    from imm_model.paths import SAMPLE_DATA
 
     seeds = check_seeds(args.seed, args.samples)
     if args.leader:  # a missing leader is named before any check of what --out can hold
@@ -156,20 +141,27 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     torch.set_num_threads(2)
     model = ReactionModel.load(args.checkpoint, resolve_device(args.device))
     model.raw, model.average_placement = args.raw, args.average_placement
+    name = model.path.name if model.path else "this model"
     if len(seeds) > 1 and not model.stochastic:
-        raise ValueError(f"--samples {args.samples}: {model.path.name if model.path else 'this model'} is deterministic "
-                         "(the paper's GAN): every seed gives the same reaction")
+        raise ValueError(f"--samples {args.samples}: {name} ({model.title}) is deterministic: every seed gives the same "
+                         "reaction")
     if args.spread is not None:
         if model.spread is None:
-            raise ValueError(f"--spread: {model.path.name if model.path else 'this model'} has no spread setting (it needs "
-                             "a diffusion model trained with noised leaders)")
+            raise ValueError(f"--spread: {name} ({model.title}) has no spread setting (it needs a diffusion model trained "
+                             "with noised leaders)")
         model.spread = args.spread
     if args.memory is not None:
-        _use_memory(model, args)
-    leaders, labels = _leaders(args), label_vectors(args, model)
-    for _, leader, source in leaders:  # all checked before anything is written, each refusal naming its file
+        from imm_model.data.dataset import InteractionDataset
+
         try:
-            model.check_leader(leader)
+            model.use_memory(args.memory, InteractionDataset.load(args.data or SAMPLE_DATA))
+        except LabelError as err:
+            raise ValueError(f"--memory: {name}: {err}") from None
+    labels = label_vectors(args, model)
+    leaders = []
+    for item, leader, source in _leaders(args):  # each checked and framed once, before anything is written
+        try:
+            leaders.append((item, model.prepare_leader(leader), source))
         except DataFormatError as err:
             raise DataFormatError(f"{source}: {err}") from None
     if single:
@@ -217,38 +209,27 @@ def _generate_batch(args: argparse.Namespace, model, leaders: list, labels: list
     return 0
 
 
-def _synthesize(model, leaders: list[np.ndarray], vec: np.ndarray, seed: int = 0) -> list[np.ndarray]:
-    """World leaders -> world followers, one batched forward pass (each leader in its own canonical frame)."""
-    from imm_model.data.canonical import CanonicalFrame
+def _synthesize(model, leaders: list, vec: np.ndarray, seed: int = 0) -> list[np.ndarray]:
+    """Prepared leaders -> world followers, in one batch (each leader in its own canonical frame)."""
     from imm_model.outputs import check_finite
 
-    frames, canonical = [], []
-    for leader in leaders:
-        checked = model.check_leader(leader)
-        frame = CanonicalFrame.from_leader(checked, model.skeleton, model.canonical_mode)
-        frames.append(frame)
-        canonical.append(frame.to_canonical(checked, model.skeleton).astype(np.float32))
-    followers = model.synthesize_batch_canonical(canonical, np.repeat(vec[None], len(leaders), 0), [seed] * len(leaders))
-    return [check_finite(f.to_world(b.astype(np.float64), model.skeleton), "the synthesized follower (leader coordinates out of range?)")
-            for f, b in zip(frames, followers, strict=True)]
+    return [check_finite(f, "the synthesized follower (leader coordinates out of range?)")
+            for f in model.synthesize_leaders(leaders, vec, [seed] * len(leaders))]
 
 
-def _write(path: Path, leader: np.ndarray, follower: np.ndarray, model, vec: np.ndarray, scale: float, sid: str | None,
+def _write(path: Path, leader, follower: np.ndarray, model, vec: np.ndarray, scale: float, sid: str | None,
            seed: int) -> None:
+    """One item: a .bvh (with the leader's copy beside it) or an .npz of the whole interaction; `leader` prepared."""
     from imm_model.outputs import write_atomic, write_files
 
     if path.suffix.lower() == ".bvh":
         from imm_model.data.bvh import write_bvh
 
         write_files([(path, lambda tmp: write_bvh(tmp, follower, model.skeleton)),
-                     (leader_copy(path), lambda tmp: write_bvh(tmp, leader, model.skeleton))])
+                     (leader_copy(path), lambda tmp: write_bvh(tmp, leader.world, model.skeleton))])
         return
-    from imm_model.data.canonical import CanonicalFrame
     from imm_model.interaction_file import interaction_arrays, interaction_bytes
 
-    frame = CanonicalFrame.from_leader(np.asarray(leader, np.float64), model.skeleton, model.canonical_mode)
     write_atomic(path, interaction_bytes(interaction_arrays(
-        leader, follower, frame, model.skeleton, class_names=model.class_names, label=vec, scale=scale,
-        checkpoint=model.path.name if model.path else "", fps=15.0, sequence_id=sid,
-        seed=seed if model.stochastic else None, spread=model.spread,
-        memory=model.guidance.memory_level if model.stochastic and model.guidance.uses_memory else None)))
+        leader.world, follower, leader.frame, model.skeleton, class_names=model.class_names, label=vec, scale=scale,
+        checkpoint=model.path.name if model.path else "", fps=15.0, sequence_id=sid, **model.provenance(seed))))

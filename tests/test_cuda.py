@@ -15,7 +15,7 @@ import torch
 
 from imm_model.inference import ReactionModel
 from imm_model.paths import SAMPLE_CHECKPOINT
-from imm_model.training.trainer import Trainer
+from imm_model.families.gan.trainer import Trainer
 from tests.test_training import TINY
 from tests.test_training_terms import quick_follower_classifier
 

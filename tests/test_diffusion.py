@@ -15,11 +15,11 @@ from imm_model.checkpoint import load_checkpoint
 from imm_model.cli import main
 from imm_model.errors import LabelError, TrainingError
 from imm_model.inference import DiffusionReactionModel, ReactionModel
-from imm_model.model.diffusion import ReactionDenoiser, torch_denoiser
-from imm_model.model.diffusion_numpy import NumpyDenoiser
-from imm_model.model.diffusion_sampler import DiffusionConfig, Guidance, cosine_alpha_bar, initial_noise, sample
+from imm_model.families.diffusion.denoiser import ReactionDenoiser, torch_denoiser
+from imm_model.families.diffusion.denoiser_numpy import NumpyDenoiser
+from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, cosine_alpha_bar, initial_noise, sample
 from imm_model.paths import SAMPLE_CHECKPOINT
-from imm_model.training.diffusion import IMM_DIFFUSION, DiffusionTrainConfig, DiffusionTrainer, diffusion_recipe
+from imm_model.families.diffusion.trainer import IMM_DIFFUSION, DiffusionTrainConfig, DiffusionTrainer, diffusion_recipe
 
 TINY = replace(IMM_DIFFUSION, name="tiny-diffusion", model=dict(width=16, layers=1, heads=2, ff_mult=1, dropout=0.0),
                guidance=dict(label_scale=2.5, sample_steps=4), steps=12, batch_size=8, warmup_steps=2, checkpoint_every=6,
@@ -289,7 +289,7 @@ def test_conditioned_denoiser_reused_across_steps_matches_torch(frames_per_token
 def test_attention_softmax_with_and_without_the_max_shift():
     """The numpy attention skips the softmax's max shift only where every score is small: with small and with large
     scores (random queries scaled up until exp would overflow), and padded keys, it equals a float64 softmax."""
-    from imm_model.model.diffusion_numpy import _attention
+    from imm_model.families.diffusion.denoiser_numpy import _attention
 
     rng = np.random.default_rng(0)
     q, k, v = rng.standard_normal((3, 2, 2, 7, 4)).astype(np.float32)

@@ -10,7 +10,7 @@ import torch
 
 from imm_model.device import resolve_device
 from imm_model.evaluation.plausibility import mean_speed, smooth
-from imm_model.training.energy import class_profiles, energy_loss, limb_speeds, mixed_profile
+from imm_model.families.gan.energy import class_profiles, energy_loss, limb_speeds, mixed_profile
 
 ROOT = 0
 
@@ -82,7 +82,7 @@ def test_class_profiles_and_their_mix():
 
 
 def test_trainer_logs_the_energy_term(sample_data, tmp_path):
-    from imm_model.training.trainer import Trainer
+    from imm_model.families.gan.trainer import Trainer
     from tests.test_training import TINY
 
     trainer = Trainer(replace(TINY, lambda_energy=1.0, adv_warmup_epochs=0, adv_ramp_epochs=0), sample_data, "s04", tmp_path)

@@ -6,10 +6,12 @@ import numpy as np
 import pytest
 import torch
 
-from imm_model.model import Discriminator, Generator, model_config_for
-from imm_model.model.layers import Dropout, gather_time, reverse_index
+from imm_model.families.gan.config import model_config_for
+from imm_model.families.gan.discriminator import Discriminator
+from imm_model.families.gan.generator import Generator
+from imm_model.families.gan.layers import Dropout, gather_time, reverse_index
 from imm_model.skeleton import KINECT15
-from imm_model.training import losses
+from imm_model.families.gan import losses
 
 SMALL = dict(stream_embed=16, encoder_hidden=8, decoder_hidden=16, attention_dim=8, disc_hidden=8)
 
@@ -130,9 +132,9 @@ def test_discriminator_loss_targets():
 def test_numpy_generator_matches_torch(variant):
     """model/numpy_runtime.py: the same numbers as model.Generator for one unpadded sequence, and the state dict's
     shapes, for every generator variant it runs."""
-    from imm_model.model import Generator
-    from imm_model.model.config import ModelConfig
-    from imm_model.model.numpy_runtime import NumpyGenerator
+    from imm_model.families.gan.generator import Generator
+    from imm_model.families.gan.config import ModelConfig
+    from imm_model.families.gan.numpy_generator import NumpyGenerator
 
     cfg = ModelConfig(body_parts=((0, 1), (2, 3), (4, 5), (6, 7), (8, 9, 10, 11, 12, 13, 14)), stream_embed=8,
                       encoder_hidden=6, decoder_hidden=7, attention_dim=5, **variant)
@@ -170,8 +172,8 @@ def test_numpy_conv_classifier_matches_torch():
 def test_paper_attention_query_is_the_previous_decoder_state():
     """attention_query="decoder" (paper Eq. 3): frame by frame, padding-exact, and a frame's output depends only
     on the leader through the attention, never on later decoder states (the forward direction is causal)."""
-    from imm_model.model import Generator
-    from imm_model.model.config import ModelConfig
+    from imm_model.families.gan.generator import Generator
+    from imm_model.families.gan.config import ModelConfig
 
     cfg = ModelConfig(body_parts=((0, 1), (2, 3), (4, 5), (6, 7), (8, 9, 10, 11, 12, 13, 14)), stream_embed=8,
                       encoder_hidden=4, decoder_hidden=6, attention_dim=5, attention_query="decoder")
@@ -191,8 +193,8 @@ def test_paper_recipe_is_the_faithful_translation(sample_data, tmp_path):
     """--config paper: Eq. 3 attention, 1600 epochs, L1 summed as in the authors' code; one tiny epoch trains."""
     from dataclasses import replace
 
-    from imm_model.training.config import PAPER
-    from imm_model.training.trainer import Trainer
+    from imm_model.families.gan.recipes import PAPER
+    from imm_model.families.gan.trainer import Trainer
 
     assert PAPER.epochs == 1600 and PAPER.l1_reduction == "sum" and PAPER.model["attention_query"] == "decoder"
     tiny = replace(PAPER, model=PAPER.model | dict(stream_embed=8, encoder_hidden=4, decoder_hidden=8, attention_dim=8,

@@ -258,7 +258,7 @@ def test_a_full_disk_while_saving_keeps_the_old_pair(tmp_path, monkeypatch):
 def overwritten_run(tmp_path_factory):
     """A run directory holding a previous run's refit final.safetensors, trained again (tiny, 1 epoch, no refit) with
     --overwrite --export."""
-    from imm_model.training.config import IMM
+    from imm_model.families.gan.recipes import IMM
 
     d = tmp_path_factory.mktemp("train")
     tiny = replace(IMM, model=IMM.model | dict(stream_embed=16, encoder_hidden=8, decoder_hidden=16, attention_dim=8,

@@ -115,8 +115,8 @@ def test_half_split_is_stratified_and_disjoint(sample_data):
 
 
 def test_ablation_recipes_remove_one_component_each():
-    from imm_model.model import ModelConfig
-    from imm_model.training.config import ABLATIONS, IMM
+    from imm_model.families.gan.config import ModelConfig
+    from imm_model.families.gan.recipes import ABLATIONS, IMM
 
     assert ABLATIONS["imm-no-d"].lambda_adv == 0 and ABLATIONS["imm-no-bone"].lambda_bone == 0
     assert ABLATIONS["imm-no-continuity"].lambda_cont == 0
@@ -129,7 +129,8 @@ def test_ablation_recipes_remove_one_component_each():
 def test_generator_without_stream_fc_reads_coordinates_directly():
     import torch
 
-    from imm_model.model import Generator, ModelConfig
+    from imm_model.families.gan.config import ModelConfig
+    from imm_model.families.gan.generator import Generator
 
     cfg = ModelConfig(body_parts=((0, 1), (2, 3, 4), (5, 6), (7, 8), (9, 10, 11, 12, 13, 14)), stream_fc=False,
                       encoder_hidden=8, decoder_hidden=8, attention_dim=8)

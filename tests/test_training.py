@@ -13,10 +13,10 @@ from imm_model.checkpoint import export_generator, final_checkpoint, load_checkp
 from imm_model.cli import main
 from imm_model.errors import CheckpointError
 from imm_model.inference import ReactionModel
-from imm_model.training.config import IMM, PAPER, TrainConfig, load_config
-from imm_model.training.refit import refit
-from imm_model.training.schedule import adversarial_weight, lr_scale
-from imm_model.training.trainer import Trainer
+from imm_model.families.gan.recipes import IMM, PAPER, TrainConfig, load_config
+from imm_model.families.gan.refit import refit
+from imm_model.families.gan.schedule import adversarial_weight, lr_scale
+from imm_model.families.gan.trainer import Trainer
 
 TINY = replace(
     IMM,
@@ -58,7 +58,7 @@ def test_named_and_file_configs(tmp_path):
 def test_a_config_saved_before_options_were_retired_still_reads_and_resumes():
     """A config dict holding a retired option at the value that left it off reads as today's config and continues a
     run; one that switched it on is refused by name."""
-    from imm_model.training.config import RETIRED, same_recipe
+    from imm_model.families.gan.recipes import RETIRED, same_recipe
 
     old = IMM.to_dict() | RETIRED
     assert TrainConfig.from_dict(old) == IMM
@@ -293,7 +293,7 @@ def test_augmentation_keeps_skeletons_valid(sample_data):
                     mirror_class_mask=torch.tensor([True, True, False, True, True, True]))
     leader, follower, new_lengths, actions = aug(padded, idx, torch.Generator().manual_seed(0))
     bones = torch.tensor(sample_data.skeleton.bones)
-    from imm_model.training.losses import bone_lengths
+    from imm_model.families.gan.losses import bone_lengths
 
     for b in range(12):
         # rigid (mirror + yaw) transforms keep bone lengths (mirror swaps left/right bones, hence the sort);
@@ -307,7 +307,7 @@ def test_augmentation_keeps_skeletons_valid(sample_data):
 
 def test_label_free_baseline_ignores_the_label_and_trains(sample_data, tmp_path):
     """`--config men`: the generator never reads the label; D is a real/fake head beside a class head."""
-    from imm_model.model.numpy_runtime import NumpyGenerator
+    from imm_model.families.gan.numpy_generator import NumpyGenerator
 
     assert load_config("men").discriminator == "binary+class" and load_config("men").model["label_input"] is False
     cfg = replace(TINY, model=TINY.model | {"label_input": False}, discriminator="binary+class", adv_warmup_epochs=0,

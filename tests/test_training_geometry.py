@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from imm_model.skeleton import KINECT15
-from imm_model.training.diffusion import DiffusionTrainer
+from imm_model.families.diffusion.trainer import DiffusionTrainer
 from imm_model.training.geometry import GeometricTerms
 from tests.test_diffusion import TINY
 

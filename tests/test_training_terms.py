@@ -7,7 +7,7 @@ from dataclasses import replace
 import pytest
 import torch
 
-from imm_model.training.trainer import Trainer
+from imm_model.families.gan.trainer import Trainer
 from tests.test_training import TINY
 
 
@@ -24,7 +24,7 @@ def quick_follower_classifier(sample_data, **overrides):
 def test_label_critic_scores_the_true_and_a_drawn_label(sample_data, tmp_path, monkeypatch):
     """lambda_critic > 0: a frozen follower classifier scores G's output for the true and a drawn other label."""
     from imm_model import cache
-    from imm_model.training.critic import drawn_labels
+    from imm_model.families.gan.critic import drawn_labels
 
     gen = torch.Generator().manual_seed(0)
     actions = torch.arange(6).repeat(50)
@@ -54,7 +54,7 @@ def test_the_critic_is_the_folds_follower_gru_scoring_both_labels(sample_data, t
     true-label follower and the drawn-label one."""
     from imm_model import cache
     from imm_model.model.classifier_config import FOLLOWER
-    from imm_model.training.critic import LabelCritic
+    from imm_model.families.gan.critic import LabelCritic
 
     quick = quick_follower_classifier(sample_data)
     asked, scored = [], []
@@ -75,7 +75,7 @@ def test_label_critic_loss_is_the_soft_cross_entropy_and_reaches_the_follower(sa
     follower, never the classifier."""
     from imm_model.model.classifier import MotionClassifier
     from imm_model.model.classifier_config import ClassifierConfig
-    from imm_model.training.critic import LabelCritic
+    from imm_model.families.gan.critic import LabelCritic
 
     torch.manual_seed(0)
     clf = MotionClassifier(ClassifierConfig(inputs="follower", hidden=8, features=8), 45, 6)

@@ -45,6 +45,7 @@ class InteractionDataset:
     dataset: str = "sbu"
     canonical_mode: str = "first_frame"
     info: dict = field(default_factory=dict)  # provenance: source, held-out subject, ...
+    path: Path | None = None  # the bundle file it was read from (None: built in memory)
 
     # ---- construction -------------------------------------------------------------------
     @classmethod
@@ -240,6 +241,7 @@ class InteractionDataset:
                 dataset=str(meta["dataset"]),
                 canonical_mode=str(meta["canonical_mode"]),
                 info=dict(meta.get("info", {})),
+                path=path.resolve(),
                 **arrays,
             )
         except KeyError as err:

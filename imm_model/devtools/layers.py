@@ -25,12 +25,16 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     # skeletons, datasets and their readers, splits, and the geometry of poses
     ("data", ("imm_model.skeleton", "imm_model.data", "imm_model.contact", "imm_model.cleanup",
               "imm_model.interaction_file")),
-    # the networks, the cached per-fold classifiers, and the inference API built on them
-    ("model", ("imm_model.model", "imm_model.cache", "imm_model.inference", "imm_model.reads_as")),
+    # the networks every family shares (the reaction classifiers), the cached per-fold classifiers, the studio's judge
+    ("model", ("imm_model.model", "imm_model.cache", "imm_model.reads_as")),
+    # what every family's training shares: batches, augmentation, geometric terms, part composites, curves
     ("training", ("imm_model.training",)),
+    # the model families (each a folder: config, networks, sampler, trainer, recipes, model class), their registry,
+    # and the inference API over them
+    ("families", ("imm_model.families", "imm_model.inference")),
     ("evaluation", ("imm_model.evaluation",)),
     # the commands and tools built on the library
-    ("applications", ("imm_model.reproduce", "imm_model.generate", "imm_model.cli", "imm_model.devtools")),
+    ("applications", ("imm_model.reproduce", "imm_model.generate", "imm_model.train", "imm_model.cli", "imm_model.devtools")),
     # the studio (a separate package), bottom to top: its one adapter to trame's internals, its picture-making, the
     # user's session, the serving processes, the page, and the front ends that start it
     ("studio adapter", ("explorer", "explorer.trame_adapter")),
@@ -42,10 +46,13 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
 )
 # A package's __main__ is an entry point (`python -m package`): it sits in this layer whatever its package.
 ENTRY_POINT_LAYER = "applications"
-# Imports that go up on purpose, each with its reason.
+# Imports that go up, or close a circle, on purpose, each with its reason.
 ALLOWED_UPWARD: dict[tuple[str, str], str] = {
     ("imm_model", "imm_model.inference"):
         "the package's lazy re-export of the inference API (imm_model.synthesize), run on attribute access only",
+    ("imm_model.families.base", "imm_model.families"):
+        "ReactionModel.load() asks the registry for the checkpoint's family; the registry imports each family, whose "
+        "model class is built on the base",
     ("explorer.serving.worker", "explorer.ui.app"): "a studio process builds the page it serves",
     ("explorer.serving.zygote", "explorer.ui.app"): "the page is imported once before forking, so no tab imports it again",
 }

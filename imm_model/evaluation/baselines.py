@@ -118,9 +118,9 @@ def fold_baseline_model(config: str, data: InteractionDataset, subject: str, pro
     from imm_model import cache
     from imm_model.checkpoint import final_checkpoint, load_checkpoint
     from imm_model.errors import CheckpointError
-    from imm_model.training.config import load_config
-    from imm_model.training.refit import refit
-    from imm_model.training.trainer import Trainer
+    from imm_model.families.gan.recipes import load_config
+    from imm_model.families.gan.refit import refit
+    from imm_model.families.gan.trainer import Trainer
 
     cfg = load_config(config)
     key = cache.entry_key("model", data, subject, cfg.to_dict())

@@ -24,10 +24,10 @@ HALF_SPLIT = "half"  # the recognition study's class-stratified half/half split 
 
 @dataclass(frozen=True)
 class TrainJob:
-    recipe: str  # a named recipe (training/config.py, or training/diffusion.py's)
+    recipe: str  # a named recipe of any family (families/__init__.py)
     split: str  # a LOSO subject "sXX", HALF_SPLIT, or a K3HI split (reproduce/k3hi_table.py)
     seed: int
-    epochs: int | None = None  # override of the recipe's epochs, or a diffusion recipe's steps (tiny runs in tests)
+    epochs: int | None = None  # override of the recipe's length: the GAN's epochs, the diffusion model's steps (tiny runs in tests)
 
     @property
     def name(self) -> str:
@@ -41,28 +41,32 @@ class TrainJob:
         return runs / f"{self.recipe}-seed{self.seed}" / f"fold-{self.split}"
 
     @property
-    def diffusion(self) -> bool:
-        from imm_model.training.diffusion import diffusion_recipe
+    def family(self):
+        """The registry's entry for the recipe's family."""
+        from imm_model.families import load_recipe
 
-        return diffusion_recipe(self.recipe)
+        return load_recipe(self.recipe)[0]
 
     @property
     def cost(self) -> float:
         """Expected seconds on one lane of this 2-core machine (seed 0's records; a diffusion fold's 6000 steps about
         20 minutes), to run the longest first."""
-        if self.diffusion:
+        length = self.family.length_option
+        if length == "steps":
             return 1200.0
+        if length is None:
+            return 1.0
         return 300.0 if self.dataset == "k3hi" else 220.0 if self.config().refit else 80.0
 
     def config(self):
-        """The recipe's TrainConfig, or DiffusionTrainConfig for a diffusion recipe."""
-        if self.diffusion:
-            from imm_model.training.diffusion import load_config as load_diffusion_config
+        """The recipe's config, with this job's seed and length."""
+        from imm_model.families import load_recipe
 
-            return load_diffusion_config(self.recipe, steps=self.epochs, seed=self.seed)
-        from imm_model.training.config import load_config
-
-        return load_config(self.recipe, epochs=self.epochs, seed=self.seed)
+        family = load_recipe(self.recipe)[0]
+        given = {"seed": self.seed} if "seed" in family.recipes()[family.default_recipe].to_dict() else {}
+        if family.length_option:
+            given[family.length_option] = self.epochs
+        return load_recipe(self.recipe, **given)[1]
 
     def key(self, data_hash: str) -> str:
         """Only the fields that differ from TrainConfig's defaults count, so adding an option (with a default that

@@ -11,8 +11,9 @@ from imm_model.reproduce.tasks import EvalJob
 
 TABLES = ("afd", "fid", "ablation", "recognition", "models")
 PAPER_TABLES = TABLES[:4]  # what `imm reproduce` writes unless --tables says otherwise
-# the "models" table: the bundled GAN recipe beside the reaction diffusion model, each against the 1-NN retrieval
-MODEL_RECIPES = ("imm-steer", "imm-diffusion")
+# the "models" table: the bundled GAN recipe beside the reaction diffusion model and the retrieval family (the 1-NN
+# baseline as a model: its rows equal the 1-NN columns), each against the 1-NN retrieval
+MODEL_RECIPES = ("imm-steer", "imm-diffusion", "retrieval")
 ABLATION_RECIPES = ("imm-no-d", "imm-no-bone", "imm-no-continuity", "imm-no-fc", "imm-no-label")
 SBU_SUBJECTS = ("s01", "s02", "s03", "s04", "s05", "s06", "s07")
 

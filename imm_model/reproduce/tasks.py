@@ -37,26 +37,13 @@ def train_run(job: TrainJob, runs: Path, data_path: Path, key: str, threads: int
     """Train (or resume) one run to the end, refit included -> what done.json records."""
     import torch
 
-    from imm_model.training.diffusion import DiffusionTrainer
-    from imm_model.training.refit import refit
-    from imm_model.training.trainer import Trainer
-
     torch.set_num_threads(threads)
     t0 = time.perf_counter()
     data, subject = training_data(data_path, job.split)
     stamp_job(job, runs, key)
     with FolderLock(job.run_dir(runs), "run"):  # e.g. a trainer of a killed reproduce that is still running
-        trainer = (DiffusionTrainer if job.diffusion else Trainer)(job.config(), data, subject, job.run_dir(runs))
-        if (trainer.out / "last.safetensors").exists():
-            trainer.resume()
-        if job.diffusion:
-            trainer.fit(progress=False)
-            info = {"key": key, "steps": trainer.cfg.steps}
-        else:
-            state = trainer.fit(progress=False)
-            if trainer.cfg.refit:
-                refit(trainer, progress=False)
-            info = {"key": key, "best_epoch": state.best_epoch, "epochs": state.epoch}
+        done = job.family.train(job.config(), data, subject, job.run_dir(runs), resume=True, progress=False)
+        info = {"key": key} | {k: v for k, v in done.items() if k != "line"}
         info["seconds"] = round(time.perf_counter() - t0, 1)
         mark_done(job, runs, info)
     return info

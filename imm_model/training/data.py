@@ -120,3 +120,9 @@ def data_meta(data: InteractionDataset, subject: str | None, train_idx: np.ndarr
         "held_out_subject": subject,
         "max_train_length": int(data.lengths[train_idx].max()),
     }
+
+
+def derive_seed(*parts: int) -> int:
+    """One seed from several (a run's seed, a step, ...): every trainer's random stream at a step, so that a resumed run
+    draws what an uninterrupted one would."""
+    return int(np.random.SeedSequence([int(p) for p in parts]).generate_state(1)[0])

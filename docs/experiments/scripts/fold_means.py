@@ -54,7 +54,7 @@ def read_rows(paths: list[Path]) -> list[dict]:
 
 
 def runs_of(paths: list[Path], patterns: list[str], where: dict[str, float]) -> dict[str, dict[str, dict]]:
-    from imm_model.model.diffusion_sampler import Guidance
+    from imm_model.families.diffusion.sampler import Guidance
 
     defaults = Guidance().to_dict()  # rows from before a guidance field existed sampled with its default
     by_fold: dict[str, dict[str, dict]] = {}

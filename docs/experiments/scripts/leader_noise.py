@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 import imm_model.inference as inference
-from imm_model.model import diffusion_sampler as ds
+from imm_model.families.diffusion import sampler as ds
 
 sys.path.insert(0, str(Path(__file__).parent))
 import diffusion_fold  # noqa: E402

@@ -29,7 +29,7 @@ def main() -> None:
     from imm_model.data.dataset import InteractionDataset
     from imm_model.data.splits import loso_fold
     from imm_model.evaluation.loso import EvalOptions, FoldJudges, label_control
-    from imm_model.model.reaction_memory import ReactionMemory
+    from imm_model.families.diffusion.reaction_memory import ReactionMemory
     from imm_model.paths import SAMPLE_DATA
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

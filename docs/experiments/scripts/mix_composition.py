@@ -2,7 +2,7 @@
 +1/+1 mix table by the whole-body and body-part judges, single-label adherence and avoid by the whole-body judge, and
 two realism figures of the mixed reactions, one JSON line per composition x sampler seed (docs/experiments/mix-composition.md).
 
-"sum" is the library's sampler (imm_model.model.diffusion_sampler.sample). "parts" and "relative" live in this script
+"sum" is the library's sampler (imm_model.families.diffusion.sampler.sample). "parts" and "relative" live in this script
 only: `routed_sample` is the library's DDIM loop with the sum of the class terms replaced by `compose_parts` (the
 routing of the record's Design section). Before measuring, `self_check` asserts on a tiny synthetic batch that the
 routed sampler with one positive class, or with p = 0, gives the library's sum rule.
@@ -110,9 +110,9 @@ def compose_parts(base: np.ndarray, class_terms: np.ndarray, weights: np.ndarray
 
 def routed_sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, noise: np.ndarray, guidance,
                   diffusion_steps: int, routing: BodyRouting, power: float, relative: bool = False) -> np.ndarray:
-    """imm_model.model.diffusion_sampler.sample (same arguments and terms) with the classes composed by
+    """imm_model.families.diffusion.sampler.sample (same arguments and terms) with the classes composed by
     compose_parts instead of the sum rule."""
-    from imm_model.model.diffusion_sampler import cosine_alpha_bar
+    from imm_model.families.diffusion.sampler import cosine_alpha_bar
 
     b, t, d = noise.shape
     c = labels.shape[1]
@@ -153,7 +153,7 @@ def routed_sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.nda
 def routed_network(model, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int], power: float,
                    relative: bool = False) -> list[np.ndarray]:
     """DiffusionReactionModel._network with routed_sample in place of the library's sampler."""
-    from imm_model.model.diffusion_sampler import initial_noise
+    from imm_model.families.diffusion.sampler import initial_noise
 
     routing = BodyRouting.of(model.skeleton, model.weights["follower_std"])
     d = model.config.pose_dim
@@ -172,7 +172,7 @@ def routed_network(model, leaders: list[np.ndarray], labels: np.ndarray, seeds: 
 def self_check() -> None:
     """On a tiny synthetic batch and a random linear stand-in for the network: the routed sampler gives the library's
     sum rule with one positive class per row and with p = 0, and differs from it with two classes and p = 8."""
-    from imm_model.model.diffusion_sampler import Guidance, sample
+    from imm_model.families.diffusion.sampler import Guidance, sample
     from imm_model.skeleton import KINECT15
 
     rng = np.random.default_rng(0)

@@ -21,7 +21,7 @@ import numpy as np
 
 def imputed_network(model, gan, mode: str):
     """model._network with the placement taken from `gan` at every sampler step (see the module's docstring)."""
-    from imm_model.model.diffusion_sampler import initial_noise, sample
+    from imm_model.families.diffusion.sampler import initial_noise, sample
 
     skeleton = model.skeleton
     body, up = list(skeleton.root_neighbours), skeleton.vertical_axis

@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from imm_model.model.diffusion_sampler import DiffusionConfig
+from imm_model.families.diffusion.sampler import DiffusionConfig
 
 
 def sinusoid(positions: np.ndarray, width: int) -> np.ndarray:

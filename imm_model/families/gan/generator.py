@@ -11,8 +11,8 @@ from __future__ import annotations
 import torch
 import torch.nn as nn
 
-from imm_model.model.config import ModelConfig
-from imm_model.model.layers import AdditiveAttention, AttentiveDecoder, BiLSTM, Dropout, reverse_index
+from imm_model.families.gan.config import ModelConfig
+from imm_model.families.gan.layers import AdditiveAttention, AttentiveDecoder, BiLSTM, Dropout, reverse_index
 
 
 class Generator(nn.Module):

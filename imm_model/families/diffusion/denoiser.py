@@ -10,7 +10,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from imm_model.model.diffusion_sampler import DiffusionConfig
+from imm_model.families.diffusion.sampler import DiffusionConfig
 
 
 def sinusoid(positions: torch.Tensor, width: int) -> torch.Tensor:

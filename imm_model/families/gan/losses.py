@@ -35,8 +35,6 @@ def continuity_loss(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor
     return (diff * m).sum() / (m.sum().clamp(min=1) * pred.shape[-1])
 
 
-DISCRIMINATORS = ("multiclass", "binary+class")
-
 
 def discriminator_loss(real_logits: torch.Tensor, fake_logits: torch.Tensor, actions: torch.Tensor,
                        label_smoothing: float = 0.0, kind: str = "multiclass") -> torch.Tensor:

@@ -1,9 +1,10 @@
-"""Training recipes as a typed config, each field's accepted values declared beside it (imm_model/typed_config.py).
+"""The GAN family's recipes as a typed config, each field's accepted values declared beside it (imm_model/typed_config.py).
 
 Named recipes: `paper` (the paper's recipe), `imm` (the recipe that converges on SBU), `men` (a label-free
 baseline in the style of Men et al. 2022), `imm-critic`, `imm-control`, `imm-steer` (the bundled model's recipe)
 and `imm-move` (the label-steered recipes, each building on the one before), and the paper's ablations of `imm`
-(`imm-no-d`, `imm-no-bone`, `imm-no-continuity`, `imm-no-fc`, `imm-no-label`). A JSON file may override any field.
+(`imm-no-d`, `imm-no-bone`, `imm-no-continuity`, `imm-no-fc`, `imm-no-label`). A JSON file may override any field
+(families/__init__.py load_recipe).
 """
 
 from __future__ import annotations
@@ -13,8 +14,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from imm_model.model.config import ModelConfig
-from imm_model.training.losses import DISCRIMINATORS
+from imm_model.families.gan.config import ModelConfig
 from imm_model.typed_config import FieldsOf, Flag, Interval, ListOf, Name, OneOf, checked_kwargs, param, validate
 
 NON_NEGATIVE = Interval(float, 0, None)
@@ -23,11 +23,14 @@ PROBABILITY = Interval(float, 0, 1)
 FRACTION_BELOW_1 = Interval(float, 0, 1, closed="left")
 EPOCHS = Interval(int, 0, 100_000)
 CLASS_NAMES = ListOf(Name())
+# the discriminator's heads: N classes + fake (the paper), or a real/fake head beside a class head (Men et al.)
+DISCRIMINATORS = ("multiclass", "binary+class")
 
 
 @dataclass(frozen=True)
 class TrainConfig:
-    name: str = param("imm", Name())  # the recipe's name (run and cache directories are named after it)
+    # the recipe's name (run and cache directories are named after it); a config built without one is no named recipe
+    name: str = param("custom", Name())
     model: dict[str, Any] = param(check=FieldsOf(ModelConfig), factory=dict)  # ModelConfig sizes (joints, classes: from the data)
     optimizer: str = param("adam", OneOf(("adam", "rmsprop")))  # for both networks
     lr_g: float = param(1e-3, POSITIVE)  # the generator's learning rate
@@ -112,13 +115,13 @@ def without_retired(d: Any) -> Any:
 
 
 def same_recipe(saved: Any, current: dict) -> bool:
-    """Whether a run saved with config dict `saved` continues under config dict `current`: more epochs (or a diffusion
-    recipe's steps) is fine, and so are retired options at their off values."""
+    """Whether a run saved with config dict `saved` continues under config dict `current`: more epochs is fine, and so
+    are retired options at their off values."""
     try:
         saved = without_retired(saved)
     except ValueError:
         return False
-    same = lambda d: {k: v for k, v in d.items() if k not in ("epochs", "steps")}  # noqa: E731
+    same = lambda d: {k: v for k, v in d.items() if k != "epochs"}  # noqa: E731
     return isinstance(saved, dict) and same(saved) == same(current)
 
 
@@ -211,30 +214,3 @@ ABLATIONS: dict[str, TrainConfig] = {
 NAMED: dict[str, TrainConfig] = {"paper": PAPER, "imm": IMM, "men": MEN, "imm-critic": IMM_CRITIC,
                                  "imm-control": IMM_CONTROL, "imm-steer": IMM_STEER, "imm-move": IMM_MOVE,
                                  **ABLATIONS}
-
-
-def load_config(name_or_path: str, **overrides: Any) -> TrainConfig:
-    """A named config or a JSON file (a full config, or {"base": "imm", ...overrides})."""
-    if name_or_path in NAMED:
-        cfg = NAMED[name_or_path]
-    else:
-        path = Path(name_or_path)
-        if not path.is_file():
-            raise ValueError(f"unknown config {name_or_path!r}: not one of {sorted(NAMED)} nor a JSON file")
-        try:
-            d = json.loads(path.read_text())
-        except (json.JSONDecodeError, RecursionError) as err:
-            where = f"{err.msg} at line {err.lineno}" if isinstance(err, json.JSONDecodeError) else "nested too deeply"
-            raise ValueError(f"{path}: invalid JSON ({where})") from None
-        if not isinstance(d, dict):
-            raise ValueError(f"{path}: a config is a JSON object ({{\"base\": \"imm\", ...overrides}}), not {type(d).__name__}")
-        base = NAMED.get(d.pop("base", "imm"))
-        if base is None:
-            raise ValueError(f"{path}: unknown base config (one of {sorted(NAMED)})")
-        if not isinstance(d.get("model", {}), dict):
-            raise ValueError(f"{path}: model must be a JSON object of model sizes, not {d['model']!r}")
-        merged = base.to_dict() | d
-        merged["model"] = base.model | d.get("model", {})  # model sizes merge key by key
-        merged.setdefault("name", path.stem)
-        cfg = TrainConfig.from_dict(merged)
-    return replace(cfg, **{k: v for k, v in overrides.items() if v is not None})

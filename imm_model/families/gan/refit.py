@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from imm_model.checkpoint import save_checkpoint
-from imm_model.training.schedule import lr_scale
-from imm_model.training.trainer import FoldState, Trainer, check_finite
+from imm_model.families.gan.schedule import lr_scale
+from imm_model.families.gan.trainer import FoldState, Trainer, check_finite
 
 
 def refit(selection: Trainer, progress: bool = True) -> Path:

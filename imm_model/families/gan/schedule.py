@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 
-from imm_model.training.config import TrainConfig
+from imm_model.families.gan.recipes import TrainConfig
 
 
 def adversarial_weight(cfg: TrainConfig, epoch: int, weight: float | None = None) -> float:

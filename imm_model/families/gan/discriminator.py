@@ -9,8 +9,8 @@ from __future__ import annotations
 import torch
 import torch.nn as nn
 
-from imm_model.model.config import ModelConfig
-from imm_model.model.layers import BiLSTM, reverse_index
+from imm_model.families.gan.config import ModelConfig
+from imm_model.families.gan.layers import BiLSTM, reverse_index
 
 
 class Discriminator(nn.Module):

@@ -1,4 +1,4 @@
-"""Training the reaction diffusion model (model/diffusion.py) on one fold: x0-prediction with the label and the
+"""Training the reaction diffusion model (denoiser.py) on one fold: x0-prediction with the label and the
 leader dropped independently, the GAN's augmentation, an exponential moving average shipped at the end.
 
 Run directory (one per fold): log.csv, last.safetensors/.json (full state for --resume, every
@@ -11,9 +11,7 @@ from __future__ import annotations
 import copy
 import csv
 import time
-from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any, ClassVar
 
 import numpy as np
 import torch
@@ -25,101 +23,13 @@ from imm_model.data.dataset import InteractionDataset
 from imm_model.data.sequence import MAX_COORDINATE_M
 from imm_model.data.splits import loso_fold
 from imm_model.errors import CheckpointError, TrainingError
-from imm_model.model.diffusion import ReactionDenoiser, q_sample
-from imm_model.model.diffusion_sampler import DiffusionConfig, Guidance, cosine_alpha_bar
-from imm_model.training.data import Augmenter, PaddedData, data_meta
+from imm_model.families.diffusion.denoiser import ReactionDenoiser, q_sample
+from imm_model.families.diffusion.recipes import FAMILY, DiffusionTrainConfig
+from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, cosine_alpha_bar
+from imm_model.training.data import Augmenter, PaddedData, data_meta, derive_seed
 from imm_model.training.geometry import GeometricTerms
 from imm_model.training.part_mix import mixed_rows, upper_shares
-from imm_model.training.trainer import derive_seed
-from imm_model.typed_config import FieldsOf, Interval, ListOf, Name, OneOf, checked_kwargs, param, validate
-
-FAMILY = "diffusion"
 LOG_FIELDS = ("step", "loss", "x0", "velocity", "foot_contact", "torso", "lr", "seconds")
-
-
-FRACTION = Interval(float, 0, 1)
-BELOW_1 = Interval(float, 0, 1, closed="left")
-
-
-@dataclass(frozen=True)
-class DiffusionTrainConfig:
-    name: str = param("imm-diffusion", Name())  # the recipe's name (run folders and reports carry it)
-    family: str = param(FAMILY, OneOf((FAMILY,)))  # tells `imm train` which trainer runs the recipe
-    # DiffusionConfig sizes (joints and classes come from the data)
-    model: dict[str, Any] = param(check=FieldsOf(DiffusionConfig), factory=dict)
-    guidance: dict[str, Any] = param(check=FieldsOf(Guidance), factory=dict)  # the sampler's defaults shipped with the model
-    steps: int = param(6000, Interval(int, 1, 10_000_000))  # optimizer steps
-    batch_size: int = param(32, Interval(int, 1, 4096))  # sequences per step
-    # peak AdamW learning rate, after a linear warm-up, decayed by a cosine to a tenth
-    lr: float = param(5e-4, Interval(float, 0, 1, closed="right"))
-    warmup_steps: int = param(200, Interval(int, 0, None))  # steps of the linear warm-up
-    weight_decay: float = param(1e-4, Interval(float, 0, None))  # AdamW weight decay
-    label_drop: float = param(0.15, BELOW_1)  # probability a training row sees the "absent" label (the label-free term)
-    leader_drop: float = param(0.25, BELOW_1)  # probability a training row sees the "absent" leader (the unconditioned term)
-    # probability a training row sees its leader through the forward process's noise at a uniform step, told the step
-    # (model.leader_noise): what the sampler's Guidance.leader_noise draws variations from
-    leader_noise_prob: float = param(0.0, FRACTION)
-    # probability a training row becomes a two-class composite by body parts, labelled with both classes
-    # (training/part_mix.py; model.pair_terms): what the sampler's pair terms read
-    mix_prob: float = param(0.0, FRACTION)
-    lambda_velocity: float = param(1.0, Interval(float, 0, None))  # weight of the frame-to-frame velocity error beside x0's
-    # weights of the geometric terms on the x0 prediction in metres (training/geometry.py): a planted foot's drag (per
-    # m^2) and the torso direction's error
-    lambda_foot_contact: float = param(0.0, Interval(float, 0, None))
-    lambda_torso: float = param(0.0, Interval(float, 0, None))
-    ema_decay: float = param(0.999, BELOW_1)  # the shipped model is this exponential moving average of the weights
-    mirror_prob: float = param(0.5, FRACTION)  # swap left/right joints and flip the lateral axis
-    # SBU's handshakes are all right-handed: never mirrored
-    mirror_exclude_classes: tuple[str, ...] = param(("shaking_hands",), ListOf(Name(), unique=True))
-    rotate_deg: float = param(0.0, Interval(float, 0, 180))  # uniform yaw of both characters in [-rotate_deg, rotate_deg]
-    scale_jitter: float = param(0.0, BELOW_1)  # scale both characters about A's root by U(1 - s, 1 + s)
-    time_warp: float = param(0.0, BELOW_1)  # resample each sequence to length * U(1 - w, 1 + w)
-    role_swap_prob: float = param(0.0, FRACTION)  # B becomes the leader (re-canonicalized), for role_swap_classes only
-    role_swap_classes: tuple[str, ...] = param((), ListOf(Name(), unique=True))  # the classes whose roles may swap
-    checkpoint_every: int = param(1000, Interval(int, 1, None))  # steps between resumable checkpoints
-    seed: int = param(0, Interval(int, 0, 2**31 - 1))  # initial weights, batches, noise and augmentation
-
-    RULES: ClassVar = (("leader_noise_prob", lambda c: c.leader_noise_prob == 0 or c.model.get("leader_noise") is True,
-                        "0 unless model.leader_noise is true"),
-             ("mix_prob", lambda c: c.mix_prob == 0 or c.model.get("pair_terms") is True, "0 unless model.pair_terms is true"))
-
-    def __post_init__(self) -> None:
-        validate(self, "training config")
-
-    def to_dict(self) -> dict:
-        d = asdict(self)
-        d["mirror_exclude_classes"] = list(self.mirror_exclude_classes)
-        d["role_swap_classes"] = list(self.role_swap_classes)
-        return d
-
-    @classmethod
-    def from_dict(cls, d: dict) -> DiffusionTrainConfig:
-        d = checked_kwargs(cls, d, "training config")
-        for key in ("mirror_exclude_classes", "role_swap_classes"):
-            if key in d:
-                d[key] = tuple(d[key])
-        return cls(**d)
-
-
-# The reaction diffusion model as shipped: 128 wide, 4 blocks, one frame a token, 6000 steps of batch 32, a planted
-# foot's drag and the torso's direction weighed beside the x0 error, half the leaders noised at a random level that the
-# network is told; guidance 3 on each class term over the last 30 % of the noise levels, 7 DDIM steps, the leader read
-# through noise at 0.3 of the schedule (the spread) but at the last step (docs/experiments/reaction-diffusion.md,
-# diffusion-geometric-terms.md and diffusion-leader-noise.md have the variants measured).
-IMM_DIFFUSION = DiffusionTrainConfig(
-    model=dict(width=128, layers=4, heads=4, ff_mult=2, dropout=0.1, leader_noise=True),
-    guidance=dict(label_scale=3.0, leader_scale=1.0, sample_steps=7, guided_below=0.3, leader_noise=0.3),
-    lambda_foot_contact=20.0,
-    lambda_torso=1.0,
-    leader_noise_prob=0.5,
-)
-
-# The same with a share of its training rows made two-class composites by body parts, and the sampler's pair terms
-# that read them: mixes read as mixed more often, at a cost in limb speed (docs/experiments/part-mix-training.md).
-IMM_DIFFUSION_MIXED = replace(IMM_DIFFUSION, name="imm-diffusion-mixed", model=IMM_DIFFUSION.model | {"pair_terms": True},
-                              mix_prob=0.3)
-
-NAMED: dict[str, DiffusionTrainConfig] = {"imm-diffusion": IMM_DIFFUSION, "imm-diffusion-mixed": IMM_DIFFUSION_MIXED}
 
 
 class DiffusionTrainer:
@@ -290,42 +200,12 @@ class DiffusionTrainer:
         self.step = int(meta["training"]["step"])
 
 
-def _read_recipe_file(path: Path) -> dict | None:
-    import json
-
-    try:
-        d = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError):
-        return None  # the GAN's config loader reports what is wrong with the file
-    return d if isinstance(d, dict) else None
-
-
-def diffusion_recipe(name_or_path: str) -> bool:
-    """Whether `imm train --config` names a diffusion recipe (a name here, or a JSON file whose base is one)."""
-    if name_or_path in NAMED:
-        return True
-    path = Path(name_or_path)
-    d = _read_recipe_file(path) if path.suffix == ".json" and path.is_file() else None
-    return bool(d) and (d.get("base") in NAMED or d.get("family") == FAMILY)
-
-
-def load_config(name_or_path: str, **overrides: Any) -> DiffusionTrainConfig:
-    """A named diffusion recipe or a JSON file {"base": "imm-diffusion", ...overrides}."""
-    if name_or_path in NAMED:
-        cfg = NAMED[name_or_path]
-    else:
-        d = _read_recipe_file(Path(name_or_path))
-        if d is None:
-            raise ValueError(f"{name_or_path}: not a readable JSON object")
-        base = NAMED.get(d.pop("base", "imm-diffusion"))
-        if base is None:
-            raise ValueError(f"{name_or_path}: unknown base config (one of {sorted(NAMED)})")
-        for key in ("model", "guidance"):
-            if not isinstance(d.get(key, {}), dict):
-                raise ValueError(f"{name_or_path}: {key} must be a JSON object")
-        merged = base.to_dict() | d
-        merged["model"] = base.model | d.get("model", {})
-        merged["guidance"] = base.guidance | d.get("guidance", {})
-        merged.setdefault("name", Path(name_or_path).stem)
-        cfg = DiffusionTrainConfig.from_dict(merged)
-    return replace(cfg, **{k: v for k, v in overrides.items() if v is not None})
+def train(cfg: DiffusionTrainConfig, data: InteractionDataset, subject: str | None, out_dir: Path, device="cpu",
+          resume: bool = False, progress: bool = True) -> dict:
+    """One fold's run to the end (continued from last.safetensors with `resume`) -> what it did: a line to print and
+    the figures a run record keeps."""
+    trainer = DiffusionTrainer(cfg, data, subject, out_dir, device)
+    if resume and (trainer.out / "last.safetensors").exists():
+        trainer.resume()
+    final = trainer.fit(progress=progress)
+    return {"line": f"{cfg.steps} steps -> {final}", "steps": cfg.steps}

@@ -10,14 +10,14 @@ from imm_model.device import add_device_argument
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("train", help="train the reaction model (one LOSO fold, all folds, or all data)")
-    p.add_argument("--config", default="imm",
-                   help="named recipe (imm, imm-steer, imm-move, imm-control, imm-critic, men, paper, imm-diffusion, imm-diffusion-mixed) "
-                        "or a JSON file of overrides")
+    from imm_model.families import recipe_names
+
+    p.add_argument("--config", default="imm", help=f"named recipe ({', '.join(recipe_names())}) or a JSON file of overrides")
     p.add_argument("--fold", default="s04", help="held-out subject sXX, 'all' (the 7 LOSO folds) or 'none' (all data)")
     p.add_argument("--out", type=Path, required=True, help="run directory (fold-sXX/ subfolders are created in it)")
     p.add_argument("--data", type=Path, default=None, help="dataset bundle (default: the bundled SBU sample)")
-    p.add_argument("--epochs", type=int, default=None, help="override the recipe's number of epochs (GAN recipes)")
-    p.add_argument("--steps", type=int, default=None, help="override the recipe's number of optimizer steps (diffusion recipes)")
+    p.add_argument("--epochs", type=int, default=None, help="override the recipe's number of epochs (the GAN's recipes)")
+    p.add_argument("--steps", type=int, default=None, help="override the recipe's number of optimizer steps (the diffusion model's)")
     p.add_argument("--seed", type=int, default=None, help="override the recipe's seed")
     p.add_argument("--resume", action="store_true", help="continue from each fold's last.safetensors")
     p.add_argument("--overwrite", action="store_true", help="replace the runs already in --out (default: refuse)")
@@ -40,30 +40,25 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from imm_model.data.dataset import InteractionDataset
     from imm_model.data.splits import all_subjects, normalize_fold
     from imm_model.device import resolve_device
+    from imm_model.families import load_recipe
     from imm_model.outputs import FolderLock
     from imm_model.paths import SAMPLE_DATA
-    from imm_model.training.config import load_config
-    from imm_model.training.diffusion import diffusion_recipe
-    from imm_model.training.diffusion import load_config as load_diffusion_config
 
-    if args.threads < 1:
-        raise ValueError(f"--threads must be >= 1, not {args.threads}")
-    if args.epochs is not None and args.epochs < 1:
-        raise ValueError(f"--epochs must be >= 1, not {args.epochs}")
+    for option in ("threads", "epochs", "steps"):
+        value = getattr(args, option)
+        if value is not None and value < 1:
+            raise ValueError(f"--{option} must be >= 1, not {value}")
     if args.resume and args.overwrite:
         raise ValueError("--resume and --overwrite contradict each other: choose one")
     torch.set_num_threads(args.threads)
     device = resolve_device(args.device)
-    diffusion = diffusion_recipe(args.config)
-    if (args.steps if not diffusion else args.epochs) is not None:
-        raise ValueError(f"--{'epochs' if diffusion else 'steps'} does not apply to {args.config!r}: "
-                         f"use --{'steps' if diffusion else 'epochs'}")
-    if args.steps is not None and args.steps < 1:
-        raise ValueError(f"--steps must be >= 1, not {args.steps}")
-    if diffusion:
-        cfg = load_diffusion_config(args.config, steps=args.steps, seed=args.seed)
-    else:
-        cfg = load_config(args.config, epochs=args.epochs, seed=args.seed)
+    family, cfg = load_recipe(args.config, seed=args.seed)
+    for option in ("epochs", "steps"):  # each family's length is one of these, or it trains no length at all
+        if getattr(args, option) is not None:
+            if family.length_option != option:
+                instead = f": use --{family.length_option}" if family.length_option else ""
+                raise ValueError(f"--{option} does not apply to {args.config!r} ({family.title}){instead}")
+            _, cfg = load_recipe(args.config, seed=args.seed, **{option: getattr(args, option)})
     data = InteractionDataset.load(args.data or SAMPLE_DATA)
     subjects = all_subjects(data.subject_pairs)
     args.fold = normalize_fold(args.fold)
@@ -79,21 +74,18 @@ def _cmd_train(args: argparse.Namespace) -> int:
         config_file = [Path(args.config)] if Path(args.config).is_file() else []
         reads = [args.data or SAMPLE_DATA, *config_file, *(fold_dir(args.out, s) / f for s in folds for f in RUN_OWNS)]
         check_export_path(args.export, len(folds), args.overwrite, reads)
-    check_run_dirs(args.out, folds, cfg.to_dict(), args.resume, args.overwrite)
+    check_run_dirs(args.out, folds, cfg, args.resume, args.overwrite)
     with contextlib.ExitStack() as locks:  # a trainer already at work in a fold is not cleared or joined
         for subject in folds:
             locks.enter_context(FolderLock(fold_dir(args.out, subject), "--out", "imm train"))
-        return _train_folds(args, cfg, data, folds, diffusion, device)
+        return _train_folds(args, family, cfg, data, folds, device)
 
 
-def _train_folds(args: argparse.Namespace, cfg, data, folds: list, diffusion: bool, device) -> int:
+def _train_folds(args: argparse.Namespace, family, cfg, data, folds: list, device) -> int:
     import json
 
     from imm_model.checkpoint import export_generator, final_checkpoint
     from imm_model.outputs import write_atomic
-    from imm_model.training.diffusion import DiffusionTrainer
-    from imm_model.training.refit import refit
-    from imm_model.training.trainer import Trainer
 
     if args.overwrite:  # so that no model of the replaced run is shipped, exported or evaluated as this one's
         for subject in folds:
@@ -101,20 +93,11 @@ def _train_folds(args: argparse.Namespace, cfg, data, folds: list, diffusion: bo
     args.out.mkdir(parents=True, exist_ok=True)  # written only once every check has passed
     write_atomic(args.out / "config.json", json.dumps(cfg.to_dict(), indent=1) + "\n")
     for subject in folds:
-        trainer = (DiffusionTrainer if diffusion else Trainer)(cfg, data, subject, fold_dir(args.out, subject), device)
-        if args.resume and (trainer.out / "last.safetensors").exists():
-            trainer.resume()
-        if diffusion:
-            print(f"fold {subject or 'none'}: {cfg.steps} steps -> {trainer.fit(progress=not args.quiet)}")
-        else:
-            state = trainer.fit(progress=not args.quiet)
-            print(f"fold {subject or 'none'}: best validation AFD {state.best_val:.4f} m at epoch {state.best_epoch} "
-                  f"({state.epoch} epochs) -> {trainer.out / 'best.safetensors'}")
-        if not diffusion and cfg.refit:
-            path = refit(trainer, progress=not args.quiet)
-            print(f"fold {subject or 'none'}: refit on training + validation for {state.best_epoch + 1} epochs -> {path}")
+        out = fold_dir(args.out, subject)
+        done = family.train(cfg, data, subject, out, device, resume=args.resume, progress=not args.quiet)
+        print(f"fold {subject or 'none'}: {done['line']}")
         if args.export:
-            export_generator(final_checkpoint(trainer.out), args.export)
+            export_generator(final_checkpoint(out), args.export)
             print(f"exported generator to {args.export}")
     return 0
 
@@ -129,9 +112,11 @@ def clear_run(fold: Path) -> None:
         (fold / name).unlink(missing_ok=True)
 
 
-def check_run_dirs(out: Path, folds: list, config: dict, resume: bool, overwrite: bool) -> None:
+def check_run_dirs(out: Path, folds: list, config, resume: bool, overwrite: bool) -> None:
     """Refuse, before anything is written, to replace finished work or to resume what cannot be resumed."""
     import json
+
+    from imm_model.families import same_recipe
 
     saved = out / "config.json"
     if resume and saved.is_file():
@@ -139,9 +124,7 @@ def check_run_dirs(out: Path, folds: list, config: dict, resume: bool, overwrite
             before = json.loads(saved.read_text())
         except (OSError, json.JSONDecodeError) as err:
             raise ValueError(f"{saved}: unreadable ({err}); --overwrite starts the runs again") from None
-        from imm_model.training.config import same_recipe
-
-        if not same_recipe(before, config):
+        if not same_recipe(config, before):
             raise ValueError(f"--resume: {out} was trained with a different config; resume with the same --config/--seed")
     for subject in folds:
         fold = fold_dir(out, subject)
@@ -152,10 +135,9 @@ def check_run_dirs(out: Path, folds: list, config: dict, resume: bool, overwrite
             raise ValueError(f"--resume: {fold} has no last.safetensors to continue from; --overwrite starts it again")
         if resume and "last.safetensors" in present:  # a mismatched pair or recipe, before config.json is rewritten
             from imm_model.checkpoint import load_checkpoint
-            from imm_model.training.config import same_recipe
 
             _, meta = load_checkpoint(fold / "last.safetensors", framework="np")
-            if not same_recipe(meta.get("train_config") or {}, config):
+            if not same_recipe(config, meta.get("train_config") or {}):
                 raise ValueError(f"{fold / 'last.safetensors'}: saved with a different training config; resume with "
                                  f"the same --config/--seed")
 

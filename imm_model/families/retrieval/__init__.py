@@ -1,0 +1,34 @@
+"""Nearest-neighbour retrieval: a real training follower for each leader and label (the paper's NN baseline, as a
+model every learned family is compared with)."""
+
+from __future__ import annotations
+
+from imm_model.families.base import Family
+
+
+def _model_class():
+    from imm_model.families.retrieval.model import RetrievalReactionModel
+
+    return RetrievalReactionModel
+
+
+def _recipes():
+    from imm_model.families.retrieval.recipes import NAMED
+
+    return NAMED
+
+
+def _train(cfg, data, subject, out_dir, device="cpu", resume: bool = False, progress: bool = True) -> dict:
+    """Nothing to learn: the fold's checkpoint names the data it retrieves from and the subject it never sees."""
+    from pathlib import Path
+
+    from imm_model.families.retrieval.model import RetrievalReactionModel
+
+    final = Path(out_dir) / "final.safetensors"
+    final.parent.mkdir(parents=True, exist_ok=True)
+    RetrievalReactionModel.build(data, subject).save(final)
+    return {"line": f"retrieval from {len(data)} sequences{f' but {subject}' if subject else ''} -> {final}"}
+
+
+FAMILY = Family(name="retrieval", title="1-NN retrieval", model_class=_model_class, recipes=_recipes, train=_train,
+                default_recipe="retrieval", length_option=None)
