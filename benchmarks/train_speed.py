@@ -22,9 +22,9 @@ import torch
 
 from imm_model.data.dataset import InteractionDataset
 from imm_model.device import add_device_argument, resolve_device
-from imm_model.paths import SAMPLE_DATA
 from imm_model.families.gan.recipes import load_config
 from imm_model.families.gan.trainer import Trainer
+from imm_model.paths import SAMPLE_DATA
 
 
 def main() -> None:

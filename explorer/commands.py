@@ -9,6 +9,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from explorer.serving.worker import model_argument
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
@@ -17,11 +19,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Start IMM Studio (a local web app). Each browser tab gets its own studio process.",
     )
     p.add_argument("--data", type=Path, default=None, help="interaction bundle .npz (default: the bundled SBU sample)")
-    p.add_argument("--checkpoint", type=Path, default=None,
-                   help="model checkpoint .safetensors the studio opens with (default: the bundled GAN)")
-    p.add_argument("--diffusion-checkpoint", default=None,
-                   help="the diffusion model one switch away when --checkpoint is a GAN (default: the bundled one; "
-                        "'none' leaves the switch out)")
+    p.add_argument("--model", action="append", default=None, metavar="NAME=CHECKPOINT", type=model_argument,
+                   help="a model the studio offers, by name (repeat it for several; the first opens the studio and its "
+                        "latent map is the one shown). Default: the bundled ones, gan, diffusion and retrieval")
     p.add_argument("--port", type=int, default=None,
                    help="port to listen on; 0 picks a free one (printed). Default 8080 (with --desktop: a free one)")
     p.add_argument(
@@ -87,17 +87,18 @@ def run_explore(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 2
     from explorer.serving.launcher import LaunchConfig, LaunchError, launch
-    from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA, SAMPLE_DIFFUSION
+    from imm_model.paths import SAMPLE_DATA, SAMPLE_MODELS
 
     data = args.data or SAMPLE_DATA
-    checkpoint = args.checkpoint or SAMPLE_CHECKPOINT
+    models = args.model or [(name, path) for name, path in SAMPLE_MODELS.items() if path.is_file()]
     judge = None if args.judge in (None, "none") else Path(args.judge)
-    if args.diffusion_checkpoint == "none" or (args.diffusion_checkpoint is None and not SAMPLE_DIFFUSION.is_file()):
-        diffusion = None
-    else:
-        diffusion = Path(args.diffusion_checkpoint or SAMPLE_DIFFUSION)
-    for what, path in ((("data file", data), ("checkpoint", checkpoint)) + ((("judge", judge),) if judge else ())
-                       + ((("diffusion checkpoint", diffusion),) if diffusion else ())):
+    names = [name for name, _ in models]
+    if len(set(names)) != len(names):
+        twice = next(n for n in names if names.count(n) > 1)
+        print(f"imm explore: error: --model {twice}: given twice; give each model a name of its own", file=sys.stderr)
+        return 2
+    for what, path in ((("data file", data),) + tuple((f"--model {name}: checkpoint", path) for name, path in models)
+                       + ((("judge", judge),) if judge else ())):
         if not Path(path).is_file():
             print(f"imm explore: error: {what} not found: {path}", file=sys.stderr)
             return 2
@@ -120,8 +121,8 @@ def run_explore(args: argparse.Namespace) -> int:
         return 2
     config = LaunchConfig(
         token=token, no_auth=no_auth, base_url=base_url,
-        data=Path(data).resolve(), checkpoint=Path(checkpoint).resolve(), host=args.host, port=args.port,
-        diffusion_checkpoint=diffusion.resolve() if diffusion else None,
+        data=Path(data).resolve(), models=tuple((name, Path(path).resolve()) for name, path in models),
+        host=args.host, port=args.port,
         cache_dir=args.cache_dir.resolve() if args.cache_dir else None, export_dir=args.export_dir.resolve(),
         max_clients=args.max_clients, open_browser=not args.no_browser, sequence=args.sequence, render=args.render,
         judge=str(judge.resolve()) if judge else args.judge,

@@ -40,7 +40,10 @@ SAMPLE_DIR = _sample_dir()
 SAMPLE_DATA = SAMPLE_DIR / "sbu_interactions.npz"
 SAMPLE_CHECKPOINT = SAMPLE_DIR / "imm_sbu.safetensors"  # the paper's GAN (`imm-steer`): the studio's default model
 SAMPLE_DIFFUSION = SAMPLE_DIR / "imm_diffusion.safetensors"  # the reaction diffusion model (`imm-diffusion`)
+SAMPLE_RETRIEVAL = SAMPLE_DIR / "imm_retrieval.safetensors"  # 1-NN retrieval from the bundled data, s04 held out
 SAMPLE_JUDGE = SAMPLE_DIR / "follower_judge.safetensors"  # the studio's "reads as" classifier (imm_model/reads_as.py)
+# the bundled models by the names the studio gives them, in its switch's order (the first opens it)
+SAMPLE_MODELS = {"gan": SAMPLE_CHECKPOINT, "diffusion": SAMPLE_DIFFUSION, "retrieval": SAMPLE_RETRIEVAL}
 
 
 def shared_datasets() -> Path:

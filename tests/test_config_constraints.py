@@ -8,11 +8,11 @@ from typing import Any
 
 import pytest
 
-from imm_model.model.classifier_config import ClassifierConfig
-from imm_model.families.gan.config import ModelConfig
 from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance
-from imm_model.families.gan.recipes import NAMED, TrainConfig
 from imm_model.families.diffusion.trainer import DiffusionTrainConfig
+from imm_model.families.gan.config import ModelConfig
+from imm_model.families.gan.recipes import NAMED, TrainConfig
+from imm_model.model.classifier_config import ClassifierConfig
 from imm_model.typed_config import FieldsOf, Flag, Interval, ListOf, Name, OneOf, constraint_of
 
 CONFIGS = (TrainConfig, ModelConfig, ClassifierConfig, DiffusionTrainConfig, DiffusionConfig, Guidance)

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 import torch
 
+from imm_model.families.gan.trainer import Trainer
 from imm_model.inference import ReactionModel
 from imm_model.paths import SAMPLE_CHECKPOINT
-from imm_model.families.gan.trainer import Trainer
 from tests.test_training import TINY
 from tests.test_training_terms import quick_follower_classifier
 

@@ -14,12 +14,12 @@ import torch
 from imm_model.checkpoint import load_checkpoint
 from imm_model.cli import main
 from imm_model.errors import LabelError, TrainingError
-from imm_model.inference import DiffusionReactionModel, ReactionModel
 from imm_model.families.diffusion.denoiser import ReactionDenoiser, torch_denoiser
 from imm_model.families.diffusion.denoiser_numpy import NumpyDenoiser
 from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, cosine_alpha_bar, initial_noise, sample
-from imm_model.paths import SAMPLE_CHECKPOINT
 from imm_model.families.diffusion.trainer import IMM_DIFFUSION, DiffusionTrainConfig, DiffusionTrainer, diffusion_recipe
+from imm_model.inference import DiffusionReactionModel, ReactionModel
+from imm_model.paths import SAMPLE_CHECKPOINT
 
 TINY = replace(IMM_DIFFUSION, name="tiny-diffusion", model=dict(width=16, layers=1, heads=2, ff_mult=1, dropout=0.0),
                guidance=dict(label_scale=2.5, sample_steps=4), steps=12, batch_size=8, warmup_steps=2, checkpoint_every=6,

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 import torch
 
+from imm_model.families.gan import losses
 from imm_model.families.gan.config import model_config_for
 from imm_model.families.gan.discriminator import Discriminator
 from imm_model.families.gan.generator import Generator
 from imm_model.families.gan.layers import Dropout, gather_time, reverse_index
 from imm_model.skeleton import KINECT15
-from imm_model.families.gan import losses
 
 SMALL = dict(stream_embed=16, encoder_hidden=8, decoder_hidden=16, attention_dim=8, disc_hidden=8)
 
@@ -132,8 +132,8 @@ def test_discriminator_loss_targets():
 def test_numpy_generator_matches_torch(variant):
     """model/numpy_runtime.py: the same numbers as model.Generator for one unpadded sequence, and the state dict's
     shapes, for every generator variant it runs."""
-    from imm_model.families.gan.generator import Generator
     from imm_model.families.gan.config import ModelConfig
+    from imm_model.families.gan.generator import Generator
     from imm_model.families.gan.numpy_generator import NumpyGenerator
 
     cfg = ModelConfig(body_parts=((0, 1), (2, 3), (4, 5), (6, 7), (8, 9, 10, 11, 12, 13, 14)), stream_embed=8,
@@ -172,8 +172,8 @@ def test_numpy_conv_classifier_matches_torch():
 def test_paper_attention_query_is_the_previous_decoder_state():
     """attention_query="decoder" (paper Eq. 3): frame by frame, padding-exact, and a frame's output depends only
     on the leader through the attention, never on later decoder states (the forward direction is causal)."""
-    from imm_model.families.gan.generator import Generator
     from imm_model.families.gan.config import ModelConfig
+    from imm_model.families.gan.generator import Generator
 
     cfg = ModelConfig(body_parts=((0, 1), (2, 3), (4, 5), (6, 7), (8, 9, 10, 11, 12, 13, 14)), stream_embed=8,
                       encoder_hidden=4, decoder_hidden=6, attention_dim=5, attention_query="decoder")

@@ -10,8 +10,8 @@ import pytest
 
 from imm_model.data.splits import loso_fold
 from imm_model.errors import LabelError
-from imm_model.inference import ReactionModel
 from imm_model.families.diffusion.reaction_memory import NEIGHBOURS, RESAMPLED_FRAMES, ReactionMemory, resample
+from imm_model.inference import ReactionModel
 from tests.test_diffusion import leader, tiny_model  # noqa: F401 - fixtures
 
 

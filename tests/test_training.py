@@ -12,11 +12,11 @@ import torch
 from imm_model.checkpoint import export_generator, final_checkpoint, load_checkpoint, save_checkpoint
 from imm_model.cli import main
 from imm_model.errors import CheckpointError
-from imm_model.inference import ReactionModel
 from imm_model.families.gan.recipes import IMM, PAPER, TrainConfig, load_config
 from imm_model.families.gan.refit import refit
 from imm_model.families.gan.schedule import adversarial_weight, lr_scale
 from imm_model.families.gan.trainer import Trainer
+from imm_model.inference import ReactionModel
 
 TINY = replace(
     IMM,

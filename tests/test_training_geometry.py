@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import torch
 
-from imm_model.skeleton import KINECT15
 from imm_model.families.diffusion.trainer import DiffusionTrainer
+from imm_model.skeleton import KINECT15
 from imm_model.training.geometry import GeometricTerms
 from tests.test_diffusion import TINY
 

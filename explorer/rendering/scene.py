@@ -30,7 +30,7 @@ from explorer.rendering.palette import CHARACTER_TITLES, CHARACTERS, PINNED  # n
 from imm_model.skeleton import Skeleton  # noqa: E402
 
 CHARACTER_KEYS = ("leader", "ground_truth", "synthesized")
-VARIATION_KEYS = ("variation_1", "variation_2", "variation_3")  # a stochastic model's further followers, side by side
+VARIATION_KEYS = ("variation_1", "variation_2", "variation_3")  # a seeded model's further followers, side by side
 LAYOUTS = ("overlay", "side_by_side")
 CAMERA_PRESETS = ("default", "front", "side", "top")
 SIDE_SPACING = 1.5  # metres between figures in the side-by-side layout
@@ -131,7 +131,7 @@ class Scene:
         self._apply_layout()
 
     def set_variations(self, followers: list[np.ndarray], seeds: list[int] | None) -> None:
-        """A stochastic model's followers for seeds[0], seeds[1], ... (the first is the synthesized one): the others
+        """A seeded model's followers for seeds[0], seeds[1], ... (the first is the synthesized one): the others
         stand right of it in the side-by-side layout, each captioned with its seed. `seeds` None: a deterministic
         model (one follower, captioned as usual)."""
         title = CHARACTER_TITLES["synthesized"]

@@ -79,8 +79,7 @@ class Worker:
 @dataclass
 class LaunchConfig:
     data: Path
-    checkpoint: Path
-    diffusion_checkpoint: Path | None = None  # the diffusion model one switch away (None: no switch)
+    models: tuple[tuple[str, Path], ...]  # (name, checkpoint) in the switch's order: the first opens the studio
     host: str = "127.0.0.1"
     port: int = 0
     cache_dir: Path | None = None
@@ -151,12 +150,12 @@ class Launcher:
 
     async def _start_zygote(self) -> None:
         c = self.config
-        cmd = [sys.executable, "-m", "explorer.serving.zygote", "--data", str(c.data), "--checkpoint", str(c.checkpoint),
+        cmd = [sys.executable, "-m", "explorer.serving.zygote", "--data", str(c.data),
                "--host", "127.0.0.1", "--port", "0", "--export-dir", str(c.export_dir), "--render", c.render]  # fmt: skip
+        cmd += [arg for name, path in c.models for arg in ("--model", f"{name}={path}")]
         cmd += ["--cache-dir", str(c.cache_dir)] if c.cache_dir else []
         cmd += ["--sequence", c.sequence] if c.sequence else []
         cmd += ["--judge", c.judge] if c.judge else []
-        cmd += ["--diffusion-checkpoint", str(c.diffusion_checkpoint)] if c.diffusion_checkpoint else []
         env = {**os.environ, "OMP_NUM_THREADS": "1", "VTK_DEFAULT_OPENGL_WINDOW": "vtkEGLRenderWindow"}
         self.loaded = asyncio.get_running_loop().create_future()
         self.zygote = await asyncio.create_subprocess_exec(*cmd, stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE, env=env)

@@ -27,16 +27,17 @@ import numpy as np
 
 from imm_model.data.canonical import CanonicalFrame
 from imm_model.errors import DataFormatError, IMMError
+from imm_model.families.base import Leader
 
 TIME_BUDGET_S = 10.0
 MEMORY_BUDGET_BYTES = 500 * 1024 * 1024  # on top of what the process already maps
 _LENGTH = 8  # every message on the pipes: its length (uint64 little-endian), then its bytes
 
-Read = Callable[[str, bytes], tuple[np.ndarray, CanonicalFrame]]
+Read = Callable[[str, bytes], Leader]
 
 
 class UploadReader:
-    """`reader(name, content)` -> (canonical leader, its frame), as explorer/session/session.py `read_upload`, read in a child
+    """`reader(name, content)` -> the leader (families/base.py Leader), as explorer/session/session.py `read_upload`, read in a child
     process. Construct it while the process has a single thread (it forks its helper then)."""
 
     def __init__(self, read: Read):
@@ -63,7 +64,7 @@ class UploadReader:
         os.close(self._answers)
         os.waitpid(self._helper, 0)
 
-    def __call__(self, name: str, content: bytes) -> tuple[np.ndarray, CanonicalFrame]:
+    def __call__(self, name: str, content: bytes) -> Leader:
         with self._lock:
             try:
                 _send(self._jobs, json.dumps({"name": name}).encode())
@@ -76,7 +77,7 @@ class UploadReader:
             raise DataFormatError(answer[1:].decode(errors="replace"))
         with np.load(io.BytesIO(answer[1:]), allow_pickle=False) as npz:
             frame = CanonicalFrame(yaw=npz["yaw"], origin=npz["origin"], mode=str(npz["mode"]))
-            return npz["leader"], frame
+            return Leader(npz["world"], frame, npz["canonical"])
 
 
 def _serve(jobs: int, answers: int, read: Read) -> None:
@@ -98,7 +99,7 @@ def _read_in_child(name: str, content: bytes, read: Read, jobs: int) -> bytes:
         os.close(result_read)
         _limit_self()
         try:
-            _send(result_write, b"O" + _pack(*read(name, content)))
+            _send(result_write, b"O" + _pack(read(name, content)))
         except MemoryError:
             _send(result_write, f"E{name}: reading it needs more than the {MEMORY_BUDGET_BYTES >> 20} MB an upload may use".encode())
         except BaseException as err:
@@ -159,9 +160,10 @@ def _end(pid: int) -> None:
     os.waitpid(pid, 0)
 
 
-def _pack(leader: np.ndarray, frame: CanonicalFrame) -> bytes:
+def _pack(leader: Leader) -> bytes:
     buffer = io.BytesIO()
-    np.savez(buffer, leader=leader, yaw=frame.yaw, origin=frame.origin, mode=np.str_(frame.mode))
+    frame = leader.frame
+    np.savez(buffer, world=leader.world, canonical=leader.canonical, yaw=frame.yaw, origin=frame.origin, mode=np.str_(frame.mode))
     return buffer.getvalue()
 
 

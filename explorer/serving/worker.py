@@ -11,12 +11,14 @@ from __future__ import annotations
 import argparse
 import gc
 import os
+import re
 import sys
 import threading
 from pathlib import Path
 from typing import TextIO
 
 PREFIX = "IMM-WORKER"
+MODEL_NAME = re.compile(r"[A-Za-z0-9_-]{1,32}")  # what the switch and the view's link (model=) call a model
 
 
 class Channel:
@@ -39,8 +41,8 @@ def say_line(kind: str, *words: object) -> None:
 def parse_args(argv=None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="python -m explorer.serving.zygote")
     p.add_argument("--data", type=Path, required=True)
-    p.add_argument("--checkpoint", type=Path, required=True)
-    p.add_argument("--diffusion-checkpoint", type=Path, default=None, help="the diffusion model one switch away")
+    p.add_argument("--model", action="append", required=True, type=model_argument, metavar="NAME=CHECKPOINT",
+                   help="a model by name, in the switch's order (the first opens the studio)")
     p.add_argument("--cache-dir", type=Path, default=None)
     p.add_argument("--export-dir", type=Path, default=Path("imm-exports"))
     p.add_argument("--host", default="127.0.0.1")
@@ -51,36 +53,40 @@ def parse_args(argv=None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
+def model_argument(text: str) -> tuple[str, Path]:
+    """'NAME=CHECKPOINT' -> (name, path); a name is what the switch and the view's link call the model."""
+    name, sep, path = text.partition("=")
+    if not sep or not path or not MODEL_NAME.fullmatch(name):
+        raise argparse.ArgumentTypeError(f"{text[:80]!r}: expected NAME=CHECKPOINT, NAME of 1-32 letters, digits, '-' or '_'")
+    return name, Path(path)
+
+
 def load_everything(args: argparse.Namespace):
-    """Data, model (with the models one switch away) and latent embeddings; raises IMMError/OSError with one-line
-    messages."""
+    """Data, the models by name and the first one's latent embeddings; raises IMMError/OSError with one-line messages."""
     from explorer.session.latent import LatentMap, cache_key, default_cache_dir
-    from explorer.session.session import load_model
     from imm_model.data.dataset import InteractionDataset
 
     data = InteractionDataset.load(args.data)
-    model = load_model(args.checkpoint, data)
-    others = load_others(model, args.diffusion_checkpoint, data)
+    models = load_models(args.model, data)
     cache_dir = args.cache_dir or default_cache_dir()
+    first, checkpoint = next(iter(models.values())), args.model[0][1]
     # The studio fits a missing projection after the page opens (a cold cache's t-SNE costs ~3 s here)
-    latent = LatentMap.build(model, data, cache_dir, cache_key(args.checkpoint, args.data), methods=())
-    return data, model, latent, load_reader(args.judge), others
+    latent = LatentMap.build(first, data, cache_dir, cache_key(checkpoint, args.data), methods=())
+    return data, models, latent, load_reader(args.judge)
 
 
-def load_others(model, diffusion_checkpoint: Path | None, data) -> dict:
-    """{"diffusion": the diffusion model} beside a GAN (nothing beside a diffusion model: it is the one), loaded and
-    warmed by one synthesis here, in the zygote (~50 ms, paid once rather than at every tab's first switch; its 4 MB
-    of weights shared by the forked tabs)."""
+def load_models(named: list[tuple[str, Path]], data) -> dict:
+    """{name: model}, each loaded, checked against the data and warmed by one synthesis here, in the zygote (~50 ms
+    for the diffusion model, paid once rather than at every tab's first switch; the weights shared by the forked tabs)."""
     from explorer.session.session import load_model
-    from imm_model.errors import CheckpointError
 
-    if diffusion_checkpoint is None or model.family == "diffusion":
-        return {}
-    other = load_model(diffusion_checkpoint, data)
-    if other.family != "diffusion":
-        raise CheckpointError(f"--diffusion-checkpoint {diffusion_checkpoint}: a {other.family} model, not a diffusion one")
-    other.synthesize_canonical(data.canonical(0)[0], other.label_vector([0.0] * len(other.class_names)))
-    return {"diffusion": other}
+    models = {}
+    for name, path in named:
+        if name in models:
+            raise ValueError(f"--model {name}: given twice; give each model a name of its own")
+        model = models[name] = load_model(path, data)
+        model.synthesize_canonical(data.canonical(0)[0], model.label_vector([0.0] * len(model.class_names)))
+    return models
 
 
 def load_reader(path: Path | None):
@@ -106,9 +112,9 @@ def start_index(data, sequence: str | None) -> int:
     raise ValueError(f"--sequence {sequence!r}: no such sequence (an id such as {data.sequence_ids[0]}, or an index 0..{len(data) - 1})")
 
 
-def serve(data, model, latent, reader, others, args: argparse.Namespace, *, secret: str, say: Channel, uploads=None) -> int:
-    """Serve one tab (`others`: the models one switch away, by name); `uploads` reads its uploaded files out of this
-    process (explorer/serving/upload_reader.py)."""
+def serve(data, models, latent, reader, args: argparse.Namespace, *, secret: str, say: Channel, uploads=None) -> int:
+    """Serve one tab (`models` by name, the first opening it); `uploads` reads its uploaded files out of this process
+    (explorer/serving/upload_reader.py)."""
     from trame.app import get_server
 
     from explorer.serving.page_shell import use_page_shell
@@ -119,7 +125,7 @@ def serve(data, model, latent, reader, others, args: argparse.Namespace, *, secr
 
     server = get_server("imm-studio", client_type="vue3")
     set_secret(server, secret)  # wslink's default secret is public: every process gets its own
-    session = Session(data, model, args.start, reader, others)
+    session = Session(data, models, args.start, reader)
     session.upload_reader = uploads
     Studio(server, session, latent, export_dir=args.export_dir, render=args.render)
     shell = use_page_shell(server, args.cache_dir or default_cache_dir())  # the launcher serves its shared files

@@ -131,8 +131,8 @@ class ForkServer:
         from explorer.serving.upload_reader import UploadReader
         from explorer.session.session import read_upload
 
-        data, model = self.loaded[0], self.loaded[1]
-        return UploadReader(lambda name, content: read_upload(name, content, model, data.skeleton))
+        model = next(iter(self.loaded[1].values()))  # every model of the studio reads a leader alike (one skeleton, frame)
+        return UploadReader(lambda name, content: read_upload(name, content, model))
 
     def reap(self) -> None:
         while self.children:

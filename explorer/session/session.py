@@ -13,10 +13,10 @@ from typing import Any, Protocol
 import numpy as np
 
 from explorer.rendering.palette import display_name
-from imm_model.data.canonical import CanonicalFrame
 from imm_model.data.dataset import InteractionDataset
 from imm_model.errors import CheckpointError, DataFormatError, IMMError, LabelError
 from imm_model.evaluation.metrics import afd
+from imm_model.families.base import Leader
 from imm_model.inference import check_compatible, check_seeds
 
 FPS = 15.0  # SBU's frame rate
@@ -24,8 +24,6 @@ MAX_UPLOAD_BYTES = 20_000_000
 UPLOAD_SUFFIXES = (".bvh", ".npz", ".txt")
 MAX_VARIATIONS = 4  # followers drawn side by side at once (seeds seed .. seed + 3)
 NEW_SEEDS = 10_000  # "new variation" draws a seed below this: short enough to read, type and share in a link
-# How the page names each model family (a checkpoint's `family`)
-MODEL_TITLES = {"gan": "the paper's GAN", "diffusion": "the diffusion model"}
 
 
 def one_line(err: BaseException) -> str:
@@ -39,11 +37,11 @@ class Upload:
     """A leader file from the page: shown with the synthesized follower only (there is no ground truth)."""
 
     name: str
-    frame: CanonicalFrame
+    leader: Leader
 
 
-def read_upload(name: str, content: bytes, model: ReactionModelLike, skeleton) -> tuple[np.ndarray, CanonicalFrame]:
-    """An uploaded .bvh / .npz / SBU .txt -> (canonical leader (T, J, 3) float32, its canonical frame).
+def read_upload(name: str, content: bytes, model: ReactionModelLike) -> Leader:
+    """An uploaded .bvh / .npz / SBU .txt -> the leader, checked and standardized by the model (`prepare_leader`).
     Every problem is a one-line IMMError naming it (size, type, content, length)."""
     import tempfile
 
@@ -58,12 +56,9 @@ def read_upload(name: str, content: bytes, model: ReactionModelLike, skeleton) -
         path = Path(tmp) / f"upload{suffix}"
         path.write_bytes(content)
         try:
-            world = read_leader_file(path)
-            world = model.check_leader(world) if hasattr(model, "check_leader") else np.asarray(world, np.float64)
+            return model.prepare_leader(read_leader_file(path))
         except IMMError as err:
             raise DataFormatError(f"{name}: {str(err).replace(str(path), '').lstrip(': ')}") from None
-    frame = CanonicalFrame.from_leader(world, skeleton, getattr(model, "canonical_mode", "first_frame"))
-    return frame.to_canonical(world, skeleton).astype(np.float32), frame
 
 
 class ReactionModelLike(Protocol):
@@ -72,11 +67,13 @@ class ReactionModelLike(Protocol):
     class_names: Sequence[str]
     skeleton: Any
     raw: bool  # True: the network's own follower, without the clean-up (imm_model/cleanup.py)
-    family: str  # "gan" or "diffusion" (MODEL_TITLES)
-    stochastic: bool  # True: a seed picks one of many reactions; False: every seed gives the same one
+    title: str  # how people name the model's family ("the paper's GAN")
+    settings: tuple[str, ...]  # the sampler settings it takes: "seed" (a seed picks among reactions), "spread", "memory"
     spread: float | None  # how loosely its sampler follows the leader, 0..1, settable; None: the model has no such setting
 
     def label_vector(self, label: Any, scale: float = 1.0) -> np.ndarray: ...
+    def prepare_leader(self, leader_world: np.ndarray) -> Leader: ...
+    def provenance(self, seed: int) -> dict[str, Any]: ...
     def synthesize_canonical(self, leader: np.ndarray, label_vector: np.ndarray, seed: int = 0) -> np.ndarray: ...
     def synthesize_batch_canonical(self, leaders: list[np.ndarray], label_vectors: np.ndarray,
                                    seeds: Sequence[int] | None = None) -> list[np.ndarray]: ...
@@ -93,10 +90,6 @@ def load_model(checkpoint: Path, data: InteractionDataset) -> ReactionModelLike:
     model = ReactionModel.load(checkpoint)
     check_compatible(model, data, str(checkpoint))
     return model
-
-
-def model_title(name: str) -> str:
-    return MODEL_TITLES.get(name, name)
 
 
 def label_words(weights: Sequence[float], class_names: Sequence[str], scale: float = 1.0) -> str:
@@ -137,19 +130,22 @@ class ReaderLike(Protocol):
 
 
 class Session:
-    def __init__(self, data: InteractionDataset, model: ReactionModelLike, index: int = 0, reader: ReaderLike | None = None,
-                 others: Mapping[str, ReactionModelLike] | None = None) -> None:
-        """`model` opens the session (and is the one the latent map is of); `others`, by name, are one switch away."""
-        self.models: dict[str, ReactionModelLike] = {model.family: model, **(others or {})}
+    def __init__(self, data: InteractionDataset, models: Mapping[str, ReactionModelLike], index: int = 0,
+                 reader: ReaderLike | None = None) -> None:
+        """`models` by name, in the switch's order: the first opens the session (and is the one the latent map is of),
+        the others are one switch away."""
+        if not models:
+            raise ValueError("a session needs at least one model")
+        self.models: dict[str, ReactionModelLike] = dict(models)
         for name, m in self.models.items():
             check_compatible(m, data, f"model {name!r}")
         if reader is not None and tuple(reader.class_names) != tuple(data.class_names):
             raise CheckpointError(f"the 'reads as' classifier's classes {list(reader.class_names)} differ from the data's")
         self.data = data
-        self.model = model
-        self.model_name = model.family
-        self.map_model = model  # the latent map's embeddings and AFDs are this model's (explorer/session/latent.py)
-        self.seed = 0  # the sampler's seed: which variation a stochastic model draws
+        self.model_name = next(iter(self.models))
+        self.model = self.models[self.model_name]
+        self.map_model = self.model  # the latent map's embeddings and AFDs are this model's (explorer/session/latent.py)
+        self.seed = 0  # the sampler's seed: which variation a seeded model draws
         self.variation_count = 1  # followers drawn at once, seeds seed .. seed + count - 1 (`variations`)
         self.variation_followers: list[np.ndarray] = []
         self._variations_of: np.ndarray | None = None  # the follower `variation_followers` were drawn with
@@ -157,15 +153,17 @@ class Session:
         self.reader = reader
         self.upload: Upload | None = None
         # reads an upload out of this process, within a time and memory budget (explorer/serving/upload_reader.py); None: here
-        self.upload_reader: Callable[[str, bytes], tuple[np.ndarray, CanonicalFrame]] | None = None
+        self.upload_reader: Callable[[str, bytes], Leader] | None = None
         self.class_names = tuple(data.class_names)
         self.weights = np.zeros(len(self.class_names), np.float32)
         self.scale = 1.0
+        self.vector = np.zeros(len(self.class_names), np.float32)  # the mix as the models read it, checked once per change
         self.index = -1
         self.synth: np.ndarray | None = None
         # A/B: a pinned mix and its follower for the current leader (None: nothing pinned)
         self.pinned_weights: np.ndarray | None = None
         self.pinned_scale = 1.0
+        self.pinned_vector = self.vector
         self.pinned_model = self.model_name  # the pinned follower keeps its model, seed and spread: A/B can compare models
         self.pinned_seed = 0
         self.pinned_spread: float | None = None
@@ -195,7 +193,8 @@ class Session:
             raise IndexError(f"sequence {index} outside 0..{len(self.data) - 1}")
         self.index = int(index)
         self.upload = None
-        self.leader, self.ground_truth = self.data.canonical(self.index)
+        self.current = Leader.of_sequence(self.data, self.index)
+        self.ground_truth = self.data.canonical(self.index)[1]
         if match_label:
             self.match()
         else:
@@ -203,21 +202,24 @@ class Session:
         self._synthesize_pinned()
 
     @property
+    def leader(self) -> np.ndarray:
+        """The current leader (T, J, 3) in its canonical frame, float32 (what the models read and the view shows)."""
+        return self.current.canonical
+
+    @property
     def num_frames(self) -> int:
         return int(self.leader.shape[0])
 
     def load_upload(self, name: str, content: bytes) -> None:
         """Make an uploaded leader the current one (label kept). On any error nothing changes."""
-        if self.upload_reader is None:
-            leader, frame = read_upload(name, content, self.model, self.data.skeleton)
-        else:
-            leader, frame = self.upload_reader(name, content)
-        previous = (self.upload, self.leader, self.ground_truth, self.synth)
-        self.upload, self.leader, self.ground_truth = Upload(Path(name).name, frame), leader, None
+        reader = self.upload_reader or (lambda n, c: read_upload(n, c, self.model))
+        leader = reader(name, content)
+        previous = (self.upload, self.current, self.ground_truth, self.synth)
+        self.upload, self.current, self.ground_truth = Upload(Path(name).name, leader), leader, None
         try:
             self.synthesize()
         except Exception:
-            self.upload, self.leader, self.ground_truth, self.synth = previous
+            self.upload, self.current, self.ground_truth, self.synth = previous
             raise
         self._synthesize_pinned()
 
@@ -227,8 +229,9 @@ class Session:
         return None if self.upload else int(self.data.actions[self.index])
 
     @property
-    def frame(self) -> CanonicalFrame:
-        return self.upload.frame if self.upload else self.data.frame_of(self.index)
+    def frame(self):
+        """The current leader's canonical frame (data/canonical.py CanonicalFrame)."""
+        return self.current.frame
 
     # ---- label --------------------------------------------------------------------------
     def match(self) -> np.ndarray:
@@ -247,13 +250,14 @@ class Session:
         w = np.clip(np.asarray(weights, np.float32).reshape(-1), -1.0, 1.0)
         if w.shape != (len(self.class_names),):
             raise ValueError(f"{len(w)} label weights for {len(self.class_names)} classes")
-        self.weights = w
-        if scale is not None:
-            self.scale = float(scale)
+        scale = self.scale if scale is None else float(scale)
+        self.vector = self.model.label_vector([float(x) for x in w], scale=scale)  # refused here: nothing changes
+        self.weights, self.scale = w, scale
         return self.synthesize(variations)
 
     def label_vector(self) -> np.ndarray:
-        return np.asarray(self.model.label_vector([float(x) for x in self.weights], scale=self.scale), np.float32)
+        """The mix (weights times scale) as every model of the session reads it (they share the data's classes)."""
+        return self.vector
 
     def label_text(self) -> str:
         return label_words(self.weights, self.class_names, self.scale)
@@ -261,13 +265,21 @@ class Session:
     def mix_latent(self) -> np.ndarray:
         """The current leader + mix in the latent space of the map's model (the star on the latent map), whichever
         model synthesizes: another model's latents are of another size and meaning."""
-        vec = np.asarray(self.map_model.label_vector([float(x) for x in self.weights], scale=self.scale), np.float32)
-        return self.map_model.latent_canonical_batch([self.leader], vec[None, :])[0]
+        return self.map_model.latent_canonical_batch([self.leader], self.vector[None, :])[0]
 
     # ---- models and variations ------------------------------------------------------------
     @property
-    def stochastic(self) -> bool:
-        return bool(self.model.stochastic)
+    def seeded(self) -> bool:
+        """True: a seed picks one of the current model's many reactions (it draws variations)."""
+        return "seed" in self.model.settings
+
+    def model_title(self, name: str | None = None) -> str:
+        """How the page names a model of the session (default: the current one): its family's title, and its name
+        too when another model of the session has the same title."""
+        name = self.model_name if name is None else name
+        title = self.models[name].title
+        twins = [n for n, m in self.models.items() if m.title == title]
+        return f"{title} ({name})" if len(twins) > 1 else title
 
     def set_model(self, name: str) -> np.ndarray:
         """Synthesize with another of the session's models; the sequence, label, scale, seed, clean-up and pin stay.
@@ -299,8 +311,8 @@ class Session:
     def set_spread(self, level: float, synthesize: bool = True) -> None:
         """The current model's spread (LabelError, one line, for a model without one or a value outside 0..1: nothing
         changes); `synthesize` False: the caller draws the follower."""
-        if self.model.spread is None:
-            raise LabelError(f"{model_title(self.model_name)} has no spread setting")
+        if "spread" not in self.model.settings:
+            raise LabelError(f"{self.model_title()} has no spread setting")
         self.model.spread = level
         if synthesize:
             self.synthesize()
@@ -325,10 +337,9 @@ class Session:
         if not 1 <= n <= MAX_VARIATIONS:
             raise ValueError(f"variations: 1..{MAX_VARIATIONS} at once, not {n}")
         seeds = check_seeds(self.seed, n)
-        if not self.stochastic or n == 1:
+        if not self.seeded or n == 1:
             return [self.synth] * n
-        vec = self.label_vector()
-        rest = self.model.synthesize_batch_canonical([self.leader] * (n - 1), np.repeat(vec[None], n - 1, 0), seeds[1:])
+        rest = self.model.synthesize_batch_canonical([self.leader] * (n - 1), np.repeat(self.vector[None], n - 1, 0), seeds[1:])
         return [self.synth, *(np.asarray(f, np.float32) for f in rest)]
 
     def variation_seeds(self) -> list[int]:
@@ -338,11 +349,11 @@ class Session:
     def synthesize(self, variations: bool = True) -> np.ndarray:
         """The follower for the current leader, mix, model and seed, and its side-by-side variations (`variations`
         False: those of the previous mix stay until `draw_variations`)."""
-        out = np.asarray(self.model.synthesize_canonical(self.leader, self.label_vector(), seed=self.seed), np.float32)
+        out = np.asarray(self.model.synthesize_canonical(self.leader, self.vector, seed=self.seed), np.float32)
         if out.shape != self.leader.shape:
             raise ValueError(f"model returned shape {out.shape}, expected {self.leader.shape}")
         self.synth = out
-        if variations or not self.stochastic or len(self.variation_followers) != self.variation_count:
+        if variations or not self.seeded or len(self.variation_followers) != self.variation_count:
             self.draw_variations()
         else:
             self.variation_followers = [out, *self.variation_followers[1:]]
@@ -354,7 +365,7 @@ class Session:
         return self._variations_of is not self.synth
 
     def draw_variations(self) -> None:
-        self.variation_followers = self.variations(self.variation_count) if self.stochastic else [self.synth]
+        self.variation_followers = self.variations(self.variation_count) if self.seeded else [self.synth]
         self._variations_of = self.synth
 
     @property
@@ -373,6 +384,7 @@ class Session:
     def pin(self) -> None:
         """Keep the current mix and its follower, to compare the next mixes with."""
         self.pinned_weights, self.pinned_scale, self.pinned = self.weights.copy(), self.scale, self.synth.copy()
+        self.pinned_vector = self.vector.copy()
         self.pinned_model, self.pinned_seed, self.pinned_spread = self.model_name, self.seed, self.spread
 
     def clear_pin(self) -> None:
@@ -382,7 +394,7 @@ class Session:
         """The pinned mix for a new leader (the comparison follows the sequence)."""
         if self.pinned_weights is not None:
             model = self.models[self.pinned_model]
-            vec = np.asarray(model.label_vector([float(x) for x in self.pinned_weights], scale=self.pinned_scale), np.float32)
+            vec = self.pinned_vector
             spread = model.spread
             if spread is not None:
                 model.spread = self.pinned_spread
@@ -398,8 +410,8 @@ class Session:
             return ""
         text = label_words(self.pinned_weights, self.class_names, self.pinned_scale)
         if self.pinned_model != self.model_name:
-            text += f" · {model_title(self.pinned_model)}"
-        if self.models[self.pinned_model].stochastic and (self.pinned_model != self.model_name or self.pinned_seed != self.seed):
+            text += f" · {self.model_title(self.pinned_model)}"
+        if "seed" in self.models[self.pinned_model].settings and (self.pinned_model != self.model_name or self.pinned_seed != self.seed):
             text += f" · seed {self.pinned_seed}"
         if self.pinned_spread is not None and (self.pinned_model != self.model_name or self.pinned_spread != self.spread):
             text += f" · spread {self.pinned_spread:.2g}"
@@ -433,8 +445,8 @@ class Session:
         return afd(self.synth, self.ground_truth, self.frame, self.data.skeleton, units="normalized")
 
     def world(self, canonical: np.ndarray) -> np.ndarray:
-        """A (T, J, 3) motion of this sequence from the canonical frame back to world metres."""
-        return self.frame.to_world(np.asarray(canonical, np.float64), self.data.skeleton)
+        """A (T, J, 3) motion of this sequence from the canonical frame back to world metres, float64."""
+        return self.current.to_world(canonical, self.data.skeleton)
 
     def export_npz(self) -> bytes:
         """The synthesized interaction as an .npz file's bytes (imm_model/interaction_file.py, docs/formats.md)."""
@@ -443,10 +455,9 @@ class Session:
         path = getattr(self.model, "path", None)
         return interaction_bytes(interaction_arrays(
             self.world(self.leader), self.world(self.synth), self.frame, self.data.skeleton,
-            class_names=self.class_names, label=self.label_vector(), scale=self.scale, checkpoint=Path(path).name if path else "",
+            class_names=self.class_names, label=self.vector, scale=self.scale, checkpoint=Path(path).name if path else "",
             fps=FPS, ground_truth=None if self.ground_truth is None else self.world(self.ground_truth),
-            sequence_id=None if self.upload else self.data.sequence_ids[self.index],
-            seed=self.seed if self.model.stochastic else None, spread=self.spread))
+            sequence_id=None if self.upload else self.data.sequence_ids[self.index], **self.model.provenance(self.seed)))
 
     def export_bvh(self, character: str = "follower") -> bytes:
         """The synthesized follower (or the leader) as a BVH file's bytes, world metres (imm_model/data/bvh.py)."""

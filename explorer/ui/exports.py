@@ -18,7 +18,7 @@ import numpy as np
 
 from explorer.rendering.palette import CHARACTER_TITLES, PINNED, WARNING, display_name
 from explorer.rendering.palette import CHARACTERS as CHARACTER_COLORS
-from explorer.session.session import FPS, model_title, one_line
+from explorer.session.session import FPS, one_line
 
 if TYPE_CHECKING:
     from explorer.rendering.scene import Scene
@@ -112,10 +112,10 @@ def mix_text(weights, class_names, scale: float) -> str:
 
 
 def about_text(session) -> str:
-    """Which model drew the follower (and its seed, for a stochastic one), and of which leader: 'the diffusion model,
+    """Which model drew the follower (and its seed, for a seeded one), and of which leader: 'the diffusion model,
     seed 7 · s01s02/03/001' (an uploaded leader: its file's name)."""
-    model = model_title(session.model_name)
-    if session.stochastic:
+    model = session.model_title()
+    if session.seeded:
         model += f", seed {session.seed}"
     if not session.cleaned_up:
         model += ", no clean-up"

@@ -1,4 +1,4 @@
-"""The model switch (the paper's GAN / the diffusion model) and, for a stochastic model, its variations: the seed, a
+"""The model switch (the paper's GAN / the diffusion model) and, for a model that takes a seed, its variations: the seed, a
 "new variation" button, N followers drawn at once (seeds seed .. seed + N - 1) side by side, each captioned with
 its seed, and, for a model trained with noised leaders, the spread (how loosely the reaction follows the leader).
 The session (explorer/session/session.py) holds the models and draws the followers; this maps them onto the page.
@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 from trame.widgets import client, html
 from trame.widgets import vuetify3 as v3
 
-from explorer.session.session import MAX_VARIATIONS, Session, model_title
+from explorer.session.session import MAX_VARIATIONS, Session
 
 if TYPE_CHECKING:
     from explorer.rendering.scene import Scene
@@ -39,9 +39,9 @@ class ModelSwitch:
         ses = page.session
         page.state.update({
             "model_name": ses.model_name,
-            "model_items": [{"title": model_title(name), "value": name} for name in ses.models],
-            "model_title": model_title(ses.model_name),
-            "stochastic": ses.stochastic,
+            "model_items": [{"title": ses.model_title(name), "value": name} for name in ses.models],
+            "model_title": ses.model_title(),
+            "seeded": ses.seeded,
             "seed": ses.seed,
             "spread": ses.spread or 0.0,  # the mix's handler (app.py) applies it, as a slider of the mix
             "spread_available": ses.spread is not None,
@@ -124,7 +124,7 @@ class ModelSwitch:
     def show_variations(self) -> None:
         """The session's followers beyond the first into the scene (after any re-synthesis)."""
         ses = self.page.session
-        self.scene.set_variations(ses.variation_followers, ses.variation_seeds() if ses.stochastic else None)
+        self.scene.set_variations(ses.variation_followers, ses.variation_seeds() if ses.seeded else None)
 
     def draw_variations(self) -> None:
         """The side-by-side variations of a slider's mix, drawn after its first picture (they cost a reaction each)."""
@@ -142,8 +142,8 @@ class ModelSwitch:
         self.show_variations()
         page.ctrl.view_update()  # the picture first, as after a slider; the panels follow it
         with s:
-            s.model_title = model_title(ses.model_name)
-            s.stochastic = ses.stochastic
+            s.model_title = ses.model_title()
+            s.seeded = ses.seeded
             s.seed, s.variation_count = ses.seed, ses.variation_count
             s.spread_available = ses.spread is not None
             if ses.spread is not None:
@@ -156,8 +156,8 @@ class ModelSwitch:
             page.ctrl.view_update()
 
     async def announce(self) -> None:
-        """Before a stochastic model's synthesis from a slider: the page learns it is computing (sent first)."""
-        if self.page.session.stochastic:
+        """Before a seeded model's synthesis from a slider: the page learns it is computing (sent first)."""
+        if self.page.session.seeded:
             with self.state:
                 self.state.computing = True
             await asyncio.sleep(0)
@@ -169,16 +169,16 @@ class ModelSwitch:
 
 
 def model_chip() -> None:
-    """The status chip: which model draws the follower (and, for a stochastic one, with which seed)."""
+    """The status chip: which model draws the follower (and, for a seeded one, with which seed)."""
     with v3.VChip(size="small", variant="flat", color="indigo-lighten-4", classes="mr-2", id="model-chip"):
-        html.Span("{{ model_title }}{{ stochastic ? ' · seed ' + seed : '' }}")
+        html.Span("{{ model_title }}{{ seeded ? ' · seed ' + seed : '' }}")
         v3.VProgressCircular(v_show="computing", indeterminate=True, size=12, width=2, classes="ml-1 imm-computing",
                              id="computing")
     client.Style(COMPUTING_CSS)
 
 
 def model_panel(session: Session) -> None:
-    """The model switch above the label sliders, and the variation controls under it for a stochastic model."""
+    """The model switch above the label sliders, and the variation controls under it for a seeded model."""
     if len(session.models) > 1:
         html.Div("Model", classes="text-overline")
         # A click sets the choice and `computing` together, so that both reach the server in one message (with
@@ -186,9 +186,9 @@ def model_panel(session: Session) -> None:
         with v3.VBtnToggle(model_value=("model_name",), density="compact", mandatory=True, variant="outlined", divided=True,
                            classes="mb-2", id="model-switch"):
             for name in session.models:
-                v3.VBtn(model_title(name), value=name, size="x-small", id=f"model-{name}",
+                v3.VBtn(session.model_title(name), value=name, size="x-small", id=f"model-{name}",
                         click=f"if (model_name !== '{name}') {{ computing = true; model_name = '{name}'; }}")
-    with html.Div(v_if="stochastic", classes="mb-2", id="variation-controls"):
+    with html.Div(v_if="seeded", classes="mb-2", id="variation-controls"):
         with html.Div(classes="d-flex align-center mb-1", style="gap: 6px"):
             v3.VTextField(v_model=("seed",), label="seed", type="number", min=0, density="compact", hide_details=True,
                           style="max-width: 96px", id="seed-field",

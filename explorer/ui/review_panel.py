@@ -25,7 +25,7 @@ from trame.widgets import client, html
 from trame.widgets import vuetify3 as v3
 
 from explorer.rendering.palette import display_name
-from explorer.session.session import model_title, one_line
+from explorer.session.session import one_line
 from imm_model.evaluation.review import LOWER_IS_WORSE, SORT_KEYS, ReviewRow, next_worst, sort_rows
 
 if TYPE_CHECKING:
@@ -210,8 +210,8 @@ class ReviewPanel:
 
     def under_text(self, inputs: ReviewInputs) -> str:
         ses = self.page.session
-        seed = f" · seed {inputs.seed}" if getattr(inputs.model, "stochastic", False) else ""
-        return f"{model_title(inputs.model_name)}{seed} · {ses.label_text()}"
+        seed = f" · seed {inputs.seed}" if "seed" in inputs.model.settings else ""
+        return f"{ses.model_title(inputs.model_name)}{seed} · {ses.label_text()}"
 
     # ---- what the controls do -------------------------------------------------------------------------------------------
     def sort_key(self) -> str:

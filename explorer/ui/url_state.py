@@ -1,7 +1,7 @@
 """The view in the URL's query string, so a link reopens what its sender saw:
 `?seq=s01s02/03/001&mix=kicking:1,hugging:0.5&scale=1&frame=12&layout=overlay&camera=front&map=tsne`, `&raw=1`
 when the clean-up is off, `&model=diffusion` when another model than the studio's first draws, `&seed=12` for a
-stochastic model and `&spread=0.3` for one with a spread setting.
+seeded model and `&spread=0.3` for one with a spread setting.
 
 Everything read from a URL is validated here (it comes from whoever wrote the link): unknown keys are ignored,
 bad values are named in one line and left out, the rest still applies.
@@ -129,7 +129,7 @@ def current_view(studio: ViewHolder) -> dict:
         "map": s.projection,
         "raw": None if ses.cleaned_up else 1,  # left out of the link while the clean-up is on, as by default
         "model": None if ses.model is ses.map_model else ses.model_name,  # left out for the model the studio opens with
-        "seed": ses.seed if ses.stochastic else None,
+        "seed": ses.seed if ses.seeded else None,
         "spread": None if ses.spread is None else round(float(ses.spread), 3),
     }
 
@@ -137,7 +137,6 @@ def current_view(studio: ViewHolder) -> dict:
 def apply_view(studio: ViewHolder, query: str) -> None:
     """Open the view a link describes; what cannot be applied is named in the page's alert."""
     from explorer.rendering.scene import CAMERA_PRESETS
-    from explorer.session.session import model_title
 
     ses, s = studio.session, studio.state
     view, problems = parse_view(query, ses.class_names, set(ses.data.sequence_ids), CAMERA_PRESETS, tuple(ses.models))
@@ -148,7 +147,7 @@ def apply_view(studio: ViewHolder, query: str) -> None:
             s.seed = view["seed"]
     if "spread" in view:
         if ses.spread is None:
-            problems.append(f"spread: {model_title(ses.model_name)} has no spread setting")
+            problems.append(f"spread: {ses.model_title()} has no spread setting")
         else:
             with s:
                 s.spread = view["spread"]  # applied with the mix below (app.py's mix handler)

@@ -25,6 +25,7 @@ from imm_model.data.dataset import InteractionDataset
 from imm_model.data.sequence import resample
 from imm_model.data.splits import Fold
 from imm_model.evaluation.metrics import afd, per_class_mean
+from imm_model.families.retrieval.model import nearest_follower
 
 HEURISTIC_BASELINES = ("nn1", "knn_dtw", "template")
 KNN = 3
@@ -38,16 +39,9 @@ def _same_class_pool(data: InteractionDataset, train_idx: np.ndarray, i: int) ->
 
 
 def nearest_neighbour_follower(data: InteractionDataset, train_idx: np.ndarray, i: int) -> np.ndarray:
-    """Canonical follower (T_i, J, 3) predicted for sequence i by `nn1`."""
-    leader, _ = data.canonical(i)
-    target = leader.reshape(len(leader), -1).astype(np.float64)
-    best_j, best_d = -1, np.inf
-    for j in _same_class_pool(data, train_idx, i):
-        cand = resample(data.canonical(j)[0].reshape(int(data.lengths[j]), -1).astype(np.float64), len(leader))
-        d = float(np.linalg.norm(cand - target, axis=-1).mean())
-        if d < best_d:
-            best_j, best_d = j, d
-    return resample(data.canonical(best_j)[1].astype(np.float64), len(leader)).astype(np.float32)
+    """Canonical follower (T_i, J, 3) predicted for sequence i by `nn1`: the retrieval family's answer with the true
+    class (families/retrieval/model.py)."""
+    return nearest_follower(data.canonical(i)[0], [data.canonical(j) for j in _same_class_pool(data, train_idx, i)])
 
 
 def knn_dtw_follower(data: InteractionDataset, train_idx: np.ndarray, i: int, k: int = KNN) -> np.ndarray:

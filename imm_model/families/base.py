@@ -7,7 +7,8 @@ Labels are multi-hot: one float per class (+1 perform, 0 neutral, -1 avoid, frac
 exaggerate), given as {class name: value} (missing classes are 0) or a length-C sequence. A world leader is checked
 and standardized with its canonical frame once (`prepare_leader`), the family's network runs in that frame
 (`_network`), the follower goes through the clean-up and is mapped back to the leader's world frame. A family
-implements `_network` and `latent_canonical_batch`, and says with `stochastic` whether a seed picks among reactions.
+implements `_network` and `latent_canonical_batch`, and declares in `settings` the sampler settings it takes (a seed
+that picks among reactions, a spread, a reaction memory).
 """
 
 from __future__ import annotations
@@ -54,7 +55,12 @@ class Leader:
 
     world: np.ndarray  # (T, J, 3) float64 metres, as given
     frame: CanonicalFrame  # the leader's canonical frame
-    canonical: np.ndarray  # (T, J, 3) float64, the leader in that frame
+    canonical: np.ndarray  # (T, J, 3) float32, the leader in that frame (what the networks read)
+
+    @classmethod
+    def of_sequence(cls, data, i: int) -> Leader:
+        """A dataset's sequence i, whose leader the dataset holds already checked and standardized."""
+        return cls(data.world(i)[0], data.frame_of(i), data.canonical(i)[0])
 
     def to_world(self, follower: np.ndarray, skeleton) -> np.ndarray:
         """A canonical follower (T, J, 3) -> the leader's world frame, float64."""
@@ -68,8 +74,16 @@ class ReactionModel:
 
     family: str = ""  # the registry's name of the family (a subclass sets it)
     title: str = ""  # how people name it
-    stochastic = False  # True: `seed` picks among reactions; False: every seed gives the same one
     weights_prefix = ""  # the checkpoint's tensors live under `prefix.` (what `save` writes)
+    # The sampler settings the model takes, each a control the front ends offer: "seed" (a seed picks one of many
+    # reactions), "spread" (how loosely it follows the leader), "memory" (start from a real reaction). None: one
+    # reaction per leader and label.
+    settings: tuple[str, ...] = ()
+
+    @property
+    def stochastic(self) -> bool:
+        """True: `seed` picks among reactions; False: every seed gives the same one."""
+        return "seed" in self.settings
 
     def __init__(self, weights: dict[str, np.ndarray], meta: dict[str, Any], path: Path | None = None, device: str = "cpu"):
         from imm_model.skeleton import Skeleton
@@ -209,7 +223,7 @@ class ReactionModel:
             return leader_world
         world = self.check_leader(leader_world)
         frame = CanonicalFrame.from_leader(world, self.skeleton, self.canonical_mode)
-        return Leader(world, frame, frame.to_canonical(world, self.skeleton))
+        return Leader(world, frame, frame.to_canonical(world, self.skeleton).astype(np.float32))
 
     # ---- synthesis ------------------------------------------------------------------------
     def synthesize(self, leader_world: np.ndarray | Leader, label, scale: float = 1.0, seed: int = 0,

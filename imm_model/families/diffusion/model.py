@@ -23,7 +23,6 @@ class DiffusionReactionModel(ReactionModel):
 
     family = "diffusion"
     title = "the diffusion model"
-    stochastic = True
     weights_prefix = "denoiser"
     BATCH = 64  # sequences per sampler batch (bounds memory for `imm evaluate`'s hundreds of reactions)
 
@@ -34,6 +33,10 @@ class DiffusionReactionModel(ReactionModel):
         self.guidance = guidance
         self.fast = NumpyDenoiser(weights, config) if self.device == "cpu" else None
         self.memory = None  # the reaction memory (model/reaction_memory.py) its sampler may start from
+
+    @property
+    def settings(self) -> tuple[str, ...]:
+        return ("seed", "spread", "memory") if self.config.leader_noise else ("seed", "memory")
 
     @property
     def spread(self) -> float | None:

@@ -29,6 +29,7 @@ from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, cosi
 from imm_model.training.data import Augmenter, PaddedData, data_meta, derive_seed
 from imm_model.training.geometry import GeometricTerms
 from imm_model.training.part_mix import mixed_rows, upper_shares
+
 LOG_FIELDS = ("step", "loss", "x0", "velocity", "foot_contact", "torso", "lr", "seconds")
 
 

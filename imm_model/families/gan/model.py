@@ -19,7 +19,6 @@ from imm_model.families.gan.numpy_generator import NumpyGenerator
 class GanReactionModel(ReactionModel):
     family = "gan"
     title = "the paper's GAN"
-    stochastic = False
     weights_prefix = "generator"
 
     def __init__(self, weights: dict[str, np.ndarray], config: ModelConfig, meta: dict[str, Any], path: Path | None = None,

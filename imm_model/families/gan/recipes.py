@@ -9,9 +9,7 @@ and `imm-move` (the label-steered recipes, each building on the one before), and
 
 from __future__ import annotations
 
-import json
 from dataclasses import asdict, dataclass, replace
-from pathlib import Path
 from typing import Any
 
 from imm_model.families.gan.config import ModelConfig

@@ -51,7 +51,6 @@ def asked_classes(label: np.ndarray) -> np.ndarray:
 class RetrievalReactionModel(ReactionModel):
     family = "retrieval"
     title = "1-NN retrieval"
-    stochastic = False
     weights_prefix = "retrieval"
 
     def __init__(self, data, meta: dict[str, Any], path: Path | None = None, device: str = "cpu"):
@@ -88,9 +87,16 @@ class RetrievalReactionModel(ReactionModel):
         return cls(_training_data(meta, path), meta, path, device)
 
     def save(self, path: Path | str) -> None:
+        """The checkpoint names its data by a path relative to its own folder, so a checkout moved elsewhere still
+        finds it (the content hash says it is the same data)."""
+        import os
+
         from imm_model.checkpoint import save_checkpoint
 
-        save_checkpoint(path, {}, {k: v for k, v in self.info.items() if k not in ("format", "weights_sha256")})
+        meta = {k: v for k, v in self.info.items() if k not in ("format", "weights_sha256")}
+        folder = Path(path).resolve().parent
+        meta["retrieval"] = meta["retrieval"] | {"data_path": os.path.relpath(self.data.path, folder)}
+        save_checkpoint(path, {}, meta)
 
     def _network(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int]) -> list[np.ndarray]:
         out = []
@@ -125,7 +131,7 @@ def _training_data(meta: dict[str, Any], path: Path):
     if not (isinstance(source, dict) and all(isinstance(source.get(k), str) for k in ("data_hash", "data_file", "data_path"))):
         raise CheckpointError(f"{path}: sidecar retrieval must name the training data (data_hash, data_file, data_path)")
     name = Path(source["data_file"]).name
-    for candidate in (Path(source["data_path"]), path.parent / name, SAMPLE_DIR / name):
+    for candidate in (path.parent / source["data_path"], path.parent / name, SAMPLE_DIR / name):
         if not candidate.is_file():
             continue
         try:
@@ -135,4 +141,4 @@ def _training_data(meta: dict[str, Any], path: Path):
         if dataset_hash(data) == source["data_hash"]:
             return data
     raise CheckpointError(f"{path}: its training data {name} (content hash {source['data_hash']}) is neither at "
-                          f"{source['data_path']}, beside the checkpoint nor among the bundled data")
+                          f"{source['data_path']} (from the checkpoint's folder), beside it nor among the bundled data")
