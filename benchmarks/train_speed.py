@@ -22,7 +22,7 @@ import torch
 
 from imm_model.data.dataset import InteractionDataset
 from imm_model.device import add_device_argument, resolve_device
-from imm_model.families.gan.recipes import load_config
+from imm_model.families import load_recipe
 from imm_model.families.gan.trainer import Trainer
 from imm_model.paths import SAMPLE_DATA
 
@@ -40,7 +40,7 @@ def main() -> None:
     data = InteractionDataset.load(SAMPLE_DATA)
     trainers = {}
     for name in args.config or ["imm"]:
-        cfg = load_config(name)
+        cfg = load_recipe(name)[1]
         cfg = replace(cfg, adv_warmup_epochs=0, adv_ramp_epochs=0, lambda_adv=max(cfg.lambda_adv, 0.1))
         trainers[name] = Trainer(cfg, data, args.fold, "/tmp/imm-train-speed", device)
     times: dict[str, list[float]] = {name: [] for name in trainers}

@@ -17,8 +17,11 @@ from imm_model.errors import LabelError, TrainingError
 from imm_model.families.diffusion.denoiser import ReactionDenoiser, torch_denoiser
 from imm_model.families.diffusion.denoiser_numpy import NumpyDenoiser
 from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, cosine_alpha_bar, initial_noise, sample
-from imm_model.families.diffusion.trainer import IMM_DIFFUSION, DiffusionTrainConfig, DiffusionTrainer, diffusion_recipe
-from imm_model.inference import DiffusionReactionModel, ReactionModel
+from imm_model.families import load_recipe
+from imm_model.families.diffusion.recipes import IMM_DIFFUSION, DiffusionTrainConfig
+from imm_model.families.diffusion.trainer import DiffusionTrainer
+from imm_model.families.diffusion.model import DiffusionReactionModel
+from imm_model.inference import ReactionModel
 from imm_model.paths import SAMPLE_CHECKPOINT
 
 TINY = replace(IMM_DIFFUSION, name="tiny-diffusion", model=dict(width=16, layers=1, heads=2, ff_mult=1, dropout=0.0),
@@ -375,7 +378,7 @@ def test_cli_trains_a_diffusion_recipe(tmp_path, capsys):
     cfg = tmp_path / "tiny.json"
     cfg.write_text(json.dumps({"base": "imm-diffusion", "model": TINY.model, "guidance": TINY.guidance, "steps": 3,
                                "batch_size": 4, "checkpoint_every": 2}))
-    assert diffusion_recipe(str(cfg)) and diffusion_recipe("imm-diffusion") and not diffusion_recipe("imm-steer")
+    assert [load_recipe(name)[0].name for name in (str(cfg), "imm-diffusion", "imm-steer")] == ["diffusion", "diffusion", "gan"]
     out = tmp_path / "run"
     base = ["train", "--config", str(cfg), "--fold", "s04", "--out", str(out), "--quiet"]
     assert main(base + ["--export", str(tmp_path / "exp.safetensors")]) == 0

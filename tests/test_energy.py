@@ -1,4 +1,4 @@
-"""Motion-energy matching (training/energy.py) and device selection. Synthetic motions: unit tests only."""
+"""Motion-energy matching (families/gan/energy.py) and device selection. Synthetic motions: unit tests only."""
 
 from __future__ import annotations
 

@@ -428,7 +428,8 @@ def spreading(sample_data, tmp_path_factory):
     import torch
 
     from explorer.session.session import load_model
-    from imm_model.families.diffusion.trainer import IMM_DIFFUSION, DiffusionTrainer
+    from imm_model.families.diffusion.recipes import IMM_DIFFUSION
+    from imm_model.families.diffusion.trainer import DiffusionTrainer
 
     torch.set_num_threads(1)
     cfg = replace(IMM_DIFFUSION, name="tiny-spread", model=dict(width=16, layers=1, heads=2, ff_mult=1, dropout=0.0,

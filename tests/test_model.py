@@ -130,7 +130,7 @@ def test_discriminator_loss_targets():
 @pytest.mark.parametrize("variant", [{}, {"stream_fc": False}, {"label_input": False}, {"decoder_input": "sum"},
                                      {"decoder_input": "context"}])
 def test_numpy_generator_matches_torch(variant):
-    """model/numpy_runtime.py: the same numbers as model.Generator for one unpadded sequence, and the state dict's
+    """families/gan/numpy_generator.py: the same numbers as the Generator for one unpadded sequence, and the state dict's
     shapes, for every generator variant it runs."""
     from imm_model.families.gan.config import ModelConfig
     from imm_model.families.gan.generator import Generator

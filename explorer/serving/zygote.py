@@ -150,7 +150,7 @@ class ForkServer:
 
 
 def one_thread_for_torch() -> None:
-    """The bundled models run in numpy (imm_model/model/numpy_runtime.py); a model that needs torch (the paper's
+    """The bundled models run in numpy (families/gan/numpy_generator.py, families/diffusion/denoiser_numpy.py); a model that needs torch (the paper's
     frame-by-frame decoder) gets one intra-op thread: the per-request work is a few ms, several studio processes
     share the cores (more threads made each synthesis 4x slower here), and a fork would not carry a thread pool over."""
     if "torch" in sys.modules:

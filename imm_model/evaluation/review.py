@@ -148,7 +148,7 @@ def review_table(model, data: InteractionDataset, indices: Sequence[int] | np.nd
                  label=None, features: FeatureSpace | None = None, seed: int = 0,
                  thresholds: ReviewThresholds | None = None) -> list[ReviewRow]:
     """One ReviewRow per sequence of `indices` (default `default_split`), the followers synthesized by `model` (a
-    ReactionModel or DiffusionReactionModel, as it is set: clean-up, placement) in one batch with `label` (None: each
+    any family's ReactionModel, as it is set: clean-up, placement) in one batch with `label` (None: each
     sequence's own class) and sampler `seed` (every row the same seed). Without `judge` the reads-as columns are ''/nan;
     without `features` feature_distance is nan."""
     if judge is not None and tuple(judge.class_names) != tuple(data.class_names):

@@ -91,6 +91,7 @@ class ReactionModel:
         check_sidecar(meta, path)
         self.weights = weights  # the network's state dict, float32 arrays
         self.device = str(device)
+        self.fast = None  # the numpy runtime one CPU sequence runs on, where the family has one (else torch)
         self.info: dict[str, Any] = meta
         self.path = path
         self.class_names: tuple[str, ...] = tuple(meta["class_names"])
@@ -142,6 +143,17 @@ class ReactionModel:
         module = module_class(config)
         load_module_state(module, {k: torch.from_numpy(v) for k, v in self.weights.items()}, what, self.path)
         return move_module(module.eval(), self.device)
+
+    def on_torch(self) -> ReactionModel | None:
+        """The same model with its numpy runtime off, so that it runs its torch network on this device (the two must
+        give the same reactions); None for a model with no numpy runtime to compare."""
+        import copy
+
+        if self.fast is None:
+            return None
+        twin = copy.copy(self)
+        twin.fast = None
+        return twin
 
     # ---- settings a family may have -------------------------------------------------------
     @property

@@ -63,7 +63,9 @@ def headline(result: dict) -> dict:
     return out
 
 
-def main() -> None:
+def main(argv: list[str] | None = None, adapt=None, extra: dict | None = None) -> None:
+    """`argv` as on the command line; `adapt(model)`, if given, changes each loaded model before it is scored (an
+    experiment's sampler); `extra` is added to every row it records."""
     import torch
 
     from imm_model.data.dataset import InteractionDataset
@@ -87,13 +89,15 @@ def main() -> None:
     ap.add_argument("--baselines", default="nn1")
     ap.add_argument("--raw", action="store_true")
     ap.add_argument("--out", type=Path, default=None, help="append one JSON line per run here")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     torch.set_num_threads(1)
     data = InteractionDataset.load(SAMPLE_DATA)
     opts = EvalOptions(baselines=tuple(b for b in args.baselines.split(",") if b), progress=False, raw=args.raw)
     grid = itertools.product(args.label_scale or [None], args.leader_noise or [None], args.memory_level or [None])
     for scale, leader_noise, memory_level in grid:
         model = ReactionModel.load(args.checkpoint)
+        if adapt is not None:
+            adapt(model)
         if model.stochastic:
             changes = {k: v for k, v in (("label_scale", scale), ("leader_scale", args.leader_scale),
                                          ("sample_steps", args.sample_steps), ("eta", args.eta),
@@ -110,7 +114,7 @@ def main() -> None:
         row = {"checkpoint": str(args.checkpoint), "fold": args.fold, "raw": args.raw,
                "guidance": model.guidance.to_dict() if model.stochastic else None}
         row |= headline(evaluate_fold(model, data, args.fold, opts, latents=False))
-        record(row, args.out)
+        record(row | (extra or {}), args.out)
 
 
 if __name__ == "__main__":

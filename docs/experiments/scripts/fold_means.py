@@ -59,7 +59,8 @@ def runs_of(paths: list[Path], patterns: list[str], where: dict[str, float]) -> 
     defaults = Guidance().to_dict()  # rows from before a guidance field existed sampled with its default
     by_fold: dict[str, dict[str, dict]] = {}
     for row in read_rows(paths):
-        if not any(p in row["checkpoint"] for p in patterns):
+        # rows of no checkpoint (memory_starts.py scores the reaction memory's starts alone) belong to no model
+        if not any(p in row.get("checkpoint", "") for p in patterns):
             continue
         guidance = row.get("guidance")
         if guidance and any(float(guidance.get(k, defaults.get(k, float("nan")))) != v for k, v in where.items()):

@@ -16,7 +16,6 @@ from pathlib import Path
 
 import numpy as np
 
-import imm_model.inference as inference
 from imm_model.families.diffusion import sampler as ds
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -30,37 +29,27 @@ def moments(a: np.ndarray, m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return mean, np.sqrt((((a - mean) * m) ** 2).sum((1, 2), keepdims=True) / count) + 1e-6
 
 
-def noisy_leader_network(tau1: float, tau2: float, noise: float):
-    """A replacement for DiffusionReactionModel._network whose denoiser reads the annealed noisy leader."""
+def annealed_leader_sampler(model, tau1: float, tau2: float, noise: float):
+    """A sampler for `model.sampler` whose network call reads the annealed noisy leader (numpy runtime only)."""
+    steps = model.config.diffusion_steps
 
-    def network(self, leaders, labels, seeds):
-        d, steps = self.config.pose_dim, self.config.diffusion_steps
-        out = []
-        for start in range(0, len(leaders), self.BATCH):
-            rows = list(range(start, min(start + self.BATCH, len(leaders))))
-            x, mask = self._normalize_leaders([leaders[i] for i in rows])
-            start_noise, _ = self._padded([ds.initial_noise(seeds[i], len(leaders[i]), d) for i in rows])
-            m = mask[..., None].astype(np.float32)
-            clean = self._denoiser(x, mask)
-            def denoise(x_t, step, leader_on, label, label_on, x=x, mask=mask, rows=rows, clean=clean, m=m):
-                g = float(np.clip((tau2 - step / (steps - 1)) / (tau2 - tau1), 0, 1))
-                if g >= 1.0:
-                    return clean(x_t, step, leader_on, label, label_on)
-                z = np.stack([np.random.default_rng((int(seeds[i]), 7, int(step))).standard_normal(x.shape[1:])
-                              for i in rows]).astype(np.float32)
-                y = np.sqrt(g) * x + noise * np.sqrt(1 - g) * z
-                (mean0, sd0), (mean1, sd1) = moments(x, m), moments(y, m)
-                y = (((y - mean1) / sd1 * sd0 + mean0) * m).astype(np.float32)
-                reps = len(x_t) // len(x)
-                return self.fast.conditioned(np.tile(y, (reps, 1, 1)), leader_on, label, label_on,
-                                             np.tile(mask, (reps, 1)))(x_t, step)
+    def sampler(clean, x, mask, labels, start_noise, guidance, steps_, seeds, pair_terms=False):
+        m = mask[..., None].astype(np.float32)
 
-            x0 = ds.sample(denoise, x, mask, labels[rows], start_noise, self.guidance, steps, seeds=[seeds[i] for i in rows])
-            followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
-            out += [followers[k, : len(leaders[i])].reshape(len(leaders[i]), -1, 3) for k, i in enumerate(rows)]
-        return out
+        def denoise(x_t, step, leader_on, label, label_on):
+            g = float(np.clip((tau2 - step / (steps - 1)) / (tau2 - tau1), 0, 1))
+            if g >= 1.0:
+                return clean(x_t, step, leader_on, label, label_on)
+            z = np.stack([np.random.default_rng((int(s), 7, int(step))).standard_normal(x.shape[1:]) for s in seeds])
+            y = np.sqrt(g) * x + noise * np.sqrt(1 - g) * z.astype(np.float32)
+            (mean0, sd0), (mean1, sd1) = moments(x, m), moments(y, m)
+            y = (((y - mean1) / sd1 * sd0 + mean0) * m).astype(np.float32)
+            reps = len(x_t) // len(x)
+            return model.fast.conditioned(np.tile(y, (reps, 1, 1)), leader_on, label, label_on, np.tile(mask, (reps, 1)))(x_t, step)
 
-    return network
+        return ds.sample(denoise, x, mask, labels, start_noise, guidance, steps_, seeds=seeds, pair_terms=pair_terms)
+
+    return sampler
 
 
 def main() -> None:
@@ -69,11 +58,13 @@ def main() -> None:
     ap.add_argument("--noise", type=float, required=True, help="the noise's scale before the rescaling")
     ap.add_argument("rest", nargs=argparse.REMAINDER, help="-- diffusion_fold.py's arguments")
     args = ap.parse_args()
-    inference.DiffusionReactionModel._network = noisy_leader_network(*args.tau, args.noise)
-    record = diffusion_fold.record
-    diffusion_fold.record = lambda row, out: record(row | {"leader_noise": {"tau": args.tau, "noise": args.noise}}, out)
-    sys.argv = [sys.argv[0], *[a for a in args.rest if a != "--"]]
-    diffusion_fold.main()
+    def adapt(model) -> None:
+        if "spread" in model.settings:
+            model.spread = 0.0  # the annealing is the only noise on the leader
+        model.sampler = annealed_leader_sampler(model, *args.tau, args.noise)
+
+    diffusion_fold.main([a for a in args.rest if a != "--"], adapt=adapt,
+                        extra={"leader_noise": {"tau": args.tau, "noise": args.noise}})
 
 
 if __name__ == "__main__":

@@ -150,23 +150,15 @@ def routed_sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.nda
     raise AssertionError("unreachable: sample_steps >= 1")
 
 
-def routed_network(model, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int], power: float,
-                   relative: bool = False) -> list[np.ndarray]:
-    """DiffusionReactionModel._network with routed_sample in place of the library's sampler."""
-    from imm_model.families.diffusion.sampler import initial_noise
-
+def routed_sampler(model, power: float, relative: bool = False):
+    """A sampler for `model.sampler` (the diffusion model's sampling loop): routed_sample in place of the library's
+    sum rule."""
     routing = BodyRouting.of(model.skeleton, model.weights["follower_std"])
-    d = model.config.pose_dim
-    out: list[np.ndarray] = []
-    for start in range(0, len(leaders), model.BATCH):
-        rows = list(range(start, min(start + model.BATCH, len(leaders))))
-        x, mask = model._normalize_leaders([leaders[i] for i in rows])
-        noise, _ = model._padded([initial_noise(seeds[i], len(leaders[i]), d) for i in rows])
-        x0 = routed_sample(model._denoiser(x, mask), x, mask, labels[rows], noise, model.guidance,
-                           model.config.diffusion_steps, routing, power, relative)
-        followers = x0 * model.weights["follower_std"] + model.weights["follower_mean"]
-        out += [followers[k, : len(leaders[i])].reshape(len(leaders[i]), -1, 3) for k, i in enumerate(rows)]
-    return out
+
+    def sampler(denoise, x, mask, labels, noise, guidance, steps, seeds=None, pair_terms=False):
+        return routed_sample(denoise, x, mask, labels, noise, guidance, steps, routing, power, relative)
+
+    return sampler
 
 
 def self_check() -> None:
@@ -217,10 +209,12 @@ def main() -> None:
     from diffusion_fold import record  # the script beside this one
 
     from imm_model import cache
+    from imm_model.cleanup import clean_follower
     from imm_model.data.dataset import InteractionDataset
     from imm_model.data.splits import loso_fold
     from imm_model.evaluation import control
     from imm_model.evaluation.loso import EvalOptions, prepare_model
+    from imm_model.families.diffusion.sampler import sample
     from imm_model.inference import ReactionModel
     from imm_model.model import classifier as classifiers
     from imm_model.model import classifier_config as cc
@@ -257,10 +251,11 @@ def main() -> None:
                           power=power) -> tuple[list[np.ndarray], list[np.ndarray]]:
                 key = np.ascontiguousarray(labels, np.float32).tobytes()
                 if key not in drawn:
-                    lb, seeds = model._label_array(labels, len(leaders)), [seed] * len(leaders)
-                    raw = (model._network(leaders, lb, seeds) if composition == "sum" else
-                           routed_network(model, leaders, lb, seeds, power, composition == "relative"))
-                    drawn[key] = raw, [model._clean(f) for f in raw]
+                    model.sampler = sample if composition == "sum" else routed_sampler(model, power, composition == "relative")
+                    model.raw = True  # the network's own followers, and the same through the clean-up
+                    raw = model.synthesize_batch_canonical(leaders, np.asarray(labels, np.float32), [seed] * len(leaders))
+                    drawn[key] = raw, [clean_follower(f.astype(np.float64), model.skeleton, model.bone_lengths).astype(np.float32)
+                                       for f in raw]
                 return drawn[key]
 
             def judge(part: str, labels: np.ndarray) -> np.ndarray:

@@ -19,9 +19,10 @@ from pathlib import Path
 import numpy as np
 
 
-def imputed_network(model, gan, mode: str):
-    """model._network with the placement taken from `gan` at every sampler step (see the module's docstring)."""
-    from imm_model.families.diffusion.sampler import initial_noise, sample
+def imputing_sampler(model, gan, mode: str):
+    """A sampler for `model.sampler` (the diffusion model's sampling loop) that takes the placement from `gan` at every
+    step (see the module's docstring)."""
+    from imm_model.families.diffusion.sampler import sample
 
     skeleton = model.skeleton
     body, up = list(skeleton.root_neighbours), skeleton.vertical_axis
@@ -37,34 +38,29 @@ def imputed_network(model, gan, mode: str):
             c = np.broadcast_to((c * w).sum(-2, keepdims=True) / w.sum(-2, keepdims=True), c.shape)
         return c
 
-    def network(leaders, labels, seeds):
-        placed = gan._network(leaders, labels, seeds)
-        d = model.config.pose_dim
-        out = []
-        for start in range(0, len(leaders), model.BATCH):
-            rows = list(range(start, min(start + model.BATCH, len(leaders))))
-            x, mask = model._normalize_leaders([leaders[i] for i in rows])
-            noise, _ = model._padded([initial_noise(seeds[i], len(leaders[i]), d) for i in rows])
-            target, _ = model._padded([placed[i] for i in rows])
-            b, t = mask.shape
-            goal = centres(target.reshape(b, t, joints, 3), mask)  # (B, T, 3) metres
-            inner = model._denoiser(x, mask)
+    def sampler(inner, x, mask, labels, noise, guidance, steps, seeds=None, pair_terms=False):
+        b, t = mask.shape
+        lengths = mask.sum(1)
+        # the canonical leaders back from the sampler's normalized ones, and the GAN's own followers for them
+        leaders = [(x[k, :n] * model.weights["leader_std"] + model.weights["leader_mean"]).reshape(n, joints, 3)
+                   for k, n in enumerate(lengths)]
+        gan.raw = True
+        target = np.zeros((b, t, joints, 3), np.float32)
+        for k, f in enumerate(gan.synthesize_batch_canonical(leaders, labels, seeds)):
+            target[k, : len(f)] = f
+        goal = centres(target, mask)  # (B, T, 3) metres
 
-            def denoise(x_t, step, *rest, inner=inner, goal=goal, mask=mask, b=b, t=t):
-                x0 = inner(x_t, step, *rest)  # (reps * B, T, D) normalized, one block of B rows per term
-                pos = (x0 * std + mean).reshape(-1, b, t, joints, 3)
-                # each term moved onto the goal, so the composed x0 (goal + sum of weighted differences) is there too
-                shift = (goal - centres(pos, mask)) * horizontal
-                pos = pos + shift[..., None, :]
-                return ((pos.reshape(-1, b, t, d) - mean) / std * mask[..., None]).reshape(x0.shape).astype(np.float32)
+        def denoise(x_t, step, *rest):
+            x0 = inner(x_t, step, *rest)  # (reps * B, T, D) normalized, one block of B rows per term
+            pos = (x0 * std + mean).reshape(-1, b, t, joints, 3)
+            # each term moved onto the goal, so the composed x0 (goal + sum of weighted differences) is there too
+            shift = (goal - centres(pos, mask)) * horizontal
+            pos = pos + shift[..., None, :]
+            return ((pos.reshape(-1, b, t, 3 * joints) - mean) / std * mask[..., None]).reshape(x0.shape).astype(np.float32)
 
-            x0 = sample(denoise, x, mask, labels[rows], noise, model.guidance, model.config.diffusion_steps,
-                        seeds=[seeds[i] for i in rows])
-            followers = x0 * std + mean
-            out += [followers[k, : len(leaders[i])].reshape(len(leaders[i]), -1, 3) for k, i in enumerate(rows)]
-        return out
+        return sample(denoise, x, mask, labels, noise, guidance, steps, seeds=seeds, pair_terms=pair_terms)
 
-    return network
+    return sampler
 
 
 def main() -> None:
@@ -90,7 +86,9 @@ def main() -> None:
     for mode in args.mode:
         model = ReactionModel.load(args.checkpoint)
         if mode != "none":
-            model._network = imputed_network(model, gan, mode)
+            if "spread" in model.settings:
+                model.spread = 0.0  # the imputation reads the clean leader
+            model.sampler = imputing_sampler(model, gan, mode)
         result = evaluate_fold(model, data, args.fold, EvalOptions(baselines=("nn1",), progress=False), latents=False)
         row = {"checkpoint": str(args.checkpoint), "gan": str(args.gan), "fold": args.fold, "mode": mode,
                "guidance": model.guidance.to_dict(), "first_frame_root_m": result["model"]["afd_parts"]["start_root_m"],

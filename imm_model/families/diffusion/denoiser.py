@@ -1,6 +1,6 @@
 """The reaction diffusion model's network in torch (training, GPUs): a transformer denoiser over the follower's frames,
-conditioned per frame on the leader and per sequence on the diffusion step and the label (model/diffusion_sampler.py
-has the composition it serves; model/diffusion_numpy.py the same network in numpy for one CPU)."""
+conditioned per frame on the leader and per sequence on the diffusion step and the label (sampler.py
+has the composition it serves; denoiser_numpy.py the same network in numpy for one CPU)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
-"""The reaction diffusion model's denoiser (model/diffusion.py) in numpy, for sampling on a CPU.
+"""The reaction diffusion model's denoiser (denoiser.py) in numpy, for sampling on a CPU.
 
-Why by hand: the studio never imports torch (model/numpy_runtime.py says why), and a sampler step is ~60 small
+Why by hand: the studio never imports torch (families/gan/numpy_generator.py says why), and a sampler step is ~60 small
 operations, where numpy's per-call cost is a fraction of torch's. The numbers are the torch module's
 (tests/test_diffusion.py compares them); training and GPUs stay on torch.
 

@@ -12,11 +12,11 @@ import numpy as np
 from imm_model.errors import CheckpointError, LabelError
 from imm_model.families.base import ReactionModel, check_compatible, described_weights
 from imm_model.families.diffusion.denoiser_numpy import NumpyDenoiser
-from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance
+from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, sample
 
 
 class DiffusionReactionModel(ReactionModel):
-    """The reaction diffusion model (model/diffusion_sampler.py) behind the ReactionModel API. A seed fixes the
+    """The reaction diffusion model (sampler.py) behind the ReactionModel API. A seed fixes the
     sampler's starting noise, so the same seed with a moved label slider moves the reaction continuously; another seed
     is another reaction. `guidance` (label strength, leader guidance, steps) defaults to what the model shipped with.
     On a CPU the denoiser runs in numpy (denoiser_numpy.py: no `import torch`), on a GPU in torch."""
@@ -32,7 +32,10 @@ class DiffusionReactionModel(ReactionModel):
         self.config = config
         self.guidance = guidance
         self.fast = NumpyDenoiser(weights, config) if self.device == "cpu" else None
-        self.memory = None  # the reaction memory (model/reaction_memory.py) its sampler may start from
+        self.memory = None  # the reaction memory (reaction_memory.py) its sampler may start from
+        # the sampling loop, sampler.py `sample` (an experiment may put another with its signature here: it gets the
+        # network call, the normalized leaders and masks, labels, starting noise, guidance, steps, seeds, pair terms)
+        self.sampler = sample
 
     @property
     def settings(self) -> tuple[str, ...]:
@@ -111,7 +114,7 @@ class DiffusionReactionModel(ReactionModel):
         return (x - mean) / std * mask[..., None], mask
 
     def _network(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int]) -> list[np.ndarray]:
-        from imm_model.families.diffusion.sampler import forward_noised, initial_noise, noised_leaders, sample, schedule_step
+        from imm_model.families.diffusion.sampler import forward_noised, initial_noise, noised_leaders, schedule_step
 
         d, steps = self.config.pose_dim, self.config.diffusion_steps
         level = schedule_step(self.guidance.leader_noise, steps)
@@ -130,7 +133,7 @@ class DiffusionReactionModel(ReactionModel):
             if self.guidance.uses_memory:
                 noise = forward_noised(self._memory_starts([leaders[i] for i in rows], labels[rows], [seeds[i] for i in rows]),
                                        noise, mask, schedule_step(self.guidance.memory_level, steps), steps)
-            x0 = sample(denoise, x, mask, labels[rows], noise, self.guidance, steps, seeds=[seeds[i] for i in rows],
+            x0 = self.sampler(denoise, x, mask, labels[rows], noise, self.guidance, steps, seeds=[seeds[i] for i in rows],
                         pair_terms=self.config.pair_terms)
             followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
             out += [followers[k, : len(leaders[i])].reshape(len(leaders[i]), -1, 3) for k, i in enumerate(rows)]

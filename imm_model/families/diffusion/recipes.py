@@ -82,6 +82,7 @@ class DiffusionTrainConfig:
 # through noise at 0.3 of the schedule (the spread) but at the last step (docs/experiments/reaction-diffusion.md,
 # diffusion-geometric-terms.md and diffusion-leader-noise.md have the variants measured).
 IMM_DIFFUSION = DiffusionTrainConfig(
+    name="imm-diffusion",
     model=dict(width=128, layers=4, heads=4, ff_mult=2, dropout=0.1, leader_noise=True),
     guidance=dict(label_scale=3.0, leader_scale=1.0, sample_steps=7, guided_below=0.3, leader_noise=0.3),
     lambda_foot_contact=20.0,

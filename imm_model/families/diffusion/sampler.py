@@ -1,7 +1,7 @@
 """The reaction diffusion model without its network: sizes, noise schedule, guidance and the DDIM sampler that
 composes the signed multi-hot label. numpy only, so that the studio samples without importing torch.
 
-The network (model/diffusion.py in torch for training and GPUs, model/diffusion_numpy.py in numpy for one CPU) predicts
+The network (denoiser.py in torch for training and GPUs, denoiser_numpy.py in numpy for one CPU) predicts
 the clean follower x0 from a noised one x_t, given per frame the leader's pose and, for the whole sequence, the
 diffusion step and a label. Training drops the label and the leader independently (each replaced by a learned
 "absent" input), so one network gives every term the sampler composes:
@@ -102,7 +102,7 @@ class Guidance:
     # the clean leader so that the leader's noise does not show as jitter; 0 = the clean leader throughout
     leader_noise: float = param(0.0, Interval(float, 0, 1))
     # the noise level t / (T - 1) the sampler starts from: a real reaction to a similar leader, from the model's
-    # reaction memory (model/reaction_memory.py), noised to this level; 1 = from pure noise, without the memory
+    # reaction memory (reaction_memory.py), noised to this level; 1 = from pure noise, without the memory
     memory_level: float = param(1.0, Interval(float, 0, 1))
 
     def __post_init__(self) -> None:

@@ -1,4 +1,4 @@
-"""Model sizes as a typed config (training/config.py holds the named recipes, `paper` among them)."""
+"""The GAN's model sizes as a typed config (recipes.py holds the named recipes, `paper` among them)."""
 
 from __future__ import annotations
 

@@ -42,9 +42,9 @@ class TrainConfig:
     lambda_bone: float = param(0.01, NON_NEGATIVE)  # bone lengths of generated vs real follower
     lambda_cont: float = param(1.0, NON_NEGATIVE)  # frame-to-frame velocities of generated vs real follower
     l1_reduction: str = param("mean", OneOf(("mean", "sum")))  # L1 averaged, or summed over batch x frames x coordinates
-    lambda_critic: float = param(0.0, NON_NEGATIVE)  # the label critic (training/critic.py), ramped like lambda_adv (0: off)
+    lambda_critic: float = param(0.0, NON_NEGATIVE)  # the label critic (critic.py), ramped like lambda_adv (0: off)
     critic_mix_prob: float = param(0.0, PROBABILITY)  # probability that a drawn label is a two-class mix
-    lambda_energy: float = param(0.0, NON_NEGATIVE)  # motion energy (training/energy.py), ramped like lambda_adv (0: off)
+    lambda_energy: float = param(0.0, NON_NEGATIVE)  # motion energy (energy.py), ramped like lambda_adv (0: off)
     energy_reference: str = param("root", OneOf(("root", "body")))  # limb speed relative to the root joint or the body centre
     adv_warmup_epochs: int = param(0, EPOCHS)  # adversarial weight 0 for these epochs (reconstruction warm-up) ...
     adv_ramp_epochs: int = param(0, EPOCHS)  # ... then ramped linearly to lambda_adv over these epochs
@@ -68,7 +68,7 @@ class TrainConfig:
     lr_decay_patience: int = param(0, EPOCHS)  # decay both learning rates after this many epochs without a better AFD (0: off)
     lr_decay_factor: float = param(0.5, Interval(float, 0, 1, closed="right"))  # ... multiplying them by this each time
     select_from_epoch: int = param(-1, Interval(int, -1, 100_000))  # first selectable epoch (-1: once lambda_adv is at full strength)
-    refit: bool = param(False, Flag())  # then retrain on training + validation for the selected epochs (training/refit.py)
+    refit: bool = param(False, Flag())  # then retrain on training + validation for the selected epochs (refit.py)
     checkpoint_every: int = param(25, Interval(int, 1, 100_000))  # save last.safetensors every this many epochs ...
     checkpoint_minutes: float = param(5.0, POSITIVE)  # ... and whenever this much time has passed since the last save
     seed: int = param(0, Interval(int, 0, 2**31 - 1))  # initial weights, validation split, batches, augmentation

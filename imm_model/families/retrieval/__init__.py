@@ -26,8 +26,10 @@ def _train(cfg, data, subject, out_dir, device="cpu", resume: bool = False, prog
 
     final = Path(out_dir) / "final.safetensors"
     final.parent.mkdir(parents=True, exist_ok=True)
-    RetrievalReactionModel.build(data, subject).save(final)
-    return {"line": f"retrieval from {len(data)} sequences{f' but {subject}' if subject else ''} -> {final}"}
+    model = RetrievalReactionModel.build(data, subject)
+    model.save(final)
+    held_out = f", {subject} held out" if subject else ""
+    return {"line": f"retrieves from {sum(map(len, model.pairs))} training sequences{held_out} -> {final}"}
 
 
 FAMILY = Family(name="retrieval", title="1-NN retrieval", model_class=_model_class, recipes=_recipes, train=_train,
