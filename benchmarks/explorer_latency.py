@@ -269,13 +269,13 @@ def main() -> int:
     ap.add_argument("--play-seconds", type=float, default=5.0)
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--memory-only", action="store_true", help="only the memory of 5 tabs (CPU load does not skew it)")
-    ap.add_argument("--checkpoint", type=Path, default=None, help="the model every studio serves (default: the bundled one)")
+    ap.add_argument("--checkpoint", type=Path, default=None, help="the one model every studio serves (default: the bundled ones)")
     ap.add_argument("--models", action="store_true", help="only the model switch's latencies (6.)")
     ap.add_argument("--playback-only", action="store_true", help="only the pictures/s the page displays at 2x (3.)")
     args = ap.parse_args()
     if args.checkpoint and not args.checkpoint.is_file():
         ap.error(f"checkpoint not found: {args.checkpoint}")  # one line, before any studio or browser starts
-    model = ("--checkpoint", str(args.checkpoint)) if args.checkpoint else ()
+    model = ("--model", f"model={args.checkpoint}") if args.checkpoint else ()
     from playwright.sync_api import sync_playwright
 
     res: dict = {"threads": os.cpu_count(), "load_before": os.getloadavg(), "checkpoint": str(args.checkpoint or "bundled")}

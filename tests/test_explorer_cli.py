@@ -33,7 +33,7 @@ def assert_one_line_error(proc: subprocess.CompletedProcess, *needles: str) -> N
 def test_help_lists_options():
     out = subprocess.run([sys.executable, "-m", "imm_model.cli", "explore", "--help"], capture_output=True, text=True)
     assert out.returncode == 0
-    for opt in ("--data", "--checkpoint", "--port", "--host", "--no-browser"):
+    for opt in ("--data", "--model", "--port", "--host", "--no-browser"):
         assert opt in out.stdout
 
 
@@ -42,7 +42,7 @@ def test_missing_data_file(tmp_path):
 
 
 def test_missing_checkpoint(tmp_path):
-    assert_one_line_error(run_explore("--checkpoint", str(tmp_path / "nope.safetensors")), "checkpoint not found")
+    assert_one_line_error(run_explore("--model", f"mine={tmp_path / 'nope.safetensors'}"), "--model mine: checkpoint not found")
 
 
 def test_unknown_start_sequence_and_bad_judge(tmp_path):
@@ -51,17 +51,18 @@ def test_unknown_start_sequence_and_bad_judge(tmp_path):
 
 
 @pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
-def test_bad_diffusion_checkpoint(tmp_path):
-    assert_one_line_error(run_explore("--diffusion-checkpoint", str(tmp_path / "nope.safetensors")),
-                          "diffusion checkpoint not found", "nope.safetensors")
-    assert_one_line_error(run_explore("--diffusion-checkpoint", str(SAMPLE_CHECKPOINT), "--cache-dir", str(tmp_path)),
-                          "a gan model, not a diffusion one")
+@pytest.mark.parametrize("given, words", [(["--model", "gan"], "expected NAME=CHECKPOINT"),
+                                          (["--model", "a b=x.safetensors"], "expected NAME=CHECKPOINT"),
+                                          (["--model", f"gan={SAMPLE_CHECKPOINT}", "--model", f"gan={SAMPLE_CHECKPOINT}"],
+                                           "--model gan: given twice")])
+def test_a_bad_model_option_is_one_line(tmp_path, given, words):
+    assert_one_line_error(run_explore(*given, "--cache-dir", str(tmp_path)), words)
 
 
 def test_corrupt_checkpoint(tmp_path):
     bad = tmp_path / "bad.safetensors"
     bad.write_bytes(b"\x00" * 64)
-    assert_one_line_error(run_explore("--checkpoint", str(bad), "--cache-dir", str(tmp_path)), "bad.safetensors")
+    assert_one_line_error(run_explore("--model", f"bad={bad}", "--cache-dir", str(tmp_path)), "bad.safetensors")
 
 
 @pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
@@ -262,7 +263,7 @@ def test_a_studio_process_answers_only_its_own_secret(tmp_path):
     from explorer.serving.proxy import with_secret
     from imm_model.paths import SAMPLE_DATA
 
-    cmd = [sys.executable, "-m", "explorer.serving.zygote", "--data", str(SAMPLE_DATA), "--checkpoint", str(SAMPLE_CHECKPOINT),
+    cmd = [sys.executable, "-m", "explorer.serving.zygote", "--data", str(SAMPLE_DATA), "--model", f"gan={SAMPLE_CHECKPOINT}",
            "--cache-dir", str(tmp_path), "--port", "0"]
     proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     try:
@@ -332,7 +333,7 @@ def test_the_next_spare_waits_for_quiet_tabs(monkeypatch):
     monkeypatch.setattr(launcher, "SPARE_LATEST_S", 1.5)
 
     async def time_until_due(traffic_s: float, wanted_after_s: float | None = None) -> float:
-        front = Launcher(LaunchConfig(data=SAMPLE_DATA, checkpoint=SAMPLE_CHECKPOINT))  # nothing is started
+        front = Launcher(LaunchConfig(data=SAMPLE_DATA, models=(("gan", SAMPLE_CHECKPOINT),)))  # nothing is started
         t0 = time.monotonic()
         due = asyncio.ensure_future(front._spare_due())
         while time.monotonic() - t0 < traffic_s and not due.done():

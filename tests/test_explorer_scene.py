@@ -155,7 +155,7 @@ def test_exported_pictures_carry_the_legend_and_the_frame_number_and_the_view_st
 
     if not SAMPLE_CHECKPOINT.exists():
         pytest.skip(f"bundled checkpoint missing: {SAMPLE_CHECKPOINT}")
-    session = Session(sample_data, load_model(SAMPLE_CHECKPOINT, sample_data), index=0)
+    session = Session(sample_data, {"gan": load_model(SAMPLE_CHECKPOINT, sample_data)}, index=0)
     page = SimpleNamespace(session=session, state=SimpleNamespace(notice=""), guarded=lambda fn: fn,
                            trigger=lambda name: (lambda fn: fn), ctrl=SimpleNamespace(view_update=lambda: None))
     exports = Exports(page, scene, tmp_path, attach=bytes)

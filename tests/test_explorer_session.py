@@ -27,7 +27,7 @@ def model(sample_data):
 def session(sample_data, model):
     from explorer.session.session import Session
 
-    return Session(sample_data, model, index=0)
+    return Session(sample_data, {"gan": model}, index=0)
 
 
 def test_label_words():
@@ -130,7 +130,7 @@ def test_reads_as_follows_the_label(sample_data, model):
     from imm_model.reads_as import ReadsAs
 
     reader = ReadsAs.load(SAMPLE_JUDGE)
-    ses = Session(sample_data, model, index=0, reader=reader)
+    ses = Session(sample_data, {"gan": model}, index=0, reader=reader)
     p = ses.reads_as()
     assert p.shape == (6,) and p.sum() == pytest.approx(1.0) and np.all(p >= 0)
     before = p.copy()
@@ -139,7 +139,7 @@ def test_reads_as_follows_the_label(sample_data, model):
     assert not np.allclose(ses.reads_as(), before)  # a new label, a new reading
     rows = reads_as_rows(ses.reads_as(), ses.weights, ses.class_names)
     assert [r["asked"] for r in rows].count("+") == 1 and rows[other]["asked"] == "+"
-    assert Session(sample_data, model, index=0).reads_as() is None  # no classifier, no panel
+    assert Session(sample_data, {"gan": model}, index=0).reads_as() is None  # no classifier, no panel
 
 
 def test_the_panel_names_asked_classes_that_do_not_read():
@@ -159,7 +159,7 @@ def test_reads_as_refuses_other_classes_and_files(sample_data, model, tmp_path):
     from imm_model.reads_as import ReadsAs
 
     with pytest.raises(CheckpointError, match="classes"):
-        Session(sample_data, model, reader=SimpleNamespace(class_names=("a", "b")))
+        Session(sample_data, {"gan": model}, reader=SimpleNamespace(class_names=("a", "b")))
     bad = tmp_path / "x.safetensors"
     bad.write_bytes(b"not a file")
     with pytest.raises(CheckpointError):
@@ -286,17 +286,17 @@ def two_models(sample_data, model, diffusion):
     from explorer.session.session import Session
 
     model.raw = diffusion.raw = False
-    return Session(sample_data, model, index=3, others={"diffusion": diffusion})
+    return Session(sample_data, {"gan": model, "diffusion": diffusion}, index=3)
 
 
 def test_switching_models_keeps_the_sequence_mix_and_pin(two_models):
     ses = two_models
-    assert ses.model_name == "gan" and not ses.stochastic and set(ses.models) == {"gan", "diffusion"}
+    assert ses.model_name == "gan" and not ses.seeded and set(ses.models) == {"gan", "diffusion"}
     ses.set_label(np.eye(6)[2] * 0.5 + np.eye(6)[4] * -0.5, scale=1.5)
     ses.pin()
     gan, mix, index = ses.synth.copy(), ses.weights.copy(), ses.index
     ses.set_model("diffusion")
-    assert ses.model_name == "diffusion" and ses.stochastic and ses.model.family == "diffusion"
+    assert ses.model_name == "diffusion" and ses.seeded and ses.model_title() == "the diffusion model"
     assert ses.index == index and np.array_equal(ses.weights, mix) and ses.scale == 1.5
     assert ses.synth.shape == gan.shape and not np.allclose(ses.synth, gan)  # another model, another reaction
     np.testing.assert_array_equal(ses.pinned, gan)  # the pin keeps its model: A/B compares the two
@@ -448,7 +448,7 @@ def test_the_spread_moves_the_reaction_and_travels_with_the_pin_link_and_export(
     from explorer.ui.url_state import parse_view, view_query
     from imm_model.errors import LabelError
 
-    ses = Session(sample_data, model, index=3, others={"diffusion": spreading})
+    ses = Session(sample_data, {"gan": model, "diffusion": spreading}, index=3)
     assert ses.spread is None
     with pytest.raises(LabelError, match="has no spread setting"):
         ses.set_spread(0.5)

@@ -75,7 +75,7 @@ def test_an_upload_reader_that_hangs_or_hogs_is_stopped_and_the_next_upload_is_r
     hostile = {"spin.bvh": _spin, "hog.bvh": _hog, "crash.bvh": _crash}
 
     def read(name, content):  # the helper is forked now: what it runs is fixed here
-        return hostile.get(name, lambda n, c: read_upload(n, c, model, data.skeleton))(name, content)
+        return hostile.get(name, lambda n, c: read_upload(n, c, model))(name, content)
 
     reader = budget.UploadReader(read)
     try:
@@ -87,11 +87,12 @@ def test_an_upload_reader_that_hangs_or_hogs_is_stopped_and_the_next_upload_is_r
             assert time.monotonic() - t0 < 6.0
             message = str(err.value)
             assert needle in message and message.startswith(f"{name}: ") and "\n" not in message, message
-        leader, frame = reader("take.bvh", FIXTURE_BVH.read_bytes())
-        expected, expected_frame = read_upload("take.bvh", FIXTURE_BVH.read_bytes(), model, data.skeleton)
-        np.testing.assert_array_equal(leader, expected)
-        np.testing.assert_array_equal(frame.origin, expected_frame.origin)
-        assert frame.mode == expected_frame.mode
+        leader = reader("take.bvh", FIXTURE_BVH.read_bytes())
+        expected = read_upload("take.bvh", FIXTURE_BVH.read_bytes(), model)
+        np.testing.assert_array_equal(leader.canonical, expected.canonical)
+        np.testing.assert_array_equal(leader.world, expected.world)
+        np.testing.assert_array_equal(leader.frame.origin, expected.frame.origin)
+        assert leader.frame.mode == expected.frame.mode
         with pytest.raises(Exception, match="short_motion.bvh: the MOTION block"):
             reader("short_motion.bvh", hostile_uploads()["short_motion.bvh"])
     finally:
@@ -139,7 +140,7 @@ def _request(path: str = "/claim", method: str = "POST", host: str = "localhost:
 def _launcher(**config):
     from explorer.serving.launcher import LaunchConfig, Launcher
 
-    return Launcher(LaunchConfig(data=SAMPLE_DATA, checkpoint=SAMPLE_CHECKPOINT, **config))
+    return Launcher(LaunchConfig(data=SAMPLE_DATA, models=(("gan", SAMPLE_CHECKPOINT),), **config))
 
 
 def test_the_origin_check_accepts_the_scheme_the_page_was_served_over():
