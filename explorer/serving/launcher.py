@@ -46,6 +46,10 @@ CLAIM_TIMEOUT_S = float(os.environ.get("IMM_STUDIO_CLAIM_TIMEOUT", "20"))
 # process (~0.5 s of CPU), so a script posting claims in a loop would otherwise keep the machine forking.
 CLAIM_BURST = 4
 CLAIM_EVERY_S = 1.0
+# A tab asks for its page the moment its claim is answered. At most this many claims may wait with no request for their
+# page: one more retires the oldest of them, as does a claim that finds every slot taken, so a script posting claims
+# in a loop holds at most this many slots and never keeps a tab from a studio.
+UNVISITED_CLAIMS = 2
 # A claimed spare is replaced once the tabs have been quiet (no websocket message through the proxy) for SPARE_QUIET_S,
 # and no sooner than SPARE_DELAY_S after the claim; at once when another tab asks first, and at the latest after
 # SPARE_LATEST_S (playback never goes quiet). Why: forking and starting a studio process takes ~0.5 s of CPU, which on
@@ -53,6 +57,10 @@ CLAIM_EVERY_S = 1.0
 SPARE_DELAY_S = 3.0
 SPARE_QUIET_S = 1.0
 SPARE_LATEST_S = 60.0
+# Stopping (SIGTERM, Ctrl+C) waits at most STOP_S for the studio processes (the zygote gives a busy one ~1.5 s before
+# SIGKILL), then CLOSE_S for the tabs' connections to close: within 5 s in all.
+STOP_S = 3.0
+CLOSE_S = 1.0
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 IMMUTABLE = "public, max-age=31536000, immutable"  # /static/: every name there changes with its content
 
@@ -311,6 +319,7 @@ class Launcher:
         if not self._claim_allowed():
             return web.Response(status=429, content_type="text/html",
                                 text=_error_page("too many new tabs at once: wait a second and reload"))
+        self._make_room()
         try:
             w = await self.take()
         except LaunchError as err:
@@ -319,6 +328,13 @@ class Launcher:
         token = secrets.token_urlsafe(18)
         self.sessions[token] = w
         return web.json_response({"url": f"s/{token}/"})  # relative: a reverse proxy's path prefix is kept
+
+    def _make_room(self) -> None:
+        """Before a claim: retire the oldest claim no page has been asked for yet, if UNVISITED_CLAIMS of them wait
+        or no slot is free."""
+        unvisited = [w for w in self.busy if not w.connected and not w.last_seen]  # self.busy is in claim order
+        if unvisited and (len(unvisited) >= UNVISITED_CLAIMS or len(self.busy) >= self.config.max_clients):
+            self.retire(unvisited[0])
 
     def _claim_allowed(self) -> bool:
         now = time.monotonic()
@@ -460,7 +476,7 @@ class Launcher:
         app.router.add_get("/s/{token}/{tail:.*}", self.studio)
         app.router.add_get("/static/{name}", self.static)
         app.router.add_get("/static/{key}/{tail:.+}", self.page_file)
-        runner = web.AppRunner(app, access_log=None)
+        runner = web.AppRunner(app, access_log=None, shutdown_timeout=CLOSE_S)
         await runner.setup()
         await web.SockSite(runner, sock).start()
         # What is loaded now stays: out of the collector's sight, a full collection no longer walks aiohttp's and the
@@ -483,8 +499,10 @@ class Launcher:
         try:
             await stop.wait()
         finally:
-            await runner.cleanup()
+            # The studio processes first: their websockets close, which ends each tab's relay; then the web server, which
+            # would otherwise wait on the open relays (32 s with a tab open).
             await self.shutdown()
+            await runner.cleanup()
         return 0
 
     async def shutdown(self) -> None:
@@ -494,9 +512,10 @@ class Launcher:
         if self.zygote.stdin is not None:
             self.zygote.stdin.close()
         try:
-            await asyncio.wait_for(self.zygote.wait(), 5)
+            await asyncio.wait_for(self.zygote.wait(), STOP_S)
         except TimeoutError:
             self.zygote.kill()
+            await self.zygote.wait()
 
 
 def _open_browser(url: str) -> None:
@@ -517,10 +536,16 @@ def _open_browser(url: str) -> None:
 CLAIM_PAGE = """<!doctype html><title>IMM Studio</title>
 <body style="font-family:sans-serif;padding:2em"><h2>IMM Studio</h2><p id="m">starting your studio...</p>
 <script>
-fetch("claim", {method: "POST"}).then(async (r) => {
+async function claim(tries) {
+  const r = await fetch("claim", {method: "POST"});
+  if (r.status === 429 && tries > 1) {  // other tabs (or a script) are starting: try again a second later
+    await new Promise((done) => setTimeout(done, 1000));
+    return claim(tries - 1);
+  }
   if (!r.ok) throw new Error(await r.text());
   location.replace((await r.json()).url + location.search);  // a link's view (explorer/ui/url_state.py) goes along
-}).catch((e) => { const m = document.getElementById("m"); m.style.color = "#b00020";
+}
+claim(10).catch((e) => { const m = document.getElementById("m"); m.style.color = "#b00020";
   m.textContent = (e.message || String(e)).replace(/<[^>]*>/g, " ").replace(/\\s+/g, " ").replace("IMM Studio", "").trim(); });
 </script></body>"""
 
