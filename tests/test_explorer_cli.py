@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from imm_model.paths import SAMPLE_CHECKPOINT
+from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_JUDGE
 
 pytest.importorskip("trame")
 
@@ -48,6 +48,21 @@ def test_missing_checkpoint(tmp_path):
 def test_unknown_start_sequence_and_bad_judge(tmp_path):
     assert_one_line_error(run_explore("--sequence", "nonexistent", "--cache-dir", str(tmp_path)), "no such sequence")
     assert_one_line_error(run_explore("--judge", str(tmp_path / "nope.safetensors")), "judge not found")
+
+
+@pytest.mark.skipif(not SAMPLE_JUDGE.exists(), reason="bundled judge missing")
+def test_a_judge_with_nan_weights_is_refused(tmp_path):
+    """Its probabilities would all be NaN: the 'reads as' panel would read nothing, without a word."""
+    import numpy as np
+    import torch
+
+    from imm_model.checkpoint import load_checkpoint, save_checkpoint
+
+    arrays, meta = load_checkpoint(SAMPLE_JUDGE, framework="np")
+    weights = {name: torch.from_numpy(np.full_like(a, np.nan) if a.dtype.kind == "f" else a) for name, a in arrays.items()}
+    save_checkpoint(tmp_path / "nan.safetensors", weights, meta)
+    assert_one_line_error(run_explore("--judge", str(tmp_path / "nan.safetensors"), "--cache-dir", str(tmp_path)),
+                          "nan.safetensors: weights that are not finite numbers")
 
 
 @pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
