@@ -248,9 +248,14 @@ def _bounded_unchunker():
     class BoundedUnChunker(UnChunker):
         """wslink's UnChunker (chunks joined by id, a message's claimed size checked before it is allocated), except
         that a whole message is unpacked only within MAX_MESSAGE_OBJECTS and MAX_MESSAGE_DEPTH, and one it refuses
-        is handed to `refused(why)` and dropped: the websocket stays open."""
+        is logged, dropped (the websocket stays open) and, from a client that has logged in, handed to `refused(why)`."""
 
         refused: Callable[[str], None] = staticmethod(lambda why: None)
+        logged_in = False  # wslink lifts the size limit once a client's hello carried the secret
+
+        def set_max_message_size(self, size):
+            super().set_max_message_size(size)
+            self.logged_in = True
 
         def process_chunk(self, chunk: bytes):
             id, offset, total = _decode_header(chunk[:HEADER_LENGTH])
@@ -278,14 +283,16 @@ def _bounded_unchunker():
 
         def refuse(self, why: str) -> None:
             log.warning("refused a websocket message: %s", why)
-            type(self).refused(why)
+            if self.logged_in:  # not a stranger on the loopback port: its page hears why
+                type(self).refused(why)
 
     return BoundedUnChunker
 
 
 def guard_client_input(server, refused: Callable[[str], None]) -> None:
     """10. Bound what a client can make this process hold or log: each websocket message unpacked within
-    MAX_MESSAGE_OBJECTS and MAX_MESSAGE_DEPTH (one that is not: `refused(why)` and dropped), only the state keys the
+    MAX_MESSAGE_OBJECTS and MAX_MESSAGE_DEPTH (one that is not is dropped, and `refused(why)` called for a client that
+    has logged in), only the state keys the
     page has set by a client, and its text frames and error reports logged capped. Call before the server starts;
     once per process (it changes wslink's and trame-server's classes: one server per studio process)."""
     import wslink.protocol

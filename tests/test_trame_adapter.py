@@ -264,6 +264,8 @@ def test_the_bounded_unchunker_joins_chunks_and_refuses_what_would_unpack_to_too
     assert not unchunker.pending_messages
     assert refused == ["it is nested more than 64 levels deep", "not a msgpack message (FormatError)",
                        "its chunks disagree on its size"], refused
+    stranger = unchunker_class()  # no hello with the secret yet: refused and logged, but its words reach no page
+    assert stranger.process_chunk(_encode_header(5, 0, 600) + b"x") is None and len(refused) == 3
 
 
 def test_the_adapter_is_the_only_module_reaching_into_trame_privates():

@@ -6,7 +6,8 @@ process (explorer/serving/worker.py, forked by explorer/serving/zygote.py and li
 front page's script claims one (a same-origin POST: a bare GET or another web page cannot), forwards the tab
 to it (proxy.py) and forks the next spare in the background. A tab's studio process is ended (by the zygote, with
 SIGKILL if it is too busy to stop) RECONNECT_GRACE_S after its last websocket closed, or CLAIM_TIMEOUT_S after a claim
-that no browser connected to, so a closed tab frees its client slot within seconds.
+that no browser connected to (sooner, at the next claim, if no page was asked for: UNVISITED_CLAIMS), so a closed tab
+frees its client slot within seconds.
 """
 
 from __future__ import annotations
