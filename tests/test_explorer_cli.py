@@ -186,8 +186,10 @@ def test_a_lost_loader_is_one_line_not_a_hang(tmp_path):
 
 @pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
 def test_a_claim_nobody_connects_to_is_released(tmp_path, monkeypatch):
-    """A tab that claims a process and never connects (closed at once) does not hold the only slot for long."""
+    """A tab that claims a process, loads its page and never connects (closed at once) does not hold the only slot
+    for long. (A claim whose page is never asked for goes sooner: tests/test_studio_hardening.py.)"""
     import time
+    import urllib.request
     from urllib.parse import urlsplit
 
     from tests.studio_probe import StudioProcess
@@ -195,7 +197,10 @@ def test_a_claim_nobody_connects_to_is_released(tmp_path, monkeypatch):
     monkeypatch.setenv("IMM_STUDIO_CLAIM_TIMEOUT", "2")
     with StudioProcess("--max-clients", "1", cache_dir=tmp_path) as studio:
         u = urlsplit(studio.url)
-        assert _claim(u.hostname, u.port)[0] == 200
+        status, answer = _claim(u.hostname, u.port)
+        assert status == 200
+        with urllib.request.urlopen(studio.url + answer["url"], timeout=60) as page:
+            assert page.status == 200
         assert _claim(u.hostname, u.port)[0] == 503
         deadline = time.monotonic() + 30
         while _claim(u.hostname, u.port)[0] != 200:

@@ -6,8 +6,8 @@ process (explorer/serving/worker.py, forked by explorer/serving/zygote.py and li
 front page's script claims one (a same-origin POST: a bare GET or another web page cannot), forwards the tab
 to it (proxy.py) and forks the next spare in the background. A tab's studio process is ended (by the zygote, with
 SIGKILL if it is too busy to stop) RECONNECT_GRACE_S after its last websocket closed, or CLAIM_TIMEOUT_S after a claim
-that no browser connected to (sooner, at the next claim, if no page was asked for: UNVISITED_CLAIMS), so a closed tab
-frees its client slot within seconds.
+that no browser connected to (CLAIM_VISIT_S if its page was not even asked for), so a closed tab frees its client slot
+within seconds.
 """
 
 from __future__ import annotations
@@ -47,10 +47,10 @@ CLAIM_TIMEOUT_S = float(os.environ.get("IMM_STUDIO_CLAIM_TIMEOUT", "20"))
 # process (~0.5 s of CPU), so a script posting claims in a loop would otherwise keep the machine forking.
 CLAIM_BURST = 4
 CLAIM_EVERY_S = 1.0
-# A tab asks for its page the moment its claim is answered. At most this many claims may wait with no request for their
-# page: one more retires the oldest of them, as does a claim that finds every slot taken, so a script posting claims
-# in a loop holds at most this many slots and never keeps a tab from a studio.
-UNVISITED_CLAIMS = 2
+# A tab asks for its page the moment its claim is answered: a claim whose page is not asked for within CLAIM_VISIT_S is
+# retired, and so is the oldest such claim when a claim finds every slot taken, so a script posting claims in a loop
+# never keeps a tab from a studio.
+CLAIM_VISIT_S = min(5.0, CLAIM_TIMEOUT_S)
 # A claimed spare is replaced once the tabs have been quiet (no websocket message through the proxy) for SPARE_QUIET_S,
 # and no sooner than SPARE_DELAY_S after the claim; at once when another tab asks first, and at the latest after
 # SPARE_LATEST_S (playback never goes quiet). Why: forking and starting a studio process takes ~0.5 s of CPU, which on
@@ -325,17 +325,26 @@ class Launcher:
             w = await self.take()
         except LaunchError as err:
             return web.Response(status=503, content_type="text/html", text=_error_page(str(err)))
+        asyncio.get_running_loop().call_later(CLAIM_VISIT_S, self._retire_if_unvisited, w)
         asyncio.get_running_loop().call_later(CLAIM_TIMEOUT_S, self._retire_if_unconnected, w)
         token = secrets.token_urlsafe(18)
         self.sessions[token] = w
         return web.json_response({"url": f"s/{token}/"})  # relative: a reverse proxy's path prefix is kept
 
     def _make_room(self) -> None:
-        """Before a claim: retire the oldest claim no page has been asked for yet, if UNVISITED_CLAIMS of them wait
-        or no slot is free."""
-        unvisited = [w for w in self.busy if not w.connected and not w.last_seen]  # self.busy is in claim order
-        if unvisited and (len(unvisited) >= UNVISITED_CLAIMS or len(self.busy) >= self.config.max_clients):
-            self.retire(unvisited[0])
+        """Before a claim that finds every slot taken: retire the oldest claim whose page nobody has asked for."""
+        if len(self.busy) >= self.config.max_clients:
+            unvisited = [w for w in self.busy if self._unvisited(w)]  # self.busy is in claim order
+            if unvisited:
+                self.retire(unvisited[0])
+
+    @staticmethod
+    def _unvisited(w: Worker) -> bool:
+        return not w.connected and not w.last_seen
+
+    def _retire_if_unvisited(self, w: Worker) -> None:
+        if self._unvisited(w):
+            self.retire(w)
 
     def _claim_allowed(self) -> bool:
         now = time.monotonic()
