@@ -39,8 +39,10 @@ the installed packages still have each thing below, naming the package and its v
    `msgpack.unpackb`: replaced by one that checks the message's shape first (BoundedUnChunker). The handler's
    `WslinkHandler.onMessage(is_binary, msg, client_id)` logs a text frame in full: wrapped to log it capped.
    `trame_server.protocol.CoreServer.update_state(changes)` (the `trame.state.update` call: a list of
-   {"key", "value"}) stores any key: wrapped to keep only the keys the state has. The frame size a studio accepts is
-   trame's `ws_max_msg_size` option plus wslink's 4 KB of overhead (wslink/backends/aiohttp).
+   {"key", "value"}) stores any key: wrapped to keep only the keys the state has; `CoreServer.trigger(name, args,
+   kwargs)` (`trame.trigger`) logs an unknown name in full: wrapped to refuse it first (`controller.trigger_fn`).
+   The frame size a studio accepts is trame's `ws_max_msg_size` option plus wslink's 4 KB of overhead
+   (wslink/backends/aiohttp).
 
 Nothing here imports trame, trame-rca or wslink at module level: the launcher reads the wire-format constants
 without loading them.
@@ -292,9 +294,9 @@ def _bounded_unchunker():
 def guard_client_input(server, refused: Callable[[str], None]) -> None:
     """10. Bound what a client can make this process hold or log: each websocket message unpacked within
     MAX_MESSAGE_OBJECTS and MAX_MESSAGE_DEPTH (one that is not is dropped, and `refused(why)` called for a client that
-    has logged in), only the state keys the
-    page has set by a client, and its text frames and error reports logged capped. Call before the server starts;
-    once per process (it changes wslink's and trame-server's classes: one server per studio process)."""
+    has logged in), only the state keys the page has set by a client, only the page's triggers called, and its text
+    frames and error reports logged capped. Call before the server starts; once per process (it changes wslink's and
+    trame-server's classes: one server per studio process)."""
     import wslink.protocol
     from trame_server.protocol import CoreServer
 
@@ -329,6 +331,17 @@ def guard_client_input(server, refused: Callable[[str], None]) -> None:
         return update_state(self, known) if known else None
 
     CoreServer.update_state = known_keys_only
+
+    trigger = CoreServer.trigger
+
+    @functools.wraps(trigger)
+    async def known_triggers_only(self, name, args, kwargs):
+        if not isinstance(name, str) or server.controller.trigger_fn(name) is None:  # trame would log the whole name
+            log.warning("ignored a call of a trigger the page does not have: %s", capped(name))
+            return None
+        return await trigger(self, name, args, kwargs)
+
+    CoreServer.trigger = known_triggers_only
     server.controller.on_error.add(lambda message: log.warning("error in the page: %s", capped(message)))
 
 

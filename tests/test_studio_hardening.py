@@ -594,8 +594,8 @@ def test_a_message_that_would_unpack_to_too_much_is_refused_in_one_line_and_the_
 
 
 def test_a_client_sets_only_the_pages_state_keys_and_its_text_is_logged_capped(small_studio):
-    """2000 new state keys are not kept (a key the page has, sent with them, is); a 100 k-character text frame and
-    error report are logged in one line of a few hundred characters each."""
+    """2000 new state keys are not kept (a key the page has, sent with them, is); a 100 k-character text frame, error
+    report and trigger name are logged in one line of a few hundred characters each."""
 
     async def go():
         tab, pid = await _open_tab(small_studio)
@@ -603,6 +603,7 @@ def test_a_client_sets_only_the_pages_state_keys_and_its_text_is_logged_capped(s
         await tab.send(tab._id(), "trame.state.update", [[*junk, {"key": "show_keys", "value": True}]])
         await tab.ws.send_str("text-frame-marker" + "T" * 100_000)
         await tab.call(tab._id(), "trame.error.client", ["page-error-marker" + "E\n" * 50_000])
+        await tab.call(tab._id(), "trame.trigger", ["trigger-marker" + "N" * 100_000, [], {}])
         state = (await tab.call(tab._id(), "trame.state.get", []))["result"]["state"]
         await tab.close()
         return state, pid
@@ -611,7 +612,7 @@ def test_a_client_sets_only_the_pages_state_keys_and_its_text_is_logged_capped(s
     _assert_ends_within(pid, 5.0)
     assert not [key for key in state if key.startswith("junk")]
     assert state["show_keys"] is True
-    for marker in ("text-frame-marker", "page-error-marker", "junk0_"):
+    for marker in ("text-frame-marker", "page-error-marker", "trigger-marker", "junk0_"):
         (line,) = _log_lines_with(small_studio, marker, 1)
         assert len(line) < 500, line
 

@@ -238,6 +238,10 @@ def test_what_guard_client_input_replaces_is_still_there():
     assert uris == ["trame.state.update"] and params(CoreServer.update_state) == ["self", "changes"], (
         f"{where('trame-server', 10)}: CoreServer.update_state(changes) is no longer the trame.state.update call")
     assert "on_error" in inspect.getsource(CoreServer.js_error), f"{where('trame-server', 10)}: trame.error.client's on_error"
+    uris = [u.get("uri") for u in getattr(CoreServer.trigger, "_wslinkuris", [])]
+    assert uris == ["trame.trigger"] and params(CoreServer.trigger) == ["self", "name", "args", "kwargs"], (
+        f"{where('trame-server', 10)}: CoreServer.trigger(name, args, kwargs) is no longer the trame.trigger call")
+    assert "trigger_fn(name)" in inspect.getsource(CoreServer.trigger), f"{where('trame-server', 10)}: controller.trigger_fn"
     server = trame_adapter.make_server("trame-adapter-frames")
     assert server.options["ws_max_msg_size"] == trame_adapter.MAX_FRAME_BYTES, f"{where('trame-server', 10)}: ws_max_msg_size"
     assert "server.options[\"ws_max_msg_size\"]" in inspect.getsource(CoreServer.bind_server), (
