@@ -275,7 +275,8 @@ def test_the_bounded_unchunker_joins_chunks_and_refuses_what_would_unpack_to_too
 def test_the_adapter_is_the_only_module_reaching_into_trame_privates():
     """No other studio module names the private attributes the adapter patches."""
     root = Path(trame_adapter.__file__).parent
-    names = ("_render_frame", "_interactive_quality", "addAttachment", "authKey", "enable_module", "window_wrapper")
+    names = ("_render_frame", "_interactive_quality", "addAttachment", "authKey", "enable_module", "window_wrapper",
+             "onMessage", "update_state", "ws_max_msg_size")
     for path in sorted(root.rglob("*.py")):
         if path.name == "trame_adapter.py":
             continue
