@@ -58,8 +58,8 @@ CLAIM_VISIT_S = min(5.0, CLAIM_TIMEOUT_S)
 SPARE_DELAY_S = 3.0
 SPARE_QUIET_S = 1.0
 SPARE_LATEST_S = 60.0
-# Stopping (SIGTERM, Ctrl+C) waits at most STOP_S for the studio processes (the zygote gives a busy one ~1.5 s before
-# SIGKILL), then CLOSE_S for the tabs' connections to close: within 5 s in all.
+# Stopping (SIGTERM, Ctrl+C) waits at most STOP_S for the zygote to kill the studio processes and exit (well under a
+# second), then CLOSE_S for the tabs' connections to close: within 5 s in all.
 STOP_S = 3.0
 CLOSE_S = 1.0
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
