@@ -34,6 +34,15 @@ the installed packages still have each thing below, naming the package and its v
 9. The page's module scripts and styles (trame-server + trame-client). trame's client loads the URLs in the state's
    ASSET_LISTS (`trame__scripts`, ...: paths relative to the page, each under a folder of `server.serve`) once it has
    the state; rewritten there before the server starts, they load from the launcher's one path for every tab.
+10. What a client may make a studio process hold (wslink + trame-server). wslink's handler makes one
+   `wslink.protocol.UnChunker` per websocket (onConnect), which joins a message's chunks and unpacks it with
+   `msgpack.unpackb`: replaced by one that checks the message's shape first (BoundedUnChunker). The handler's
+   `WslinkHandler.onMessage(is_binary, msg, client_id)` logs a text frame in full: wrapped to log it capped.
+   `trame_server.protocol.CoreServer.update_state(changes)` (the `trame.state.update` call: a list of
+   {"key", "value"}) stores any key: wrapped to keep only the keys the state has; `CoreServer.trigger(name, args,
+   kwargs)` (`trame.trigger`) logs an unknown name in full: wrapped to refuse it first (`controller.trigger_fn`).
+   The frame size a studio accepts is trame's `ws_max_msg_size` option plus wslink's 4 KB of overhead
+   (wslink/backends/aiohttp).
 
 Nothing here imports trame, trame-rca or wslink at module level: the launcher reads the wire-format constants
 without loading them.
@@ -43,6 +52,7 @@ from __future__ import annotations
 
 import functools
 import importlib
+import logging
 from collections.abc import Callable
 from pathlib import Path
 
@@ -51,6 +61,15 @@ WSLINK_HEADER = 12  # 7: bytes of wslink's chunk header
 WSLINK_HELLO = "wslink.hello"  # 7: the method of the browser's first message
 PRELOAD = ("trame.app", "trame_rca.schedulers.image_scheduler", "wslink.websocket")  # 8
 ASSET_LISTS = ("trame__scripts", "trame__module_scripts", "trame__styles")  # 9: URLs trame's client loads
+# 10: the largest websocket frame the proxy relays (a studio process accepts this plus wslink's 4 KB of overhead, so
+# every frame the proxy lets through is one the studio takes); the page's client sends chunks of at most 4 MB
+MAX_FRAME_BYTES = 10_000_000
+# 10: the most one message from a client may unpack to: objects (each a Python object of at most ~100 bytes beyond the
+# message's own bytes: 100 k of them is ~10 MB) and nesting levels. The page's messages have a few dozen objects, ~6 deep.
+MAX_MESSAGE_OBJECTS = 100_000
+MAX_MESSAGE_DEPTH = 64
+LOGGED_CHARS = 300  # 10: of a client's text in the log
+log = logging.getLogger("imm.studio")
 
 
 # ---- 1. the page ---------------------------------------------------------------------------------------------------
@@ -152,6 +171,178 @@ def attachment(server, data: bytes):
 def set_secret(server, secret: str) -> None:
     """The secret a browser's hello must carry (wslink's default is public: every studio process gets its own)."""
     server.cli.set_defaults(authKey=secret)
+
+
+def make_server(name: str):
+    """10. trame's server for this process, accepting websocket frames of up to MAX_FRAME_BYTES (plus wslink's overhead)."""
+    from trame.app import get_server
+
+    return get_server(name, client_type="vue3", ws_max_msg_size=MAX_FRAME_BYTES)
+
+
+# ---- 10. what a client may send ------------------------------------------------------------------------------------
+def capped(text) -> str:
+    """A client's text for the log: one line (repr escapes newlines and terminal escape sequences), at most
+    LOGGED_CHARS of it, and its full length."""
+    text = str(text)
+    shown = repr(text[:LOGGED_CHARS])
+    return shown if len(text) <= LOGGED_CHARS else f"{shown}... ({len(text)} characters)"
+
+
+def message_shape_problem(data: bytes, max_objects: int = MAX_MESSAGE_OBJECTS, max_depth: int = MAX_MESSAGE_DEPTH) -> str | None:
+    """Why the msgpack message `data` would unpack to too much (more than `max_objects` objects or `max_depth` levels
+    of nesting), read from its headers alone without building anything; None if it is within both (or is not
+    msgpack at all: msgpack's own error then names that). msgpack's own limits are per container (max_array_len,
+    ...), and a 16 MB array of empty maps, or many arrays each under a limit, would build gigabytes."""
+    pos, objects, depth = 0, 0, 0
+    left = [1]  # objects still to read at each open level
+    end = len(data)
+    while left:
+        if left[-1] == 0:
+            left.pop()
+            continue
+        left[-1] -= 1
+        objects += 1
+        if objects > max_objects:
+            return f"it holds more than {max_objects} values"
+        if pos >= end:
+            return None
+        b = data[pos]
+        pos += 1
+        if b <= 0x7F or b >= 0xE0 or b in (0xC0, 0xC2, 0xC3):  # fixint, nil, bool
+            continue
+        if 0x80 <= b <= 0x9F:  # fixmap, fixarray
+            children = (b & 0x0F) * (2 if b < 0x90 else 1)
+        elif b in _CONTAINER:
+            width, per = _CONTAINER[b]
+            children = int.from_bytes(data[pos:pos + width], "big") * per
+            pos += width
+        elif 0xA0 <= b <= 0xBF:  # fixstr
+            pos += b & 0x1F
+            continue
+        elif b in _SIZED:  # str, bin, ext: a length, then (ext) a type byte, then the bytes
+            width, extra = _SIZED[b]
+            pos += width + extra + int.from_bytes(data[pos:pos + width], "big")
+            continue
+        else:  # numbers and fixext: a fixed size (0xC1 is never used: msgpack refuses it)
+            pos += _FIXED.get(b, 0)
+            continue
+        if children:
+            depth = len(left)
+            if depth >= max_depth:
+                return f"it is nested more than {max_depth} levels deep"
+            left.append(children)
+    return None
+
+
+_CONTAINER = {0xDC: (2, 1), 0xDD: (4, 1), 0xDE: (2, 2), 0xDF: (4, 2)}  # array16/32, map16/32: (length bytes, per entry)
+_SIZED = {0xC4: (1, 0), 0xC5: (2, 0), 0xC6: (4, 0), 0xC7: (1, 1), 0xC8: (2, 1), 0xC9: (4, 1),
+          0xD9: (1, 0), 0xDA: (2, 0), 0xDB: (4, 0)}  # fmt: skip
+_FIXED = {0xCA: 4, 0xCB: 8, 0xCC: 1, 0xCD: 2, 0xCE: 4, 0xCF: 8, 0xD0: 1, 0xD1: 2, 0xD2: 4, 0xD3: 8,
+          0xD4: 2, 0xD5: 3, 0xD6: 5, 0xD7: 9, 0xD8: 17}  # fmt: skip
+
+
+@functools.cache
+def _bounded_unchunker():
+    import msgpack
+    from wslink.chunking import HEADER_LENGTH, UnChunker, _decode_header
+
+    class BoundedUnChunker(UnChunker):
+        """wslink's UnChunker (chunks joined by id, a message's claimed size checked before it is allocated), except
+        that a whole message is unpacked only within MAX_MESSAGE_OBJECTS and MAX_MESSAGE_DEPTH, and one it refuses
+        is logged, dropped (the websocket stays open) and, from a client that has logged in, handed to `refused(why)`."""
+
+        refused: Callable[[str], None] = staticmethod(lambda why: None)
+        logged_in = False  # wslink lifts the size limit once a client's hello carried the secret
+
+        def set_max_message_size(self, size):
+            super().set_max_message_size(size)
+            self.logged_in = True
+
+        def process_chunk(self, chunk: bytes):
+            id, offset, total = _decode_header(chunk[:HEADER_LENGTH])
+            content = chunk[HEADER_LENGTH:]
+            pending = self.pending_messages.get(id)
+            if pending is None:
+                if total > self.max_message_size:
+                    return self.refuse(f"it claims {total} bytes (at most {self.max_message_size})")
+                pending = self.pending_messages[id] = {"received_size": 0, "content": bytearray(total)}
+            if total != len(pending["content"]) or offset + len(content) > total:
+                del self.pending_messages[id]
+                return self.refuse("its chunks disagree on its size")
+            pending["content"][offset:offset + len(content)] = content
+            pending["received_size"] += len(content)
+            if pending["received_size"] < total:
+                return None
+            del self.pending_messages[id]
+            message = bytes(pending["content"])
+            if (problem := message_shape_problem(message)) is not None:
+                return self.refuse(problem)
+            try:
+                return msgpack.unpackb(message)
+            except (ValueError, msgpack.UnpackException) as err:  # ExtraData, FormatError, StackError, ...
+                return self.refuse(f"not a msgpack message ({type(err).__name__})")
+
+        def refuse(self, why: str) -> None:
+            log.warning("refused a websocket message: %s", why)
+            if self.logged_in:  # not a stranger on the loopback port: its page hears why
+                type(self).refused(why)
+
+    return BoundedUnChunker
+
+
+def guard_client_input(server, refused: Callable[[str], None]) -> None:
+    """10. Bound what a client can make this process hold or log: each websocket message unpacked within
+    MAX_MESSAGE_OBJECTS and MAX_MESSAGE_DEPTH (one that is not is dropped, and `refused(why)` called for a client that
+    has logged in), only the state keys the page has set by a client, only the page's triggers called, and its text
+    frames and error reports logged capped. Call before the server starts; once per process (it changes wslink's and
+    trame-server's classes: one server per studio process)."""
+    import wslink.protocol
+    from trame_server.protocol import CoreServer
+
+    unchunker = _bounded_unchunker()
+    unchunker.refused = staticmethod(refused)
+    wslink.protocol.UnChunker = unchunker  # what WslinkHandler.onConnect makes for each websocket
+
+    on_message = wslink.protocol.WslinkHandler.onMessage
+
+    @functools.wraps(on_message)
+    async def binary_only(self, is_binary, msg, client_id):
+        if not is_binary:  # wslink speaks binary: it would log the whole text
+            log.warning("ignored a text websocket message: %s", capped(msg.data))
+            return None
+        return await on_message(self, is_binary, msg, client_id)
+
+    wslink.protocol.WslinkHandler.onMessage = binary_only
+
+    update_state = CoreServer.update_state
+
+    @functools.wraps(update_state)  # keeps wslink's registration of the call (its __dict__)
+    def known_keys_only(self, changes):
+        known, others = [], []
+        for change in changes if isinstance(changes, list) else [changes]:
+            key = change.get("key") if isinstance(change, dict) else change
+            if isinstance(key, str) and key in server.state:
+                known.append(change)
+            else:
+                others.append(key)
+        if others:
+            log.warning("ignored %d state changes for keys the page does not have: %s", len(others), capped(others))
+        return update_state(self, known) if known else None
+
+    CoreServer.update_state = known_keys_only
+
+    trigger = CoreServer.trigger
+
+    @functools.wraps(trigger)
+    async def known_triggers_only(self, name, args, kwargs):
+        if not isinstance(name, str) or server.controller.trigger_fn(name) is None:  # trame would log the whole name
+            log.warning("ignored a call of a trigger the page does not have: %s", capped(name))
+            return None
+        return await trigger(self, name, args, kwargs)
+
+    CoreServer.trigger = known_triggers_only
+    server.controller.on_error.add(lambda message: log.warning("error in the page: %s", capped(message)))
 
 
 # ---- 8. the zygote --------------------------------------------------------------------------------------------------

@@ -34,6 +34,10 @@ class ReadsAs:
         from imm_model.model.numpy_runtime import NumpyConvClassifier
 
         arrays, meta = load_checkpoint(path, framework="np")
+        unreadable = [name for name, array in arrays.items() if array.dtype.kind == "f" and not np.isfinite(array).all()]
+        if unreadable:  # its probabilities would all be NaN: the panel would read nothing, silently
+            raise CheckpointError(f"{path}: weights that are not finite numbers ({', '.join(sorted(unreadable)[:3])}"
+                                  f"{', ...' if len(unreadable) > 3 else ''})")
         try:
             cfg = ClassifierConfig.from_dict(meta["config"])
             names = tuple(str(n) for n in meta["class_names"])

@@ -8,8 +8,8 @@ from typing import Any
 
 import pytest
 
-from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance
 from imm_model.families.diffusion.recipes import DiffusionTrainConfig
+from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance
 from imm_model.families.gan.config import ModelConfig
 from imm_model.families.gan.recipes import NAMED, TrainConfig
 from imm_model.model.classifier_config import ClassifierConfig

@@ -14,13 +14,13 @@ import torch
 from imm_model.checkpoint import load_checkpoint
 from imm_model.cli import main
 from imm_model.errors import LabelError, TrainingError
+from imm_model.families import load_recipe
 from imm_model.families.diffusion.denoiser import ReactionDenoiser, torch_denoiser
 from imm_model.families.diffusion.denoiser_numpy import NumpyDenoiser
-from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, cosine_alpha_bar, initial_noise, sample
-from imm_model.families import load_recipe
-from imm_model.families.diffusion.recipes import IMM_DIFFUSION, DiffusionTrainConfig
-from imm_model.families.diffusion.trainer import DiffusionTrainer
 from imm_model.families.diffusion.model import DiffusionReactionModel
+from imm_model.families.diffusion.recipes import IMM_DIFFUSION, DiffusionTrainConfig
+from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, cosine_alpha_bar, initial_noise, sample
+from imm_model.families.diffusion.trainer import DiffusionTrainer
 from imm_model.inference import ReactionModel
 from imm_model.paths import SAMPLE_CHECKPOINT
 

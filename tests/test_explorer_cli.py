@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from imm_model.paths import SAMPLE_CHECKPOINT
+from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_JUDGE
 
 pytest.importorskip("trame")
 
@@ -48,6 +48,21 @@ def test_missing_checkpoint(tmp_path):
 def test_unknown_start_sequence_and_bad_judge(tmp_path):
     assert_one_line_error(run_explore("--sequence", "nonexistent", "--cache-dir", str(tmp_path)), "no such sequence")
     assert_one_line_error(run_explore("--judge", str(tmp_path / "nope.safetensors")), "judge not found")
+
+
+@pytest.mark.skipif(not SAMPLE_JUDGE.exists(), reason="bundled judge missing")
+def test_a_judge_with_nan_weights_is_refused(tmp_path):
+    """Its probabilities would all be NaN: the 'reads as' panel would read nothing, without a word."""
+    import numpy as np
+    import torch
+
+    from imm_model.checkpoint import load_checkpoint, save_checkpoint
+
+    arrays, meta = load_checkpoint(SAMPLE_JUDGE, framework="np")
+    weights = {name: torch.from_numpy(np.full_like(a, np.nan) if a.dtype.kind == "f" else a) for name, a in arrays.items()}
+    save_checkpoint(tmp_path / "nan.safetensors", weights, meta)
+    assert_one_line_error(run_explore("--judge", str(tmp_path / "nan.safetensors"), "--cache-dir", str(tmp_path)),
+                          "nan.safetensors: weights that are not finite numbers")
 
 
 @pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
@@ -172,8 +187,10 @@ def test_a_lost_loader_is_one_line_not_a_hang(tmp_path):
 
 @pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
 def test_a_claim_nobody_connects_to_is_released(tmp_path, monkeypatch):
-    """A tab that claims a process and never connects (closed at once) does not hold the only slot for long."""
+    """A tab that claims a process, loads its page and never connects (closed at once) does not hold the only slot
+    for long. (A claim whose page is never asked for goes sooner: tests/test_studio_hardening.py.)"""
     import time
+    import urllib.request
     from urllib.parse import urlsplit
 
     from tests.studio_probe import StudioProcess
@@ -181,7 +198,10 @@ def test_a_claim_nobody_connects_to_is_released(tmp_path, monkeypatch):
     monkeypatch.setenv("IMM_STUDIO_CLAIM_TIMEOUT", "2")
     with StudioProcess("--max-clients", "1", cache_dir=tmp_path) as studio:
         u = urlsplit(studio.url)
-        assert _claim(u.hostname, u.port)[0] == 200
+        status, answer = _claim(u.hostname, u.port)
+        assert status == 200
+        with urllib.request.urlopen(studio.url + answer["url"], timeout=60) as page:
+            assert page.status == 200
         assert _claim(u.hostname, u.port)[0] == 503
         deadline = time.monotonic() + 30
         while _claim(u.hostname, u.port)[0] != 200:

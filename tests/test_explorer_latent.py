@@ -185,3 +185,19 @@ def test_the_selection_list_sorts_worst_first_by_id_or_class(sample_data):
     assert by_id == sorted(by_id)
     by_class = [r["cls"] for r in panel.rows(picked, "class")]
     assert by_class == sorted(by_class) and {r["held"] for r in panel.rows(range(len(sample_data)), "id")} == {True, False}
+
+
+def test_a_fit_ends_when_the_studio_process_that_started_it_does(tmp_path, sample_data):
+    """The studio holds the fit's stdin open: once it closes (the tab's process ended, the studio stopped) the fit
+    stops instead of running on with no one to take its result."""
+    import subprocess
+    import sys
+
+    from explorer.session import latent
+
+    lm = latent.LatentMap.build(TinyModel(sample_data), sample_data, tmp_path, "k3", methods=())
+    fitter = subprocess.Popen([sys.executable, "-m", "explorer.session.latent", str(lm.path), "tsne", latent.WHILE_STDIN_OPEN],
+                              stdin=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+    fitter.stdin.close()
+    assert fitter.wait(60) == 1, fitter.stderr.read()
+    assert not latent.LatentMap.load(lm.path).has("tsne")

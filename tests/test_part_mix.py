@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import torch
 
-from imm_model.families.diffusion.sampler import Guidance, sample
 from imm_model.families.diffusion.recipes import IMM_DIFFUSION, DiffusionTrainConfig
+from imm_model.families.diffusion.sampler import Guidance, sample
 from imm_model.model.classifier import body_part_view
 from imm_model.training.part_mix import compose, mixed_rows, part_indices, resample_rows, upper_shares
 

@@ -1,12 +1,16 @@
 """A studio that cannot be pinned or drained: uploads read within a time and memory budget, a closed (or hung) tab's
-process ended within seconds, websocket messages capped before the studio allocates them, claims only from the
-page and rate-limited, --max-clients validated, the Origin check aware of HTTPS reverse proxies. Browserless: raw
+process ended within seconds, websocket messages capped before the studio allocates them and before it unpacks them,
+only the page's state keys set by a client and its text logged capped, claims only from the page, rate-limited and
+unable to hold the slots, exports capped per tab, every studio process gone within seconds of SIGTERM or Ctrl+C,
+--max-clients validated, the Origin check aware of HTTPS reverse proxies. Browserless: raw
 wslink clients stand in for tabs (the page itself is in tests/test_explorer_serving.py)."""
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import io
+import json
 import os
 import re
 import signal
@@ -305,16 +309,22 @@ class RawTab:
             return r.status, r.headers.get("Location", "")
 
 
-def _claim_status(url: str) -> int:
+def _post_claim(url: str, headers: dict[str, str]) -> tuple[int, bytes]:
+    """POST /claim with `headers` -> (status, body)."""
     import http.client
     from urllib.parse import urlsplit
 
     u = urlsplit(url)
     conn = http.client.HTTPConnection(u.hostname, u.port, timeout=30)
-    conn.request("POST", "/claim", headers={"Origin": url.rstrip("/")})
-    status = conn.getresponse().status
+    conn.request("POST", "/claim", headers=headers)
+    response = conn.getresponse()
+    answer = response.status, response.read()
     conn.close()
-    return status
+    return answer
+
+
+def _claim_status(url: str) -> int:
+    return _post_claim(url, {"Origin": url.rstrip("/")})[0]
 
 
 def _first_claim_after(url: str, since: float, limit_s: float = 15.0) -> float:
@@ -384,15 +394,7 @@ def test_ten_bare_claims_leave_a_real_tab_served_at_once(small_studio):
 
 
 def _claim_status_bare(url: str) -> int:
-    import http.client
-    from urllib.parse import urlsplit
-
-    u = urlsplit(url)
-    conn = http.client.HTTPConnection(u.hostname, u.port, timeout=30)
-    conn.request("POST", "/claim")
-    status = conn.getresponse().status
-    conn.close()
-    return status
+    return _post_claim(url, {})[0]
 
 
 def test_a_gigabyte_chunk_header_does_not_raise_a_studio_process(small_studio):
@@ -505,6 +507,236 @@ def test_the_pictures_are_sent_without_deflate_even_when_the_browser_asks(small_
 
     negotiated, frames = asyncio.run(go())
     assert negotiated == 0 and frames and frames > 0, (negotiated, frames)
+
+
+# ---- what one websocket message may make a studio process hold or log -------------------------------------------
+
+
+def _in_chunks(message_id: int, body: bytes, size: int = 4 << 20) -> list[bytes]:
+    """A message in chunks as the page's client sends a large one (4 MB each)."""
+    return [_chunk(message_id, offset, len(body), body[offset:offset + size]) for offset in range(0, len(body), size)]
+
+
+async def _alert(tab: RawTab, timeout: float = 30.0) -> str:
+    """The next one-line alert the page is shown (state `error`)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        message = await tab.receive(deadline - time.monotonic())
+        changed = message.get("result") if message.get("id", "").startswith("publish:trame.state.topic") else None
+        if changed and changed.get("error"):
+            return changed["error"]
+    raise TimeoutError("no alert")
+
+
+def _log_lines_with(studio, marker: str, count: int, timeout: float = 20.0) -> list[str]:
+    deadline = time.monotonic() + timeout
+    while len(found := [ln for ln in list(studio.lines) if marker in ln]) < count and time.monotonic() < deadline:
+        time.sleep(0.1)
+    return found
+
+
+def test_a_message_is_measured_from_its_headers_before_it_is_unpacked():
+    """Every msgpack type is stepped over at its true size (a count off by one anywhere would shift the rest); a
+    16 MB array of 16 M empty maps, many arrays each small, and 2,000,000 levels of nesting are refused; the page's
+    largest message (a 20 MB upload) is not."""
+    import msgpack
+
+    from explorer.trame_adapter import MAX_MESSAGE_DEPTH, MAX_MESSAGE_OBJECTS, message_shape_problem
+
+    every_type = [0, 127, -1, -32, 200, 70_000, 2**40, -100, -40_000, -2**40, 1.5, None, True, False, "", "x" * 31,
+                  "y" * 40, "z" * 300, "w" * 70_000, b"", b"b" * 300, b"c" * 70_000, msgpack.ExtType(1, b"1"),
+                  msgpack.ExtType(2, b"22"), msgpack.ExtType(3, b"4444"), msgpack.ExtType(4, b"8" * 8),
+                  msgpack.ExtType(5, b"6" * 16), msgpack.ExtType(6, b"e" * 3), msgpack.ExtType(7, b"f" * 300),
+                  msgpack.ExtType(8, b"g" * 70_000), {"k": [[]]}, list(range(20)), {str(i): i for i in range(20)},
+                  [0] * 70_000]  # fmt: skip
+    body = msgpack.packb(every_type, use_single_float=False)
+    values = 1 + len(every_type) + 3 + 20 + 40 + 70_000  # the list, its items, {"k": [[]]}'s 3, the inner lists' items
+    assert message_shape_problem(body, max_objects=values) is None
+    assert "more than" in message_shape_problem(body, max_objects=values - 1)
+    assert message_shape_problem(msgpack.packb([1.5], use_single_float=True), max_objects=2) is None
+
+    maps = b"\xdd" + (16_000_000).to_bytes(4, "big") + b"\x80" * 16_000_000
+    assert message_shape_problem(maps) == f"it holds more than {MAX_MESSAGE_OBJECTS} values"
+    assert "values" in message_shape_problem(msgpack.packb([[{}] * 1000] * 200))  # each list under any per-list limit
+    deep = b"\x91" * 2_000_000 + b"\xc0"
+    assert message_shape_problem(deep) == f"it is nested more than {MAX_MESSAGE_DEPTH} levels deep"
+    assert message_shape_problem(b"\x91" * (MAX_MESSAGE_DEPTH - 1) + b"\xc0") is None
+    upload = {"wslink": "1.0", "id": "rpc:c0:9", "method": "trame.state.update", "kwargs": {},
+              "args": [[{"key": "upload_file", "value": {"name": "take.bvh", "size": 20_000_000, "type": "",
+                                                         "lastModified": 0, "content": b"\0" * 20_000_000}}]]}  # fmt: skip
+    assert message_shape_problem(msgpack.packb(upload)) is None
+
+
+def test_a_message_that_would_unpack_to_too_much_is_refused_in_one_line_and_the_tab_stays(small_studio):
+    """16 M empty maps in one 16 MB message (gigabytes once unpacked) and a message nested 2,000,000 deep: each is
+    refused in one line, shown to the page, while the process grows by less than 150 MB; the tab then still answers."""
+
+    async def go():
+        tab, pid = await _open_tab(small_studio)
+        before = _memory_mb(pid, "VmHWM")
+        maps = b"\xdd" + (16_000_000).to_bytes(4, "big") + b"\x80" * 16_000_000
+        alerts = []
+        for message_id, body in ((901, maps), (902, b"\x91" * 2_000_000 + b"\xc0")):
+            for chunk in _in_chunks(message_id, body):
+                await tab.ws.send_bytes(chunk)
+            alerts.append(await _alert(tab))
+        peak = _memory_mb(pid, "VmHWM")
+        answer = await tab.call(tab._id(), "trame.state.get", [])
+        await tab.close()
+        return alerts, peak - before, answer, pid
+
+    alerts, grown, answer, pid = asyncio.run(go())
+    _assert_ends_within(pid, 5.0)  # its slot is free for the next test
+    assert alerts == ["refused a message from this page: it holds more than 100000 values",
+                      "refused a message from this page: it is nested more than 64 levels deep"], alerts
+    assert grown < 150, grown
+    assert answer["result"]["state"]["num_frames"] > 0
+    assert not [ln for ln in small_studio.lines if "Traceback" in ln or "StackError" in ln], small_studio.lines
+
+
+def test_a_client_sets_only_the_pages_state_keys_and_its_text_is_logged_capped(small_studio):
+    """2000 new state keys are not kept (a key the page has, sent with them, is); a 100 k-character text frame, error
+    report and trigger name are logged in one line of a few hundred characters each."""
+
+    async def go():
+        tab, pid = await _open_tab(small_studio)
+        junk = [{"key": f"junk{i}_" + "x" * 100, "value": "y" * 1000} for i in range(2000)]
+        await tab.send(tab._id(), "trame.state.update", [[*junk, {"key": "show_keys", "value": True}]])
+        await tab.ws.send_str("text-frame-marker" + "T" * 100_000)
+        await tab.call(tab._id(), "trame.error.client", ["page-error-marker" + "E\n" * 50_000])
+        await tab.call(tab._id(), "trame.trigger", ["trigger-marker" + "N" * 100_000, [], {}])
+        state = (await tab.call(tab._id(), "trame.state.get", []))["result"]["state"]
+        await tab.close()
+        return state, pid
+
+    state, pid = asyncio.run(go())
+    _assert_ends_within(pid, 5.0)
+    assert not [key for key in state if key.startswith("junk")]
+    assert state["show_keys"] is True
+    for marker in ("text-frame-marker", "page-error-marker", "trigger-marker", "junk0_"):
+        (line,) = _log_lines_with(small_studio, marker, 1)
+        assert len(line) < 500, line
+
+
+def test_a_frame_larger_than_a_studio_takes_is_refused_by_the_proxy(small_studio):
+    """A 12 MB frame (the studio process takes 10 MB): the proxy closes that websocket as too big, itself, and
+    nothing in the log says an error went unretrieved."""
+    import aiohttp
+
+    async def go():
+        tab, pid = await _open_tab(small_studio)
+        body = b"\xc6" + (12_000_000).to_bytes(4, "big") + b"\0" * 12_000_000
+        with contextlib.suppress(ConnectionError):  # the proxy may close before the whole frame is written
+            await tab.ws.send_bytes(_chunk(903, 0, len(body), body))
+        while (closed := await tab.ws.receive(timeout=30)).type == aiohttp.WSMsgType.BINARY:
+            pass  # pictures sent before the close
+        await tab.close()
+        return closed, pid
+
+    closed, pid = asyncio.run(go())
+    assert closed.type == aiohttp.WSMsgType.CLOSE and closed.data == 1009, closed
+    _assert_ends_within(pid, 10.0)
+    assert not [ln for ln in small_studio.lines if "never retrieved" in ln or "Traceback" in ln], small_studio.lines
+
+
+# ---- slots --------------------------------------------------------------------------------------------------------
+
+
+def _claim_like_the_page(url: str, limit_s: float = 15.0) -> tuple[int, str]:
+    """The front page's claim, tried again a second after a rate-limited answer -> (status, the tab's path)."""
+    deadline = time.monotonic() + limit_s
+    while (answer := _post_claim(url, {"Origin": url.rstrip("/")}))[0] == 429 and time.monotonic() < deadline:
+        time.sleep(1.0)
+    status, body = answer
+    return status, json.loads(body)["url"] if status == 200 else body.decode(errors="replace")
+
+
+def test_a_script_posting_claims_cannot_keep_a_tab_from_a_studio(small_studio):
+    """A local script with the page's Origin posts 4 claims a second for 8 s and never asks for a page: before, it
+    held both slots and the next tab got 503. The next tab gets a studio, and it works."""
+    import aiohttp
+
+    statuses = []
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 8.0:
+        statuses.append(_claim_status(small_studio.url))
+        time.sleep(0.25)
+    assert statuses.count(200) >= 4, statuses  # the script did get studios
+    status, path = _claim_like_the_page(small_studio.url)
+    assert status == 200, path
+
+    async def go():
+        tab = RawTab(small_studio.url)
+        tab.http, tab.path = aiohttp.ClientSession(), path
+        await tab.connect()
+        frames = tab.state.get("num_frames")
+        await tab.close()
+        return frames
+
+    assert asyncio.run(go()) > 0
+
+
+# ---- exports ------------------------------------------------------------------------------------------------------
+
+
+def test_one_tab_may_export_only_so_often_and_save_only_so_much(tmp_path, monkeypatch):
+    """Past EXPORTS_PER_MINUTE, an export is refused in one line before any work; past SAVED_BYTES a tab's exports
+    are downloads only, said in the notice, and nothing more lands in the export folder."""
+    from types import SimpleNamespace
+
+    from explorer.ui import exports as exports_module
+
+    monkeypatch.setattr(exports_module, "SAVED_BYTES", 5_000)
+    made = []
+    session = SimpleNamespace(export_name=lambda ext: f"take.{ext}", export_bvh=lambda character: made.append(1) or b"b" * 1000)
+    triggers = {}
+    page = SimpleNamespace(session=session, state=SimpleNamespace(notice=""), guarded=lambda fn: fn,
+                           trigger=lambda name: (lambda fn: triggers.__setitem__(name, fn)))  # fmt: skip
+    exports_module.Exports(page, None, tmp_path, attach=bytes)
+    downloads = [triggers["export_bvh"]("follower") for _ in range(exports_module.EXPORTS_PER_MINUTE)]
+    assert downloads == [b"b" * 1000] * exports_module.EXPORTS_PER_MINUTE
+    assert len(list(tmp_path.iterdir())) == 5 and page.state.notice.startswith("download only"), page.state.notice
+    with pytest.raises(ValueError, match=r"^export refused: at most 20 exports a minute from one tab \(try again in \d+ s\)$"):
+        triggers["export_bvh"]("follower")
+    assert len(made) == exports_module.EXPORTS_PER_MINUTE  # refused before the file was made
+
+
+# ---- stopping -----------------------------------------------------------------------------------------------------
+
+
+def _descendants(pid: int) -> list[int]:
+    found, todo = [], [pid]
+    while todo:
+        parent = todo.pop()
+        try:
+            children = [int(c) for task in Path(f"/proc/{parent}/task").iterdir() for c in (task / "children").read_text().split()]
+        except OSError:  # it has just exited
+            continue
+        found += children
+        todo += children
+    return found
+
+
+@pytest.mark.slow
+def test_sigterm_with_two_tabs_open_leaves_no_studio_process_after_5_s(tmp_path):
+    """It took 32 s: the web server waited on the tabs' open relays before the studio processes were stopped."""
+    from tests.studio_probe import StudioProcess
+
+    with StudioProcess("--max-clients", "3", cache_dir=tmp_path) as studio:
+
+        async def go():
+            tabs = [(await _open_tab(studio))[0] for _ in range(2)]
+            processes = _descendants(studio.proc.pid)  # the zygote, the studio processes and their upload readers
+            studio.proc.send_signal(signal.SIGTERM)
+            deadline = time.monotonic() + 5.0
+            while (studio.proc.poll() is None or not all(map(_gone, processes))) and time.monotonic() < deadline:
+                await asyncio.sleep(0.05)
+            for tab in tabs:
+                await tab.http.close()
+            return studio.proc.poll(), len(processes), [p for p in processes if not _gone(p)]
+
+        code, count, left = asyncio.run(go())
+    assert count >= 4 and code == 0 and not left, (count, code, left)
 
 
 def test_a_closing_tab_leaves_no_traceback_in_the_log(small_studio):

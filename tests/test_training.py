@@ -14,14 +14,15 @@ from imm_model.cli import main
 from imm_model.errors import CheckpointError
 from imm_model.families import load_recipe
 from imm_model.families.gan.recipes import IMM, PAPER, TrainConfig
-
-
-def load_config(name_or_path: str, **overrides):
-    return load_recipe(name_or_path, **overrides)[1]
 from imm_model.families.gan.refit import refit
 from imm_model.families.gan.schedule import adversarial_weight, lr_scale
 from imm_model.families.gan.trainer import Trainer
 from imm_model.inference import ReactionModel
+
+
+def load_config(name_or_path: str, **overrides):
+    return load_recipe(name_or_path, **overrides)[1]
+
 
 TINY = replace(
     IMM,

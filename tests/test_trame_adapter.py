@@ -218,10 +218,65 @@ def test_every_preloaded_module_is_there(name):
         pytest.fail(f"{where(package, 8)}: cannot import {name}: {err}")
 
 
+# ---- 10. what a client may send ------------------------------------------------------------------------------------
+def test_what_guard_client_input_replaces_is_still_there():
+    from trame_server.protocol import CoreServer
+    from wslink import chunking, protocol
+    from wslink.backends import aiohttp as wslink_aiohttp
+
+    assert "UnChunker()" in inspect.getsource(protocol.WslinkHandler.onConnect) and protocol.UnChunker is not None, (
+        f"{where('wslink', 10)}: WslinkHandler.onConnect no longer makes wslink.protocol.UnChunker()")
+    unchunker = chunking.UnChunker()
+    assert isinstance(unchunker.pending_messages, dict) and isinstance(unchunker.max_message_size, int), (
+        f"{where('wslink', 10)}: UnChunker's pending_messages / max_message_size")
+    assert chunking._decode_header(chunking._encode_header(7, 3, 99)) == (7, 3, 99), f"{where('wslink', 10)}: _decode_header"
+    assert params(protocol.WslinkHandler.onMessage) == ["self", "is_binary", "msg", "client_id"], (
+        f"{where('wslink', 10)}: WslinkHandler.onMessage(is_binary, msg, client_id) changed")
+    assert "MSG_OVERHEAD + MAX_MSG_SIZE" in inspect.getsource(wslink_aiohttp), (
+        f"{where('wslink', 10)}: the aiohttp backend's frame limit is no longer MSG_OVERHEAD + MAX_MSG_SIZE")
+    uris = [u.get("uri") for u in getattr(CoreServer.update_state, "_wslinkuris", [])]
+    assert uris == ["trame.state.update"] and params(CoreServer.update_state) == ["self", "changes"], (
+        f"{where('trame-server', 10)}: CoreServer.update_state(changes) is no longer the trame.state.update call")
+    assert "on_error" in inspect.getsource(CoreServer.js_error), f"{where('trame-server', 10)}: trame.error.client's on_error"
+    uris = [u.get("uri") for u in getattr(CoreServer.trigger, "_wslinkuris", [])]
+    assert uris == ["trame.trigger"] and params(CoreServer.trigger) == ["self", "name", "args", "kwargs"], (
+        f"{where('trame-server', 10)}: CoreServer.trigger(name, args, kwargs) is no longer the trame.trigger call")
+    assert "trigger_fn(name)" in inspect.getsource(CoreServer.trigger), f"{where('trame-server', 10)}: controller.trigger_fn"
+    server = trame_adapter.make_server("trame-adapter-frames")
+    assert server.options["ws_max_msg_size"] == trame_adapter.MAX_FRAME_BYTES, f"{where('trame-server', 10)}: ws_max_msg_size"
+    assert "server.options[\"ws_max_msg_size\"]" in inspect.getsource(CoreServer.bind_server), (
+        f"{where('trame-server', 10)}: ws_max_msg_size no longer reaches wslink")
+
+
+def test_the_bounded_unchunker_joins_chunks_and_refuses_what_would_unpack_to_too_much(monkeypatch):
+    import msgpack
+    from wslink.chunking import _encode_header
+
+    refused = []
+    unchunker_class = trame_adapter._bounded_unchunker()
+    monkeypatch.setattr(unchunker_class, "refused", staticmethod(refused.append))
+    unchunker = unchunker_class()
+    unchunker.set_max_message_size(1 << 30)
+    body = msgpack.packb({"method": "trame.state.update", "args": [[{"key": "frame", "value": 3}]]})
+    half = len(body) // 2
+    assert unchunker.process_chunk(_encode_header(1, half, len(body)) + body[half:]) is None  # in any order, as wslink's
+    assert unchunker.process_chunk(_encode_header(1, 0, len(body)) + body[:half]) == msgpack.unpackb(body)
+    deep = b"\x91" * 100_000 + b"\xc0"
+    assert unchunker.process_chunk(_encode_header(2, 0, len(deep)) + deep) is None
+    assert unchunker.process_chunk(_encode_header(3, 0, 4) + b"\xc1\xc1\xc1\xc1") is None
+    assert unchunker.process_chunk(_encode_header(4, 0, 2) + b"abc") is None
+    assert not unchunker.pending_messages
+    assert refused == ["it is nested more than 64 levels deep", "not a msgpack message (FormatError)",
+                       "its chunks disagree on its size"], refused
+    stranger = unchunker_class()  # no hello with the secret yet: refused and logged, but its words reach no page
+    assert stranger.process_chunk(_encode_header(5, 0, 600) + b"x") is None and len(refused) == 3
+
+
 def test_the_adapter_is_the_only_module_reaching_into_trame_privates():
     """No other studio module names the private attributes the adapter patches."""
     root = Path(trame_adapter.__file__).parent
-    names = ("_render_frame", "_interactive_quality", "addAttachment", "authKey", "enable_module", "window_wrapper")
+    names = ("_render_frame", "_interactive_quality", "addAttachment", "authKey", "enable_module", "window_wrapper",
+             "onMessage", "update_state", "ws_max_msg_size")
     for path in sorted(root.rglob("*.py")):
         if path.name == "trame_adapter.py":
             continue

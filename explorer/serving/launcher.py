@@ -6,7 +6,8 @@ process (explorer/serving/worker.py, forked by explorer/serving/zygote.py and li
 front page's script claims one (a same-origin POST: a bare GET or another web page cannot), forwards the tab
 to it (proxy.py) and forks the next spare in the background. A tab's studio process is ended (by the zygote, with
 SIGKILL if it is too busy to stop) RECONNECT_GRACE_S after its last websocket closed, or CLAIM_TIMEOUT_S after a claim
-that no browser connected to, so a closed tab frees its client slot within seconds.
+that no browser connected to (CLAIM_VISIT_S if its page was not even asked for), so a closed tab frees its client slot
+within seconds.
 """
 
 from __future__ import annotations
@@ -46,6 +47,10 @@ CLAIM_TIMEOUT_S = float(os.environ.get("IMM_STUDIO_CLAIM_TIMEOUT", "20"))
 # process (~0.5 s of CPU), so a script posting claims in a loop would otherwise keep the machine forking.
 CLAIM_BURST = 4
 CLAIM_EVERY_S = 1.0
+# A tab asks for its page the moment its claim is answered: a claim whose page is not asked for within CLAIM_VISIT_S is
+# retired, and so is the oldest such claim when a claim finds every slot taken, so a script posting claims in a loop
+# never keeps a tab from a studio.
+CLAIM_VISIT_S = min(5.0, CLAIM_TIMEOUT_S)
 # A claimed spare is replaced once the tabs have been quiet (no websocket message through the proxy) for SPARE_QUIET_S,
 # and no sooner than SPARE_DELAY_S after the claim; at once when another tab asks first, and at the latest after
 # SPARE_LATEST_S (playback never goes quiet). Why: forking and starting a studio process takes ~0.5 s of CPU, which on
@@ -53,6 +58,10 @@ CLAIM_EVERY_S = 1.0
 SPARE_DELAY_S = 3.0
 SPARE_QUIET_S = 1.0
 SPARE_LATEST_S = 60.0
+# Stopping (SIGTERM, Ctrl+C) waits at most STOP_S for the zygote to kill the studio processes and exit (well under a
+# second), then CLOSE_S for the tabs' connections to close: within 5 s in all.
+STOP_S = 3.0
+CLOSE_S = 1.0
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 IMMUTABLE = "public, max-age=31536000, immutable"  # /static/: every name there changes with its content
 
@@ -310,14 +319,31 @@ class Launcher:
         if not self._claim_allowed():
             return web.Response(status=429, content_type="text/html",
                                 text=_error_page("too many new tabs at once: wait a second and reload"))
+        self._make_room()
         try:
             w = await self.take()
         except LaunchError as err:
             return web.Response(status=503, content_type="text/html", text=_error_page(str(err)))
+        asyncio.get_running_loop().call_later(CLAIM_VISIT_S, self._retire_if_unvisited, w)
         asyncio.get_running_loop().call_later(CLAIM_TIMEOUT_S, self._retire_if_unconnected, w)
         token = secrets.token_urlsafe(18)
         self.sessions[token] = w
         return web.json_response({"url": f"s/{token}/"})  # relative: a reverse proxy's path prefix is kept
+
+    def _make_room(self) -> None:
+        """Before a claim that finds every slot taken: retire the oldest claim whose page nobody has asked for."""
+        if len(self.busy) >= self.config.max_clients:
+            unvisited = [w for w in self.busy if self._unvisited(w)]  # self.busy is in claim order
+            if unvisited:
+                self.retire(unvisited[0])
+
+    @staticmethod
+    def _unvisited(w: Worker) -> bool:
+        return not w.connected and not w.last_seen
+
+    def _retire_if_unvisited(self, w: Worker) -> None:
+        if self._unvisited(w):
+            self.retire(w)
 
     def _claim_allowed(self) -> bool:
         now = time.monotonic()
@@ -459,7 +485,7 @@ class Launcher:
         app.router.add_get("/s/{token}/{tail:.*}", self.studio)
         app.router.add_get("/static/{name}", self.static)
         app.router.add_get("/static/{key}/{tail:.+}", self.page_file)
-        runner = web.AppRunner(app, access_log=None)
+        runner = web.AppRunner(app, access_log=None, shutdown_timeout=CLOSE_S)
         await runner.setup()
         await web.SockSite(runner, sock).start()
         # What is loaded now stays: out of the collector's sight, a full collection no longer walks aiohttp's and the
@@ -482,8 +508,10 @@ class Launcher:
         try:
             await stop.wait()
         finally:
-            await runner.cleanup()
+            # The studio processes first: their websockets close, which ends each tab's relay; then the web server, which
+            # would otherwise wait on the open relays (32 s with a tab open).
             await self.shutdown()
+            await runner.cleanup()
         return 0
 
     async def shutdown(self) -> None:
@@ -493,9 +521,10 @@ class Launcher:
         if self.zygote.stdin is not None:
             self.zygote.stdin.close()
         try:
-            await asyncio.wait_for(self.zygote.wait(), 5)
+            await asyncio.wait_for(self.zygote.wait(), STOP_S)
         except TimeoutError:
             self.zygote.kill()
+            await self.zygote.wait()
 
 
 def _open_browser(url: str) -> None:
@@ -516,10 +545,16 @@ def _open_browser(url: str) -> None:
 CLAIM_PAGE = """<!doctype html><title>IMM Studio</title>
 <body style="font-family:sans-serif;padding:2em"><h2>IMM Studio</h2><p id="m">starting your studio...</p>
 <script>
-fetch("claim", {method: "POST"}).then(async (r) => {
+async function claim(tries) {
+  const r = await fetch("claim", {method: "POST"});
+  if (r.status === 429 && tries > 1) {  // other tabs (or a script) are starting: try again a second later
+    await new Promise((done) => setTimeout(done, 1000));
+    return claim(tries - 1);
+  }
   if (!r.ok) throw new Error(await r.text());
   location.replace((await r.json()).url + location.search);  // a link's view (explorer/ui/url_state.py) goes along
-}).catch((e) => { const m = document.getElementById("m"); m.style.color = "#b00020";
+}
+claim(10).catch((e) => { const m = document.getElementById("m"); m.style.color = "#b00020";
   m.textContent = (e.message || String(e)).replace(/<[^>]*>/g, " ").replace(/\\s+/g, " ").replace("IMM Studio", "").trim(); });
 </script></body>"""
 

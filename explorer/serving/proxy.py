@@ -17,7 +17,7 @@ from collections.abc import Callable
 
 from aiohttp import ClientSession, WSCloseCode, WSMsgType, web
 
-from explorer.trame_adapter import WSLINK_HEADER, WSLINK_HELLO
+from explorer.trame_adapter import MAX_FRAME_BYTES, WSLINK_HEADER, WSLINK_HELLO
 
 MAX_MESSAGE_BYTES = 32 * 1024 * 1024  # an upload is at most 20 MB (explorer/session/session.py) plus framing
 MAX_PENDING_BYTES = 32 * 1024 * 1024  # all messages a studio process is still receiving, over all its websockets
@@ -114,7 +114,9 @@ async def forward_websocket(request: web.Request, port: int, tail: str, secret: 
     budget = budget or InboundBudget()
     # No permessage-deflate: the pictures are JPEG already, deflating them costs a thread hop per frame, and a tab
     # closing mid-send would leave aiohttp's shielded compress-and-send task with an exception no one retrieves.
-    browser = web.WebSocketResponse(max_msg_size=MAX_MESSAGE_BYTES, autoping=True, heartbeat=HEARTBEAT_S, compress=False)
+    # A frame (one chunk of a message) at most the size a studio process accepts: a larger one is refused here, in one
+    # close, rather than by the studio mid-relay.
+    browser = web.WebSocketResponse(max_msg_size=MAX_FRAME_BYTES, autoping=True, heartbeat=HEARTBEAT_S, compress=False)
     await browser.prepare(request)
     connection = id(browser)
     async with ClientSession() as session:

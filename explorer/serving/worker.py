@@ -115,19 +115,23 @@ def start_index(data, sequence: str | None) -> int:
 def serve(data, models, latent, reader, args: argparse.Namespace, *, secret: str, say: Channel, uploads=None) -> int:
     """Serve one tab (`models` by name, the first opening it); `uploads` reads its uploaded files out of this process
     (explorer/serving/upload_reader.py)."""
-    from trame.app import get_server
-
     from explorer.serving.page_shell import use_page_shell
     from explorer.session.latent import default_cache_dir
     from explorer.session.session import Session
-    from explorer.trame_adapter import set_secret
+    from explorer.trame_adapter import guard_client_input, make_server, set_secret
     from explorer.ui.app import Studio
 
-    server = get_server("imm-studio", client_type="vue3")
+    server = make_server("imm-studio")
     set_secret(server, secret)  # wslink's default secret is public: every process gets its own
     session = Session(data, models, args.start, reader)
     session.upload_reader = uploads
     Studio(server, session, latent, export_dir=args.export_dir, render=args.render)
+
+    def refused(why: str) -> None:  # a message the page cannot have sent: the tab hears why, and stays
+        server.state.error = f"refused a message from this page: {why}"
+        server.state.flush()
+
+    guard_client_input(server, refused)
     shell = use_page_shell(server, args.cache_dir or default_cache_dir())  # the launcher serves its shared files
 
     def stdin_watch():

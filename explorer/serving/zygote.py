@@ -10,7 +10,7 @@ The launcher (launcher.py) talks to it with lines on its stdin and stdout:
   launcher -> zygote   "spawn <id> <secret>"   fork studio process <id> with its own wslink secret
                        "retire <id>"           its tab has gone: SIGTERM, and SIGKILL RETIRE_GRACE_S later if it is
                                                still there (busy: its server's signal handler runs on its event loop)
-                       end of file             the launcher is gone: every studio process ends, then this one
+                       end of file             the launcher is gone: every studio process is killed, then this one ends
   zygote -> launcher   "IMM-WORKER LOADED" or "IMM-WORKER ERROR - <message>" once, after loading
                        "IMM-WORKER READY <id> <port> <page folder>", "IMM-WORKER ERROR <id> <message>", "IMM-WORKER EXIT <id> <code>"
 This process stays single-threaded (a select loop): forking a process with threads is unsafe.
@@ -65,13 +65,15 @@ class ForkServer:
             while b"\n" in pending:
                 line, pending = pending.split(b"\n", 1)
                 self.command(line.decode(errors="replace").split())
+        # Everything is stopping (SIGTERM, Ctrl+C): nothing in a studio process is worth a grace period, and one whose
+        # server shuts down gracefully on SIGTERM could outlive the few seconds stopping may take.
         for pid in list(self.children):
-            self.retire(pid)
-        deadline = time.monotonic() + RETIRE_GRACE_S + 1.0
+            self.killing[pid] = time.monotonic()
+        deadline = time.monotonic() + 2.0
         while self.children and time.monotonic() < deadline:
-            time.sleep(0.05)
-            self.reap()
             self.kill_overdue()
+            self.reap()
+            time.sleep(0.02)
         return 0
 
     def command(self, words: list[str]) -> None:
@@ -150,7 +152,7 @@ class ForkServer:
 
 
 def one_thread_for_torch() -> None:
-    """The bundled models run in numpy (families/gan/numpy_generator.py, families/diffusion/denoiser_numpy.py); a model that needs torch (the paper's
+    """The bundled models run in numpy (their families' numpy runtimes); a model that needs torch (the paper's
     frame-by-frame decoder) gets one intra-op thread: the per-request work is a few ms, several studio processes
     share the cores (more threads made each synthesis 4x slower here), and a fork would not carry a thread pool over."""
     if "torch" in sys.modules:

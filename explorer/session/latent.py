@@ -202,10 +202,10 @@ class LatentMap:
             await asyncio.to_thread(self.ensure, method)
             return
         fitter = await asyncio.create_subprocess_exec(
-            sys.executable, "-m", "explorer.session.latent", str(self.path), method, stdout=asyncio.subprocess.DEVNULL,
-            stderr=asyncio.subprocess.PIPE,
+            sys.executable, "-m", "explorer.session.latent", str(self.path), method, WHILE_STDIN_OPEN,
+            stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.DEVNULL, stderr=asyncio.subprocess.PIPE,
         )  # fmt: skip
-        _, err = await fitter.communicate()
+        _, err = await fitter.communicate()  # stdin stays open: the fit ends with this process, not before
         self.reload()
         if method not in self.coords:
             lines = err.decode(errors="replace").strip().splitlines() or [f"exit code {fitter.returncode}"]
@@ -224,12 +224,32 @@ class LatentMap:
         return (coords[nn] * w[:, None]).sum(0) / w.sum()
 
 
+WHILE_STDIN_OPEN = "--while-stdin-open"
+
+
+def _exit_when_stdin_closes() -> None:
+    """The studio process that started this fit holds our stdin open: when it ends (its tab closed, the studio
+    stopped), the fit ends too instead of running on for seconds (minutes for UMAP) with no one to take it."""
+
+    def watch():
+        while os.read(0, 4096):  # the raw descriptor: sys.stdin's lock would stall this process's own exit
+            pass
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()
+
+
 def main(argv: list[str] | None = None) -> int:
-    """`python -m explorer.session.latent <cache file> <method>`: fit one projection of a cached map and save it. Bad
-    arguments get one line on stderr and exit code 2 (the studio shows that line)."""
+    """`python -m explorer.session.latent <cache file> <method> [--while-stdin-open]`: fit one projection of a cached map
+    and save it (stopping if stdin closes first). Bad arguments get one line on stderr and exit code 2 (the studio
+    shows that line)."""
     args = sys.argv[1:] if argv is None else argv
+    if args[-1:] == [WHILE_STDIN_OPEN]:
+        args = args[:-1]
+        _exit_when_stdin_closes()
     if len(args) != 2 or args[1] not in METHODS:
-        print(f"usage: python -m explorer.session.latent <cache file> <{'|'.join(METHODS)}>, not {' '.join(args)!r}", file=sys.stderr)
+        print(f"usage: python -m explorer.session.latent <cache file> <{'|'.join(METHODS)}> [{WHILE_STDIN_OPEN}], not {' '.join(args)!r}",
+              file=sys.stderr)  # fmt: skip
         return 2
     latent_map = LatentMap.load(Path(args[0]))
     if latent_map is None:

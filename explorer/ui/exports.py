@@ -4,12 +4,16 @@ animation as .gif or .mp4, the current 3D view as .png. Each is also saved into 
 Pictures and video frames carry a strip naming the figures, the mix, the model, the sequence and the frame
 (explorer/rendering/annotation.py), which the page shows around the view and a picture on its own would lose.
 
-They are trame triggers, not controllers: the page awaits the returned bytes to download them.
+They are trame triggers, not controllers: the page awaits the returned bytes to download them. One tab may export
+EXPORTS_PER_MINUTE a minute and save SAVED_BYTES into --export-dir (a script driving a tab could otherwise fill the
+disk: the folder has no quota of its own).
 """
 
 from __future__ import annotations
 
 import re
+import time
+from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -26,14 +30,34 @@ if TYPE_CHECKING:
 
 CHARACTERS = ("follower", "leader")
 VIDEO_FORMATS = ("gif", "mp4")
+EXPORTS_PER_MINUTE = 20  # a user clicking Export is far below it
+SAVED_BYTES = 500 * 1024 * 1024  # past it, a tab's exports are downloads only (a long sequence's video is ~30 MB)
 
 
 class Exports:
     def __init__(self, page: Page, scene: Scene, export_dir: Path, *, attach: Callable[[bytes], object]):
         """`attach(data)` makes `data` what a trigger returns for the page to download (explorer/trame_adapter.py)."""
         self.page, self.scene, self.export_dir, self.attach = page, scene, Path(export_dir), attach
+        self.recent: deque[float] = deque()  # time.monotonic() of this tab's exports in the last minute
+        self.saved = 0  # bytes this tab saved into export_dir
         for name in ("export_npz", "export_bvh", "export_video", "export_png"):
-            page.trigger(name)(page.guarded(getattr(self, name)))
+            page.trigger(name)(page.guarded(self._rate_limited(getattr(self, name))))
+
+    def _rate_limited(self, export: Callable) -> Callable:
+        """`export`, refused in one line (before any work: a video takes seconds) past EXPORTS_PER_MINUTE."""
+
+        def call(*args, **kwargs):
+            now = time.monotonic()
+            while self.recent and now - self.recent[0] >= 60:
+                self.recent.popleft()
+            if len(self.recent) >= EXPORTS_PER_MINUTE:
+                wait = 60 - (now - self.recent[0])
+                raise ValueError(f"export refused: at most {EXPORTS_PER_MINUTE} exports a minute from one tab (try again in {wait:.0f} s)")
+            self.recent.append(now)
+            return export(*args, **kwargs)
+
+        call.__name__ = export.__name__
+        return call
 
     @property
     def session(self):
@@ -98,8 +122,12 @@ class Exports:
         from imm_model.outputs import write_new
 
         state = self.page.state
+        if self.saved + len(data) > SAVED_BYTES:
+            state.notice = f"download only (this tab has saved {self.saved / 2**20:.0f} MB into the export folder, the most one tab may)"
+            return
         try:
             path = write_new(self.export_dir / safe_file_name(name), data)
+            self.saved += len(data)
             state.notice = f"saved {path}"
         except (OSError, IMMError) as err:
             state.notice = f"download only (could not save a copy: {one_line(err)})"
