@@ -60,6 +60,7 @@ class Studio:
         self._ab_distances = np.zeros(0)
         self._closest = np.zeros(0)
         self._contact_changed = False
+        self._url_opened = False  # the page's own address applied (open_url_view): the address bar may follow the view
         self._init_state()
         self._bind()
         self.ui = self._build_ui()
@@ -147,7 +148,7 @@ class Studio:
         c.set_camera = self.set_camera
         c.step_frame = self.step_frame
         self.server.trigger("key_pressed")(self.guarded(lambda key: press(self, str(key)[:20])))
-        self.server.trigger("open_url_view")(self.guarded(lambda query: apply_view(self, str(query))))
+        self.server.trigger("open_url_view")(self.open_url_view)
         s.change("scene_layout", "projection", "frame", "playing", "mix_count")(self.write_url)
 
     def guarded(self, fn):
@@ -405,9 +406,18 @@ class Studio:
         self.ctrl.view_update()
         self.write_url()
 
+    def open_url_view(self, query) -> None:
+        """The page has loaded: the view its address names (if any) opens, and from then on the address bar is the
+        view's link (before, writing it would overwrite the link being opened)."""
+        try:
+            self.guarded(apply_view)(self, str(query))
+        finally:
+            self._url_opened = True
+            self.write_url()
+
     def write_url(self, **_):
         """The page keeps its address bar on what it shows (not during playback: every frame would be a write)."""
-        if not self.state.playing:
+        if self._url_opened and not self.state.playing:
             self.state.url_query = view_query(current_view(self))
 
     def push_view(self, draft: bool = False, **_):

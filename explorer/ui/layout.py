@@ -157,11 +157,13 @@ def toolbar(page: LayoutParts) -> None:
         )
     with v3.VMenu():
         with v3.Template(v_slot_activator="{ props }"):
-            v3.VBtn("Export", v_bind="props", size="small", variant="tonal", prepend_icon="mdi-download", classes="ml-2")
+            v3.VBtn("Export", v_bind="props", size="small", variant="tonal", prepend_icon="mdi-download", classes="ml-2",
+                    id="export-menu")
         with v3.VList(density="compact"):
             v3.VListItem(
                 title="Synthesized follower (.npz)",
                 click="utils.download('follower.npz', trigger('export_npz'), 'application/octet-stream')",
+                id="export-npz",
             )
             for character in ("follower", "leader"):
                 v3.VListItem(
