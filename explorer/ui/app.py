@@ -50,8 +50,8 @@ class Studio:
         self.compare = Compare(page, self.scene, set_label=self.set_label, update_review=self.update_review)
         self.model_switch = ModelSwitch(page, self.scene, show_review=self.show_review)
         self.latent_panel = LatentPanel(page, latent, open_sequence=self.load_sequence)
-        # a row of the review opens its sequence under the mix the table was computed with
-        self.review = ReviewPanel(page, open_sequence=functools.partial(self.load_sequence, keep_mix=True))
+        # a row of the review opens its sequence under its own class, or under the mix of a table of the mix
+        self.review = ReviewPanel(page, open_sequence=lambda index, keep_mix: self.load_sequence(index, keep_mix=keep_mix))
         self._view = None  # the 3D view widget, made by the layout (attach_view)
         self._mix_pending = False
         self._mix_task = None

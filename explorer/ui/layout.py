@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 from explorer.ui.keys import KEY_HELP, LISTENER_JS
 from explorer.ui.model_switch import model_chip, model_panel
 from explorer.ui.reads_as_panel import reads_as_panel
-from explorer.ui.review_panel import review_button, review_drawer
+from explorer.ui.review_panel import review_button, review_overlay
 
 SPEEDS = [0.25, 0.5, 1.0, 1.5, 2.0]
 # Sliders jump to a new value at once, as Vuetify's already do while dragged (a key or a click glides for 0.3 s), and
@@ -45,10 +45,18 @@ html { overflow: hidden; }
 .imm-column { height: 100%; display: flex; flex-direction: column; flex-wrap: nowrap; gap: 6px; padding: 8px;
               overflow: auto; min-width: 0; }
 .imm-scene { flex: 1 1 auto; min-height: 240px; position: relative; width: 100%; }
-.imm-review { flex: 0 0 clamp(220px, 34vh, 440px); display: flex; gap: 8px; width: 100%; min-height: 0; }
+.imm-review { flex: 0 0 clamp(220px, 34vh, 440px); display: flex; gap: 8px; width: 100%; min-height: 0; position: relative; }
+.imm-review.imm-review-open { flex-basis: clamp(260px, 46vh, 560px); }
+.imm-review-overlay { position: absolute; inset: 0; z-index: 4; display: flex; flex-direction: column;
+                      background: rgb(var(--v-theme-surface)); }
 .imm-review > .v-card { flex: 1 1 50%; min-width: 0; display: flex; flex-direction: column; }
 .imm-fill { flex: 1 1 auto; min-height: 120px; position: relative; }
 .imm-toolbar-row { overflow-x: auto; overflow-y: hidden; flex-wrap: nowrap; }
+.imm-alert { position: absolute; left: 4px; right: 4px; top: 4px; z-index: 3; }
+.imm-alert .v-alert { padding-top: 2px !important; padding-bottom: 2px !important; }
+.imm-alert .v-alert__content { white-space: nowrap; overflow: hidden; text-overflow: ellipsis; align-self: center; }
+.imm-alert .v-alert__close .v-btn { width: 24px !important; height: 24px !important; }
+.imm-alert .v-alert__prepend { align-self: center; }
 """
 
 
@@ -87,7 +95,6 @@ def build_layout(page: LayoutParts) -> VAppLayout:
                 label_mix(page)
                 v3.VDivider(classes="my-3")
                 character_toggles(page)
-        review_drawer()
         with v3.VMain(classes="imm-main"):
             with html.Div(classes="imm-column"):
                 scene_view(page)
@@ -132,26 +139,24 @@ def toolbar(page: LayoutParts) -> None:
     )
     v3.VChip("uploaded: no ground truth", v_if="sequence_uploaded", size="small", color="teal-lighten-3", variant="flat",
              classes="mr-2", id="uploaded-chip")
-    v3.VChip(
-        "held out: never seen in training",
-        v_else_if="sequence_held_out",
-        size="small",
-        color="amber",
-        variant="flat",
-        classes="mr-2",
-    )
-    v3.VChip("seen in training", v_else=True, size="small", color="blue-grey-lighten-3", variant="flat", classes="mr-2")
+    v3.VChip("held out", v_else_if="sequence_held_out", size="small", color="amber", variant="flat", classes="mr-2",
+             title="held out: the model never saw this sequence in training (generalization)")
+    v3.VChip("seen", v_else=True, size="small", color="blue-grey-lighten-3", variant="flat", classes="mr-2",
+             title="seen in training: the model learnt from this sequence (memorization)")
     model_chip()
     v3.VSpacer()
-    with v3.VBtnToggle(v_model=("scene_layout",), density="compact", mandatory=True, variant="outlined", classes="mr-3"):
-        v3.VBtn("Overlay", value="overlay", size="small")
-        v3.VBtn("Side by side", value="side_by_side", size="small")
-    for preset in CAMERA_PRESETS:
+    with v3.VBtnToggle(v_model=("scene_layout",), density="compact", mandatory=True, variant="outlined", classes="mr-2"):
+        v3.VBtn("Overlay", value="overlay", size="small", classes="px-2")
+        v3.VBtn("Side by side", value="side_by_side", size="small", classes="px-2")
+    for preset in CAMERA_PRESETS:  # compact: the toolbar fits 1280 px with the longest sequence name
         v3.VBtn(
-            "reset" if preset == "default" else preset,
+            None if preset == "default" else preset,
+            icon="mdi-camera-retake" if preset == "default" else None,
             size="small",
             variant="text",
-            prepend_icon="mdi-camera-retake" if preset == "default" else None,
+            title="reset the camera" if preset == "default" else f"camera: {preset}",
+            classes="" if preset == "default" else "px-1",
+            style="min-width: 0",
             click=(page.ctrl.set_camera, f"['{preset}']"),
             id=f"camera-{preset}",
         )
@@ -307,16 +312,10 @@ def compare_row(page: LayoutParts) -> None:
 
 def scene_view(page: LayoutParts) -> None:
     """The error alert and the 3D view (rendered on the server, or by vtk.js with --render local)."""
-    v3.VAlert(
-        "{{ error }}",
-        v_if="error",
-        type="error",
-        density="compact",
-        closable=True,
-        click_close="error = ''",
-        id="error-alert",
-    )
     with html.Div(classes="rounded border imm-scene"):
+        # one line over the top of the view, the whole message on hover: the view keeps its size
+        with html.Div(v_if="error", classes="imm-alert", title=("error",)):
+            v3.VAlert("{{ error }}", type="error", density="compact", closable=True, click_close="error = ''", id="error-alert")
         if page.render_mode == "local":  # vtk.js in the browser (docs/experiments/studio-performance.md), through trame's PyVista view
             from trame.widgets import pyvista as pyvista_widgets  # only here: trame-pyvista's import is for this mode
 
@@ -378,7 +377,8 @@ def playback_bar(page: LayoutParts) -> None:
 
 def review_cards(page: LayoutParts) -> None:
     """The per-frame error chart and the latent map."""
-    with html.Div(classes="imm-review"):
+    with html.Div(classes=("review_open ? 'imm-review imm-review-open' : 'imm-review'",)):
+        review_overlay(len(page.session.models))  # over the chart and the map (their row grows while it is open)
         with v3.VCard(variant="outlined", classes="pa-1", id="chart-card"):
             with html.Div(classes="d-flex align-center px-2"):
                 html.Div("Per frame: error and contact", classes="text-caption font-weight-bold")
