@@ -117,8 +117,10 @@ class Studio:
                 "notice": "",
                 "mix_count": 0,  # increments after each re-synthesis (tests and benchmarks wait on it)
                 "url_query": "",  # the view as a query string (explorer/ui/url_state.py); the page mirrors it in its URL
+                "export_stem": "imm",  # what the browser names a download, before its extension (explorer/ui/exports.py)
                 "key_slider": 0,  # the class slider the up/down keys move (explorer/ui/keys.py)
                 "show_keys": False,
+                "show_hints": False,  # the first-use hints (the page shows them until the browser has dismissed them once)
                 "pinned_text": "",  # A/B (explorer/ui/compare.py): the pinned mix in words, "" when none
                 "ab_text": "",
                 "contact_text": "",  # interpenetration of the two bodies (explorer/rendering/charts.py contact_text)
@@ -182,12 +184,13 @@ class Studio:
 
     def on_filter_change(self, **_):
         """The filters narrow the sequence list; when they leave out the sequence on screen, the first one they keep
-        opens with the user's mix as it is (a filter is not a pick: the "match" preset is for picking a sequence)."""
+        opens: under its own class when a class filter picked it (another class's mix would not be what was asked
+        for), else with the user's mix as it is."""
         items = self._sequence_items()
         self.state.sequence_items = items
         values = [it["value"] for it in items]
         if values and (self.session.upload is not None or self.session.index not in values):
-            self.load_sequence(values[0], keep_mix=True)
+            self.load_sequence(values[0], keep_mix=not self.state.class_filter)
 
     @_guard
     def on_sequence_picked(self, sequence_index, **_):
@@ -326,6 +329,7 @@ class Studio:
         s.distance_chart = charts.distance_chart(self._distances, FPS, self._ab_distances, self._closest)
         self.latent_panel.redraw()
         self.review.follow()
+        s.export_stem = self.exports.file_stem()
         s.mix_count = (s.mix_count or 0) + 1
 
     def show_review(self) -> bool:

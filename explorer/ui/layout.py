@@ -113,7 +113,8 @@ SHARE_LINK_JS = "utils.get('location.href').replace(/\\/s\\/[^/?#]+\\/(index\\.h
 
 def page_hooks() -> None:
     """Keys, the view named in the page's URL (on load), and the URL kept on what is shown."""
-    client.ClientTriggers(mounted=f"{LISTENER_JS}; trigger('open_url_view', [utils.get('location.search')])")
+    client.ClientTriggers(mounted=f"{LISTENER_JS}; trigger('open_url_view', [utils.get('location.search')]); "
+                                  f"show_hints = !utils.get('localStorage').getItem('{HINTS_SEEN}')")
     client.ClientStateChange(value="url_query", change="url_query && utils.get('history').replaceState(null, '', url_query)")
 
 
@@ -165,25 +166,24 @@ def toolbar(page: LayoutParts) -> None:
             v3.VBtn("Export", v_bind="props", size="small", variant="tonal", prepend_icon="mdi-download", classes="ml-2",
                     id="export-menu")
         with v3.VList(density="compact"):
+            # downloads are named as the server's copies: the sequence and the mix (explorer/ui/exports.py file_stem)
             v3.VListItem(
-                title="Synthesized follower (.npz)",
-                click="utils.download('follower.npz', trigger('export_npz'), 'application/octet-stream')",
+                title="Interaction: leader, follower, label (.npz)",
+                click="utils.download(export_stem + '.npz', trigger('export_npz'), 'application/octet-stream')",
                 id="export-npz",
             )
             for character in ("follower", "leader"):
                 v3.VListItem(
                     title=f"{'Synthesized follower' if character == 'follower' else 'Leader'} (.bvh)",
-                    click=f"utils.download('{character}.bvh', trigger('export_bvh', ['{character}']), 'text/plain')",
+                    click=f"utils.download(export_stem + '.{character}.bvh', trigger('export_bvh', ['{character}']), 'text/plain')",
                     classes=f"export-bvh-{character}",
                 )
-            v3.VListItem(
-                title="Animation (.gif)", click="utils.download('studio.gif', trigger('export_video', ['gif']), 'image/gif')"
-            )
-            v3.VListItem(
-                title="Animation (.mp4)", click="utils.download('studio.mp4', trigger('export_video', ['mp4']), 'video/mp4')"
-            )
+            v3.VListItem(title="Animation (.gif)", id="export-gif",
+                         click="utils.download(export_stem + '.gif', trigger('export_video', ['gif']), 'image/gif')")
+            v3.VListItem(title="Animation (.mp4)", id="export-mp4",
+                         click="utils.download(export_stem + '.mp4', trigger('export_video', ['mp4']), 'video/mp4')")
     v3.VBtn(icon="mdi-camera", size="small", variant="text", title="Save the 3D view as a picture (.png)", id="screenshot",
-            click="utils.download('studio.png', trigger('export_png'), 'image/png')")
+            click="utils.download(export_stem + '.png', trigger('export_png'), 'image/png')")
     share_link()
     v3.VBtn(icon="mdi-keyboard-outline", size="small", variant="text", title="Keyboard shortcuts (?)", click="show_keys = true")
 
@@ -218,6 +218,9 @@ def sequence_picker(page: LayoutParts) -> None:
         density="compact",
         hide_details=True,
         id="sequence-picker",
+        # typing replaces the name shown instead of going into it (Vuetify fills the field with it on focus)
+        focus="$nextTick(() => $event.target && $event.target.select && $event.target.select())",
+        click="$event.target && $event.target.select && $event.target.select()",
     )
     html.Div(
         "Held out = subject {{ held_out_subject }}: the bundled model never saw these (generalization); "
@@ -324,12 +327,27 @@ def scene_view(page: LayoutParts) -> None:
             view = ViewStream(page.server, page.scene.render_window)
         page.attach_view(view)
         with html.Div(style="position: absolute; left: 8px; top: 6px; pointer-events: none", classes="text-caption"):
-            for key in CHARACTER_KEYS:
+            for key in CHARACTER_KEYS:  # the figures shown: a hidden one, or an uploaded leader's ground truth, is not listed
                 html.Span(
                     "● " + CHARACTER_TITLES[key], style=f"color: {CHARACTERS[key]}; font-weight: 600; margin-right: 10px",
-                    v_if="!sequence_uploaded" if key == "ground_truth" else None, classes=f"legend-{key}",
-                )  # an uploaded leader has no ground truth
+                    v_if=f"show_{key}" + (" && !sequence_uploaded" if key == "ground_truth" else ""), classes=f"legend-{key}",
+                )
             html.Span("● pinned: {{ pinned_text }}", v_if="pinned_text", style=f"color: {PINNED}; font-weight: 600")
+        first_use_hints()
+
+
+HINTS_SEEN = "imm-studio-hints-seen"  # the browser's localStorage key: the hints were dismissed once
+
+
+def first_use_hints() -> None:
+    """What a newcomer cannot guess, over the bottom of the 3D view until dismissed (remembered by the browser)."""
+    with html.Div(v_if="show_hints", id="first-use-hints", classes="text-caption d-flex align-center pa-1 rounded",
+                  style="position: absolute; left: 8px; bottom: 8px; z-index: 2; background: rgba(38, 50, 56, .85); color: #fff; gap: 6px"):
+        v3.VIcon("mdi-gesture-swipe", size="small")
+        html.Span("drag to rotate, wheel to zoom · click a point on the latent map to open and play that sequence · "
+                  "Review compares every model with the ground truth · ? for the keys")
+        v3.VBtn(icon="mdi-close", size="x-small", variant="text", title="got it", id="hints-close",
+                click=f"show_hints = false; utils.get('localStorage').setItem('{HINTS_SEEN}', '1')")
 
 
 def per_frame():
