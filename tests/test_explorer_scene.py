@@ -182,3 +182,36 @@ def test_exported_pictures_carry_the_legend_and_the_frame_number_and_the_view_st
         scene.set_visible("ground_truth", True)
         scene.set_sequence(keep["leader"], keep["ground_truth"], keep["synthesized"])
         scene.set_camera("default")
+
+
+def test_captions_of_many_figures_shrink_and_from_the_top_stand_clear_of_the_figures(scene):
+    """Six figures side by side (three variations more) get smaller captions, so that neighbours do not run into each
+    other; seen from the top each caption stands above its figure in the picture, not on it."""
+    from explorer.rendering.scene import CAPTION_PX, VARIATION_KEYS
+
+    followers = [scene.sequences["synthesized"] + np.float32([dx, 0.0, 0.0]) for dx in (0.0, 0.2, 0.4, 0.6)]
+    scene.set_layout("side_by_side")
+    try:
+        assert scene.captions["leader"].size == CAPTION_PX
+        scene.set_variations(followers, [1, 2, 3, 4])
+        sizes = {scene.captions[k].size for k in ("leader", "ground_truth", "synthesized", *VARIATION_KEYS[:3])}
+        assert sizes == {min(sizes)} and min(sizes) < CAPTION_PX
+        scene.set_camera("top")
+        scene.render()
+
+        def display_y(point) -> float:
+            scene.renderer.SetWorldPoint(*point, 1.0)
+            scene.renderer.WorldToDisplay()
+            return scene.renderer.GetDisplayPoint()[1]
+
+        leader = scene.figures["leader"]
+        from vtkmodules.util.numpy_support import vtk_to_numpy
+
+        joints = vtk_to_numpy(leader.actors[0].GetMapper().GetInput().GetPoints().GetData())
+        joints = [leader.actors[0].GetMatrix().MultiplyPoint((*p, 1.0))[:3] for p in joints]
+        caption_y, window_h = display_y(scene.captions["leader"].position), scene.render_window.GetSize()[1]
+        assert caption_y > max(display_y(p) for p in joints) and caption_y < window_h, caption_y
+    finally:
+        scene.set_variations([scene.sequences["synthesized"]], None)
+        scene.set_layout("overlay")
+        scene.set_camera("default")

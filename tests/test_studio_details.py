@@ -78,6 +78,8 @@ def test_first_use_hints_show_until_dismissed_and_the_browser_remembers(browser,
         hints = first.locator("#first-use-hints")
         hints.wait_for(state="visible", timeout=10000)
         assert "rotate" in hints.inner_text() and "latent map" in hints.inner_text()
+        box = hints.bounding_box()
+        assert box["height"] <= 40, box  # one line
         first.click("#hints-close")
         hints.wait_for(state="detached", timeout=10000)
         first.close()
@@ -88,3 +90,15 @@ def test_first_use_hints_show_until_dismissed_and_the_browser_remembers(browser,
         assert again.locator("#first-use-hints").count() == 0
     finally:
         context.close()
+
+
+def test_at_1280_the_charts_axis_title_keeps_off_the_contact_line(browser, studio):
+    page = probe.open_studio(browser, studio.url, 1280, 720)
+    try:
+        page.wait_for_selector("#distance-chart .imm-axis-y", timeout=30000)
+        title, contact, chart = (page.locator(sel).bounding_box() for sel in ("#distance-chart .imm-axis-y", "#contact-text",
+                                                                                 "#chart-card"))
+        assert title["y"] >= contact["y"] + contact["height"] - 1, (title, contact)  # below the contact line, not on it
+        assert chart["x"] <= title["x"] and title["y"] + title["height"] <= chart["y"] + chart["height"], (title, chart)
+    finally:
+        page.close()

@@ -34,6 +34,14 @@ VARIATION_KEYS = ("variation_1", "variation_2", "variation_3")  # a stochastic m
 LAYOUTS = ("overlay", "side_by_side")
 CAMERA_PRESETS = ("default", "front", "side", "top")
 SIDE_SPACING = 1.5  # metres between figures in the side-by-side layout
+CAPTION_PX = 18  # the captions' text size for up to CAPTION_ROOM figures side by side; smaller with more (caption_px)
+CAPTION_ROOM = 4
+TOP_CAPTION_OFFSET = 0.8  # metres towards the top of the picture, for the top camera (above each figure, not on it)
+
+
+def caption_px(slots: int) -> int:
+    """The captions' text size with `slots` figures side by side: as many captions side by side as fit the view."""
+    return max(11, round(CAPTION_PX * CAPTION_ROOM / max(slots, CAPTION_ROOM)))
 BACKGROUND = "#f4f5f7"
 
 
@@ -79,7 +87,7 @@ class Scene:
 
     # ---- building blocks ----------------------------------------------------------------
     def _caption(self, text: str, color: str) -> pv.Label:
-        label = pv.Label(text, size=18)
+        label = pv.Label(text, size=CAPTION_PX)
         label.prop.bold = True
         label.prop.color = color
         label.prop.justification_horizontal = "center"
@@ -206,6 +214,9 @@ class Scene:
         along_z = self.camera_preset == "side"
         middle = (self._slots() - 1) / 2
         variations = [(3 + i, k) for i, k in enumerate(VARIATION_KEYS)]
+        size = caption_px(self._slots())
+        # seen from the top a caption over the head would be on the figure: it goes towards the top of the picture
+        above = (0.0, 0.0, -TOP_CAPTION_OFFSET) if self.camera_preset == "top" else (0.0, 0.0, 0.0)
         for slot, k in (*enumerate(CHARACTER_KEYS), (2, "pinned"), *variations):  # the pinned one on the synthesized spot
             fig, cap = self.figures[k], self.captions.get(k)
             if k in VARIATION_KEYS:
@@ -220,7 +231,9 @@ class Scene:
             yaw = 0.0 if k == "leader" else 180.0
             fig.place((float(root[0]), 0.0, float(root[2])), (spot[0] - float(root[0]), 0.0, spot[2] - float(root[2])), yaw)
             if cap is not None:
-                cap.position = (spot[0], top, spot[2])
+                cap.position = (spot[0] + above[0], top, spot[2] + above[2])
+                if cap.size != size:
+                    cap.size = size
                 cap.SetVisibility(self.visible["synthesized" if k in VARIATION_KEYS else k])
 
     def shown(self, every_frame: bool = False) -> list[str]:
@@ -247,7 +260,8 @@ class Scene:
         """Corners of the box the camera must show: all frames of the three figures as placed."""
         if self.layout == "side_by_side" or not self.sequences:
             half = (self._slots() - 1) / 2 * SIDE_SPACING + 0.6
-            spread = [half, 0.0, 0.6][:: -1 if self.camera_preset == "side" else 1]  # along X, or Z (_apply_layout)
+            depth = TOP_CAPTION_OFFSET + 0.2 if self.camera_preset == "top" else 0.6  # room for the captions (_apply_layout)
+            spread = [half, 0.0, depth][:: -1 if self.camera_preset == "side" else 1]  # along X, or Z (_apply_layout)
             lo = np.array([-spread[0], self.floor_y, -spread[2]])
             hi = np.array([spread[0], self.floor_y + 2.0, spread[2]])
         else:

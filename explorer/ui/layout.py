@@ -344,8 +344,7 @@ def first_use_hints() -> None:
     with html.Div(v_if="show_hints", id="first-use-hints", classes="text-caption d-flex align-center pa-1 rounded",
                   style="position: absolute; left: 8px; bottom: 8px; z-index: 2; background: rgba(38, 50, 56, .85); color: #fff; gap: 6px"):
         v3.VIcon("mdi-gesture-swipe", size="small")
-        html.Span("drag to rotate, wheel to zoom · click a point on the latent map to open and play that sequence · "
-                  "Review compares every model with the ground truth · ? for the keys")
+        html.Span("drag: rotate · wheel: zoom · a click on a latent map point opens and plays it · ?: keys")
         v3.VBtn(icon="mdi-close", size="x-small", variant="text", title="got it", id="hints-close",
                 click=f"show_hints = false; utils.get('localStorage').setItem('{HINTS_SEEN}', '1')")
 
