@@ -215,3 +215,55 @@ def test_captions_of_many_figures_shrink_and_from_the_top_stand_clear_of_the_fig
         scene.set_variations([scene.sequences["synthesized"]], None)
         scene.set_layout("overlay")
         scene.set_camera("default")
+
+
+def test_trails_show_the_last_frames_as_ghosts_in_the_overlay_only(scene):
+    """Trails on: the leader's and the synthesized follower's ghosts hold their poses some frames back (frame 0's where
+    there is none); off, side by side or with the figure hidden, none is drawn."""
+    leader = scene.sequences["leader"]
+    scene.set_frame(10)
+    trail = scene.trails["leader"]
+    assert not trail.actor.GetVisibility()
+    scene.set_trails(True)
+    try:
+        assert trail.actor.GetVisibility() and scene.trails["synthesized"].actor.GetVisibility()
+        j = scene.skeleton.num_joints
+        for g, step in enumerate(trail.steps):
+            np.testing.assert_allclose(trail.poly.points[g * j:(g + 1) * j], leader[10 - step], atol=1e-6)
+        scene.set_frame(1)
+        np.testing.assert_allclose(trail.poly.points[-j:], leader[0], atol=1e-6)
+        scene.set_layout("side_by_side")
+        assert not trail.actor.GetVisibility()
+        scene.set_layout("overlay")
+        scene.set_visible("leader", False)
+        assert not trail.actor.GetVisibility() and scene.trails["synthesized"].actor.GetVisibility()
+        scene.set_visible("leader", True)
+    finally:
+        scene.set_trails(False)
+        scene.set_camera("default")
+    assert not trail.actor.GetVisibility()
+
+
+def test_a_following_camera_moves_with_the_pair_and_keeps_the_users_turn(scene):
+    """Following, the camera moves along the floor with the centre of the two roots from frame to frame; the direction
+    it looks from (the user's turn) is kept."""
+    scene.set_frame(0)
+    camera = scene.renderer.GetActiveCamera()
+    camera.Azimuth(20)
+    scene.set_follow(True)
+    try:
+        before = np.array(camera.GetFocalPoint()), np.array(camera.GetPosition())
+        root = scene.skeleton.root
+        last = len(scene.sequences["leader"]) - 1
+        moved = np.mean([scene.sequences[k][last, root] - scene.sequences[k][0, root] for k in ("leader", "synthesized")], axis=0)
+        moved[1] = 0.0
+        scene.set_frame(last)
+        np.testing.assert_allclose(np.array(camera.GetFocalPoint()) - before[0], moved, atol=1e-5)
+        np.testing.assert_allclose(np.array(camera.GetPosition()) - before[1], moved, atol=1e-5)
+    finally:
+        scene.set_follow(False)
+        scene.set_frame(0)
+        scene.set_camera("default")
+    fixed = camera.GetPosition()
+    scene.set_frame(5)
+    assert camera.GetPosition() == fixed  # not following: the camera stays

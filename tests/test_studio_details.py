@@ -102,3 +102,31 @@ def test_at_1280_the_charts_axis_title_keeps_off_the_contact_line(browser, studi
         assert chart["x"] <= title["x"] and title["y"] + title["height"] <= chart["y"] + chart["height"], (title, chart)
     finally:
         page.close()
+
+
+def test_the_views_corner_turns_on_trails_follows_the_pair_and_goes_full_screen(browser, studio):
+    import numpy as np
+
+    page = probe.open_studio(browser, studio.url, 1366, 768)
+    try:
+        probe.watch_view_images(page)
+        probe.set_state(page, "frame", 12)
+        probe.wait_state(page, "s.get('time_text').startsWith('frame 13/')")
+        page.wait_for_function("() => { const i = document.querySelector('.imm-scene img'); return i.complete; }")
+        before = probe.view_pixels(page)
+        n = probe.images_seen(page)
+        page.click("#trails-button")
+        probe.wait_state(page, "s.get('trails') === true")
+        probe.wait_for_new_image(page, n)
+        page.wait_for_function("() => { const i = document.querySelector('.imm-scene img'); return i.complete; }")
+        assert int((np.abs(probe.view_pixels(page).astype(int) - before.astype(int)).sum(-1) > 60).sum()) > 200  # ghosts drawn
+        page.click("#follow-button")
+        probe.wait_state(page, "s.get('follow_camera') === true")
+        width = page.evaluate("() => document.querySelector('.imm-scene img').naturalWidth")
+        page.click("#fullscreen-button")
+        page.wait_for_function("() => document.fullscreenElement && document.fullscreenElement.matches('.imm-scene')", timeout=10000)
+        page.wait_for_function(f"() => document.querySelector('.imm-scene img').naturalWidth > {width}", timeout=30000)
+        page.click("#fullscreen-button")
+        page.wait_for_function("() => !document.fullscreenElement", timeout=10000)
+    finally:
+        page.close()

@@ -121,6 +121,8 @@ class Studio:
                 "key_slider": 0,  # the class slider the up/down keys move (explorer/ui/keys.py)
                 "show_keys": False,
                 "show_hints": False,  # the first-use hints (the page shows them until the browser has dismissed them once)
+                "trails": False,  # ghosts of the last frames (explorer/rendering/scene.py set_trails)
+                "follow_camera": False,  # the camera moves with the pair (scene.set_follow)
                 "pinned_text": "",  # A/B (explorer/ui/compare.py): the pinned mix in words, "" when none
                 "ab_text": "",
                 "contact_text": "",  # interpenetration of the two bodies (explorer/rendering/charts.py contact_text)
@@ -145,6 +147,7 @@ class Studio:
         s.change("show_leader", "show_ground_truth", "show_synthesized")(self.on_visibility_change)
         s.change("playing")(self.on_playing_change)
         s.change("clean_up")(self.on_cleanup_toggled)
+        s.change("trails", "follow_camera")(self.on_viewer_aids)
         c.match_label = self.match_label
         c.reset_label = self.reset_label
         c.set_camera = self.set_camera
@@ -398,6 +401,12 @@ class Studio:
     # ---- view ----------------------------------------------------------------------------
     def on_layout_change(self, scene_layout, **_):
         self.scene.set_layout(scene_layout)
+        self.ctrl.view_update()
+
+    def on_viewer_aids(self, trails, follow_camera, **_):
+        self.scene.set_trails(bool(trails))
+        if bool(follow_camera) != self.scene.follow:
+            self.scene.set_follow(bool(follow_camera))
         self.ctrl.view_update()
 
     def on_visibility_change(self, show_leader, show_ground_truth, show_synthesized, **_):

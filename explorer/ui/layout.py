@@ -333,7 +333,26 @@ def scene_view(page: LayoutParts) -> None:
                     v_if=f"show_{key}" + (" && !sequence_uploaded" if key == "ground_truth" else ""), classes=f"legend-{key}",
                 )
             html.Span("● pinned: {{ pinned_text }}", v_if="pinned_text", style=f"color: {PINNED}; font-weight: 600")
+        viewer_tools()
         first_use_hints()
+
+
+# Full screen for the 3D view (the button's own element, so no script of its own); again, or Esc, leaves it.
+FULL_SCREEN_JS = ("utils.get('document.fullscreenElement') ? utils.get('document').exitFullscreen()"
+                  " : $event.currentTarget.closest('.imm-scene').requestFullscreen()")
+
+
+def viewer_tools() -> None:
+    """The view's corner: trails of the last frames, a camera that follows the pair, full screen."""
+    with html.Div(style="position: absolute; right: 6px; top: 4px; z-index: 2; display: flex; gap: 2px", id="viewer-tools"):
+        v3.VBtn(icon="mdi-motion-outline", size="small", density="comfortable", id="trails-button",
+                variant=("trails ? 'tonal' : 'text'",), color=("trails ? 'primary' : undefined",),
+                click="trails = !trails", title="trails: ghosts of the last frames (overlay)")
+        v3.VBtn(icon="mdi-crosshairs-gps", size="small", density="comfortable", id="follow-button",
+                variant=("follow_camera ? 'tonal' : 'text'",), color=("follow_camera ? 'primary' : undefined",),
+                click="follow_camera = !follow_camera", title="camera follows the pair")
+        v3.VBtn(icon="mdi-fullscreen", size="small", density="comfortable", variant="text", id="fullscreen-button",
+                click=FULL_SCREEN_JS, title="full screen (Esc leaves it)")
 
 
 HINTS_SEEN = "imm-studio-hints-seen"  # the browser's localStorage key: the hints were dismissed once
