@@ -267,3 +267,22 @@ def test_a_following_camera_moves_with_the_pair_and_keeps_the_users_turn(scene):
     fixed = camera.GetPosition()
     scene.set_frame(5)
     assert camera.GetPosition() == fixed  # not following: the camera stays
+
+
+def test_the_joint_under_the_mouse_is_found_by_its_picture_position(scene):
+    """A point of the picture where a joint is drawn names that figure and joint; an empty corner names none."""
+    scene.set_frame(3)
+    scene.render()
+    width, height = scene.render_window.GetSize()
+    point = scene.sequences["leader"][3, 5]
+    scene.renderer.SetWorldPoint(*map(float, point), 1.0)
+    scene.renderer.WorldToDisplay()
+    dx, dy, _ = scene.renderer.GetDisplayPoint()
+    found = scene.joint_at(dx / width, 1.0 - dy / height)
+    assert found == ("leader", 5), found
+    assert scene.joint_at(0.01, 0.01) is None
+    scene.set_visible("leader", False)
+    try:
+        assert scene.joint_at(dx / width, 1.0 - dy / height) != ("leader", 5)  # a hidden figure is not hovered
+    finally:
+        scene.set_visible("leader", True)

@@ -130,3 +130,27 @@ def test_the_views_corner_turns_on_trails_follows_the_pair_and_goes_full_screen(
         page.wait_for_function("() => !document.fullscreenElement", timeout=10000)
     finally:
         page.close()
+
+
+def test_hovering_a_joint_names_it_with_its_speed(browser, studio):
+    import numpy as np
+
+    from explorer.rendering.palette import LEADER
+
+    page = probe.open_studio(browser, studio.url, 1366, 768)
+    try:
+        page.click("#hints-close")
+        leader = probe.color_mask(probe.view_pixels(page), LEADER)
+        leader[:40] = False  # the legend over the view's top
+        ys, xs = np.nonzero(leader)
+        top = int(np.argmin(ys))  # the top of the head: its joint's sphere
+        box = page.locator(probe.VIEW_IMG).bounding_box()
+        page.mouse.move(box["x"] + float(xs[top]), box["y"] + float(ys[top]) + 2)
+        probe.wait_state(page, "s.get('joint_hover') && s.get('joint_hover').text.startsWith('Leader')")
+        tip = page.locator("#joint-hover")
+        tip.wait_for(state="visible", timeout=10000)
+        assert tip.inner_text().endswith("m/s")
+        page.mouse.move(box["x"] + 5, box["y"] + box["height"] - 5)  # the floor's corner: no joint there
+        probe.wait_state(page, "s.get('joint_hover') === null")
+    finally:
+        page.close()

@@ -38,6 +38,7 @@ SIDE_SPACING = 1.5  # metres between figures in the side-by-side layout
 CAPTION_PX = 18  # the captions' text size for up to CAPTION_ROOM figures side by side; smaller with more (caption_px)
 CAPTION_ROOM = 4
 BACKGROUND = "#f4f5f7"
+HOVER_REACH_PX = 14  # a joint is under the mouse within this many pixels of its centre
 TOP_CAPTION_OFFSET = 0.8  # metres towards the top of the picture, for the top camera (above each figure, not on it)
 
 
@@ -220,6 +221,26 @@ class Scene:
         centre = np.mean(roots, axis=0).astype(float)
         centre[1] = 0.0  # along the floor only: the camera does not bob with the bodies
         return centre
+
+    def joint_at(self, x: float, y: float, reach_px: float = HOVER_REACH_PX) -> tuple[str, int] | None:
+        """The joint drawn nearest to the view's point (x, y), fractions of its width and height from the top left, within
+        `reach_px` pixels: (figure key, joint index), or None. Figures in front win ties (the nearer to the camera)."""
+        width, height = self.render_window.GetSize()
+        px, py = x * width, (1.0 - y) * height  # VTK's display y grows upwards
+        best, best_key = None, None
+        for key, seq in self.sequences.items():
+            actor = self.figures[key].actors[0]
+            if not actor.GetVisibility():
+                continue
+            matrix = actor.GetMatrix()
+            for j, point in enumerate(seq[min(self.frame, len(seq) - 1)]):
+                self.renderer.SetWorldPoint(*matrix.MultiplyPoint((*map(float, point), 1.0))[:3], 1.0)
+                self.renderer.WorldToDisplay()
+                dx, dy, depth = self.renderer.GetDisplayPoint()
+                gap = float(np.hypot(dx - px, dy - py))
+                if gap <= reach_px and (best is None or (gap, depth) < best):
+                    best, best_key = (gap, depth), (key, j)
+        return best_key
 
     def _follow_pair(self) -> None:
         centre = self._pair_centre()

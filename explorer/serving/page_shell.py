@@ -32,6 +32,7 @@ from explorer.trame_adapter import CLIENT_FIRST_SCRIPT, client_www, module_asset
 STATIC = Path(__file__).resolve().parents[1] / "static"  # explorer/static
 BYTES_SCRIPT = STATIC / "websocket_bytes.js"
 LATENT_SCRIPT = STATIC / "latent_map.js"
+HOVER_SCRIPT = STATIC / "view_hover.js"  # the 3D view's joint readout
 PLOTLY_SRC = "static/plotly.min.js"  # in static/latent_map.js: named with its version in the page
 PLOTLY_VERSION = re.compile(rb"plotly\.js v([0-9][0-9A-Za-z.+-]*)")  # the file's first line: "* plotly.js v4.1.1"
 ANCHOR = CLIENT_FIRST_SCRIPT  # trame's first script: ours go before it
@@ -79,7 +80,7 @@ def shell_index(trame_index: str, shared: str = "", files: frozenset[str] = froz
     if ANCHOR not in trame_index:
         return trame_index  # another trame client layout: serve it unchanged rather than guess
     latent = LATENT_SCRIPT.read_text().replace(PLOTLY_SRC, f"static/{plotly_name()}")
-    scripts = "".join(f"<script>{text}</script>" for text in (BYTES_SCRIPT.read_text(), latent))
+    scripts = "".join(f"<script>{text}</script>" for text in (BYTES_SCRIPT.read_text(), latent, HOVER_SCRIPT.read_text()))
     head, rest = trame_index.split(ANCHOR, 1)
 
     def relocated(html: str) -> str:

@@ -14,7 +14,7 @@ import numpy as np
 from trame.app import asynchronous
 
 from explorer.rendering import charts
-from explorer.rendering.palette import class_color, display_name
+from explorer.rendering.palette import CHARACTER_TITLES, class_color, display_name
 from explorer.rendering.scene import CHARACTER_KEYS, Scene, floor_height
 from explorer.session.latent import LatentMap
 from explorer.session.session import FPS, Session, one_line
@@ -123,6 +123,7 @@ class Studio:
                 "show_hints": False,  # the first-use hints (the page shows them until the browser has dismissed them once)
                 "trails": False,  # ghosts of the last frames (explorer/rendering/scene.py set_trails)
                 "follow_camera": False,  # the camera moves with the pair (scene.set_follow)
+                "joint_hover": None,  # the joint under the mouse: {text, x, y} (x, y: % of the view), None when none
                 "pinned_text": "",  # A/B (explorer/ui/compare.py): the pinned mix in words, "" when none
                 "ab_text": "",
                 "contact_text": "",  # interpenetration of the two bodies (explorer/rendering/charts.py contact_text)
@@ -154,6 +155,7 @@ class Studio:
         c.step_frame = self.step_frame
         self.server.trigger("key_pressed")(self.guarded(lambda key: press(self, str(key)[:20])))
         self.server.trigger("open_url_view")(self.open_url_view)
+        self.server.trigger("hover_joint")(self.guarded(self.hover_joint))
         s.change("scene_layout", "projection", "frame", "playing", "mix_count")(self.write_url)
 
     def guarded(self, fn):
@@ -402,6 +404,27 @@ class Studio:
     def on_layout_change(self, scene_layout, **_):
         self.scene.set_layout(scene_layout)
         self.ctrl.view_update()
+
+    def hover_joint(self, where) -> None:
+        """The mouse rests at `where` ([x, y], fractions of the view from its top left; None: it left the view): the joint
+        drawn there, named with its figure and its speed at this frame, or nothing."""
+        s, scene = self.state, self.scene
+        found = None
+        if isinstance(where, list | tuple) and len(where) == 2:
+            x, y = (float(v) for v in where)
+            if 0.0 <= x <= 1.0 and 0.0 <= y <= 1.0:
+                found = scene.joint_at(x, y)
+        if found is None:
+            if s.joint_hover is not None:
+                s.joint_hover = None
+            return
+        key, j = found
+        seq, f = scene.sequences[key], scene.frame
+        before, after = max(0, f - 1), min(len(seq) - 1, f + 1)
+        speed = float(np.linalg.norm(seq[after, j] - seq[before, j])) * FPS / max(1, after - before)
+        figure = CHARACTER_TITLES.get(key, key.replace("_", " "))
+        joint = self.session.data.skeleton.joint_names[j].replace("_", " ")
+        s.joint_hover = {"text": f"{figure} · {joint} · {speed:.2f} m/s", "x": round(100 * x, 2), "y": round(100 * y, 2)}
 
     def on_viewer_aids(self, trails, follow_camera, **_):
         self.scene.set_trails(bool(trails))

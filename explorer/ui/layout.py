@@ -335,6 +335,10 @@ def scene_view(page: LayoutParts) -> None:
             html.Span("● pinned: {{ pinned_text }}", v_if="pinned_text", style=f"color: {PINNED}; font-weight: 600")
         viewer_tools()
         first_use_hints()
+        html.Div("{{ joint_hover.text }}", v_if="joint_hover", id="joint-hover", classes="text-caption px-1 rounded",
+                 style=("{position: 'absolute', left: joint_hover.x + '%', top: joint_hover.y + '%', transform: "
+                        "'translate(12px, -130%)', background: 'rgba(255,255,255,.92)', border: '1px solid #bbb', "
+                        "pointerEvents: 'none', whiteSpace: 'nowrap', zIndex: 2}",))
 
 
 # Full screen for the 3D view (the button's own element, so no script of its own); again, or Esc, leaves it.

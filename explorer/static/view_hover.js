@@ -1,0 +1,24 @@
+// The 3D view's joint readout: while the mouse rests over the view (no button pressed: a drag turns the camera), the
+// server is told where, at most every HOVER_EVERY_MS, and names the joint drawn there with its speed (explorer/ui/app.py
+// hover_joint, state `joint_hover`); leaving the view clears it.
+(() => {
+  const HOVER_EVERY_MS = 80;
+  let last = 0;
+  let due = null;
+  const send = (where) => window.trame && window.trame.trigger('hover_joint', [where]);
+  document.addEventListener('mousemove', (e) => {
+    const img = e.target.closest && e.target.closest('.imm-scene img');
+    if (!img || e.buttons) return;
+    const r = img.getBoundingClientRect();
+    const where = [(e.clientX - r.left) / r.width, (e.clientY - r.top) / r.height];
+    clearTimeout(due);
+    const wait = last + HOVER_EVERY_MS - performance.now();
+    if (wait <= 0) { last = performance.now(); send(where); } else due = setTimeout(() => { last = performance.now(); send(where); }, wait);
+  }, {passive: true});
+  document.addEventListener('mouseout', (e) => {
+    if (e.target.closest && e.target.closest('.imm-scene img') && !(e.relatedTarget && e.relatedTarget.closest && e.relatedTarget.closest('.imm-scene img'))) {
+      clearTimeout(due);
+      send(null);
+    }
+  }, {passive: true});
+})();
