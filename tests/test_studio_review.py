@@ -18,6 +18,11 @@ REVIEW_AFD_JS = ("() => [...document.querySelectorAll('#review-table tbody tr.re
 PARTIAL_WATCH_JS = """() => { window.__reviewPartial = false; new MutationObserver(() => {
     if (document.querySelector('#review-table tr.review-row') && document.querySelector('#review-busy')) window.__reviewPartial = true;
     }).observe(document.body, {childList: true, subtree: true}); }"""
+# The review's current row inside the table's scrolled area, below its header.
+IN_SIGHT_JS = """() => { const r = document.querySelector('#review-table tr.review-current');
+    const t = document.querySelector('#review-table .v-table__wrapper'), h = document.querySelector('#review-table thead');
+    if (!r || !t) return false; const a = r.getBoundingClientRect(), b = t.getBoundingClientRect();
+    return a.top >= h.getBoundingClientRect().bottom - 1 && a.bottom <= b.bottom + 1; }"""
 WIDTHS_JS = """() => { const w = (sel) => { const e = document.querySelector(sel); return e ? e.getBoundingClientRect().width : 0; };
     const slider = document.getElementById('frame-slider').closest('.v-slider');
     const map = document.getElementById('latent-plotly');
@@ -71,6 +76,10 @@ def test_the_review_sets_every_model_side_by_side_each_row_under_its_own_class(b
         order = page.evaluate(REVIEW_ORDER_JS)
         now = probe.state(page, "review_current")
         assert order.index(now) == (order.index(current) + 1 if current in order else 0), (current, now, order)
+
+        probe.set_state(page, "review_current", order[-1])  # the last row current (as a click on the map can make it)
+        page.wait_for_function(IN_SIGHT_JS, timeout=10000)
+        page.evaluate("() => { document.querySelector('#review-table .v-table__wrapper').scrollTop = 0; }")  # rows clear of the header
 
         target = next(i for i in order[3:] if i != now)
         row = next(r for r in rows if r["index"] == target)

@@ -440,6 +440,8 @@ def review_overlay(n_models: int, panel_prefix: str = "review") -> None:
         with html.Div(style="flex: 1 1 auto; min-height: 0; position: relative"):
             review_table(n, p, n_models)
         client.Style(TABLE_CSS)
+        # the current row in sight (static/page_aids.js), whichever way it became current
+        client.ClientStateChange(value=n["current"], change=f"utils.get('immScrollIntoView')('#{p}-table tr.review-current')")
 
 
 def review_table(n: dict[str, str], p: str, n_models: int) -> None:

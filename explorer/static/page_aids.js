@@ -1,3 +1,5 @@
+// Small aids of the page that templates cannot express.
+//
 // The 3D view's joint readout: while the mouse rests over the view (no button pressed: a drag turns the camera), the
 // server is told where, at most every HOVER_EVERY_MS, and names the joint drawn there with its speed (explorer/ui/app.py
 // hover_joint, state `joint_hover`); leaving the view clears it.
@@ -22,3 +24,10 @@
     }
   }, {passive: true});
 })();
+
+// A table row brought into sight once the page has drawn it (the review's current row after "Next worst" or a map
+// click): window.immScrollIntoView(selector), called from a state change, waits a frame for the table to render it.
+window.immScrollIntoView = (selector) => requestAnimationFrame(() => {
+  const el = document.querySelector(selector);
+  if (el) el.scrollIntoView({block: 'nearest'});
+});
