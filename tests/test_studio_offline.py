@@ -100,3 +100,29 @@ def test_the_address_bar_is_the_views_link_and_another_browser_gets_its_own_stud
         assert probe.state(first, "mix_count") == first_count
     finally:
         first.close()
+
+
+def test_a_copied_address_in_another_tab_of_the_same_browser_opens_a_studio_of_its_own(browser, studio):
+    """The same browser (one context: cookies shared), a second tab opened on the first tab's address: a studio of its
+    own with the view the address names; a reload of the first tab keeps its studio."""
+    context = browser.new_context(viewport={"width": 1366, "height": 768})
+    try:
+        first = context.new_page()
+        first.goto(studio.url, timeout=60000)
+        probe.wait_for_view(first)
+        probe.wait_state(first, "window.location.search.includes('seq=')")
+        path, shown = urlsplit(first.url).path, probe.state(first, "sequence_title")
+        count = probe.state(first, "mix_count")
+        second = context.new_page()
+        second.goto(first.url, timeout=60000)
+        probe.wait_for_view(second)
+        assert urlsplit(second.url).path.removesuffix("index.html") != path.removesuffix("index.html")
+        probe.wait_state(second, f"s.get('sequence_title') === {shown!r}")
+        probe.set_state(second, "w_0", -1.0)
+        probe.wait_state(second, "window.location.search.includes(':-1')")
+        assert probe.state(first, "mix_count") == count and probe.state(first, "w_0") != -1.0
+        first.reload(timeout=60000)
+        probe.wait_for_view(first)
+        assert urlsplit(first.url).path.removesuffix("index.html") == path.removesuffix("index.html")  # same tab, same studio
+    finally:
+        context.close()

@@ -540,7 +540,10 @@ CLAIM_PAGE = f"""<!doctype html><title>IMM Studio</title>{NO_ICON}
 <script>
 fetch("claim", {{method: "POST"}}).then(async (r) => {{
   if (!r.ok) throw new Error(await r.text());
-  location.replace((await r.json()).url + location.search);  // a link's view (explorer/ui/url_state.py) goes along
+  const url = (await r.json()).url;
+  // this tab's own studio (explorer/static/page_aids.js: another tab opening the address gets a studio of its own)
+  try {{ sessionStorage.setItem("imm-studio-tab", new URL(url, location.href).pathname); }} catch (e) {{}}
+  location.replace(url + location.search);  // a link's view (explorer/ui/url_state.py) goes along
 }}).catch((e) => {{ const m = document.getElementById("m"); m.style.color = "#b00020";
   m.textContent = (e.message || String(e)).replace(/<[^>]*>/g, " ").replace(/\\s+/g, " ").replace("IMM Studio", "").trim(); }});
 </script></body>"""

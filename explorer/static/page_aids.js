@@ -1,5 +1,18 @@
 // Small aids of the page that templates cannot express.
 //
+// A studio's address (/s/<session>/...) is its tab's: the front page's claim notes it in the tab's sessionStorage
+// (explorer/serving/launcher.py CLAIM_PAGE), which a reload keeps and a new tab does not have. Opened in another tab
+// (a copied address), the page goes to the front page with the view the address names, for a studio of its own,
+// before it connects to this one (another browser is sent there by the launcher already).
+(() => {
+  const mine = (path) => path.replace(/index\.html$/, '');
+  let noted = null;
+  try { noted = sessionStorage.getItem('imm-studio-tab'); } catch (e) { return; }
+  if (/\/s\/[^/]+\/(index\.html)?$/.test(location.pathname) && (!noted || mine(noted) !== mine(location.pathname))) {
+    location.replace(new URL('../../' + location.search, location.href).href);
+  }
+})();
+
 // The 3D view's joint readout: while the mouse rests over the view (no button pressed: a drag turns the camera), the
 // server is told where, at most every HOVER_EVERY_MS, and names the joint drawn there with its speed (explorer/ui/app.py
 // hover_joint, state `joint_hover`); leaving the view clears it.
