@@ -126,7 +126,11 @@ def _claim(host: str, port: int, origin: str | None = "same", host_header: str |
     conn.request("POST", "/claim", headers=headers)
     r = conn.getresponse()
     body = r.read().decode()
-    return r.status, (json.loads(body) if r.status == 200 else body)
+    if r.status != 200:
+        return r.status, body
+    answer = json.loads(body)
+    answer["cookie"] = r.getheader("Set-Cookie").split(";")[0]  # the claiming browser's: its tab answers only it
+    return r.status, answer
 
 
 @pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
@@ -150,7 +154,11 @@ def test_launcher_hands_out_processes_only_to_its_own_page(tmp_path):
         assert _claim(u.hostname, u.port, host_header=f"evil.example.com:{u.port}")[0] == 403  # DNS rebinding
         status, answer = _claim(u.hostname, u.port)
         assert status == 200 and answer["url"].startswith("s/")  # on the launcher's own port: single-port serving
-        conn.request("GET", "/" + answer["url"] + "index.html")
+        conn.request("GET", "/" + answer["url"] + "index.html")  # another browser (no claim cookie): a studio of its own
+        elsewhere = conn.getresponse()
+        assert elsewhere.status == 302 and elsewhere.getheader("Location") == "../../"
+        elsewhere.read()
+        conn.request("GET", "/" + answer["url"] + "index.html", headers={"Cookie": answer["cookie"]})
         page = conn.getresponse()
         assert page.status == 200 and "<base href" in page.read().decode()
         conn.request("GET", "/s/not-a-session/index.html")
@@ -237,7 +245,7 @@ def test_a_token_guards_the_front_page_the_claim_and_the_studio(tmp_path):
         status, answer = _claim(u.hostname, u.port, cookie=cookie)
         assert status == 200
         assert get("/" + answer["url"] + "index.html").status == 403
-        assert get("/" + answer["url"] + "index.html", cookie=cookie).status == 200
+        assert get("/" + answer["url"] + "index.html", cookie=f"{cookie}; {answer['cookie']}").status == 200
 
 
 def test_a_network_host_needs_a_token_or_no_auth(capsys):

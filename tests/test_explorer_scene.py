@@ -182,3 +182,107 @@ def test_exported_pictures_carry_the_legend_and_the_frame_number_and_the_view_st
         scene.set_visible("ground_truth", True)
         scene.set_sequence(keep["leader"], keep["ground_truth"], keep["synthesized"])
         scene.set_camera("default")
+
+
+def test_captions_of_many_figures_shrink_and_from_the_top_stand_clear_of_the_figures(scene):
+    """Six figures side by side (three variations more) get smaller captions, so that neighbours do not run into each
+    other; seen from the top each caption stands above its figure in the picture, not on it."""
+    from explorer.rendering.scene import CAPTION_PX, VARIATION_KEYS
+
+    followers = [scene.sequences["synthesized"] + np.float32([dx, 0.0, 0.0]) for dx in (0.0, 0.2, 0.4, 0.6)]
+    scene.set_layout("side_by_side")
+    try:
+        assert scene.captions["leader"].size == CAPTION_PX
+        scene.set_variations(followers, [1, 2, 3, 4])
+        sizes = {scene.captions[k].size for k in ("leader", "ground_truth", "synthesized", *VARIATION_KEYS[:3])}
+        assert sizes == {min(sizes)} and min(sizes) < CAPTION_PX
+        scene.set_camera("top")
+        scene.render()
+
+        def display_y(point) -> float:
+            scene.renderer.SetWorldPoint(*point, 1.0)
+            scene.renderer.WorldToDisplay()
+            return scene.renderer.GetDisplayPoint()[1]
+
+        leader = scene.figures["leader"]
+        from vtkmodules.util.numpy_support import vtk_to_numpy
+
+        joints = vtk_to_numpy(leader.actors[0].GetMapper().GetInput().GetPoints().GetData())
+        joints = [leader.actors[0].GetMatrix().MultiplyPoint((*p, 1.0))[:3] for p in joints]
+        caption_y, window_h = display_y(scene.captions["leader"].position), scene.render_window.GetSize()[1]
+        assert caption_y > max(display_y(p) for p in joints) and caption_y < window_h, caption_y
+    finally:
+        scene.set_variations([scene.sequences["synthesized"]], None)
+        scene.set_layout("overlay")
+        scene.set_camera("default")
+
+
+def test_trails_show_the_last_frames_as_ghosts_in_the_overlay_only(scene):
+    """Trails on: the leader's and the synthesized follower's ghosts hold their poses some frames back (frame 0's where
+    there is none); off, side by side or with the figure hidden, none is drawn."""
+    leader = scene.sequences["leader"]
+    scene.set_frame(10)
+    trail = scene.trails["leader"]
+    assert not trail.actor.GetVisibility()
+    scene.set_trails(True)
+    try:
+        assert trail.actor.GetVisibility() and scene.trails["synthesized"].actor.GetVisibility()
+        j = scene.skeleton.num_joints
+        for g, step in enumerate(trail.steps):
+            np.testing.assert_allclose(trail.poly.points[g * j:(g + 1) * j], leader[10 - step], atol=1e-6)
+        scene.set_frame(1)
+        np.testing.assert_allclose(trail.poly.points[-j:], leader[0], atol=1e-6)
+        scene.set_layout("side_by_side")
+        assert not trail.actor.GetVisibility()
+        scene.set_layout("overlay")
+        scene.set_visible("leader", False)
+        assert not trail.actor.GetVisibility() and scene.trails["synthesized"].actor.GetVisibility()
+        scene.set_visible("leader", True)
+    finally:
+        scene.set_trails(False)
+        scene.set_camera("default")
+    assert not trail.actor.GetVisibility()
+
+
+def test_a_following_camera_moves_with_the_pair_and_keeps_the_users_turn(scene):
+    """Following, the camera moves along the floor with the centre of the two roots from frame to frame; the direction
+    it looks from (the user's turn) is kept."""
+    scene.set_frame(0)
+    camera = scene.renderer.GetActiveCamera()
+    camera.Azimuth(20)
+    scene.set_follow(True)
+    try:
+        before = np.array(camera.GetFocalPoint()), np.array(camera.GetPosition())
+        root = scene.skeleton.root
+        last = len(scene.sequences["leader"]) - 1
+        moved = np.mean([scene.sequences[k][last, root] - scene.sequences[k][0, root] for k in ("leader", "synthesized")], axis=0)
+        moved[1] = 0.0
+        scene.set_frame(last)
+        np.testing.assert_allclose(np.array(camera.GetFocalPoint()) - before[0], moved, atol=1e-5)
+        np.testing.assert_allclose(np.array(camera.GetPosition()) - before[1], moved, atol=1e-5)
+    finally:
+        scene.set_follow(False)
+        scene.set_frame(0)
+        scene.set_camera("default")
+    fixed = camera.GetPosition()
+    scene.set_frame(5)
+    assert camera.GetPosition() == fixed  # not following: the camera stays
+
+
+def test_the_joint_under_the_mouse_is_found_by_its_picture_position(scene):
+    """A point of the picture where a joint is drawn names that figure and joint; an empty corner names none."""
+    scene.set_frame(3)
+    scene.render()
+    width, height = scene.render_window.GetSize()
+    point = scene.sequences["leader"][3, 5]
+    scene.renderer.SetWorldPoint(*map(float, point), 1.0)
+    scene.renderer.WorldToDisplay()
+    dx, dy, _ = scene.renderer.GetDisplayPoint()
+    found = scene.joint_at(dx / width, 1.0 - dy / height)
+    assert found == ("leader", 5), found
+    assert scene.joint_at(0.01, 0.01) is None
+    scene.set_visible("leader", False)
+    try:
+        assert scene.joint_at(dx / width, 1.0 - dy / height) != ("leader", 5)  # a hidden figure is not hovered
+    finally:
+        scene.set_visible("leader", True)

@@ -147,11 +147,13 @@ def test_the_panel_names_asked_classes_that_do_not_read():
 
     names = ("kicking", "pushing", "hugging")
     mixed = reads_as_rows(np.array([0.05, 0.15, 0.80]), [1, 0, 1], names)
-    assert unread_note(mixed) == "Does not read as this mix: kicking 5% (under 25%)"
+    assert unread_note(mixed) == "Does not read as asked: kicking 5% (under 25%)"  # one wording, one class or several
     alone = reads_as_rows(np.array([0.20, 0.60, 0.20]), [1, 0, 0], names)
     assert unread_note(alone) == "Does not read as asked: kicking 20% (under 25%)"
     assert unread_note(reads_as_rows(np.array([0.30, 0.05, 0.65]), [1, -1, 1], names)) == ""  # both read; avoided is not asked
     assert unread_note([]) == ""
+    nudged = reads_as_rows(np.array([0.02, 0.08, 0.90]), [0.05, 0, 1], names)  # a 0.05 nudge is not an ask
+    assert nudged[0]["asked"] == "+" and unread_note(nudged) == ""
 
 
 def test_reads_as_refuses_other_classes_and_files(sample_data, model, tmp_path):

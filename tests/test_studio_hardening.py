@@ -244,7 +244,7 @@ class RawTab:
     async def open(self):
         import aiohttp
 
-        self.http = aiohttp.ClientSession()
+        self.http = aiohttp.ClientSession(cookie_jar=aiohttp.CookieJar(unsafe=True))  # the claim's cookie: its tab's key
         async with self.http.post(self.url + "claim", headers={"Origin": self.origin}) as r:
             assert r.status == 200, await r.text()
             self.path = (await r.json())["url"]
@@ -497,7 +497,8 @@ def test_the_pictures_are_sent_without_deflate_even_when_the_browser_asks(small_
 
     async def go():
         tab = RawTab(small_studio.url)
-        tab.http = __import__("aiohttp").ClientSession()
+        aiohttp = __import__("aiohttp")
+        tab.http = aiohttp.ClientSession(cookie_jar=aiohttp.CookieJar(unsafe=True))
         async with tab.http.post(tab.url + "claim", headers={"Origin": tab.origin}) as r:
             tab.path = (await r.json())["url"]
         await tab.connect(compress=15)

@@ -28,7 +28,7 @@ CHART_CSS = """
 .imm-tick-y { position: absolute; right: calc(100% + 5px); transform: translateY(-50%); white-space: nowrap; }
 .imm-tick-x { position: absolute; top: calc(100% + 3px); transform: translateX(-50%); }
 .imm-axis-x { position: absolute; bottom: 0; left: 52px; right: 12px; text-align: center; }
-.imm-axis-y { position: absolute; left: 0; top: 50%; transform: rotate(-90deg) translateX(50%); transform-origin: left top; }
+.imm-axis-y { position: absolute; left: 6px; top: 6px; font-size: 10px; }
 .imm-legend { position: absolute; display: flex; gap: 10px; font-size: 10px; }
 .imm-swatch { display: inline-block; width: 14px; height: 0; border-top: 2px solid; vertical-align: middle; margin-right: 4px; }
 .imm-cursor { position: absolute; top: 0; bottom: 0; border-left: 1.5px dotted #333; pointer-events: none; }
@@ -95,4 +95,4 @@ def distance_chart(distances: np.ndarray, fps: float, ab: np.ndarray | None = No
     return (f'<div class="imm-chart"><div class="imm-legend" style="left: 52px; top: 2px">{legend}</div>'
             f'<div class="imm-plot" style="{DISTANCE_BOX}">'
             f'<svg viewBox="0 0 1000 1000" preserveAspectRatio="none">{"".join(svg)}</svg>{"".join(labels)}</div>'
-            f'<div class="imm-axis-x">frame ({fps:g} fps)</div><div class="imm-axis-y">joints apart (m)</div></div>')
+            f'<div class="imm-axis-x">frame ({fps:g} fps)</div><div class="imm-axis-y">metres</div></div>')

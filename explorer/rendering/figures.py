@@ -105,3 +105,28 @@ class ContactOverlay:
             self._points[:j], self._points[j:] = leader[frame], follower[min(frame, len(follower) - 1)]
             self.poly.GetPoints().Modified()
             set_lines(self.poly, segments)
+
+
+class Trail:
+    """Ghosts of one figure's last frames (`steps` frames back), as thin lines in its colour, fading: the motion's path
+    at a glance. Lines only (no tubes, no spheres): a few hundred segments cost llvmpipe next to nothing."""
+
+    def __init__(self, plotter: pv.Plotter, skeleton: Skeleton, color: str, steps: tuple[int, ...] = (2, 4, 6, 8)):
+        self.steps, self.joints = steps, skeleton.num_joints
+        self.poly = line_mesh(len(steps) * self.joints)
+        set_lines(self.poly, [(g * self.joints + a, g * self.joints + b) for g in range(len(steps)) for a, b in skeleton.bones])
+        self._points = self.poly.points
+        self.actor = add_actor(plotter, self.poly, color, lit=False)
+        self.actor.prop.opacity = 0.35
+        self.actor.prop.line_width = 2.0
+        self.actor.SetVisibility(False)
+
+    def show(self, sequence: np.ndarray | None, frame: int, visible: bool) -> None:
+        """The ghosts of `sequence` before `frame` (frame 0's pose where there is no earlier one); hidden if not `visible`."""
+        if sequence is None or not visible:
+            self.actor.SetVisibility(False)
+            return
+        for g, step in enumerate(self.steps):
+            self._points[g * self.joints:(g + 1) * self.joints] = sequence[max(0, min(frame, len(sequence) - 1) - step)]
+        self.poly.GetPoints().Modified()
+        self.actor.SetVisibility(True)

@@ -25,16 +25,26 @@ from vtkmodules.vtkInteractionStyle import vtkInteractorStyleTrackballCamera  # 
 from vtkmodules.vtkRenderingCore import vtkWindowToImageFilter  # noqa: E402
 from vtkmodules.vtkRenderingUI import vtkGenericRenderWindowInteractor  # noqa: E402
 
-from explorer.rendering.figures import ContactOverlay, StickFigure, add_actor, line_mesh, set_lines  # noqa: E402
+from explorer.rendering.figures import ContactOverlay, StickFigure, Trail, add_actor, line_mesh, set_lines  # noqa: E402
 from explorer.rendering.palette import CHARACTER_TITLES, CHARACTERS, PINNED  # noqa: E402
 from imm_model.skeleton import Skeleton  # noqa: E402
 
 CHARACTER_KEYS = ("leader", "ground_truth", "synthesized")
+TRAIL_KEYS = ("leader", "synthesized")
 VARIATION_KEYS = ("variation_1", "variation_2", "variation_3")  # a seeded model's further followers, side by side
 LAYOUTS = ("overlay", "side_by_side")
 CAMERA_PRESETS = ("default", "front", "side", "top")
 SIDE_SPACING = 1.5  # metres between figures in the side-by-side layout
+CAPTION_PX = 18  # the captions' text size for up to CAPTION_ROOM figures side by side; smaller with more (caption_px)
+CAPTION_ROOM = 4
 BACKGROUND = "#f4f5f7"
+HOVER_REACH_PX = 14  # a joint is under the mouse within this many pixels of its centre
+TOP_CAPTION_OFFSET = 0.8  # metres towards the top of the picture, for the top camera (above each figure, not on it)
+
+
+def caption_px(slots: int) -> int:
+    """The captions' text size with `slots` figures side by side: as many captions side by side as fit the view."""
+    return max(11, round(CAPTION_PX * CAPTION_ROOM / max(slots, CAPTION_ROOM)))
 
 
 class Scene:
@@ -58,6 +68,11 @@ class Scene:
         self.figures["pinned"] = StickFigure(self.plotter, skeleton, PINNED)  # A/B: shown only while a mix is pinned
         self.figures["pinned"].set_visible(False)
         self.contact = ContactOverlay(self.plotter, skeleton)
+        # the last frames of the leader and the synthesized follower as ghosts (overlay layout, set_trails)
+        self.trails = {k: Trail(self.plotter, skeleton, CHARACTERS[k]) for k in TRAIL_KEYS}
+        self.trails_on = False
+        self.follow = False  # the camera follows the pair (set_follow): moved by the pair's centre from frame to frame
+        self._followed: np.ndarray | None = None  # the pair's centre the camera was last placed for
         self.captions = {k: self._caption(CHARACTER_TITLES[k], CHARACTERS[k]) for k in CHARACTER_KEYS}
         for k in VARIATION_KEYS:  # shown only side by side, right of the synthesized follower (set_variations)
             self.figures[k] = StickFigure(self.plotter, skeleton, CHARACTERS["synthesized"])
@@ -79,7 +94,7 @@ class Scene:
 
     # ---- building blocks ----------------------------------------------------------------
     def _caption(self, text: str, color: str) -> pv.Label:
-        label = pv.Label(text, size=18)
+        label = pv.Label(text, size=CAPTION_PX)
         label.prop.bold = True
         label.prop.color = color
         label.prop.justification_horizontal = "center"
@@ -110,6 +125,7 @@ class Scene:
         for k in VARIATION_KEYS:  # until set_variations gives the new leader's
             self.figures[k].set_visible(False)
         self.contact.flags = None  # until set_contact gives the new sequence's
+        self._followed = None
         self._apply_layout()
         self.set_frame(frame)
 
@@ -119,6 +135,7 @@ class Scene:
         if self.layout == "side_by_side":  # its spot follows its own first-frame root, which the mix moves
             self._apply_layout()
         self.figures["synthesized"].set_pose(synthesized[min(self.frame, len(synthesized) - 1)])
+        self._show_trails()
 
     def set_pinned(self, pinned: np.ndarray | None) -> None:
         """A/B: the pinned mix's follower, drawn where the synthesized one is (None hides it)."""
@@ -177,6 +194,62 @@ class Scene:
         for k, seq in self.sequences.items():
             self.figures[k].set_pose(seq[self.frame])
         self._show_contact()
+        self._show_trails()
+        if self.follow:
+            self._follow_pair()
+
+    # ---- viewer aids ----------------------------------------------------------------------
+    def set_trails(self, on: bool) -> None:
+        """Ghosts of the last frames of the leader and the synthesized follower (overlay layout only)."""
+        self.trails_on = bool(on)
+        self._show_trails()
+
+    def _show_trails(self) -> None:
+        for k, trail in self.trails.items():
+            trail.show(self.sequences.get(k), self.frame, self.trails_on and self.layout == "overlay" and self.visible[k])
+
+    def set_follow(self, on: bool) -> None:
+        """The camera follows the pair: from frame to frame it moves with the centre of the leader's and the synthesized
+        follower's roots (on the floor's plane; the user's turn and zoom are kept)."""
+        self.follow = bool(on)
+        self._followed = self._pair_centre() if on else None
+
+    def _pair_centre(self) -> np.ndarray | None:
+        roots = [seq[min(self.frame, len(seq) - 1), self.skeleton.root] for k, seq in self.sequences.items() if k in TRAIL_KEYS]
+        if not roots:
+            return None
+        centre = np.mean(roots, axis=0).astype(float)
+        centre[1] = 0.0  # along the floor only: the camera does not bob with the bodies
+        return centre
+
+    def joint_at(self, x: float, y: float, reach_px: float = HOVER_REACH_PX) -> tuple[str, int] | None:
+        """The joint drawn nearest to the view's point (x, y), fractions of its width and height from the top left, within
+        `reach_px` pixels: (figure key, joint index), or None. Figures in front win ties (the nearer to the camera)."""
+        width, height = self.render_window.GetSize()
+        px, py = x * width, (1.0 - y) * height  # VTK's display y grows upwards
+        best, best_key = None, None
+        for key, seq in self.sequences.items():
+            actor = self.figures[key].actors[0]
+            if not actor.GetVisibility():
+                continue
+            matrix = actor.GetMatrix()
+            for j, point in enumerate(seq[min(self.frame, len(seq) - 1)]):
+                self.renderer.SetWorldPoint(*matrix.MultiplyPoint((*map(float, point), 1.0))[:3], 1.0)
+                self.renderer.WorldToDisplay()
+                dx, dy, depth = self.renderer.GetDisplayPoint()
+                gap = float(np.hypot(dx - px, dy - py))
+                if gap <= reach_px and (best is None or (gap, depth) < best):
+                    best, best_key = (gap, depth), (key, j)
+        return best_key
+
+    def _follow_pair(self) -> None:
+        centre = self._pair_centre()
+        if centre is not None and self._followed is not None:
+            cam = self.renderer.GetActiveCamera()
+            cam.SetFocalPoint(*(np.asarray(cam.GetFocalPoint()) + centre - self._followed))
+            cam.SetPosition(*(np.asarray(cam.GetPosition()) + centre - self._followed))
+            self.renderer.ResetCameraClippingRange()
+        self._followed = centre
 
     def set_visible(self, key: str, visible: bool) -> None:
         self.visible[key] = bool(visible)
@@ -187,6 +260,7 @@ class Scene:
             self.figures["pinned"].set_visible(shown and "pinned" in self.sequences)
             self._apply_layout()
         self._show_contact()
+        self._show_trails()
 
     def set_layout(self, layout: str) -> None:
         if layout not in LAYOUTS:
@@ -194,6 +268,7 @@ class Scene:
         self.layout = layout
         self._apply_layout()
         self._show_contact()
+        self._show_trails()
         self.set_camera(self.camera_preset)
 
     def _apply_layout(self) -> None:
@@ -206,6 +281,9 @@ class Scene:
         along_z = self.camera_preset == "side"
         middle = (self._slots() - 1) / 2
         variations = [(3 + i, k) for i, k in enumerate(VARIATION_KEYS)]
+        size = caption_px(self._slots())
+        # seen from the top a caption over the head would be on the figure: it goes towards the top of the picture
+        above = (0.0, 0.0, -TOP_CAPTION_OFFSET) if self.camera_preset == "top" else (0.0, 0.0, 0.0)
         for slot, k in (*enumerate(CHARACTER_KEYS), (2, "pinned"), *variations):  # the pinned one on the synthesized spot
             fig, cap = self.figures[k], self.captions.get(k)
             if k in VARIATION_KEYS:
@@ -220,7 +298,9 @@ class Scene:
             yaw = 0.0 if k == "leader" else 180.0
             fig.place((float(root[0]), 0.0, float(root[2])), (spot[0] - float(root[0]), 0.0, spot[2] - float(root[2])), yaw)
             if cap is not None:
-                cap.position = (spot[0], top, spot[2])
+                cap.position = (spot[0] + above[0], top, spot[2] + above[2])
+                if cap.size != size:
+                    cap.size = size
                 cap.SetVisibility(self.visible["synthesized" if k in VARIATION_KEYS else k])
 
     def shown(self, every_frame: bool = False) -> list[str]:
@@ -247,7 +327,8 @@ class Scene:
         """Corners of the box the camera must show: all frames of the three figures as placed."""
         if self.layout == "side_by_side" or not self.sequences:
             half = (self._slots() - 1) / 2 * SIDE_SPACING + 0.6
-            spread = [half, 0.0, 0.6][:: -1 if self.camera_preset == "side" else 1]  # along X, or Z (_apply_layout)
+            depth = TOP_CAPTION_OFFSET + 0.2 if self.camera_preset == "top" else 0.6  # room for the captions (_apply_layout)
+            spread = [half, 0.0, depth][:: -1 if self.camera_preset == "side" else 1]  # along X, or Z (_apply_layout)
             lo = np.array([-spread[0], self.floor_y, -spread[2]])
             hi = np.array([spread[0], self.floor_y + 2.0, spread[2]])
         else:
@@ -292,6 +373,8 @@ class Scene:
         cam.SetViewUp(*up)
         cam.SetViewAngle(view_angle)
         self.renderer.ResetCameraClippingRange()
+        if self.follow:  # the preset framed every frame: following moves on from here
+            self._followed = self._pair_centre()
 
     # ---- output -------------------------------------------------------------------------
     def render(self) -> None:

@@ -36,6 +36,9 @@ if TYPE_CHECKING:
 
 TOKEN_COOKIE = "imm_studio_token"
 PAGE_COOKIE = "imm_studio_page"  # set by the front page: a claim without an Origin header must carry it
+# Set by a claim, one random value per browser: a tab's /s/<token>/ answers only the browser that claimed it, so its
+# address, copied into another browser, opens a studio of its own there (with the view the address names).
+BROWSER_COOKIE = "imm_studio_browser"
 # A tab's process outlives its last websocket by RECONNECT_GRACE_S, or by RELOAD_GRACE_S after the tab's last request
 # once its page has been asked for again: a reload (page, scripts, then ~2 s of module evaluation here before its
 # websocket opens) finds its own session, and a closed tab frees its slot within seconds.
@@ -80,6 +83,7 @@ class Worker:
     sockets: int = 0  # open websockets of its tab
     connected: bool = False  # a websocket has reached it since its claim
     reloading: bool = False  # its page was asked for while it had no websocket
+    browser: str = ""  # the claiming browser's BROWSER_COOKIE
     last_seen: float = 0.0  # time.monotonic() of its tab's last request or closed websocket
     budget: InboundBudget | None = None  # what its websockets may claim (made when the first one opens)
     ready: asyncio.Future = field(default_factory=lambda: asyncio.get_running_loop().create_future())
@@ -328,7 +332,10 @@ class Launcher:
         asyncio.get_running_loop().call_later(CLAIM_TIMEOUT_S, self._retire_if_unconnected, w)
         token = secrets.token_urlsafe(18)
         self.sessions[token] = w
-        return web.json_response({"url": f"s/{token}/"})  # relative: a reverse proxy's path prefix is kept
+        w.browser = request.cookies.get(BROWSER_COOKIE) or secrets.token_urlsafe(18)
+        answer = web.json_response({"url": f"s/{token}/"})  # relative: a reverse proxy's path prefix is kept
+        answer.set_cookie(BROWSER_COOKIE, w.browser, httponly=True, samesite="Strict", path="/")
+        return answer
 
     def _make_room(self) -> None:
         """Before a claim that finds every slot taken: retire the oldest claim whose page nobody has asked for."""
@@ -365,7 +372,9 @@ class Launcher:
         w = self.sessions.get(request.match_info["token"])
         if w is None or w.exited:
             self.sessions.pop(request.match_info["token"], None)
-            # an old or unknown link: back to the front page for a fresh studio, with the view the link names
+        if w is None or w.exited or not hmac.compare_digest(request.cookies.get(BROWSER_COOKIE, "").encode(), w.browser.encode()):
+            # an old or unknown link, or another browser's tab: back to the front page for a fresh studio, with the view
+            # the link names
             raise web.HTTPFound("../../" + (f"?{request.query_string}" if request.query_string else ""))
         tail = request.match_info["tail"]
         w.last_seen = time.monotonic()
@@ -384,6 +393,15 @@ class Launcher:
             w.last_seen = time.monotonic()
             if not w.sockets:
                 asyncio.get_running_loop().call_later(RECONNECT_GRACE_S, self._retire_if_gone, w)
+
+    async def no_session_manager(self, request):
+        """trame's page first asks `paraview/` for a session (a ParaView-style launcher's endpoint) and connects to its
+        own `ws` when that gives none: 204 says "none" without the 405 a browser would log on every load."""
+        from aiohttp import web
+
+        if not self.authorized(request):
+            return web.Response(status=403, text="refused: the studio only answers its own page")
+        return web.Response(status=204)
 
     async def static(self, request):
         """/static/<name>: a public library the page loads (plotly.js), at one versioned path for every tab, cached by
@@ -483,6 +501,7 @@ class Launcher:
         app.router.add_get("/", self.handle)
         app.router.add_post("/claim", self.claim)
         app.router.add_get("/s/{token}/{tail:.*}", self.studio)
+        app.router.add_post("/s/{token}/paraview/", self.no_session_manager)
         app.router.add_get("/static/{name}", self.static)
         app.router.add_get("/static/{key}/{tail:.+}", self.page_file)
         runner = web.AppRunner(app, access_log=None, shutdown_timeout=CLOSE_S)
@@ -542,26 +561,31 @@ def _open_browser(url: str) -> None:
         pass
 
 
-CLAIM_PAGE = """<!doctype html><title>IMM Studio</title>
+# The front page names no icon file: a browser would ask for /favicon.ico and log the 404 on every load.
+NO_ICON = '<link rel="icon" href="data:,">'
+CLAIM_PAGE = f"""<!doctype html><title>IMM Studio</title>{NO_ICON}
 <body style="font-family:sans-serif;padding:2em"><h2>IMM Studio</h2><p id="m">starting your studio...</p>
 <script>
-async function claim(tries) {
-  const r = await fetch("claim", {method: "POST"});
-  if (r.status === 429 && tries > 1) {  // other tabs (or a script) are starting: try again a second later
+async function claim(tries) {{
+  const r = await fetch("claim", {{method: "POST"}});
+  if (r.status === 429 && tries > 1) {{  // other tabs (or a script) are starting: try again a second later
     await new Promise((done) => setTimeout(done, 1000));
     return claim(tries - 1);
-  }
+  }}
   if (!r.ok) throw new Error(await r.text());
-  location.replace((await r.json()).url + location.search);  // a link's view (explorer/ui/url_state.py) goes along
-}
-claim(10).catch((e) => { const m = document.getElementById("m"); m.style.color = "#b00020";
-  m.textContent = (e.message || String(e)).replace(/<[^>]*>/g, " ").replace(/\\s+/g, " ").replace("IMM Studio", "").trim(); });
+  const url = (await r.json()).url;
+  // this tab's own studio (explorer/static/page_aids.js: another tab opening the address gets a studio of its own)
+  try {{ sessionStorage.setItem("imm-studio-tab", new URL(url, location.href).pathname); }} catch (e) {{}}
+  location.replace(url + location.search);  // a link's view (explorer/ui/url_state.py) goes along
+}}
+claim(10).catch((e) => {{ const m = document.getElementById("m"); m.style.color = "#b00020";
+  m.textContent = (e.message || String(e)).replace(/<[^>]*>/g, " ").replace(/\\s+/g, " ").replace("IMM Studio", "").trim(); }});
 </script></body>"""
 
 
 def _error_page(message: str) -> str:
     return (
-        "<!doctype html><title>IMM Studio</title><body style='font-family:sans-serif;padding:2em'>"
+        f"<!doctype html><title>IMM Studio</title>{NO_ICON}<body style='font-family:sans-serif;padding:2em'>"
         f"<h2>IMM Studio</h2><p style='color:#b00020'>{html.escape(message)}</p></body>"
     )
 

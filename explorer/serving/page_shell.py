@@ -1,7 +1,8 @@
 """The page's shell: trame's index.html with static/websocket_bytes.js run before trame's client, served by every
 studio process as its main web content. Binary websocket messages then reach wslink as bytes instead of Blobs that
 it reads back asynchronously (~20 ms between a picture's arrival and its display, measured in docs/experiments/studio-performance.md).
-The shell also carries static/latent_map.js, the latent map's Plotly figure. That script loads plotly.js (from the
+The shell also carries static/page_aids.js (the 3D view's joint readout, a row scrolled into sight) and
+static/latent_map.js, the latent map's Plotly figure. That script loads plotly.js (from the
 plotly package, 4.8 MB) after the page's first picture from the launcher's /static/, at one path for every tab with
 the plotly.js version in its name (plotly_name).
 
@@ -32,6 +33,7 @@ from explorer.trame_adapter import CLIENT_FIRST_SCRIPT, client_www, module_asset
 STATIC = Path(__file__).resolve().parents[1] / "static"  # explorer/static
 BYTES_SCRIPT = STATIC / "websocket_bytes.js"
 LATENT_SCRIPT = STATIC / "latent_map.js"
+AIDS_SCRIPT = STATIC / "page_aids.js"  # the 3D view's joint readout, a table row scrolled into sight
 PLOTLY_SRC = "static/plotly.min.js"  # in static/latent_map.js: named with its version in the page
 PLOTLY_VERSION = re.compile(rb"plotly\.js v([0-9][0-9A-Za-z.+-]*)")  # the file's first line: "* plotly.js v4.1.1"
 ANCHOR = CLIENT_FIRST_SCRIPT  # trame's first script: ours go before it
@@ -79,7 +81,7 @@ def shell_index(trame_index: str, shared: str = "", files: frozenset[str] = froz
     if ANCHOR not in trame_index:
         return trame_index  # another trame client layout: serve it unchanged rather than guess
     latent = LATENT_SCRIPT.read_text().replace(PLOTLY_SRC, f"static/{plotly_name()}")
-    scripts = "".join(f"<script>{text}</script>" for text in (BYTES_SCRIPT.read_text(), latent))
+    scripts = "".join(f"<script>{text}</script>" for text in (BYTES_SCRIPT.read_text(), latent, AIDS_SCRIPT.read_text()))
     head, rest = trame_index.split(ANCHOR, 1)
 
     def relocated(html: str) -> str:

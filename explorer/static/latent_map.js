@@ -91,8 +91,12 @@
             xaxis: axis, yaxis: {...axis}, legend: {font: {size: 10}, itemsizing: 'constant'}, autosize: true};
   }
 
-  const CONFIG = {displaylogo: false, responsive: true, scrollZoom: true,
-                  modeBarButtonsToRemove: ['toImage', 'sendDataToCloud', 'autoScale2d', 'hoverClosestCartesian', 'hoverCompareCartesian']};
+  // Nothing on the map sends the figure anywhere: plotly.js v4 shows a "Share chart..." button (sendChartToCloud, an
+  // upload of every point's id, class and subjects to Chart Studio) unless told not to; tests/test_studio_offline.py.
+  const CONFIG = {displaylogo: false, responsive: true, scrollZoom: true, showSendToCloud: false, showEditInChartStudio: false,
+                  showLink: false, plotlyServerURL: '',
+                  modeBarButtonsToRemove: ['toImage', 'sendChartToCloud', 'sendDataToCloud', 'editInChartStudio', 'autoScale2d',
+                                           'hoverClosestCartesian', 'hoverCompareCartesian']};
 
   function listen(el) {
     el.on('plotly_click', (e) => {

@@ -14,7 +14,7 @@ import numpy as np
 from trame.app import asynchronous
 
 from explorer.rendering import charts
-from explorer.rendering.palette import class_color, display_name
+from explorer.rendering.palette import CHARACTER_TITLES, class_color, display_name
 from explorer.rendering.scene import CHARACTER_KEYS, Scene, floor_height
 from explorer.session.latent import LatentMap
 from explorer.session.session import FPS, Session, one_line
@@ -50,8 +50,8 @@ class Studio:
         self.compare = Compare(page, self.scene, set_label=self.set_label, update_review=self.update_review)
         self.model_switch = ModelSwitch(page, self.scene, show_review=self.show_review)
         self.latent_panel = LatentPanel(page, latent, open_sequence=self.load_sequence)
-        # a row of the review opens its sequence under the mix the table was computed with
-        self.review = ReviewPanel(page, open_sequence=functools.partial(self.load_sequence, keep_mix=True))
+        # a row of the review opens its sequence under its own class, or under the mix of a table of the mix
+        self.review = ReviewPanel(page, open_sequence=lambda index, keep_mix: self.load_sequence(index, keep_mix=keep_mix))
         self._view = None  # the 3D view widget, made by the layout (attach_view)
         self._mix_pending = False
         self._mix_task = None
@@ -60,6 +60,7 @@ class Studio:
         self._ab_distances = np.zeros(0)
         self._closest = np.zeros(0)
         self._contact_changed = False
+        self._url_opened = False  # the page's own address applied (open_url_view): the address bar may follow the view
         self._init_state()
         self._bind()
         self.ui = self._build_ui()
@@ -116,8 +117,13 @@ class Studio:
                 "notice": "",
                 "mix_count": 0,  # increments after each re-synthesis (tests and benchmarks wait on it)
                 "url_query": "",  # the view as a query string (explorer/ui/url_state.py); the page mirrors it in its URL
+                "export_stem": "imm",  # what the browser names a download, before its extension (explorer/ui/exports.py)
                 "key_slider": 0,  # the class slider the up/down keys move (explorer/ui/keys.py)
                 "show_keys": False,
+                "show_hints": False,  # the first-use hints (the page shows them until the browser has dismissed them once)
+                "trails": False,  # ghosts of the last frames (explorer/rendering/scene.py set_trails)
+                "follow_camera": False,  # the camera moves with the pair (scene.set_follow)
+                "joint_hover": None,  # the joint under the mouse: {text, x, y} (x, y: % of the view), None when none
                 "pinned_text": "",  # A/B (explorer/ui/compare.py): the pinned mix in words, "" when none
                 "ab_text": "",
                 "contact_text": "",  # interpenetration of the two bodies (explorer/rendering/charts.py contact_text)
@@ -142,12 +148,14 @@ class Studio:
         s.change("show_leader", "show_ground_truth", "show_synthesized")(self.on_visibility_change)
         s.change("playing")(self.on_playing_change)
         s.change("clean_up")(self.on_cleanup_toggled)
+        s.change("trails", "follow_camera")(self.on_viewer_aids)
         c.match_label = self.match_label
         c.reset_label = self.reset_label
         c.set_camera = self.set_camera
         c.step_frame = self.step_frame
         self.server.trigger("key_pressed")(self.guarded(lambda key: press(self, str(key)[:20])))
-        self.server.trigger("open_url_view")(self.guarded(lambda query: apply_view(self, str(query))))
+        self.server.trigger("open_url_view")(self.open_url_view)
+        self.server.trigger("hover_joint")(self.guarded(self.hover_joint))
         s.change("scene_layout", "projection", "frame", "playing", "mix_count")(self.write_url)
 
     def guarded(self, fn):
@@ -181,12 +189,13 @@ class Studio:
 
     def on_filter_change(self, **_):
         """The filters narrow the sequence list; when they leave out the sequence on screen, the first one they keep
-        opens with the user's mix as it is (a filter is not a pick: the "match" preset is for picking a sequence)."""
+        opens: under its own class when a class filter picked it (another class's mix would not be what was asked
+        for), else with the user's mix as it is."""
         items = self._sequence_items()
         self.state.sequence_items = items
         values = [it["value"] for it in items]
         if values and (self.session.upload is not None or self.session.index not in values):
-            self.load_sequence(values[0], keep_mix=True)
+            self.load_sequence(values[0], keep_mix=not self.state.class_filter)
 
     @_guard
     def on_sequence_picked(self, sequence_index, **_):
@@ -325,6 +334,7 @@ class Studio:
         s.distance_chart = charts.distance_chart(self._distances, FPS, self._ab_distances, self._closest)
         self.latent_panel.redraw()
         self.review.follow()
+        s.export_stem = self.exports.file_stem()
         s.mix_count = (s.mix_count or 0) + 1
 
     def show_review(self) -> bool:
@@ -395,6 +405,33 @@ class Studio:
         self.scene.set_layout(scene_layout)
         self.ctrl.view_update()
 
+    def hover_joint(self, where) -> None:
+        """The mouse rests at `where` ([x, y], fractions of the view from its top left; None: it left the view): the joint
+        drawn there, named with its figure and its speed at this frame, or nothing."""
+        s, scene = self.state, self.scene
+        found = None
+        if isinstance(where, list | tuple) and len(where) == 2:
+            x, y = (float(v) for v in where)
+            if 0.0 <= x <= 1.0 and 0.0 <= y <= 1.0:
+                found = scene.joint_at(x, y)
+        if found is None:
+            if s.joint_hover is not None:
+                s.joint_hover = None
+            return
+        key, j = found
+        seq, f = scene.sequences[key], scene.frame
+        before, after = max(0, f - 1), min(len(seq) - 1, f + 1)
+        speed = float(np.linalg.norm(seq[after, j] - seq[before, j])) * FPS / max(1, after - before)
+        figure = CHARACTER_TITLES.get(key, key.replace("_", " "))
+        joint = self.session.data.skeleton.joint_names[j].replace("_", " ")
+        s.joint_hover = {"text": f"{figure} · {joint} · {speed:.2f} m/s", "x": round(100 * x, 2), "y": round(100 * y, 2)}
+
+    def on_viewer_aids(self, trails, follow_camera, **_):
+        self.scene.set_trails(bool(trails))
+        if bool(follow_camera) != self.scene.follow:
+            self.scene.set_follow(bool(follow_camera))
+        self.ctrl.view_update()
+
     def on_visibility_change(self, show_leader, show_ground_truth, show_synthesized, **_):
         for key, on in zip(CHARACTER_KEYS, (show_leader, show_ground_truth, show_synthesized), strict=True):
             self.scene.set_visible(key, bool(on))
@@ -405,9 +442,18 @@ class Studio:
         self.ctrl.view_update()
         self.write_url()
 
+    def open_url_view(self, query) -> None:
+        """The page has loaded: the view its address names (if any) opens, and from then on the address bar is the
+        view's link (before, writing it would overwrite the link being opened)."""
+        try:
+            self.guarded(apply_view)(self, str(query))
+        finally:
+            self._url_opened = True
+            self.write_url()
+
     def write_url(self, **_):
         """The page keeps its address bar on what it shows (not during playback: every frame would be a write)."""
-        if not self.state.playing:
+        if self._url_opened and not self.state.playing:
             self.state.url_query = view_query(current_view(self))
 
     def push_view(self, draft: bool = False, **_):

@@ -63,6 +63,10 @@ class Exports:
     def session(self):
         return self.page.session
 
+    def file_stem(self) -> str:
+        """What the browser names a download (and the server's copy), before its extension: the sequence and the mix."""
+        return safe_file_name(self.session.export_name("x")).removesuffix(".x")
+
     def _send(self, name: str, data: bytes):
         self._save_copy(name, data)
         return self.attach(data)
@@ -94,7 +98,8 @@ class Exports:
         self.page.ctrl.view_update()
         if fmt == "mp4":
             images = [im[: im.shape[0] // 2 * 2, : im.shape[1] // 2 * 2] for im in images]  # even sizes for yuv420p
-            data = iio.imwrite("<bytes>", np.stack(images), extension=".mp4", fps=FPS, codec="libx264")
+            # macro_block_size 1: the view's own size (imageio would otherwise stretch it to a multiple of 16)
+            data = iio.imwrite("<bytes>", np.stack(images), extension=".mp4", fps=FPS, codec="libx264", macro_block_size=1)
         else:
             data = iio.imwrite("<bytes>", np.stack(images), extension=".gif", duration=1000.0 / FPS, loop=0)
         return self._send(self.session.export_name(fmt), data)

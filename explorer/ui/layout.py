@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 from explorer.ui.keys import KEY_HELP, LISTENER_JS
 from explorer.ui.model_switch import model_chip, model_panel
 from explorer.ui.reads_as_panel import reads_as_panel
-from explorer.ui.review_panel import review_button, review_drawer
+from explorer.ui.review_panel import review_button, review_overlay
 
 SPEEDS = [0.25, 0.5, 1.0, 1.5, 2.0]
 # Sliders jump to a new value at once, as Vuetify's already do while dragged (a key or a click glides for 0.3 s), and
@@ -45,10 +45,18 @@ html { overflow: hidden; }
 .imm-column { height: 100%; display: flex; flex-direction: column; flex-wrap: nowrap; gap: 6px; padding: 8px;
               overflow: auto; min-width: 0; }
 .imm-scene { flex: 1 1 auto; min-height: 240px; position: relative; width: 100%; }
-.imm-review { flex: 0 0 clamp(220px, 34vh, 440px); display: flex; gap: 8px; width: 100%; min-height: 0; }
+.imm-review { flex: 0 0 clamp(220px, 34vh, 440px); display: flex; gap: 8px; width: 100%; min-height: 0; position: relative; }
+.imm-review.imm-review-open { flex-basis: clamp(260px, 46vh, 560px); }
+.imm-review-overlay { position: absolute; inset: 0; z-index: 4; display: flex; flex-direction: column;
+                      background: rgb(var(--v-theme-surface)); }
 .imm-review > .v-card { flex: 1 1 50%; min-width: 0; display: flex; flex-direction: column; }
 .imm-fill { flex: 1 1 auto; min-height: 120px; position: relative; }
 .imm-toolbar-row { overflow-x: auto; overflow-y: hidden; flex-wrap: nowrap; }
+.imm-alert { position: absolute; left: 4px; right: 4px; top: 4px; z-index: 3; }
+.imm-alert .v-alert { padding-top: 2px !important; padding-bottom: 2px !important; }
+.imm-alert .v-alert__content { white-space: nowrap; overflow: hidden; text-overflow: ellipsis; align-self: center; }
+.imm-alert .v-alert__close .v-btn { width: 24px !important; height: 24px !important; }
+.imm-alert .v-alert__prepend { align-self: center; }
 """
 
 
@@ -87,7 +95,6 @@ def build_layout(page: LayoutParts) -> VAppLayout:
                 label_mix(page)
                 v3.VDivider(classes="my-3")
                 character_toggles(page)
-        review_drawer()
         with v3.VMain(classes="imm-main"):
             with html.Div(classes="imm-column"):
                 scene_view(page)
@@ -106,7 +113,8 @@ SHARE_LINK_JS = "utils.get('location.href').replace(/\\/s\\/[^/?#]+\\/(index\\.h
 
 def page_hooks() -> None:
     """Keys, the view named in the page's URL (on load), and the URL kept on what is shown."""
-    client.ClientTriggers(mounted=f"{LISTENER_JS}; trigger('open_url_view', [utils.get('location.search')])")
+    client.ClientTriggers(mounted=f"{LISTENER_JS}; trigger('open_url_view', [utils.get('location.search')]); "
+                                  f"show_hints = !utils.get('localStorage').getItem('{HINTS_SEEN}')")
     client.ClientStateChange(value="url_query", change="url_query && utils.get('history').replaceState(null, '', url_query)")
 
 
@@ -132,51 +140,50 @@ def toolbar(page: LayoutParts) -> None:
     )
     v3.VChip("uploaded: no ground truth", v_if="sequence_uploaded", size="small", color="teal-lighten-3", variant="flat",
              classes="mr-2", id="uploaded-chip")
-    v3.VChip(
-        "held out: never seen in training",
-        v_else_if="sequence_held_out",
-        size="small",
-        color="amber",
-        variant="flat",
-        classes="mr-2",
-    )
-    v3.VChip("seen in training", v_else=True, size="small", color="blue-grey-lighten-3", variant="flat", classes="mr-2")
+    v3.VChip("held out", v_else_if="sequence_held_out", size="small", color="amber", variant="flat", classes="mr-2",
+             title="held out: the model never saw this sequence in training (generalization)")
+    v3.VChip("seen", v_else=True, size="small", color="blue-grey-lighten-3", variant="flat", classes="mr-2",
+             title="seen in training: the model learnt from this sequence (memorization)")
     model_chip()
     v3.VSpacer()
-    with v3.VBtnToggle(v_model=("scene_layout",), density="compact", mandatory=True, variant="outlined", classes="mr-3"):
-        v3.VBtn("Overlay", value="overlay", size="small")
-        v3.VBtn("Side by side", value="side_by_side", size="small")
-    for preset in CAMERA_PRESETS:
+    with v3.VBtnToggle(v_model=("scene_layout",), density="compact", mandatory=True, variant="outlined", classes="mr-2"):
+        v3.VBtn("Overlay", value="overlay", size="small", classes="px-2")
+        v3.VBtn("Side by side", value="side_by_side", size="small", classes="px-2")
+    for preset in CAMERA_PRESETS:  # compact: the toolbar fits 1280 px with the longest sequence name
         v3.VBtn(
-            "reset" if preset == "default" else preset,
+            None if preset == "default" else preset,
+            icon="mdi-camera-retake" if preset == "default" else None,
             size="small",
             variant="text",
-            prepend_icon="mdi-camera-retake" if preset == "default" else None,
+            title="reset the camera" if preset == "default" else f"camera: {preset}",
+            classes="" if preset == "default" else "px-1",
+            style="min-width: 0",
             click=(page.ctrl.set_camera, f"['{preset}']"),
             id=f"camera-{preset}",
         )
     with v3.VMenu():
         with v3.Template(v_slot_activator="{ props }"):
-            v3.VBtn("Export", v_bind="props", size="small", variant="tonal", prepend_icon="mdi-download", classes="ml-2")
+            v3.VBtn("Export", v_bind="props", size="small", variant="tonal", prepend_icon="mdi-download", classes="ml-2",
+                    id="export-menu")
         with v3.VList(density="compact"):
+            # downloads are named as the server's copies: the sequence and the mix (explorer/ui/exports.py file_stem)
             v3.VListItem(
-                title="Synthesized follower (.npz)",
-                click="utils.download('follower.npz', trigger('export_npz'), 'application/octet-stream')",
+                title="Interaction: leader, follower, label (.npz)",
+                click="utils.download(export_stem + '.npz', trigger('export_npz'), 'application/octet-stream')",
+                id="export-npz",
             )
             for character in ("follower", "leader"):
                 v3.VListItem(
                     title=f"{'Synthesized follower' if character == 'follower' else 'Leader'} (.bvh)",
-                    click=f"utils.download('{character}.bvh', trigger('export_bvh', ['{character}']), 'text/plain')",
+                    click=f"utils.download(export_stem + '.{character}.bvh', trigger('export_bvh', ['{character}']), 'text/plain')",
                     classes=f"export-bvh-{character}",
                 )
-            v3.VListItem(
-                title="Animation (.gif)", click="utils.download('studio.gif', trigger('export_video', ['gif']), 'image/gif')"
-            )
-            v3.VListItem(
-                title="Animation (.mp4)", click="utils.download('studio.mp4', trigger('export_video', ['mp4']), 'video/mp4')"
-            )
+            v3.VListItem(title="Animation (.gif)", id="export-gif",
+                         click="utils.download(export_stem + '.gif', trigger('export_video', ['gif']), 'image/gif')")
+            v3.VListItem(title="Animation (.mp4)", id="export-mp4",
+                         click="utils.download(export_stem + '.mp4', trigger('export_video', ['mp4']), 'video/mp4')")
     v3.VBtn(icon="mdi-camera", size="small", variant="text", title="Save the 3D view as a picture (.png)", id="screenshot",
-            click="utils.download('studio.png', trigger('export_png'), 'image/png')")
+            click="utils.download(export_stem + '.png', trigger('export_png'), 'image/png')")
     share_link()
     v3.VBtn(icon="mdi-keyboard-outline", size="small", variant="text", title="Keyboard shortcuts (?)", click="show_keys = true")
 
@@ -211,6 +218,9 @@ def sequence_picker(page: LayoutParts) -> None:
         density="compact",
         hide_details=True,
         id="sequence-picker",
+        # typing replaces the name shown instead of going into it (Vuetify fills the field with it on focus)
+        focus="$nextTick(() => $event.target && $event.target.select && $event.target.select())",
+        click="$event.target && $event.target.select && $event.target.select()",
     )
     html.Div(
         "Held out = subject {{ held_out_subject }}: the bundled model never saw these (generalization); "
@@ -305,16 +315,10 @@ def compare_row(page: LayoutParts) -> None:
 
 def scene_view(page: LayoutParts) -> None:
     """The error alert and the 3D view (rendered on the server, or by vtk.js with --render local)."""
-    v3.VAlert(
-        "{{ error }}",
-        v_if="error",
-        type="error",
-        density="compact",
-        closable=True,
-        click_close="error = ''",
-        id="error-alert",
-    )
     with html.Div(classes="rounded border imm-scene"):
+        # one line over the top of the view, the whole message on hover: the view keeps its size
+        with html.Div(v_if="error", classes="imm-alert", title=("error",)):
+            v3.VAlert("{{ error }}", type="error", density="compact", closable=True, click_close="error = ''", id="error-alert")
         if page.render_mode == "local":  # vtk.js in the browser (docs/experiments/studio-performance.md), through trame's PyVista view
             from trame.widgets import pyvista as pyvista_widgets  # only here: trame-pyvista's import is for this mode
 
@@ -323,12 +327,49 @@ def scene_view(page: LayoutParts) -> None:
             view = ViewStream(page.server, page.scene.render_window)
         page.attach_view(view)
         with html.Div(style="position: absolute; left: 8px; top: 6px; pointer-events: none", classes="text-caption"):
-            for key in CHARACTER_KEYS:
+            for key in CHARACTER_KEYS:  # the figures shown: a hidden one, or an uploaded leader's ground truth, is not listed
                 html.Span(
                     "● " + CHARACTER_TITLES[key], style=f"color: {CHARACTERS[key]}; font-weight: 600; margin-right: 10px",
-                    v_if="!sequence_uploaded" if key == "ground_truth" else None, classes=f"legend-{key}",
-                )  # an uploaded leader has no ground truth
+                    v_if=f"show_{key}" + (" && !sequence_uploaded" if key == "ground_truth" else ""), classes=f"legend-{key}",
+                )
             html.Span("● pinned: {{ pinned_text }}", v_if="pinned_text", style=f"color: {PINNED}; font-weight: 600")
+        viewer_tools()
+        first_use_hints()
+        html.Div("{{ joint_hover.text }}", v_if="joint_hover", id="joint-hover", classes="text-caption px-1 rounded",
+                 style=("{position: 'absolute', left: joint_hover.x + '%', top: joint_hover.y + '%', transform: "
+                        "'translate(12px, -130%)', background: 'rgba(255,255,255,.92)', border: '1px solid #bbb', "
+                        "pointerEvents: 'none', whiteSpace: 'nowrap', zIndex: 2}",))
+
+
+# Full screen for the 3D view (the button's own element, so no script of its own); again, or Esc, leaves it.
+FULL_SCREEN_JS = ("utils.get('document.fullscreenElement') ? utils.get('document').exitFullscreen()"
+                  " : $event.currentTarget.closest('.imm-scene').requestFullscreen()")
+
+
+def viewer_tools() -> None:
+    """The view's corner: trails of the last frames, a camera that follows the pair, full screen."""
+    with html.Div(style="position: absolute; right: 6px; top: 4px; z-index: 2; display: flex; gap: 2px", id="viewer-tools"):
+        v3.VBtn(icon="mdi-motion-outline", size="small", density="comfortable", id="trails-button",
+                variant=("trails ? 'tonal' : 'text'",), color=("trails ? 'primary' : undefined",),
+                click="trails = !trails", title="trails: ghosts of the last frames (overlay)")
+        v3.VBtn(icon="mdi-crosshairs-gps", size="small", density="comfortable", id="follow-button",
+                variant=("follow_camera ? 'tonal' : 'text'",), color=("follow_camera ? 'primary' : undefined",),
+                click="follow_camera = !follow_camera", title="camera follows the pair")
+        v3.VBtn(icon="mdi-fullscreen", size="small", density="comfortable", variant="text", id="fullscreen-button",
+                click=FULL_SCREEN_JS, title="full screen (Esc leaves it)")
+
+
+HINTS_SEEN = "imm-studio-hints-seen"  # the browser's localStorage key: the hints were dismissed once
+
+
+def first_use_hints() -> None:
+    """What a newcomer cannot guess, over the bottom of the 3D view until dismissed (remembered by the browser)."""
+    with html.Div(v_if="show_hints", id="first-use-hints", classes="text-caption d-flex align-center pa-1 rounded",
+                  style="position: absolute; left: 8px; bottom: 8px; z-index: 2; background: rgba(38, 50, 56, .85); color: #fff; gap: 6px"):
+        v3.VIcon("mdi-gesture-swipe", size="small")
+        html.Span("drag: rotate · wheel: zoom · a click on a latent map point opens and plays it · ?: keys")
+        v3.VBtn(icon="mdi-close", size="x-small", variant="text", title="got it", id="hints-close",
+                click=f"show_hints = false; utils.get('localStorage').setItem('{HINTS_SEEN}', '1')")
 
 
 def per_frame():
@@ -376,7 +417,8 @@ def playback_bar(page: LayoutParts) -> None:
 
 def review_cards(page: LayoutParts) -> None:
     """The per-frame error chart and the latent map."""
-    with html.Div(classes="imm-review"):
+    with html.Div(classes=("review_open ? 'imm-review imm-review-open' : 'imm-review'",)):
+        review_overlay(len(page.session.models))  # over the chart and the map (their row grows while it is open)
         with v3.VCard(variant="outlined", classes="pa-1", id="chart-card"):
             with html.Div(classes="d-flex align-center px-2"):
                 html.Div("Per frame: error and contact", classes="text-caption font-weight-bold")

@@ -90,10 +90,14 @@ class ModelSwitch:
         if not text or text == str(ses.seed):
             return
         try:
-            value = int(text)
-        except ValueError:
-            raise ValueError(f"seed {text[:20]!r} is not a whole number") from None
-        ses.set_seed(value)
+            try:
+                value = int(text)
+            except ValueError:
+                raise ValueError(f"seed {text[:20]!r} is not a whole number") from None
+            ses.set_seed(value)
+        except Exception:
+            self.state.seed = ses.seed  # a refused seed leaves the field and the chip on the seed drawn
+            raise
         self.refresh()
 
     def on_variation_asked(self, variation_asked, **_):
@@ -204,7 +208,8 @@ def model_panel(session: Session) -> None:
         with html.Div(classes="d-flex align-center", style="gap: 6px"):
             html.Div("variations side by side", classes="text-body-2")
             with v3.VBtnToggle(model_value=("variation_count",), density="compact", mandatory=True, variant="outlined",
-                               divided=True, id="variation-count", title="followers drawn at once, seeds seed, seed + 1, ..."):
+                               divided=True, id="variation-count", color="primary",
+                               title="followers drawn at once, seeds seed, seed + 1, ..."):
                 for n in range(1, MAX_VARIATIONS + 1):
-                    v3.VBtn(str(n), value=n, size="x-small",
+                    v3.VBtn(str(n), value=(str(n),), size="x-small",  # a number, as variation_count is: it shows selected
                             click=f"if (variation_count !== {n}) {{ computing = true; variation_count = {n}; }}")

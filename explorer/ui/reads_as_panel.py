@@ -14,25 +14,27 @@ from trame.widgets import vuetify3 as v3
 from explorer.rendering.palette import class_color, display_name
 from imm_model.reads_as import MIX_SHARE
 
+# A class asked for with less weight than this is a nudge, not an ask: its share is not judged against MIX_SHARE.
+ASKED_WEIGHT = 0.5
+
 
 def reads_as_rows(probabilities: np.ndarray | None, weights: Sequence[float], class_names: Sequence[str]) -> list[dict]:
     """The panel's state: one row per class with its probability and whether the label asks for (+) or avoids (-) it."""
     if probabilities is None:
         return []
     return [{"name": display_name(n), "p": round(float(p), 3), "color": class_color(i),
-             "asked": "+" if w > 1e-6 else "-" if w < -1e-6 else ""}
+             "asked": "+" if w > 1e-6 else "-" if w < -1e-6 else "", "w": round(float(w), 3)}
             for i, (n, p, w) in enumerate(zip(class_names, probabilities, weights, strict=True))]
 
 
 def unread_note(rows: Sequence[dict]) -> str:
-    """'' when every asked-for class reads; else which ones get under MIX_SHARE of the probability, in one line."""
-    asked = [r for r in rows if r["asked"] == "+"]
-    unread = [r for r in asked if r["p"] < MIX_SHARE]
+    """'' when every class asked for with at least ASKED_WEIGHT reads; else which ones get under MIX_SHARE of the
+    probability, in one line."""
+    unread = [r for r in rows if r.get("w", 1.0) >= ASKED_WEIGHT and r["asked"] == "+" and r["p"] < MIX_SHARE]
     if not unread:
         return ""
     listed = ", ".join(f"{r['name']} {r['p'] * 100:.0f}%" for r in unread)
-    what = "this mix" if len(asked) > 1 else "asked"
-    return f"Does not read as {what}: {listed} (under {MIX_SHARE * 100:.0f}%)"
+    return f"Does not read as asked: {listed} (under {MIX_SHARE * 100:.0f}%)"
 
 
 def reads_as_panel() -> None:

@@ -161,12 +161,26 @@ def review_table(model, data: InteractionDataset, indices: Sequence[int] | np.nd
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= seed < 2**31:
         raise LabelError(f"seed must be an integer in 0..{2**31 - 1}, not {seed!r}")
     labels = label_matrix(label, data, idx)
+    leaders, reals = pairs_of(data, idx)
+    synth = synthesize_followers(model, leaders, labels, int(seed))
+    distance = feature_distances(features, leaders, reals, synth, data.actions[idx]) if features else None
+    return score_rows(data, idx, labels, synth, judge=judge, thresholds=thresholds, distance=distance)
+
+
+def pairs_of(data: InteractionDataset, indices) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The leaders and real followers of `indices`, canonical metres, float64."""
+    pairs = [data.canonical(int(i)) for i in indices]
+    return [np.asarray(a, np.float64) for a, _ in pairs], [np.asarray(b, np.float64) for _, b in pairs]
+
+
+def score_rows(data: InteractionDataset, indices, labels: np.ndarray, synth: list[np.ndarray], judge: Judge | None = None,
+               thresholds: ReviewThresholds | None = None, distance: np.ndarray | None = None) -> list[ReviewRow]:
+    """One ReviewRow per sequence of `indices`, whose followers `synth` were drawn with the label vectors `labels`
+    (N, C); `distance`: their feature distances (None: nan)."""
+    idx = np.asarray(indices, int).reshape(-1)
+    leaders, reals = pairs_of(data, idx)
     thresholds = thresholds or ReviewThresholds(real_foot_threshold(data))
-    pairs = [data.canonical(int(i)) for i in idx]
-    leaders = [np.asarray(a, np.float64) for a, _ in pairs]
-    reals = [np.asarray(b, np.float64) for _, b in pairs]
-    synth = _synthesize(model, leaders, labels, int(seed))
-    distance = feature_distances(features, leaders, reals, synth, data.actions[idx]) if features else np.full(len(idx), np.nan)
+    distance = np.full(len(idx), np.nan) if distance is None else distance
     fps = frame_rate(data.dataset)
     rows = []
     for k, i in enumerate(idx):
@@ -191,7 +205,7 @@ def review_table(model, data: InteractionDataset, indices: Sequence[int] | np.nd
     return rows
 
 
-def _synthesize(model, leaders: list[np.ndarray], labels: np.ndarray, seed: int) -> list[np.ndarray]:
+def synthesize_followers(model, leaders: list[np.ndarray], labels: np.ndarray, seed: int) -> list[np.ndarray]:
     """Every row's follower, in order of length (less padding). One batch call, except for a diffusion model sampling in
     numpy on a CPU: there chunks of CPU_SAMPLER_CHUNK rows of similar length are faster than one batch
     (benchmarks/review_table.py)."""
