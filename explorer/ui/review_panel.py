@@ -309,7 +309,8 @@ class ReviewPanel:
             for k, (name, _) in enumerate(inputs.models):
                 if self._due_at is not None or len(followers[k]) < len(inputs.indices):
                     break
-                self.publish(f"feature distances of {self.page.session.model_title(name)} (the first time loads the fold's feature classifier)")
+                title = self.page.session.model_title(name)
+                self.publish(f"feature distances of {title} (the first time loads the fold's feature classifier)")
                 distances = await self._in_worker(self.compute.feature_distances, inputs, list(inputs.indices),
                                                   [followers[k][i] for i in inputs.indices])
                 self.rows[k] = {i: replace(self.rows[k][i], feature_distance=float(d))

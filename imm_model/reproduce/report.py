@@ -175,7 +175,8 @@ def models_section(results: dict, class_names: list[str]) -> str:
 
     titles = [f"{r}, {g} folds ({len(figures[r, g])} runs)" for r, g in columns]
     rows = [[title, *(cell(k, name, d) for k in columns)] for title, name, d in MODEL_FIGURES]
-    retrieval = list({group: (recipe, group) for recipe, group in reversed(columns)}.values())  # each group's 1-NN once (every run scores it)
+    # each group's 1-NN once (every run scores it)
+    retrieval = list({group: (recipe, group) for recipe, group in reversed(columns)}.values())
     per_class = [[c, *(cell(k, f"fid_{c}", 2) for k in columns), *(cell(k, f"fid_nn1_{c}", 2) for k in retrieval)]
                  for c in class_names]
     note = ("AFD in the paper's normalized units; FID over the interaction classifier's features "
