@@ -208,7 +208,8 @@ def test_a_claim_nobody_connects_to_is_released(tmp_path, monkeypatch):
         u = urlsplit(studio.url)
         status, answer = _claim(u.hostname, u.port)
         assert status == 200
-        with urllib.request.urlopen(studio.url + answer["url"], timeout=60) as page:
+        request = urllib.request.Request(studio.url + answer["url"], headers={"Cookie": answer["cookie"]})  # the claiming browser
+        with urllib.request.urlopen(request, timeout=60) as page:
             assert page.status == 200
         assert _claim(u.hostname, u.port)[0] == 503
         deadline = time.monotonic() + 30
