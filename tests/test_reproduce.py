@@ -95,7 +95,8 @@ def test_the_models_table_trains_the_gan_and_the_diffusion_recipe_and_scores_eac
     assert ReproducePlan().tables == PAPER_TABLES  # the paper's four unless asked
     plan = ReproducePlan(tables=("models",), folds=("s04",), seeds=(0, 1), epochs=2)
     assert {(j.recipe, j.seed) for j in plan.training_jobs()} == {(r, s) for r in MODEL_RECIPES for s in (0, 1)}
-    assert len(plan.eval_jobs()) == 2 * len(MODEL_RECIPES) and all(j.baselines == ("nn1",) and j.checkpoint == "final" for j in plan.eval_jobs())
+    assert len(plan.eval_jobs()) == 2 * len(MODEL_RECIPES)
+    assert all(j.baselines == ("nn1",) and j.checkpoint == "final" for j in plan.eval_jobs())
     job = TrainJob("imm-diffusion", "s04", 0, epochs=2)  # a diffusion recipe's "epochs" are its optimizer steps
     assert job.config().steps == 2 and job.cost > TrainJob("imm-steer", "s04", 0).cost  # the longest first
     assert len({job.key("d"), TrainJob("imm-diffusion", "s04", 1, epochs=2).key("d"), TrainJob("imm-diffusion", "s04", 0).key("d")}) == 3
