@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from imm_model.errors import CheckpointError, IMMError
+from imm_model.inputs import check_input
 
 if TYPE_CHECKING:
     import torch
@@ -102,8 +103,7 @@ def load_checkpoint(path: Path | str, framework: str = "pt") -> tuple[dict[str, 
     from safetensors import safe_open
 
     path = Path(path)
-    if not path.is_file():
-        raise CheckpointError(f"{path}: checkpoint not found")
+    check_input(path, "checkpoint", error=CheckpointError)
     try:
         tensors = {}
         with safe_open(str(path), framework=framework) as f:

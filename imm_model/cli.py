@@ -52,10 +52,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _cmd_summary(args: argparse.Namespace) -> int:
     from imm_model.data.bundle import load_any, summary_table
     from imm_model.data.dataset import InteractionDataset
+    from imm_model.errors import DataFormatError
     from imm_model.paths import SAMPLE_DATA
 
     path = args.data or SAMPLE_DATA
     source = load_any(path)
+    if not len(source):  # a raw folder whose every file was skipped: the first reason is the one line
+        raise DataFormatError(source.skipped[0][1] if source.skipped else f"{path}: no sequences found")
     kind = "bundle" if isinstance(source, InteractionDataset) else "raw"
     print(f"{path} ({kind}, {len(source)} sequences)")
     print(summary_table(source))

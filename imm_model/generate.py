@@ -10,8 +10,10 @@ import numpy as np
 
 from imm_model.device import add_device_argument
 from imm_model.errors import DataFormatError
+from imm_model.inputs import check_input
 
 LEADER_SUFFIXES = (".bvh", ".npz", ".txt")
+LEADER_COPY_SUFFIX = ".leader.bvh"  # the leader written beside each .bvh output
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -71,14 +73,14 @@ def _use_memory(model, args: argparse.Namespace) -> None:
 
 
 def leader_files(paths: list[Path]) -> list[Path]:
-    """Files as given, folders expanded to their leader files (sorted); a missing path or nothing found is an error."""
+    """Files as given, folders expanded to their leader files (sorted, without the leader copies this command wrote
+    there); a missing path, one that is not a regular file (a FIFO, a device), or nothing found is an error."""
     files = []
     for path in paths:
-        if not path.exists():
-            raise DataFormatError(f"{path}: leader file not found")
         if path.is_dir():
-            files += sorted(f for f in path.iterdir() if f.suffix.lower() in LEADER_SUFFIXES and ".leader." not in f.name)
+            files += sorted(f for f in path.iterdir() if f.suffix.lower() in LEADER_SUFFIXES and not _is_leader_copy(f))
         else:
+            check_input(path, "leader file")
             files.append(path)
     if not files:
         raise DataFormatError(f"no leader files ({', '.join(LEADER_SUFFIXES)}) in {', '.join(map(str, paths))}")
@@ -125,7 +127,14 @@ def _leaders(args: argparse.Namespace) -> list[tuple[str, np.ndarray, str]]:
 
 def leader_copy(path: Path) -> Path:
     """The leader written beside a .bvh output (a BVH holds one character)."""
-    return path.with_suffix(".leader.bvh")
+    return path.with_suffix(LEADER_COPY_SUFFIX)
+
+
+def _is_leader_copy(path: Path) -> bool:
+    """NAME.leader.bvh beside NAME.bvh: a leader copy this command wrote, not a leader of its own (a take named
+    NAME.leader.bvh alone is one)."""
+    name = path.name
+    return name.lower().endswith(LEADER_COPY_SUFFIX) and path.with_name(name[:-len(LEADER_COPY_SUFFIX)] + ".bvh").is_file()
 
 
 def _inputs(args: argparse.Namespace, model) -> list[Path]:

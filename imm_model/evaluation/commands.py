@@ -47,13 +47,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _options(args: argparse.Namespace):
     from imm_model.checkpoint import final_checkpoint
     from imm_model.evaluation.loso import EvalOptions
+    from imm_model.inputs import MAX_SETTINGS_BYTES, read_input_text
     from imm_model.model.classifier_config import FOLLOWER, FOLLOWER_JUDGE, INTERACTION, LOWER_JUDGE, UPPER_JUDGE, ClassifierConfig
 
     overrides = {}
     if args.classifier_config is not None:
+        text = read_input_text(args.classifier_config, "classifier config", MAX_SETTINGS_BYTES)
         try:
-            overrides = json.loads(args.classifier_config.read_text())
-        except (OSError, json.JSONDecodeError, RecursionError) as err:
+            overrides = json.loads(text)
+        except (json.JSONDecodeError, RecursionError) as err:
             raise ValueError(f"{args.classifier_config}: unreadable classifier config ({type(err).__name__})") from None
         if not isinstance(overrides, dict):
             raise ValueError(f"{args.classifier_config}: a classifier config is a JSON object")

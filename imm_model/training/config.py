@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from imm_model.inputs import MAX_SETTINGS_BYTES, read_input_text
 from imm_model.model.config import ModelConfig
 from imm_model.training.losses import DISCRIMINATORS
 from imm_model.typed_config import FieldsOf, Flag, Interval, ListOf, Name, OneOf, checked_kwargs, param, validate
@@ -219,16 +220,18 @@ def load_config(name_or_path: str, **overrides: Any) -> TrainConfig:
         cfg = NAMED[name_or_path]
     else:
         path = Path(name_or_path)
-        if not path.is_file():
+        if not path.exists():
             raise ValueError(f"unknown config {name_or_path!r}: not one of {sorted(NAMED)} nor a JSON file")
+        text = read_input_text(path, "config", MAX_SETTINGS_BYTES)
         try:
-            d = json.loads(path.read_text())
+            d = json.loads(text)
         except (json.JSONDecodeError, RecursionError) as err:
             where = f"{err.msg} at line {err.lineno}" if isinstance(err, json.JSONDecodeError) else "nested too deeply"
             raise ValueError(f"{path}: invalid JSON ({where})") from None
         if not isinstance(d, dict):
             raise ValueError(f"{path}: a config is a JSON object ({{\"base\": \"imm\", ...overrides}}), not {type(d).__name__}")
-        base = NAMED.get(d.pop("base", "imm"))
+        base_name = d.pop("base", "imm")
+        base = NAMED.get(base_name) if isinstance(base_name, str) else None
         if base is None:
             raise ValueError(f"{path}: unknown base config (one of {sorted(NAMED)})")
         if not isinstance(d.get("model", {}), dict):

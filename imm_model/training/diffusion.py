@@ -293,11 +293,20 @@ class DiffusionTrainer:
 def _read_recipe_file(path: Path) -> dict | None:
     import json
 
+    from imm_model.errors import IMMError
+    from imm_model.inputs import MAX_SETTINGS_BYTES, read_input_text
+
     try:
-        d = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError):
+        d = json.loads(read_input_text(path, "config", MAX_SETTINGS_BYTES))
+    except (IMMError, json.JSONDecodeError, RecursionError):
         return None  # the GAN's config loader reports what is wrong with the file
     return d if isinstance(d, dict) else None
+
+
+def _base_name(d: dict, pop: bool = False) -> str | None:
+    """A recipe file's "base" recipe name (default imm-diffusion); None when it is not a name (a list, an object)."""
+    base = d.pop("base", "imm-diffusion") if pop else d.get("base")
+    return base if isinstance(base, str) else None
 
 
 def diffusion_recipe(name_or_path: str) -> bool:
@@ -306,7 +315,7 @@ def diffusion_recipe(name_or_path: str) -> bool:
         return True
     path = Path(name_or_path)
     d = _read_recipe_file(path) if path.suffix == ".json" and path.is_file() else None
-    return bool(d) and (d.get("base") in NAMED or d.get("family") == FAMILY)
+    return bool(d) and (_base_name(d) in NAMED or d.get("family") == FAMILY)
 
 
 def load_config(name_or_path: str, **overrides: Any) -> DiffusionTrainConfig:
@@ -317,7 +326,7 @@ def load_config(name_or_path: str, **overrides: Any) -> DiffusionTrainConfig:
         d = _read_recipe_file(Path(name_or_path))
         if d is None:
             raise ValueError(f"{name_or_path}: not a readable JSON object")
-        base = NAMED.get(d.pop("base", "imm-diffusion"))
+        base = NAMED.get(_base_name(d, pop=True))
         if base is None:
             raise ValueError(f"{name_or_path}: unknown base config (one of {sorted(NAMED)})")
         for key in ("model", "guidance"):
