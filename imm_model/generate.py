@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from imm_model.device import add_device_argument
-from imm_model.errors import DataFormatError
+from imm_model.errors import DataFormatError, printable
 from imm_model.inputs import check_input
 
 LEADER_SUFFIXES = (".bvh", ".npz", ".txt")
@@ -142,7 +142,8 @@ def _inputs(args: argparse.Namespace, model) -> list[Path]:
     from imm_model.checkpoint import sidecar_path
     from imm_model.paths import SAMPLE_DATA
 
-    files = leader_files(args.leader) if args.leader else [args.data or SAMPLE_DATA]
+    data = [args.data or SAMPLE_DATA] if not args.leader or args.memory is not None else []  # --memory reads it too
+    files = [*(leader_files(args.leader) if args.leader else []), *data]
     checkpoint = [model.path, sidecar_path(model.path)] if model.path else []
     return [*files, *checkpoint, *([args.bvh_map] if args.bvh_map else [])]
 
@@ -200,10 +201,10 @@ def _cmd_generate(args: argparse.Namespace) -> int:
 def _generate_one(args: argparse.Namespace, model, leader_item, vec: np.ndarray, seed: int) -> int:
     _, leader, source = leader_item
     follower = _synthesize(model, [leader], vec, seed)[0]
-    _write(args.out, leader, follower, model, vec, args.scale, None if args.leader else source, seed)
+    _write(args.out, leader, follower, model, vec, args.scale, None if args.leader else source, seed, args.force)
     desc = ", ".join(f"{n}={v:g}" for n, v in zip(model.class_names, vec, strict=True) if v != 0) or "all zero"
     beside = f" (the leader in {leader_copy(args.out)})" if args.out.suffix.lower() == ".bvh" else ""
-    print(f"wrote {args.out}{beside}: follower {follower.shape[0]} frames x {follower.shape[1]} joints (label {desc})")
+    print(printable(f"wrote {args.out}{beside}: follower {follower.shape[0]} frames x {follower.shape[1]} joints (label {desc})"))
     return 0
 
 
@@ -218,11 +219,12 @@ def _generate_batch(args: argparse.Namespace, model, leaders: list, labels: list
             for seed in seeds:
                 followers = _synthesize(model, [leader for _, leader, _ in leaders], vec, seed)
                 for k, ((_, leader, source), follower) in enumerate(zip(leaders, followers, strict=True)):
-                    _write(paths[k, c, seed], leader, follower, model, vec, args.scale, None if args.leader else source, seed)
+                    _write(paths[k, c, seed], leader, follower, model, vec, args.scale, None if args.leader else source, seed,
+                           args.force)
                     bar.update()
     beside = ", each with its leader copy" if args.format == "bvh" else ""
     samples = f" x {len(seeds)} seeds" if len(seeds) > 1 else ""
-    print(f"wrote {num_files} files ({len(leaders)} leaders x {len(labels)} labels{samples}{beside}) to {args.out}")
+    print(printable(f"wrote {num_files} files ({len(leaders)} leaders x {len(labels)} labels{samples}{beside}) to {args.out}"))
     return 0
 
 
@@ -243,14 +245,16 @@ def _synthesize(model, leaders: list[np.ndarray], vec: np.ndarray, seed: int = 0
 
 
 def _write(path: Path, leader: np.ndarray, follower: np.ndarray, model, vec: np.ndarray, scale: float, sid: str | None,
-           seed: int) -> None:
+           seed: int, replace: bool) -> None:
+    """One item's file (and its leader copy); without `replace` an existing file is refused even if another command
+    wrote it after `plan_outputs` checked (two runs at one --out: one of them fails)."""
     from imm_model.outputs import write_atomic, write_files
 
     if path.suffix.lower() == ".bvh":
         from imm_model.data.bvh import write_bvh
 
         write_files([(path, lambda tmp: write_bvh(tmp, follower, model.skeleton)),
-                     (leader_copy(path), lambda tmp: write_bvh(tmp, leader, model.skeleton))])
+                     (leader_copy(path), lambda tmp: write_bvh(tmp, leader, model.skeleton))], replace)
         return
     from imm_model.data.canonical import CanonicalFrame
     from imm_model.interaction_file import interaction_arrays, interaction_bytes
@@ -260,4 +264,4 @@ def _write(path: Path, leader: np.ndarray, follower: np.ndarray, model, vec: np.
         leader, follower, frame, model.skeleton, class_names=model.class_names, label=vec, scale=scale,
         checkpoint=model.path.name if model.path else "", fps=15.0, sequence_id=sid,
         seed=seed if model.stochastic else None, spread=model.spread,
-        memory=model.guidance.memory_level if model.stochastic and model.guidance.uses_memory else None)))
+        memory=model.guidance.memory_level if model.stochastic and model.guidance.uses_memory else None)), replace)

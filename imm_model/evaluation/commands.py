@@ -101,6 +101,7 @@ def _jobs(args: argparse.Namespace, subjects: list[str]) -> list[tuple[Path, str
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     import torch
 
+    from imm_model.cache import cache_dir
     from imm_model.data.dataset import InteractionDataset
     from imm_model.data.splits import all_subjects
     from imm_model.evaluation.loso import evaluate_fold
@@ -111,6 +112,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA
 
     torch.set_num_threads(2)
+    cache_dir()  # an unusable cache folder is refused before any classifier or baseline is trained for it
     data = InteractionDataset.load(args.data or SAMPLE_DATA)
     if args.run is None and args.checkpoint is None:
         args.checkpoint = SAMPLE_CHECKPOINT
