@@ -110,19 +110,20 @@ class ReactionModel:
         from imm_model.checkpoint import check_state, load_checkpoint
         from imm_model.model.config import ModelConfig
         from imm_model.model.numpy_runtime import NumpyGenerator
+        from imm_model.output_check import check_model_outputs
         from imm_model.paths import SAMPLE_CHECKPOINT
 
         path = Path(path) if path is not None else SAMPLE_CHECKPOINT
         arrays, meta = load_checkpoint(path, framework="np")
         if meta.get("family") == DiffusionReactionModel.family:
-            return DiffusionReactionModel.from_checkpoint(arrays, meta, path, device)
+            return check_model_outputs(DiffusionReactionModel.from_checkpoint(arrays, meta, path, device))
         cfg, weights = _described_weights(arrays, meta, path, ModelConfig, "generator")
         if NumpyGenerator.supports(cfg):
             check_state(weights, NumpyGenerator.expected_shapes(cfg), "generator", path)
         model = cls({k: v.astype(np.float32) for k, v in weights.items()}, cfg, meta, path, device)
         if model.fast is None:
             model.generator  # noqa: B018 - torch's strict load checks the weights now, not at the first synthesis
-        return model
+        return check_model_outputs(model)
 
     # ---- labels and inputs ----------------------------------------------------------------
     def label_vector(self, label: Mapping[str, float] | Sequence[float] | np.ndarray, scale: float = 1.0) -> np.ndarray:

@@ -25,8 +25,8 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     # skeletons, datasets and their readers, splits, and the geometry of poses
     ("data", ("imm_model.skeleton", "imm_model.data", "imm_model.contact", "imm_model.cleanup",
               "imm_model.interaction_file")),
-    # the networks, the cached per-fold classifiers, and the inference API built on them
-    ("model", ("imm_model.model", "imm_model.cache", "imm_model.inference", "imm_model.reads_as")),
+    # the networks, the cached per-fold classifiers, the inference API built on them and the check of a loaded model's outputs
+    ("model", ("imm_model.model", "imm_model.cache", "imm_model.inference", "imm_model.reads_as", "imm_model.output_check")),
     ("training", ("imm_model.training",)),
     ("evaluation", ("imm_model.evaluation",)),
     # the commands and tools built on the library
