@@ -149,6 +149,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         msg = err.args[0] if isinstance(err, KeyError) and err.args else err
         print(f"imm {args.command}: error: {printable(str(msg))}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C, or a SIGTERM a command turned into one, once its clean-up has run
+        print(f"imm {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

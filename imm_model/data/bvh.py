@@ -60,9 +60,9 @@ MAX_LINES = 1_000_000  # bvhio reads a line in about a microsecond, blank or not
 MAX_DEPTH = 100  # joints from the root to the deepest leaf; a human rig has about a dozen
 MAX_SECONDS = 600.0  # duration of the motion
 MAX_HEADER_INTEGER = 10**9  # Frames: and CHANNELS counts (far beyond MAX_KEYFRAMES: only to keep the numbers floats)
-# a channel value: 1 km in millimetres, or an angle of 1e6 degrees (a rotation of 1e300 degrees is no rotation at all:
-# single-precision quaternions come out zero)
-MAX_MOTION_VALUE = 1e6
+# degrees in a rotation channel: far beyond any turn a take makes (bvhio's single-precision quaternions of 1e300
+# degrees come out zero)
+MAX_ANGLE = 1e6
 FRAME_TIME_RANGE = (1e-4, 1.0)  # seconds per frame: 1 to 10000 frames per second
 CHANNEL_NAMES = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
 LEG_M = 0.85  # hip to ankle of an adult, the yardstick for guessing a file's units
@@ -204,7 +204,7 @@ def _check_layout(path: Path, text: str) -> None:
         raise lines.fail("the ROOT joint has no name")
     names: set[str] = set()
     open_joints: list[str] = []
-    channels = 0
+    channels: list[str] = []  # every channel's name, in the order of the motion rows
     pending: str | None = root[1]
     while pending is not None or open_joints:
         if pending is not None:  # a joint's head: {, OFFSET, CHANNELS
@@ -225,7 +225,7 @@ def _check_layout(path: Path, text: str) -> None:
             unknown = [c for c in declared[2:] if c not in CHANNEL_NAMES]
             if unknown:
                 raise lines.fail(f"CHANNELS of {pending}: unknown channel {unknown[0][:30]!r}; known: {', '.join(CHANNEL_NAMES)}")
-            channels += len(declared) - 2
+            channels += declared[2:]
             pending = None
             continue
         tokens = lines.next(f"the closing '}}' of joint {open_joints[-1]}")
@@ -268,8 +268,11 @@ def _header_number(lines: _Lines, text: str, field: str, kind: type) -> float:
     return value
 
 
-def _check_motion(lines: _Lines, frames: int, channels: int, chunk: int = 2048) -> None:
-    """The first `frames` rows of the MOTION block: present, `channels` numbers each, all finite."""
+def _check_motion(lines: _Lines, frames: int, names: list[str], chunk: int = 2048) -> None:
+    """The first `frames` rows of the MOTION block: present, a number for each channel of `names` each, all finite,
+    the angles within MAX_ANGLE."""
+    channels = len(names)
+    angle = np.array([n.endswith("rotation") for n in names])
     done = 0
     while done < frames:
         rows, starts = [], []
@@ -288,16 +291,17 @@ def _check_motion(lines: _Lines, frames: int, channels: int, chunk: int = 2048) 
                 lines.start = start
                 raise lines.fail(f"a motion row of {len(row)} values; the hierarchy declares {channels} channels")
         try:
-            bounded = bool((np.abs(np.array(rows, dtype=np.float64)) <= MAX_MOTION_VALUE).all())  # False for NaN
+            values = np.array(rows, dtype=np.float64)
+            sane = bool(np.isfinite(values).all() and (np.abs(values[:, angle]) <= MAX_ANGLE).all())
         except ValueError:
-            bounded = False
-        if not bounded:  # (bvhio parses each value with float(), as _finite does)
-            k, value = next((k, v) for k, row in enumerate(rows) for v in row if not _finite(v) or abs(float(v)) > MAX_MOTION_VALUE)
+            sane = False
+        if not sane:  # (bvhio parses each value with float(), as _finite does)
+            k, c = next((k, c) for k, row in enumerate(rows) for c, v in enumerate(row)
+                        if not _finite(v) or (angle[c] and abs(float(v)) > MAX_ANGLE))
             lines.start = starts[k]
-            if not _finite(value):
+            if not _finite(rows[k][c]):
                 raise lines.fail("a motion value that is not a finite number (NaN, infinity or text)")
-            raise lines.fail(f"a motion value of {float(value):g}; values up to {MAX_MOTION_VALUE:g} (positions in the "
-                             f"file's units, angles in degrees) are read")
+            raise lines.fail(f"a {names[c]} of {float(rows[k][c]):g} degrees; angles up to {MAX_ANGLE:g} are read")
         done += len(rows)
 
 
