@@ -208,6 +208,7 @@ def run_cli_cases(argvs: list[list[str]], seconds: int = 20) -> list[dict]:
     return json.loads(run.stdout)
 
 
+@pytest.mark.slow
 def test_no_named_path_hangs_or_fills_memory(tmp_path):
     fifo, zero = tmp_path / "pipe.npz", tmp_path / "zero.npz"
     os.mkfifo(fifo)
@@ -407,3 +408,20 @@ def test_sigterm_ends_a_ray_backed_reproduce_cleanly(tmp_path):
     assert proc.returncode == 130 and "SIGTERM received" not in output and "Traceback" not in output, output[-3000:]
     assert output.strip().splitlines()[-1].endswith("imm reproduce: interrupted")
     assert seconds < 30, seconds  # within 5 s on an idle machine; generous for a busy one
+
+
+def test_the_input_check_refuses_fifos_devices_and_links_to_them_without_opening_them(tmp_path):
+    from imm_model.inputs import check_input, read_input
+
+    os.mkfifo(tmp_path / "pipe")
+    (tmp_path / "zero").symlink_to("/dev/zero")
+    for name, kind in (("pipe", "a FIFO (named pipe)"), ("zero", "a character device")):
+        for reader in (check_input, lambda path, what: read_input(path, what, 1000)):
+            with pytest.raises(DataFormatError) as info:
+                reader(tmp_path / name, "leader file")
+            assert f"{name}: {kind}, not a regular file (leader file expected)" in str(info.value).replace(
+                " (a link to /dev/zero)", "")
+    (tmp_path / "big").write_bytes(b"x" * 1001)
+    with pytest.raises(DataFormatError, match=r"big: 0.0 MB; leader files up to 0 MB are read"):
+        read_input(tmp_path / "big", "leader file", 1000)
+    assert read_input(BVH, "leader file", 10**6) == BVH.read_bytes()
