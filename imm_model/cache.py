@@ -33,10 +33,9 @@ def cache_dir() -> Path:
     here, before anything is trained for it, not when the first entry is saved."""
     env = os.environ.get("IMM_CACHE_DIR")
     path = Path(env) if env else Path.home() / ".cache" / "imm-studio"
-    existing = next(p for p in (path, *path.absolute().parents) if p.exists() or p == Path(p.anchor))
+    existing = next(p for p in (path, *path.absolute().parents) if p.exists())  # the root always exists
     if not existing.is_dir():
-        where = "" if existing == path else f": {existing} is not a folder"
-        raise IMMError(f"{'IMM_CACHE_DIR ' if env else 'the cache folder '}{path}{where or ' is not a folder'}; "
+        raise IMMError(f"{'IMM_CACHE_DIR' if env else 'the cache folder'} {path}: {existing} is not a folder; "
                        f"set IMM_CACHE_DIR to a folder")
     return path
 
