@@ -72,9 +72,12 @@ def plan_outputs(outputs: Sequence[Output], inputs: Iterable[Path | None] = (), 
         planned[key] = out
         if key in sources:
             raise IMMError(f"{out.what} {out.path}: that is an input of this command ({sources[key]}); choose another file")
+    # planned files by name too: one that another writer creates meanwhile changes its identity, not its name
+    planned_paths = {out.path for out in planned.values()}
     for out in planned.values():
         checkpoint = out.path.with_suffix(CHECKPOINT_SUFFIX)
-        if out.path.suffix.lower() == ".json" and checkpoint.exists() and _identity(checkpoint) not in planned:
+        if (out.path.suffix.lower() == ".json" and checkpoint.exists() and checkpoint not in planned_paths
+                and _identity(checkpoint) not in planned):
             raise IMMError(f"{out.what} {out.path}: that is the sidecar of the checkpoint {checkpoint}; choose another file")
         if out.path.exists() and not force:
             raise IMMError(f"{out.what} {out.path}: the file exists; pass {force_option} to replace it")
