@@ -22,15 +22,22 @@ import imm_model
 from imm_model.checkpoint import load_checkpoint, load_module_state, save_checkpoint
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold
-from imm_model.errors import CheckpointError
+from imm_model.errors import CheckpointError, IMMError
 from imm_model.model.classifier import VERSION as CLASSIFIER_VERSION
 from imm_model.model.classifier import MotionClassifier, motion_inputs, train_classifier
 from imm_model.model.classifier_config import ClassifierConfig
 
 
 def cache_dir() -> Path:
+    """The cache folder; one that cannot be a folder (it, or a folder above it, is a file) is a one-line IMMError
+    here, before anything is trained for it, not when the first entry is saved."""
     env = os.environ.get("IMM_CACHE_DIR")
-    return Path(env) if env else Path.home() / ".cache" / "imm-studio"
+    path = Path(env) if env else Path.home() / ".cache" / "imm-studio"
+    existing = next(p for p in (path, *path.absolute().parents) if p.exists())  # the root always exists
+    if not existing.is_dir():
+        raise IMMError(f"{'IMM_CACHE_DIR' if env else 'the cache folder'} {path}: {existing} is not a folder; "
+                       f"set IMM_CACHE_DIR to a folder")
+    return path
 
 
 def dataset_hash(data: InteractionDataset) -> str:

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from imm_model.errors import CheckpointError, IMMError
+from imm_model.inputs import check_input
 
 if TYPE_CHECKING:
     import torch
@@ -48,10 +49,11 @@ def weights_digest(tensors: dict[str, Any]) -> str:
     return h.hexdigest()
 
 
-def save_checkpoint(path: Path | str, tensors: dict[str, torch.Tensor], meta: dict[str, Any]) -> None:
+def save_checkpoint(path: Path | str, tensors: dict[str, torch.Tensor], meta: dict[str, Any], replace: bool = True) -> None:
     """Write `path` (.safetensors) and its JSON sidecar, both carrying the weights' digest. Both are written to
     temporary files first and then renamed into place; a kill between the two renames leaves a pair whose digests
-    differ, which `load_checkpoint` refuses. A full disk is a one-line error and leaves the old pair."""
+    differ, which `load_checkpoint` refuses. A full disk is a one-line error and leaves the old pair. Without
+    `replace`, a pair that exists (either file) is refused and left as it was."""
     from safetensors.torch import save
 
     from imm_model.outputs import write_files
@@ -61,7 +63,7 @@ def save_checkpoint(path: Path | str, tensors: dict[str, torch.Tensor], meta: di
     meta = {"format": FORMAT, **meta, DIGEST: weights_digest(tensors)}
     blob = save(tensors, metadata={"imm": json.dumps(meta, sort_keys=True)})
     try:
-        write_files([(path, blob), (sidecar_path(path), json.dumps(meta, indent=1, sort_keys=True) + "\n")])
+        write_files([(path, blob), (sidecar_path(path), json.dumps(meta, indent=1, sort_keys=True) + "\n")], replace)
     except IMMError as err:
         raise CheckpointError(str(err)) from None
 
@@ -102,8 +104,7 @@ def load_checkpoint(path: Path | str, framework: str = "pt") -> tuple[dict[str, 
     from safetensors import safe_open
 
     path = Path(path)
-    if not path.is_file():
-        raise CheckpointError(f"{path}: checkpoint not found")
+    check_input(path, "checkpoint", error=CheckpointError)
     try:
         tensors = {}
         with safe_open(str(path), framework=framework) as f:

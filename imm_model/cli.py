@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from importlib.metadata import entry_points
 from pathlib import Path
 
-from imm_model.errors import IMMError
+from imm_model.errors import IMMError, printable
 
 # Modules that contribute subcommands: each has `register(subparsers)`. They keep heavy imports
 # (torch, VTK, trame) inside their command functions so `imm --help` and `imm data` stay fast.
@@ -41,21 +41,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     build = sub.add_parser("build-sample", help="rebuild sample_data/sbu_interactions.npz from the raw SBU files")
     build.add_argument("--raw", type=Path, default=None, help="raw SBU folder (default: ../shared/datasets/sbu_kinect_interaction)")
     build.add_argument("--out", type=Path, default=None, help="output .npz (default: sample_data/sbu_interactions.npz)")
+    build.add_argument("--force", action="store_true", help="replace --out if it exists")
     build.set_defaults(func=_cmd_build_sample)
     judge = sub.add_parser("build-judge", help="train the studio's 'reads as' classifier (follower-only, real data only)")
     judge.add_argument("--fold", default="s04", help="held-out subject, as the bundled model's (default s04)")
     judge.add_argument("--data", type=Path, default=None, help="dataset bundle (default: the bundled SBU sample)")
     judge.add_argument("--out", type=Path, default=None, help="output .safetensors (default: the bundled follower_judge.safetensors)")
+    judge.add_argument("--force", action="store_true", help="replace --out and its .json sidecar if they exist")
     judge.set_defaults(func=_cmd_build_judge)
 
 
 def _cmd_summary(args: argparse.Namespace) -> int:
     from imm_model.data.bundle import load_any, summary_table
     from imm_model.data.dataset import InteractionDataset
+    from imm_model.errors import DataFormatError
     from imm_model.paths import SAMPLE_DATA
 
     path = args.data or SAMPLE_DATA
     source = load_any(path)
+    if not len(source):  # a raw folder whose every file was skipped: the first reason is the one line
+        raise DataFormatError(source.skipped[0][1] if source.skipped else f"{path}: no sequences found")
     kind = "bundle" if isinstance(source, InteractionDataset) else "raw"
     print(f"{path} ({kind}, {len(source)} sequences)")
     print(summary_table(source))
@@ -66,35 +71,47 @@ def _cmd_summary(args: argparse.Namespace) -> int:
 
 def _cmd_build_sample(args: argparse.Namespace) -> int:
     from imm_model.data.bundle import build_sbu_bundle
+    from imm_model.outputs import Output, plan_outputs
     from imm_model.paths import SAMPLE_DATA, sbu_raw_root
 
     raw = args.raw or sbu_raw_root()
     out = args.out or SAMPLE_DATA
+    plan_outputs([Output(out)], force=args.force)  # refused before the build, and again at the write (write_files)
     data = build_sbu_bundle(raw)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    data.save(out)
+    data.save(out, replace=args.force)
     print(f"wrote {out}: {len(data)} sequences, {int(data.lengths.sum())} frames, {out.stat().st_size / 1e6:.2f} MB")
     return 0
 
 
 def _cmd_build_judge(args: argparse.Namespace) -> int:
     from imm_model.cache import fold_classifier
-    from imm_model.checkpoint import save_checkpoint
+    from imm_model.checkpoint import save_checkpoint, sidecar_path
     from imm_model.data.dataset import InteractionDataset
     from imm_model.model.classifier_config import FOLLOWER_JUDGE
+    from imm_model.outputs import Output, plan_outputs
     from imm_model.paths import SAMPLE_DATA, SAMPLE_JUDGE
 
-    data = InteractionDataset.load(args.data or SAMPLE_DATA)
+    data_path = args.data or SAMPLE_DATA
     out = args.out or SAMPLE_JUDGE
+    plan_outputs([Output(out), Output(sidecar_path(out), "--out's sidecar")], [data_path], args.force)
+    data = InteractionDataset.load(data_path)
     model = fold_classifier(FOLLOWER_JUDGE, data, args.fold)
     save_checkpoint(out, model.state_dict(), {"kind": "classifier", "config": FOLLOWER_JUDGE.to_dict(), "subject": args.fold,
-                                              "class_names": list(data.class_names), "dataset": data.dataset})
+                                              "class_names": list(data.class_names), "dataset": data.dataset}, args.force)
     print(f"wrote {out}: follower-only {FOLLOWER_JUDGE.arch} classifier, subject {args.fold} held out")
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """Usage errors in one line, as every other error of the command (the usage is one --help away); subcommands'
+    parsers are of this class too."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {printable(message)} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="imm",
         description="IMM Studio: synthesize a follower's reaction to a leader's motion (Interaction Mix and Match).",
     )
@@ -130,8 +147,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except (IMMError, ValueError, KeyError, OSError) as err:
         msg = err.args[0] if isinstance(err, KeyError) and err.args else err
-        print(f"imm {args.command}: error: {msg}", file=sys.stderr)
+        print(f"imm {args.command}: error: {printable(str(msg))}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C, or a SIGTERM a command turned into one, once its clean-up has run
+        print(f"imm {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -19,3 +19,9 @@ class LabelError(IMMError, ValueError):
 
 class TrainingError(IMMError, RuntimeError):
     """Training cannot go on (a loss that is not finite, names the epoch or step)."""
+
+
+def printable(text: str) -> str:
+    """`text` safe to print as one line on a terminal: control characters (a newline or an escape sequence in a file
+    name) are shown escaped as Python writes them (\\n, \\x1b), never acted on."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)

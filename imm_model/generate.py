@@ -9,9 +9,11 @@ from pathlib import Path
 import numpy as np
 
 from imm_model.device import add_device_argument
-from imm_model.errors import DataFormatError
+from imm_model.errors import DataFormatError, printable
+from imm_model.inputs import check_input
 
 LEADER_SUFFIXES = (".bvh", ".npz", ".txt")
+LEADER_COPY_SUFFIX = ".leader.bvh"  # the leader written beside each .bvh output
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -54,14 +56,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def leader_files(paths: list[Path]) -> list[Path]:
-    """Files as given, folders expanded to their leader files (sorted); a missing path or nothing found is an error."""
+    """Files as given, folders expanded to their leader files (sorted, without the leader copies this command wrote
+    there); a missing path, one that is not a regular file (a FIFO, a device), or nothing found is an error."""
     files = []
     for path in paths:
-        if not path.exists():
-            raise DataFormatError(f"{path}: leader file not found")
         if path.is_dir():
-            files += sorted(f for f in path.iterdir() if f.suffix.lower() in LEADER_SUFFIXES and ".leader." not in f.name)
+            files += sorted(f for f in path.iterdir() if f.suffix.lower() in LEADER_SUFFIXES and not _is_leader_copy(f))
         else:
+            check_input(path, "leader file")
             files.append(path)
     if not files:
         raise DataFormatError(f"no leader files ({', '.join(LEADER_SUFFIXES)}) in {', '.join(map(str, paths))}")
@@ -109,7 +111,14 @@ def _leaders(args: argparse.Namespace) -> list[tuple[str, np.ndarray, str]]:
 
 def leader_copy(path: Path) -> Path:
     """The leader written beside a .bvh output (a BVH holds one character)."""
-    return path.with_suffix(".leader.bvh")
+    return path.with_suffix(LEADER_COPY_SUFFIX)
+
+
+def _is_leader_copy(path: Path) -> bool:
+    """NAME.leader.bvh beside NAME.bvh: a leader copy this command wrote, not a leader of its own (a take named
+    NAME.leader.bvh alone is one)."""
+    name = path.name
+    return name.lower().endswith(LEADER_COPY_SUFFIX) and path.with_name(name[:-len(LEADER_COPY_SUFFIX)] + ".bvh").is_file()
 
 
 def _inputs(args: argparse.Namespace, model) -> list[Path]:
@@ -117,7 +126,8 @@ def _inputs(args: argparse.Namespace, model) -> list[Path]:
     from imm_model.checkpoint import sidecar_path
     from imm_model.paths import SAMPLE_DATA
 
-    files = leader_files(args.leader) if args.leader else [args.data or SAMPLE_DATA]
+    data = [args.data or SAMPLE_DATA] if not args.leader or args.memory is not None else []  # --memory reads it too
+    files = [*(leader_files(args.leader) if args.leader else []), *data]
     checkpoint = [model.path, sidecar_path(model.path)] if model.path else []
     return [*files, *checkpoint, *([args.bvh_map] if args.bvh_map else [])]
 
@@ -183,10 +193,10 @@ def _cmd_generate(args: argparse.Namespace) -> int:
 def _generate_one(args: argparse.Namespace, model, leader_item, vec: np.ndarray, seed: int) -> int:
     _, leader, source = leader_item
     follower = _synthesize(model, [leader], vec, seed)[0]
-    _write(args.out, leader, follower, model, vec, args.scale, None if args.leader else source, seed)
+    _write(args.out, leader, follower, model, vec, args.scale, None if args.leader else source, seed, args.force)
     desc = ", ".join(f"{n}={v:g}" for n, v in zip(model.class_names, vec, strict=True) if v != 0) or "all zero"
     beside = f" (the leader in {leader_copy(args.out)})" if args.out.suffix.lower() == ".bvh" else ""
-    print(f"wrote {args.out}{beside}: follower {follower.shape[0]} frames x {follower.shape[1]} joints (label {desc})")
+    print(printable(f"wrote {args.out}{beside}: follower {follower.shape[0]} frames x {follower.shape[1]} joints (label {desc})"))
     return 0
 
 
@@ -201,11 +211,12 @@ def _generate_batch(args: argparse.Namespace, model, leaders: list, labels: list
             for seed in seeds:
                 followers = _synthesize(model, [leader for _, leader, _ in leaders], vec, seed)
                 for k, ((_, leader, source), follower) in enumerate(zip(leaders, followers, strict=True)):
-                    _write(paths[k, c, seed], leader, follower, model, vec, args.scale, None if args.leader else source, seed)
+                    _write(paths[k, c, seed], leader, follower, model, vec, args.scale, None if args.leader else source, seed,
+                           args.force)
                     bar.update()
     beside = ", each with its leader copy" if args.format == "bvh" else ""
     samples = f" x {len(seeds)} seeds" if len(seeds) > 1 else ""
-    print(f"wrote {num_files} files ({len(leaders)} leaders x {len(labels)} labels{samples}{beside}) to {args.out}")
+    print(printable(f"wrote {num_files} files ({len(leaders)} leaders x {len(labels)} labels{samples}{beside}) to {args.out}"))
     return 0
 
 
@@ -218,18 +229,20 @@ def _synthesize(model, leaders: list, vec: np.ndarray, seed: int = 0) -> list[np
 
 
 def _write(path: Path, leader, follower: np.ndarray, model, vec: np.ndarray, scale: float, sid: str | None,
-           seed: int) -> None:
-    """One item: a .bvh (with the leader's copy beside it) or an .npz of the whole interaction; `leader` prepared."""
+           seed: int, replace: bool) -> None:
+    """One item: a .bvh (with the leader's copy beside it) or an .npz of the whole interaction; `leader` prepared.
+    Without `replace` an existing file is refused even if another command wrote it after `plan_outputs` checked (two
+    runs at one --out: one of them fails)."""
     from imm_model.outputs import write_atomic, write_files
 
     if path.suffix.lower() == ".bvh":
         from imm_model.data.bvh import write_bvh
 
         write_files([(path, lambda tmp: write_bvh(tmp, follower, model.skeleton)),
-                     (leader_copy(path), lambda tmp: write_bvh(tmp, leader.world, model.skeleton))])
+                     (leader_copy(path), lambda tmp: write_bvh(tmp, leader.world, model.skeleton))], replace)
         return
     from imm_model.interaction_file import interaction_arrays, interaction_bytes
 
     write_atomic(path, interaction_bytes(interaction_arrays(
         leader.world, follower, leader.frame, model.skeleton, class_names=model.class_names, label=vec, scale=scale,
-        checkpoint=model.path.name if model.path else "", fps=15.0, sequence_id=sid, **model.provenance(seed))))
+        checkpoint=model.path.name if model.path else "", fps=15.0, sequence_id=sid, **model.provenance(seed))), replace)

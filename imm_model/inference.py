@@ -74,8 +74,9 @@ def read_leader_file(path: Path, bvh_map: Path | None = None) -> np.ndarray:
     """A .bvh (any recognisable human skeleton, data/bvh.py), an .npz with a `leader` array ((T, J, 3), or (T, 3J)
     as `check_leader` reads it), or an SBU skeleton_pos.txt (its more active person) -> (T, J, 3) world metres.
     Suffixes in either case; anything else, or beyond the readers' bounds, is a one-line DataFormatError."""
-    if not path.is_file():
-        raise DataFormatError(f"{path}: leader file not found")
+    from imm_model.inputs import check_input
+
+    check_input(path, "leader file")  # a FIFO or a device named as such, never opened
     suffix = path.suffix.lower()
     if suffix == ".bvh":
         from imm_model.data.bvh import read_bvh

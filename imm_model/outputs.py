@@ -15,6 +15,7 @@ import numpy as np
 
 from imm_model.errors import IMMError
 
+NAME_MAX = 255  # bytes in one file name, on every common file system
 CHECKPOINT_SUFFIX = ".safetensors"  # a NAME.json beside NAME.safetensors is that checkpoint's sidecar
 
 
@@ -55,6 +56,11 @@ def plan_outputs(outputs: Sequence[Output], inputs: Iterable[Path | None] = (), 
     for out in outputs:
         if out.path.is_dir():
             raise IMMError(f"{out.what} {out.path}: is a folder; give a file name")
+        size = len(os.fsencode(out.path.name))
+        if size > NAME_MAX:
+            item = f" (for {out.source})" if out.source else ""
+            raise IMMError(f"{out.what} {out.path.name[:40]}...{item}: a file name of {size} bytes; names up to {NAME_MAX} "
+                           f"bytes can be written")
         _writable_parent(out)
         key = _identity(out.path)
         if key in planned:
@@ -66,9 +72,12 @@ def plan_outputs(outputs: Sequence[Output], inputs: Iterable[Path | None] = (), 
         planned[key] = out
         if key in sources:
             raise IMMError(f"{out.what} {out.path}: that is an input of this command ({sources[key]}); choose another file")
+    # planned files by name too: one that another writer creates meanwhile changes its identity, not its name
+    planned_paths = {out.path for out in planned.values()}
     for out in planned.values():
         checkpoint = out.path.with_suffix(CHECKPOINT_SUFFIX)
-        if out.path.suffix.lower() == ".json" and checkpoint.exists() and _identity(checkpoint) not in planned:
+        if (out.path.suffix.lower() == ".json" and checkpoint.exists() and checkpoint not in planned_paths
+                and _identity(checkpoint) not in planned):
             raise IMMError(f"{out.what} {out.path}: that is the sidecar of the checkpoint {checkpoint}; choose another file")
         if out.path.exists() and not force:
             raise IMMError(f"{out.what} {out.path}: the file exists; pass {force_option} to replace it")
@@ -76,23 +85,30 @@ def plan_outputs(outputs: Sequence[Output], inputs: Iterable[Path | None] = (), 
 
 def _temporary(path: Path) -> Path:
     """A hidden name beside `path` (same folder, so the rename is atomic) that no other writer uses."""
-    return path.with_name(f".{path.name[:200]}.{os.getpid()}-{secrets.token_hex(4)}.tmp")  # within NAME_MAX (255)
+    head = os.fsencode(path.name)[:200].decode(errors="ignore")  # within NAME_MAX (255 bytes), whole characters
+    return path.with_name(f".{head}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
 
 
 def _failed(path: Path, err: OSError) -> IMMError:
     return IMMError(f"{path}: could not write it ({err.strerror or type(err).__name__})")
 
 
-def write_atomic(path: Path | str, data: bytes | str | Callable[[Path], None]) -> None:
+def write_atomic(path: Path | str, data: bytes | str | Callable[[Path], None], replace: bool = True,
+                 force_option: str = "--force") -> None:
     """Write bytes, text, or whatever `data(temporary_path)` writes, under `path` in one rename (`write_files`)."""
-    write_files([(Path(path), data)])
+    write_files([(Path(path), data)], replace, force_option)
 
 
-def write_files(files: Sequence[tuple[Path, bytes | str | Callable[[Path], None]]]) -> None:
+def write_files(files: Sequence[tuple[Path, bytes | str | Callable[[Path], None]]], replace: bool = True,
+                force_option: str = "--force") -> None:
     """Write each (path, bytes, text or `writer(temporary_path)`) to a temporary file beside its path, then rename
     them all into place: a failure while writing (a full disk, a refused permission: one-line IMMError) leaves every
-    path as it was and no temporary file behind."""
+    path as it was and no temporary file behind. Without `replace`, no file that exists by then is replaced, even one
+    another process created after `plan_outputs` checked (each is linked into place, which fails on an existing name):
+    the first such file is refused (one line naming `force_option`) and the files this call had put in place are
+    removed again."""
     temporaries = [(_temporary(Path(path)), Path(path), data) for path, data in files]
+    placed: list[Path] = []
     current = Path()
     try:
         for tmp, path, data in temporaries:
@@ -104,7 +120,16 @@ def write_files(files: Sequence[tuple[Path, bytes | str | Callable[[Path], None]
                 tmp.write_bytes(data.encode() if isinstance(data, str) else data)
         for tmp, path, _ in temporaries:
             current = path
-            os.replace(tmp, path)
+            if replace:
+                os.replace(tmp, path)
+            else:
+                os.link(tmp, path)  # atomic, and never onto an existing name
+            placed.append(path)
+    except FileExistsError:
+        for path in placed:
+            path.unlink(missing_ok=True)
+        raise IMMError(f"{current}: the file exists (another command wrote it meanwhile?); pass {force_option} to "
+                       f"replace it") from None
     except OSError as err:
         raise _failed(current, err) from None
     finally:

@@ -64,7 +64,7 @@ def test_binary_garbage_and_missing_file(tmp_path):
     path.write_bytes(b"\x89PNG\x00\xff\xfe")
     with pytest.raises(DataFormatError, match="not a text file"):
         parse_skeleton_file(path)
-    with pytest.raises(DataFormatError, match="cannot read"):
+    with pytest.raises(DataFormatError, match="nope.txt: skeleton file not found"):
         parse_skeleton_file(tmp_path / "nope.txt")
 
 

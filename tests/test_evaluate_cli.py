@@ -70,7 +70,8 @@ def test_evaluate_argument_errors(tmp_path, quick_classifiers, capsys):
     assert "unknown baseline 'oracle'" in _one_line_error(["evaluate", "--baselines", "nn1,oracle"], capsys)
     assert "at least one of" in _one_line_error(["evaluate", "--baselines", ",,"], capsys)
     assert "run directory not found" in _one_line_error(["evaluate", "--men-run", str(tmp_path / "none")], capsys)
-    assert "unreadable classifier config" in _one_line_error(["evaluate", "--classifier-config", str(tmp_path / "none.json")], capsys)
+    missing = ["evaluate", "--classifier-config", str(tmp_path / "none.json")]
+    assert "none.json: classifier config not found" in _one_line_error(missing, capsys)
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"arch": "lstm"}))
     assert "arch must be one of" in _one_line_error(["evaluate", "--classifier-config", str(bad)], capsys)

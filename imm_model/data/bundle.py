@@ -45,7 +45,7 @@ def build_sbu_bundle(raw_root: Path, held_out_subject: str = BUNDLED_HELD_OUT_SU
 def load_any(path: Path | str) -> InteractionDataset | LoadResult:
     """A bundle (.npz), a raw SBU folder or a K3HI folder, told apart by what is inside."""
     path = Path(path)
-    if path.suffix == ".npz" or path.is_file():
+    if path.suffix == ".npz" or (path.exists() and not path.is_dir()):  # a FIFO or device: refused by the reader
         return InteractionDataset.load(path)
     if (path / "Skeletons").is_dir():
         return load_k3hi(path)

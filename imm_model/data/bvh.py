@@ -27,6 +27,7 @@ from scipy.spatial.transform import Rotation
 
 from imm_model.data.sequence import check_world_positions
 from imm_model.errors import DataFormatError
+from imm_model.inputs import MAX_SETTINGS_BYTES, check_input, read_input_text
 from imm_model.skeleton import KINECT15, Skeleton
 
 TARGET_FPS = 15.0
@@ -58,6 +59,10 @@ MAX_JOINTS = 1000
 MAX_LINES = 1_000_000  # bvhio reads a line in about a microsecond, blank or not; a real file has frames + ~8 per joint
 MAX_DEPTH = 100  # joints from the root to the deepest leaf; a human rig has about a dozen
 MAX_SECONDS = 600.0  # duration of the motion
+MAX_HEADER_INTEGER = 10**9  # Frames: and CHANNELS counts (far beyond MAX_KEYFRAMES: only to keep the numbers floats)
+# degrees in a rotation channel: far beyond any turn a take makes (bvhio's single-precision quaternions of 1e300
+# degrees come out zero)
+MAX_ANGLE = 1e6
 FRAME_TIME_RANGE = (1e-4, 1.0)  # seconds per frame: 1 to 10000 frames per second
 CHANNEL_NAMES = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
 LEG_M = 0.85  # hip to ankle of an adult, the yardstick for guessing a file's units
@@ -133,10 +138,8 @@ def read_bvh(path: Path | str, mapping: dict[str, str] | Path | None = None, uni
 
 def _read_text(path: Path) -> str:
     """The file's text as bvhio reads it (default encoding, universal newlines), refusing what is not BVH text."""
+    check_input(path, "BVH leader", MAX_BYTES)
     try:
-        size = path.stat().st_size
-        if size > MAX_BYTES:
-            raise DataFormatError(f"{path}: {size / 1e6:.0f} MB; BVH leaders up to {MAX_BYTES / 1e6:.0f} MB are accepted")
         with path.open("r") as f:  # as bvhio opens it
             text = f.read()
     except UnicodeDecodeError as err:
@@ -201,7 +204,7 @@ def _check_layout(path: Path, text: str) -> None:
         raise lines.fail("the ROOT joint has no name")
     names: set[str] = set()
     open_joints: list[str] = []
-    channels = 0
+    channels: list[str] = []  # every channel's name, in the order of the motion rows
     pending: str | None = root[1]
     while pending is not None or open_joints:
         if pending is not None:  # a joint's head: {, OFFSET, CHANNELS
@@ -216,12 +219,13 @@ def _check_layout(path: Path, text: str) -> None:
             lines.expect("{", f"'{{' opening joint {pending}", 0)
             lines.offset(pending)
             declared = lines.expect("CHANNELS", f"the CHANNELS of {pending}")
-            if len(declared) < 2 or not declared[1].isdigit() or int(declared[1]) != len(declared) - 2:
+            count = declared[1] if len(declared) > 1 else ""
+            if not (count.isascii() and count.isdigit()) or int(count) != len(declared) - 2:  # int() takes '³' as no digit
                 raise lines.fail(f"CHANNELS of {pending}: a count followed by that many channel names is expected")
             unknown = [c for c in declared[2:] if c not in CHANNEL_NAMES]
             if unknown:
                 raise lines.fail(f"CHANNELS of {pending}: unknown channel {unknown[0][:30]!r}; known: {', '.join(CHANNEL_NAMES)}")
-            channels += len(declared) - 2
+            channels += declared[2:]
             pending = None
             continue
         tokens = lines.next(f"the closing '}}' of joint {open_joints[-1]}")
@@ -258,13 +262,17 @@ def _header_number(lines: _Lines, text: str, field: str, kind: type) -> float:
         value = kind(text)
     except ValueError:
         raise lines.fail(f"{field}: {text[:30]!r} is not {'an integer' if kind is int else 'a number'}") from None
-    if not math.isfinite(value):
-        raise lines.fail(f"{field}: {text[:30]!r} is not finite")
+    if not math.isfinite(value) if kind is float else abs(value) > MAX_HEADER_INTEGER:  # a 400-digit int is no float
+        raise lines.fail(f"{field}: {text[:30]!r}{'...' if len(text) > 30 else ''} is not "
+                         f"{'finite' if kind is float else f'an integer up to {MAX_HEADER_INTEGER:.0e}'}")
     return value
 
 
-def _check_motion(lines: _Lines, frames: int, channels: int, chunk: int = 2048) -> None:
-    """The first `frames` rows of the MOTION block: present, `channels` numbers each, all finite."""
+def _check_motion(lines: _Lines, frames: int, names: list[str], chunk: int = 2048) -> None:
+    """The first `frames` rows of the MOTION block: present, a number for each channel of `names` each, all finite,
+    the angles within MAX_ANGLE."""
+    channels = len(names)
+    angle = np.array([n.endswith("rotation") for n in names])
     done = 0
     while done < frames:
         rows, starts = [], []
@@ -283,20 +291,25 @@ def _check_motion(lines: _Lines, frames: int, channels: int, chunk: int = 2048) 
                 lines.start = start
                 raise lines.fail(f"a motion row of {len(row)} values; the hierarchy declares {channels} channels")
         try:
-            finite = bool(np.isfinite(np.array(rows, dtype=np.float64)).all())
+            values = np.array(rows, dtype=np.float64)
+            sane = bool(np.isfinite(values).all() and (np.abs(values[:, angle]) <= MAX_ANGLE).all())
         except ValueError:
-            finite = False
-        bad = None if finite else next((k for k, row in enumerate(rows) if not all(_finite(v) for v in row)), None)
-        if bad is not None:  # (bvhio parses each value with float(), as _finite does)
-            lines.start = starts[bad]
-            raise lines.fail("a motion value that is not a finite number (NaN, infinity or text)")
+            sane = False
+        if not sane:  # (bvhio parses each value with float(), as _finite does)
+            k, c = next((k, c) for k, row in enumerate(rows) for c, v in enumerate(row)
+                        if not _finite(v) or (angle[c] and abs(float(v)) > MAX_ANGLE))
+            lines.start = starts[k]
+            if not _finite(rows[k][c]):
+                raise lines.fail("a motion value that is not a finite number (NaN, infinity or text)")
+            raise lines.fail(f"a {names[c]} of {float(rows[k][c]):g} degrees; angles up to {MAX_ANGLE:g} are read")
         done += len(rows)
 
 
 def _read_mapping(path: Path) -> dict[str, str]:
+    text = read_input_text(path, "joint mapping", MAX_SETTINGS_BYTES)
     try:
-        d = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError, RecursionError) as err:
+        d = json.loads(text)
+    except (json.JSONDecodeError, RecursionError) as err:
         raise DataFormatError(f"{path}: unreadable joint mapping ({type(err).__name__})") from None
     if not isinstance(d, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in d.items()):
         raise DataFormatError(f"{path}: a joint mapping is a JSON object of Kinect joint name -> BVH joint name")

@@ -196,21 +196,25 @@ class InteractionDataset:
             "info": self.info,
         }
 
-    def save(self, path: Path | str) -> None:
-        """Write a compressed .npz, byte-for-byte reproducible (fixed zip timestamps and order)."""
-        path = Path(path)
+    def save(self, path: Path | str, replace: bool = True) -> None:
+        """Write a compressed .npz, byte-for-byte reproducible (fixed zip timestamps and order), atomically (through a
+        temporary name of its own); without `replace`, an existing file is refused (outputs.write_files)."""
+        from imm_model.outputs import write_atomic
+
         arrays = {name: np.ascontiguousarray(getattr(self, name)) for name in _ARRAYS}
         arrays["metadata"] = np.frombuffer(json.dumps(self.metadata(), sort_keys=True).encode(), dtype=np.uint8)
-        tmp = path.with_suffix(path.suffix + ".tmp")
-        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=9) as zf:
-            for name in sorted(arrays):
-                buf = io.BytesIO()
-                np.lib.format.write_array(buf, arrays[name], allow_pickle=False)
-                zi = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-                zi.compress_type = zipfile.ZIP_DEFLATED
-                zi.external_attr = 0o644 << 16
-                zf.writestr(zi, buf.getvalue(), compresslevel=9)
-        tmp.replace(path)
+
+        def write(tmp: Path) -> None:
+            with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=9) as zf:
+                for name in sorted(arrays):
+                    buf = io.BytesIO()
+                    np.lib.format.write_array(buf, arrays[name], allow_pickle=False)
+                    zi = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+                    zi.compress_type = zipfile.ZIP_DEFLATED
+                    zi.external_attr = 0o644 << 16
+                    zf.writestr(zi, buf.getvalue(), compresslevel=9)
+
+        write_atomic(path, write, replace)
 
     @classmethod
     def load(cls, path: Path | str) -> InteractionDataset:

@@ -9,6 +9,7 @@ fall back to the motion-energy rule.
 
 from __future__ import annotations
 
+import io
 import struct
 import zlib
 from pathlib import Path
@@ -20,6 +21,7 @@ from imm_model.data.loading import LoadResult, load_many
 from imm_model.data.sbu import normalized_to_metres
 from imm_model.data.sequence import Interaction, check_world_positions
 from imm_model.errors import DataFormatError
+from imm_model.inputs import read_input, read_input_text
 
 K3HI_CLASSES: tuple[str, ...] = (
     "approaching", "departing", "exchanging", "kicking", "pointing", "punching", "pushing", "shaking",
@@ -38,17 +40,15 @@ def read_mat_skeleton(path: Path) -> np.ndarray:
     from scipy.io import loadmat, whosmat
 
     try:
-        size = path.stat().st_size
-        if size > MAX_BYTES:
-            raise DataFormatError(f"{path}: {size / 1e6:.1f} MB; K3HI skeleton files up to {MAX_BYTES / 1e6:.0f} MB are read")
-        _check_inflated_sizes(path, path.read_bytes())
-        declared = dict((name, shape) for name, shape, _ in whosmat(str(path)))  # the headers only, nothing allocated
+        data = read_input(path, "K3HI skeleton file", MAX_BYTES)
+        _check_inflated_sizes(path, data)
+        declared = dict((name, shape) for name, shape, _ in whosmat(io.BytesIO(data)))  # the headers only, nothing allocated
         if "curve_B" not in declared:
             raise DataFormatError(f"{path}: no 'curve_B' variable (found {sorted(declared)[:10]})")
         shape = declared["curve_B"]
         if len(shape) != 2 or shape[0] != 45 or not 0 < shape[1] <= MAX_FRAMES:
             raise DataFormatError(f"{path}: curve_B has shape {shape}, expected (45, T) with T in 1..{MAX_FRAMES}")
-        mat = loadmat(str(path), variable_names=["curve_B"])
+        mat = loadmat(io.BytesIO(data), variable_names=["curve_B"])
     except DataFormatError:
         raise
     except FileNotFoundError:
@@ -93,7 +93,7 @@ def read_actor_lists(root: Path) -> dict[str, str]:
         path = root / name
         if not path.exists():
             continue
-        for line in path.read_text().splitlines():
+        for line in read_input_text(path, "K3HI actor list", MAX_BYTES).splitlines():
             parts = line.split()
             if len(parts) != 2:
                 continue
@@ -164,7 +164,7 @@ def read_split_lists(root: Path) -> dict[str, str]:
         path = root / f"{name}.txt"
         if not path.exists():
             raise DataFormatError(f"{path}: K3HI split list not found")
-        for line in path.read_text().splitlines():
+        for line in read_input_text(path, "K3HI split list", MAX_BYTES).splitlines():
             parts = line.split()
             if len(parts) == 2:
                 first = Path(parts[0])

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from imm_model.errors import DataFormatError
+from imm_model.inputs import check_input
 
 NUMERIC_KINDS = "biuf"  # bool, signed and unsigned integers, floats
 
@@ -26,9 +27,7 @@ def read_npz(path: Path, names: Iterable[str], max_bytes: int, what: str) -> dic
     in that message: "leader", "interaction bundle")."""
     path = Path(path)
     try:
-        size = path.stat().st_size
-        if size > max_bytes:
-            raise DataFormatError(f"{path}: {size / 1e6:.1f} MB; {what} files up to {max_bytes / 1e6:.0f} MB are read")
+        check_input(path, f"{what} file", max_bytes)
         if not zipfile.is_zipfile(path):
             raise DataFormatError(f"{path}: unreadable .npz (not a zip of .npy arrays)")
         with zipfile.ZipFile(path) as zf:

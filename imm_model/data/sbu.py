@@ -10,6 +10,7 @@ Z = 10000 z / 7.8125. We expose metres (Y up) and keep the normalized units reac
 from __future__ import annotations
 
 import csv
+import io
 import re
 from pathlib import Path
 
@@ -19,6 +20,7 @@ from imm_model.data.leader import LeaderChoice, actor_by_motion_energy, check_le
 from imm_model.data.loading import LoadResult, load_many
 from imm_model.data.sequence import Interaction, check_world_positions
 from imm_model.errors import DataFormatError
+from imm_model.inputs import read_input, read_input_text
 
 SBU_CLASSES: dict[str, str] = {
     "01": "approaching",
@@ -61,14 +63,9 @@ def parse_skeleton_file(path: Path | str) -> tuple[np.ndarray, np.ndarray]:
     """
     path = Path(path)
     try:
-        size = path.stat().st_size
-        if size > MAX_BYTES:
-            raise DataFormatError(f"{path}: {size / 1e6:.1f} MB; skeleton files up to {MAX_BYTES / 1e6:.0f} MB are read")
-        text = path.read_bytes().decode("ascii")
+        text = read_input(path, "skeleton file", MAX_BYTES).decode("ascii")
     except UnicodeDecodeError as err:
         raise DataFormatError(f"{path}: not a text file ({err.reason} at byte {err.start})") from None
-    except OSError as err:
-        raise DataFormatError(f"{path}: cannot read ({err.strerror})") from None
     lines = [(i + 1, line) for i, line in enumerate(text.splitlines()) if line.strip()]
     if not lines:
         raise DataFormatError(f"{path}: empty file (no frames)")
@@ -111,8 +108,8 @@ def read_actor_assignment(root: Path) -> dict[str, str]:
     path = root / ACTOR_CSV
     if not path.exists():
         return {}
-    with path.open(newline="") as f:
-        return {row["sbu_sequence"]: row["actor_in_raw_file"] for row in csv.DictReader(f)}
+    text = read_input_text(path, "actor assignment", MAX_BYTES)
+    return {row["sbu_sequence"]: row["actor_in_raw_file"] for row in csv.DictReader(io.StringIO(text, newline=""))}
 
 
 def sbu_sequence_files(root: Path) -> list[Path]:

@@ -19,9 +19,9 @@ from pathlib import Path
 
 # Lowest first. A unit is a top-level module or package of imm_model (its submodules with it), or the studio.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    # what every layer uses: errors, paths, typed configs, checkpoint files, atomic outputs, the device choice
+    # what every layer uses: errors, paths, typed configs, checkpoint files, checked inputs, atomic outputs, the device choice
     ("foundation", ("imm_model", "imm_model.errors", "imm_model.paths", "imm_model.typed_config", "imm_model.device",
-                    "imm_model.checkpoint", "imm_model.outputs")),
+                    "imm_model.checkpoint", "imm_model.outputs", "imm_model.inputs")),
     # skeletons, datasets and their readers, splits, and the geometry of poses
     ("data", ("imm_model.skeleton", "imm_model.data", "imm_model.contact", "imm_model.cleanup",
               "imm_model.interaction_file")),

@@ -47,13 +47,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _options(args: argparse.Namespace):
     from imm_model.checkpoint import final_checkpoint
     from imm_model.evaluation.loso import EvalOptions
+    from imm_model.inputs import MAX_SETTINGS_BYTES, read_input_text
     from imm_model.model.classifier_config import FOLLOWER, FOLLOWER_JUDGE, INTERACTION, LOWER_JUDGE, UPPER_JUDGE, ClassifierConfig
 
     overrides = {}
     if args.classifier_config is not None:
+        text = read_input_text(args.classifier_config, "classifier config", MAX_SETTINGS_BYTES)
         try:
-            overrides = json.loads(args.classifier_config.read_text())
-        except (OSError, json.JSONDecodeError, RecursionError) as err:
+            overrides = json.loads(text)
+        except (json.JSONDecodeError, RecursionError) as err:
             raise ValueError(f"{args.classifier_config}: unreadable classifier config ({type(err).__name__})") from None
         if not isinstance(overrides, dict):
             raise ValueError(f"{args.classifier_config}: a classifier config is a JSON object")
@@ -99,6 +101,7 @@ def _jobs(args: argparse.Namespace, subjects: list[str]) -> list[tuple[Path, str
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     import torch
 
+    from imm_model.cache import cache_dir
     from imm_model.data.dataset import InteractionDataset
     from imm_model.data.splits import all_subjects
     from imm_model.evaluation.loso import evaluate_fold
@@ -109,6 +112,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA
 
     torch.set_num_threads(2)
+    cache_dir()  # an unusable cache folder is refused before any classifier or baseline is trained for it
     data = InteractionDataset.load(args.data or SAMPLE_DATA)
     if args.run is None and args.checkpoint is None:
         args.checkpoint = SAMPLE_CHECKPOINT

@@ -15,10 +15,11 @@ from typing import Any
 from imm_model.errors import CheckpointError
 from imm_model.families import diffusion, gan, retrieval
 from imm_model.families.base import Family, ReactionModel
+from imm_model.families.output_check import check_model_outputs
+from imm_model.inputs import MAX_SETTINGS_BYTES, read_input_text
 
 FAMILIES: dict[str, Family] = {f.name: f for f in (gan.FAMILY, diffusion.FAMILY, retrieval.FAMILY)}
 LEGACY_FAMILY = "gan"  # checkpoints saved before sidecars named their family hold the paper's GAN
-MAX_RECIPE_BYTES = 1_000_000  # a recipe JSON file
 
 
 def load_model(path: Path | str | None = None, device: str = "cpu") -> ReactionModel:
@@ -32,7 +33,7 @@ def load_model(path: Path | str | None = None, device: str = "cpu") -> ReactionM
     name = meta.get("family", LEGACY_FAMILY)
     if name not in FAMILIES:
         raise CheckpointError(f"{path}: sidecar family {str(name)[:40]!r} is none of {', '.join(FAMILIES)}")
-    return FAMILIES[name].model_class().from_checkpoint(arrays, meta, path, device)
+    return check_model_outputs(FAMILIES[name].model_class().from_checkpoint(arrays, meta, path, device))
 
 
 def recipe_names() -> list[str]:
@@ -57,7 +58,7 @@ def load_recipe(name_or_path: str, **overrides: Any) -> tuple[Family, Any]:
         if name_or_path in family.recipes():
             return family, _overridden(family, family.recipes()[name_or_path], overrides)
     path = Path(name_or_path)
-    if not path.is_file():
+    if not path.exists():
         raise ValueError(f"unknown config {name_or_path!r}: not one of {', '.join(recipe_names())} nor a JSON file")
     d = _read_recipe(path)
     base_name = d.pop("base", None)
@@ -91,10 +92,8 @@ def _overridden(family: Family, config, overrides: dict[str, Any]):
 
 def _read_recipe(path: Path) -> dict:
     try:
-        if path.stat().st_size > MAX_RECIPE_BYTES:
-            raise ValueError(f"{path}: a recipe file of {path.stat().st_size} bytes (at most {MAX_RECIPE_BYTES})")
-        d = json.loads(path.read_text())
-    except (json.JSONDecodeError, RecursionError, UnicodeDecodeError, OSError) as err:
+        d = json.loads(read_input_text(path, "config", MAX_SETTINGS_BYTES))  # a regular file, within the bound
+    except (json.JSONDecodeError, RecursionError) as err:
         where = f"{err.msg} at line {err.lineno}" if isinstance(err, json.JSONDecodeError) else type(err).__name__
         raise ValueError(f"{path}: invalid JSON ({where})") from None
     if not isinstance(d, dict):

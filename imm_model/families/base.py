@@ -13,7 +13,8 @@ that picks among reactions, a spread, a reaction memory).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+import contextlib
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -154,6 +155,17 @@ class ReactionModel:
         twin = copy.copy(self)
         twin.fast = None
         return twin
+
+    @contextlib.contextmanager
+    def probing(self) -> Iterator[ReactionModel]:
+        """The model set for a cheap look at its outputs (the range check at load, output_check.py): no clean-up; a
+        family may cut its cost further (the diffusion model samples in one step)."""
+        raw = self.raw
+        self.raw = True
+        try:
+            yield self
+        finally:
+            self.raw = raw
 
     # ---- settings a family may have -------------------------------------------------------
     @property

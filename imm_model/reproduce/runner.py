@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import signal
+import socket
 import sys
 import threading
 import time
@@ -20,6 +21,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from tqdm import tqdm
+
+from imm_model.errors import IMMError
 
 
 @dataclass(frozen=True)
@@ -57,6 +60,19 @@ def _end_with(parent: int) -> None:
     threading.Thread(target=watch, name="end-with-reproduce", daemon=True).start()
 
 
+def _check_reachable(address: str, seconds: float = 5.0) -> None:
+    """A cluster address that nothing answers at is refused within `seconds` (ray.init would retry it for minutes,
+    printing warnings). "auto" and other addresses without a port are left to Ray."""
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=seconds).close()
+    except OSError as err:
+        raise IMMError(f"--address {address}: nothing answers there ({err.strerror or type(err).__name__}); "
+                       f"start the cluster (ray start --head) or give its address") from None
+
+
 def ray_available() -> bool:
     try:
         import ray  # noqa: F401
@@ -73,8 +89,10 @@ class Runner:
             raise ValueError(f"backend must be auto, ray or local, not {backend!r}")
         if cpus_per_task < 1:
             raise ValueError(f"cpus per task must be >= 1, not {cpus_per_task}")
+        self.why_local = "--backend local"
         if backend == "auto":
             backend = "ray" if ray_available() else "local"
+            self.why_local = "Ray is not installed; pip install -e '.[cluster]' to use it"
         if backend == "ray" and not ray_available():
             raise ValueError("Ray is not installed: pip install -e '.[cluster]' (or run without --address)")
         if backend == "local" and address:
@@ -89,15 +107,23 @@ class Runner:
         if self.backend == "ray":
             import ray
 
-            ray.init(address=self.address, include_dashboard=False, log_to_driver=False, configure_logging=False,
-                     **({} if self.address else {"num_cpus": os.cpu_count()}))
+            if self.address:
+                _check_reachable(self.address)
+            try:
+                ray.init(address=self.address, include_dashboard=False, log_to_driver=False, configure_logging=False,
+                         **({} if self.address else {"num_cpus": os.cpu_count()}))
+            except ConnectionError as err:
+                raise IMMError(f"--address {self.address}: no Ray cluster to join ({str(err).splitlines()[0][:200]})") from None
+            # Ray's core worker puts its own SIGTERM handler in place, which prints a crash report and aborts: ours
+            # again, so a SIGTERM unwinds as Ctrl-C does and Ray is shut down
+            signal.signal(signal.SIGTERM, _interrupt)
             self.width = max(1, int(ray.cluster_resources().get("CPU", 1)) // self.cpus)
             where = f"the Ray cluster at {self.address}" if self.address else "a local Ray"
         else:
             import multiprocessing
 
             self._pool = multiprocessing.get_context("spawn").Pool(self.width, _end_with, (os.getpid(),), maxtasksperchild=1)
-            where = "local processes (Ray is not installed; pip install -e '.[cluster]' to use it)"
+            where = f"local processes ({self.why_local})"
         print(f"running on {where}: {self.width} jobs at a time, {self.cpus} CPU each", file=sys.stderr, flush=True)
         return self
 
@@ -152,7 +178,9 @@ class Runner:
         remote = ray.remote(num_cpus=self.cpus)(_call)
 
         def wait(running: dict):
-            ready, _ = ray.wait(list(running), num_returns=1)
+            ready: list = []
+            while not ready:  # back in Python every fraction of a second, where a SIGTERM or Ctrl-C is handled
+                ready, _ = ray.wait(list(running), num_returns=1, timeout=0.2)
             return ready[0], ray.get(ready[0])
 
         return (lambda t: remote.remote(t.fn, t.args)), wait

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
 from dataclasses import replace
 from pathlib import Path
@@ -148,6 +149,17 @@ class DiffusionReactionModel(ReactionModel):
                   for a, w, s in zip(leaders, labels, seeds, strict=True)]
         x, mask = self._padded(starts)
         return (x - self.weights["follower_mean"]) / self.weights["follower_std"] * mask[..., None]
+
+    @contextlib.contextmanager
+    def probing(self):
+        """One sampler step from pure noise: the reaction's placement without the sampler's cost."""
+        guidance = self.guidance
+        self.guidance = replace(guidance, sample_steps=1, memory_level=1.0)
+        try:
+            with super().probing():
+                yield self
+        finally:
+            self.guidance = guidance
 
     def use_memory(self, level: float, data) -> None:
         """Start the sampler from real reactions to similar leaders (the reaction memory of `data`'s pairs the model was
