@@ -423,6 +423,66 @@ def test_a_sliders_variations_can_wait_for_its_first_picture(two_models):
 
 
 @pytest.fixture(scope="module")
+def retrieval(sample_data):
+    from explorer.session.session import load_model
+    from imm_model.paths import SAMPLE_RETRIEVAL
+
+    if not SAMPLE_RETRIEVAL.exists():
+        pytest.skip(f"bundled retrieval model missing: {SAMPLE_RETRIEVAL}")
+    return load_model(SAMPLE_RETRIEVAL, sample_data)
+
+
+def test_compared_models_followers_are_each_models_own_synthesis(sample_data, model, diffusion, retrieval):
+    """Other models beside the current one: each one's follower is what it draws as the current model, and they follow
+    the sequence, the mix, the seed and the clean-up; a slider's wait with the variations."""
+    from explorer.session.session import Session
+
+    model.raw = diffusion.raw = retrieval.raw = False
+    ses = Session(sample_data, {"gan": model, "diffusion": diffusion, "retrieval": retrieval}, index=3)
+    ses.set_compared(["retrieval", "diffusion", "gan"])  # the current one among them is drawn once, as `synth`
+    assert ses.compared == ("gan", "diffusion", "retrieval") and ses.compared_names == ("diffusion", "retrieval")
+    ses.set_seed(7)
+    ses.set_label(np.eye(6)[2] * 0.5 + np.eye(6)[4], scale=1.2)
+    ses.select(5, match_label=False)
+    ses.set_cleanup(False)
+    drawn = {name: f.copy() for name, f in ses.compared_followers.items()}
+    assert set(drawn) == {"diffusion", "retrieval"} and ses.compared_caption("diffusion") == "the diffusion model\nseed 7"
+    assert ses.compared_caption("retrieval") == "1-NN retrieval"
+    gan = ses.synth.copy()
+    for name in ("diffusion", "retrieval"):
+        ses.set_model(name)
+        np.testing.assert_allclose(drawn[name], ses.synth, atol=1e-5)
+        assert name not in ses.compared_names and "gan" in ses.compared_followers
+        np.testing.assert_allclose(ses.compared_followers["gan"], gan, atol=1e-5)
+    ses.set_model("gan")
+    assert np.abs(drawn["diffusion"] - drawn["retrieval"]).mean() > 0.01
+    ses.set_label(np.eye(6)[1], variations=False)  # a slider: the others follow with the variations
+    assert ses.variations_due
+    np.testing.assert_array_equal(ses.compared_followers["diffusion"], drawn["diffusion"])
+    ses.draw_variations()
+    np.testing.assert_allclose(ses.compared_followers["diffusion"],
+                               diffusion.synthesize_canonical(ses.leader, ses.label_vector(), seed=7), atol=1e-5)
+    with pytest.raises(ValueError, match="compare: no model 'flow'; this studio has gan, diffusion, retrieval"):
+        ses.set_compared(["diffusion", "flow"])
+    assert ses.compared == ("gan", "diffusion", "retrieval")
+    ses.set_compared([])
+    assert ses.compared_followers == {}
+    ses.set_cleanup(True)
+
+
+def test_a_link_carries_the_compared_models():
+    from explorer.ui.url_state import parse_view, view_query
+
+    query = view_query({"seq": "s01s02/03/001", "weights": {"kicking": 1.0}, "compare": "diffusion,retrieval"})
+    assert query.endswith("&compare=diffusion,retrieval")
+    models = ("gan", "diffusion", "retrieval")
+    assert parse_view(query, ("kicking",), {"s01s02/03/001"}, (), models)[0]["compare"] == ["diffusion", "retrieval"]
+    assert parse_view("?compare=flow", (), set(), (), models)[1] == ["compare: model 'flow' is not one of gan, diffusion, retrieval"]
+    assert parse_view("?compare=a,b,c,d", (), set(), (), "abcde")[1] == ["compare: at most 3 models, not 4"]
+    assert parse_view("?compare=gan,gan", (), set(), (), models)[0]["compare"] == ["gan"]
+
+
+@pytest.fixture(scope="module")
 def spreading(sample_data, tmp_path_factory):
     """A tiny diffusion model trained a few steps with noised leaders (real data; its reactions are not results)."""
     from dataclasses import replace

@@ -403,6 +403,7 @@ class Studio:
     # ---- view ----------------------------------------------------------------------------
     def on_layout_change(self, scene_layout, **_):
         self.scene.set_layout(scene_layout)
+        self.state.view_captions = self.scene.captions_shown()
         self.ctrl.view_update()
 
     def hover_joint(self, where) -> None:
@@ -422,7 +423,7 @@ class Studio:
         seq, f = scene.sequences[key], scene.frame
         before, after = max(0, f - 1), min(len(seq) - 1, f + 1)
         speed = float(np.linalg.norm(seq[after, j] - seq[before, j])) * FPS / max(1, after - before)
-        figure = CHARACTER_TITLES.get(key, key.replace("_", " "))
+        figure = CHARACTER_TITLES.get(key) or scene.captions[key].input.replace("\n", " · ")
         joint = self.session.data.skeleton.joint_names[j].replace("_", " ")
         s.joint_hover = {"text": f"{figure} · {joint} · {speed:.2f} m/s", "x": round(100 * x, 2), "y": round(100 * y, 2)}
 
