@@ -647,3 +647,42 @@ def test_the_spread_slider_redraws_the_follower_and_enters_the_link(page):
     probe.wait_state(page, "s.get('model_name') === 'gan' && !s.get('spread_available') && !s.get('computing')")
     page.wait_for_selector("#spread-row", state="detached", timeout=5000)
     assert "spread=" not in probe.state(page, "url_query")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("width,height", [(1366, 768), (1280, 720)])
+def test_other_models_followers_beside_the_current_one_at_laptop_size_and_in_the_link(browser, studio, width, height):
+    """At laptop sizes, "compare with" draws the diffusion model's and the retrieval baseline's followers beside the GAN's,
+    side by side, each under its model's caption (the seeded one's with its seed); the link carries the choice and
+    opens the same comparison in a new tab."""
+    from explorer.rendering.palette import COMPARED
+
+    captions = ["the diffusion model\nseed 0", "1-NN retrieval"]
+    page = probe.open_studio(browser, studio.url, width, height, timeout_ms=90000)
+    other = None
+    try:
+        for name in ("diffusion", "retrieval"):
+            button = page.locator(f"#compare-{name}")
+            box = button.bounding_box()
+            assert box and box["x"] >= 0 and box["x"] + box["width"] <= 330, (name, box)  # inside the drawer
+            button.click()
+            probe.wait_state(page, f"s.get('compare_models').includes('{name}') && !s.get('computing')", 60000)
+        probe.wait_state(page, f"s.get('scene_layout') === 'side_by_side' && {captions!r}.every("
+                               "c => s.get('view_captions').includes(c))", 60000)
+        shown = probe.state(page, "view_captions")
+        assert "the paper's GAN" in shown[2] and shown[-2:] == captions, shown
+        probe.wait_state(page, "s.get('url_query').includes('compare=diffusion,retrieval')", 30000)
+        page.wait_for_function("() => location.search.includes('compare=diffusion,retrieval')", timeout=30000)
+        deadline = time.monotonic() + 30  # the other models' followers reach the picture
+        while probe.count_colors(probe.view_pixels(page), [COMPARED])[0] < 300 and time.monotonic() < deadline:
+            page.wait_for_timeout(200)
+        assert probe.count_colors(probe.view_pixels(page), [COMPARED])[0] >= 300
+        probe.shot(page, f"studio-compare-models-{width}x{height}")
+
+        other = probe.open_studio(browser, studio.url + probe.state(page, "url_query"), width, height, timeout_ms=90000)
+        probe.wait_state(other, f"{captions!r}.every(c => s.get('view_captions').includes(c))", 60000)
+        assert probe.state(other, "compare_models") == ["diffusion", "retrieval"]
+    finally:
+        page.close()
+        if other is not None:
+            other.close()

@@ -216,16 +216,17 @@ def model_panel(session: Session) -> None:
             for name in session.models:
                 v3.VBtn(session.model_title(name), value=name, size="x-small", id=f"model-{name}",
                         click=f"if (model_name !== '{name}') {{ computing = true; model_name = '{name}'; }}")
-        # other models' followers beside the current one's (the current model's button is off: it is drawn already)
-        with html.Div(classes="d-flex align-center flex-wrap mb-2", style="gap: 6px", id="compare-row",
+        # other models' followers beside the current one's (the current model's chip is off: it is drawn already); chips
+        # wrap in the drawer's width, where a button row would scroll its ends out of sight
+        with html.Div(classes="mb-2", id="compare-row",
                       title="draw these models' followers beside the current one's, for the same leader, mix and seed"):
             html.Div("compare with", classes="text-body-2")
-            with v3.VBtnToggle(model_value=("compare_models",), multiple=True, max=MAX_COMPARED, density="compact",
-                               variant="outlined", divided=True, color="teal", id="compare-models",
+            with v3.VChipGroup(model_value=("compare_models",), multiple=True, max=MAX_COMPARED, column=True,
+                               selected_class="text-teal-darken-2", id="compare-models",
                                update_modelValue="computing = true; compare_models = $event"):
                 for name in session.models:
-                    v3.VBtn(session.model_title(name), value=name, size="x-small", id=f"compare-{name}",
-                            disabled=(f"model_name === '{name}'",))
+                    v3.VChip(session.model_title(name), value=name, size="small", filter=True, variant="outlined",
+                             id=f"compare-{name}", disabled=(f"model_name === '{name}'",))
     with html.Div(v_if="seeded", classes="mb-2", id="variation-controls"):
         with html.Div(classes="d-flex align-center mb-1", style="gap: 6px"):
             v3.VTextField(v_model=("seed",), label="seed", type="number", min=0, density="compact", hide_details=True,
