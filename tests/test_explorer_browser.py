@@ -268,9 +268,10 @@ def test_play_advances_frames(page):
 
 def test_playback_sends_a_picture_once_the_page_showed_the_one_before_drafts_while_playing_full_size_paused(page):
     """explorer/rendering/view_stream.py: while the page does not report a picture shown, the view holds the next
-    (at most one a ACK_TIMEOUT_S); reported, it plays on; playing, its pictures are drafts (DRAFT_SCALE of the view's
-    width, stretched over it), and once paused a full-size one follows."""
-    from explorer.rendering.view_stream import ACK_TIMEOUT_S, DRAFT_SCALE
+    (at most one a ACK_TIMEOUT_S); reported, it plays on; playing, its pictures are PLAYBACK_SCALE of the view's width
+    (stretched over it), and once paused a full-size one follows."""
+    from explorer.rendering.view_stream import ACK_TIMEOUT_S
+    from explorer.ui.playback import PLAYBACK_SCALE
 
     # pictures reaching the page (trame-rca makes a blob URL for each); a switch that keeps the view's image loads
     # from the view's acknowledgement (a capture listener on the document runs before the view's own; an element's
@@ -304,7 +305,7 @@ def test_playback_sends_a_picture_once_the_page_showed_the_one_before_drafts_whi
     assert muted <= seconds / ACK_TIMEOUT_S + 2 < acknowledged, (muted, acknowledged)
     sizes = page.evaluate("() => window.__playSizes")
     playing = [(n, w) for n, w, p in sizes if p]
-    assert len(playing) >= 5 and all(abs(n - round(w * DRAFT_SCALE)) <= 1 for n, w in playing), sizes
+    assert len(playing) >= 5 and all(abs(n - round(w * PLAYBACK_SCALE)) <= 1 for n, w in playing), sizes
 
 
 def test_export_bvh_downloads_a_file_that_reimports(page, tmp_path):

@@ -192,6 +192,10 @@ def test_playback_speed_from_the_page_is_clamped():
     from explorer.ui.playback import playback_speed
 
     assert playback_speed(1.5) == 1.5 and playback_speed(None) == 1.0 and playback_speed("x") == 1.0
+    from explorer.ui.playback import MIN_PLAYBACK_SCALE, PLAYBACK_SCALE, playback_scale
+
+    assert playback_scale(0.75) == 0.75 and playback_scale(7) == 1.0 and playback_scale(0) == MIN_PLAYBACK_SCALE
+    assert playback_scale(None) == playback_scale(float("nan")) == playback_scale("x") == PLAYBACK_SCALE
     assert playback_speed(1e-300) == 0.25 and playback_speed(-2) == 0.25 and playback_speed(1e9) == 2.0
     assert playback_speed(float("nan")) == 1.0
 

@@ -26,7 +26,7 @@ from explorer.ui.latent_panel import LatentPanel
 from explorer.ui.layout import LayoutParts, build_layout
 from explorer.ui.model_switch import ModelSwitch
 from explorer.ui.panel_api import Page
-from explorer.ui.playback import play
+from explorer.ui.playback import PLAYBACK_SCALE, play, playback_scale
 from explorer.ui.reads_as_panel import reads_as_rows, unread_note
 from explorer.ui.review_panel import ReviewPanel
 from explorer.ui.url_state import apply_view, current_view, view_query
@@ -99,6 +99,7 @@ class Studio:
                 "time_text": "",
                 "playing": False,
                 "speed": 1.0,
+                "playback_scale": PLAYBACK_SCALE,  # the view's size while playing (benchmarks/explorer_latency.py sets it)
                 "loop": True,
                 "scale": 1.0,
                 "label_text": "",
@@ -365,7 +366,8 @@ class Studio:
 
     def on_frame_change(self, frame, **_):
         self.scene.set_frame(int(frame or 0))
-        self.ctrl.view_update(draft=bool(self.state.playing))  # playback's pictures are drafts; the still one is full size
+        # playback's pictures at PLAYBACK_SCALE of the view's size; the still one is full size
+        self.ctrl.view_update(draft=bool(self.state.playing), scale=playback_scale(self.state.playback_scale))
         self._update_time()
 
     async def picture_encoded(self) -> bool:
@@ -457,12 +459,12 @@ class Studio:
         if self._url_opened and not self.state.playing:
             self.state.url_query = view_query(current_view(self))
 
-    def push_view(self, draft: bool = False, **_):
+    def push_view(self, draft: bool = False, **kwargs):
         """Send a new picture (moving points or toggling actors does not touch the render window, which the local
-        view's geometry export checks: mark it); `draft`: a streamed view's first picture at reduced size (the local
-        view, vtk.js, ignores it)."""
+        view's geometry export checks: mark it); `draft`: a streamed view's first picture at reduced size, `scale` of
+        it (the local view, vtk.js, ignores both)."""
         self.scene.render_window.Modified()
-        self._view.update(draft=draft)
+        self._view.update(draft=draft, **kwargs)
 
     # ---- layout --------------------------------------------------------------------------
     def attach_view(self, view) -> None:
