@@ -188,16 +188,14 @@ def test_reads_as_centres_a_start_centred_conv_classifier(sample_data, tmp_path)
                                reader.probabilities(follower), atol=1e-5)
 
 
-def test_playback_speed_from_the_page_is_clamped():
-    from explorer.ui.playback import playback_speed
+def test_playback_speed_and_picture_size_from_the_page_are_clamped():
+    from explorer.ui.playback import MIN_PLAYBACK_SCALE, PLAYBACK_SCALE, playback_scale, playback_speed
 
     assert playback_speed(1.5) == 1.5 and playback_speed(None) == 1.0 and playback_speed("x") == 1.0
-    from explorer.ui.playback import MIN_PLAYBACK_SCALE, PLAYBACK_SCALE, playback_scale
-
-    assert playback_scale(0.75) == 0.75 and playback_scale(7) == 1.0 and playback_scale(0) == MIN_PLAYBACK_SCALE
-    assert playback_scale(None) == playback_scale(float("nan")) == playback_scale("x") == PLAYBACK_SCALE
     assert playback_speed(1e-300) == 0.25 and playback_speed(-2) == 0.25 and playback_speed(1e9) == 2.0
     assert playback_speed(float("nan")) == 1.0
+    assert playback_scale(0.75) == 0.75 and playback_scale(7) == 1.0 and playback_scale(0) == MIN_PLAYBACK_SCALE
+    assert playback_scale(None) == playback_scale(float("nan")) == playback_scale("x") == PLAYBACK_SCALE
 
 
 def test_uploaded_leader_has_no_ground_truth_and_bad_files_change_nothing(session, sample_data, tmp_path):
