@@ -17,7 +17,8 @@ back, and sent once the page reports that one shown (the view's image `load`, ac
 hands each arriving picture to its <img> at once, and a new `src` cancels a load still going: on a busy 2-core machine,
 pictures sent at 30/s were mostly cancelled (the page showed 6-8 a second). Playback sets its next frame as soon as
 this one's picture is encoded (explorer/ui/playback.py), so the next renders while the page shows this one, and
-its pictures are drafts (DRAFT_SCALE, stretched by the page; the still picture after it stops is full size).
+its pictures are drafts (at explorer/ui/playback.py's PLAYBACK_SCALE, stretched by the page; the still picture
+after it stops is full size).
 """
 
 from __future__ import annotations

@@ -25,7 +25,7 @@ UNPACED_PER_S = 30 if (os.cpu_count() or 1) >= 4 else 15
 # Playback's pictures at this fraction of the view's width and height, stretched by the page (the still picture
 # when it stops is full size): the sharpest that kept ~30 pictures a second at 2x (benchmarks/explorer_latency.py
 # --playback-only measures each size back to back).
-PLAYBACK_SCALE = 0.5
+PLAYBACK_SCALE = 0.6
 MIN_PLAYBACK_SCALE = 0.25
 
 
