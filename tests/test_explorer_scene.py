@@ -162,6 +162,15 @@ def test_other_models_followers_stand_right_of_the_variations_captioned_and_foll
         assert _count(scene.screenshot(), COMPARED) > 100
         scene.set_frame(5)
         np.testing.assert_allclose(np.asarray(scene.figures["compared_2"].poly.points), synth[::-1][5], atol=1e-6)
+        scene.render()  # the mouse over one of its joints names it (the page's hover)
+        pose = synth[::-1][5]
+        j = int(np.argmax(np.linalg.norm(pose - pose[scene.skeleton.root], axis=-1)))  # a limb's end, apart from others
+        point = scene.figures["compared_2"].actors[0].GetMatrix().MultiplyPoint((*map(float, pose[j]), 1.0))[:3]
+        scene.renderer.SetWorldPoint(*point, 1.0)
+        scene.renderer.WorldToDisplay()
+        dx, dy, _ = scene.renderer.GetDisplayPoint()
+        width, height = scene.render_window.GetSize()
+        assert scene.joint_at(dx / width, 1.0 - dy / height) == ("compared_2", j)
         scene.set_compared(others[:1])
         assert not scene.figures["compared_2"].actors[0].GetVisibility() and scene.captions_shown()[-1] == others[0][0]
     finally:

@@ -15,7 +15,7 @@ from trame.app import asynchronous
 
 from explorer.rendering import charts
 from explorer.rendering.palette import CHARACTER_TITLES, class_color, display_name
-from explorer.rendering.scene import CHARACTER_KEYS, Scene, floor_height
+from explorer.rendering.scene import CHARACTER_KEYS, COMPARED_KEYS, Scene, floor_height
 from explorer.session.latent import LatentMap
 from explorer.session.session import FPS, Session, one_line
 from explorer.trame_adapter import attachment
@@ -425,7 +425,9 @@ class Studio:
         seq, f = scene.sequences[key], scene.frame
         before, after = max(0, f - 1), min(len(seq) - 1, f + 1)
         speed = float(np.linalg.norm(seq[after, j] - seq[before, j])) * FPS / max(1, after - before)
-        figure = CHARACTER_TITLES.get(key) or scene.captions[key].input.replace("\n", " · ")
+        # another model's follower is named as its caption names it ("the diffusion model · seed 7")
+        figure = (scene.captions[key].input.replace("\n", " · ") if key in COMPARED_KEYS
+                  else CHARACTER_TITLES.get(key, key.replace("_", " ")))
         joint = self.session.data.skeleton.joint_names[j].replace("_", " ")
         s.joint_hover = {"text": f"{figure} · {joint} · {speed:.2f} m/s", "x": round(100 * x, 2), "y": round(100 * y, 2)}
 
