@@ -2,7 +2,8 @@
 
     .venv/bin/python benchmarks/explorer_latency.py [--trials 40] [--play-seconds 5] [--json out.json] [--checkpoint CK]
     .venv/bin/python benchmarks/explorer_latency.py --models [--trials 20]   # only 6. below
-    .venv/bin/python benchmarks/explorer_latency.py --playback-only [--play-seconds 5]   # only 3.'s page figure
+    .venv/bin/python benchmarks/explorer_latency.py --playback-only [--play-seconds 5] [--playback-scales 1,0.5] [--rounds 3]
+        # only 3.'s page figure, for each size of the pictures while playing, back to back in one page
 
 Every studio it starts serves the bundled model, or CK (a generator checkpoint, e.g. a wider recipe's).
 
@@ -272,6 +273,9 @@ def main() -> int:
     ap.add_argument("--checkpoint", type=Path, default=None, help="the one model every studio serves (default: the bundled ones)")
     ap.add_argument("--models", action="store_true", help="only the model switch's latencies (6.)")
     ap.add_argument("--playback-only", action="store_true", help="only the pictures/s the page displays at 2x (3.)")
+    ap.add_argument("--playback-scales", default="", help="with --playback-only: sizes of the pictures while playing, "
+                    "fractions of the view's (e.g. 1,0.75,0.5), each measured in turn, --rounds times")
+    ap.add_argument("--rounds", type=int, default=3, help="with --playback-scales: rounds over the sizes")
     args = ap.parse_args()
     if args.checkpoint and not args.checkpoint.is_file():
         ap.error(f"checkpoint not found: {args.checkpoint}")  # one line, before any studio or browser starts
@@ -288,7 +292,11 @@ def main() -> int:
             page = probe.open_studio(browser, studio.url, *VIEW_SIZE)
             probe.watch_view_images(page)
             probe.wait_state(page, "!s.get('projection_busy')", 180000)  # the map's fit off the cores first
-            measure_playback(page, args.play_seconds, res)
+            if args.playback_scales:
+                measure_playback_scales(page, args.play_seconds, [float(x) for x in args.playback_scales.split(",")],
+                                        args.rounds, res)
+            else:
+                measure_playback(page, args.play_seconds, res)
 
         alone = (lambda st: measure_models(browser, st, args.trials, res)) if args.models else \
             playback_alone if args.playback_only else \
@@ -324,6 +332,25 @@ def measure_playback(page, seconds: float, res: dict) -> None:
     fps, n = displayed_fps(page, seconds)
     res["displayed_fps"] = fps
     print(f"playback at 2x (30 fps target): page displayed {fps:.1f} pictures/s ({n} in {seconds:g} s)   [bar >= 28]")
+
+
+def measure_playback_scales(page, seconds: float, scales: list[float], rounds: int, res: dict) -> None:
+    """Pictures per second displayed at 2x for each size of the pictures while playing (the page's playback_scale),
+    the sizes taken in turn, round after round, so that the machine's other work weighs on each alike."""
+    from explorer.ui.playback import PLAYBACK_SCALE
+
+    runs: dict[float, list[float]] = {x: [] for x in scales}
+    for _ in range(rounds):
+        for x in scales:
+            probe.set_state(page, "playback_scale", x)
+            runs[x].append(displayed_fps(page, seconds)[0])
+    probe.set_state(page, "playback_scale", PLAYBACK_SCALE)
+    res["displayed_fps_by_scale"] = {str(x): v for x, v in runs.items()}
+    base = float(np.median(runs[scales[-1]]))
+    for x, v in runs.items():
+        m = float(np.median(v))
+        print(f"playback at 2x, pictures at {x:g} of the view's size: page displayed {m:.1f} pictures/s median of "
+              f"{', '.join(f'{f:.1f}' for f in v)} ({m / base:.2f}x of {scales[-1]:g})   [bar >= 28]")
 
 
 def measure_render(res: dict) -> None:

@@ -268,9 +268,10 @@ def test_play_advances_frames(page):
 
 def test_playback_sends_a_picture_once_the_page_showed_the_one_before_drafts_while_playing_full_size_paused(page):
     """explorer/rendering/view_stream.py: while the page does not report a picture shown, the view holds the next
-    (at most one a ACK_TIMEOUT_S); reported, it plays on; playing, its pictures are drafts (DRAFT_SCALE of the view's
-    width, stretched over it), and once paused a full-size one follows."""
-    from explorer.rendering.view_stream import ACK_TIMEOUT_S, DRAFT_SCALE
+    (at most one a ACK_TIMEOUT_S); reported, it plays on; playing, its pictures are PLAYBACK_SCALE of the view's width
+    (stretched over it), and once paused a full-size one follows."""
+    from explorer.rendering.view_stream import ACK_TIMEOUT_S
+    from explorer.ui.playback import PLAYBACK_SCALE
 
     # pictures reaching the page (trame-rca makes a blob URL for each); a switch that keeps the view's image loads
     # from the view's acknowledgement (a capture listener on the document runs before the view's own; an element's
@@ -304,7 +305,7 @@ def test_playback_sends_a_picture_once_the_page_showed_the_one_before_drafts_whi
     assert muted <= seconds / ACK_TIMEOUT_S + 2 < acknowledged, (muted, acknowledged)
     sizes = page.evaluate("() => window.__playSizes")
     playing = [(n, w) for n, w, p in sizes if p]
-    assert len(playing) >= 5 and all(abs(n - round(w * DRAFT_SCALE)) <= 1 for n, w in playing), sizes
+    assert len(playing) >= 5 and all(abs(n - round(w * PLAYBACK_SCALE)) <= 1 for n, w in playing), sizes
 
 
 def test_export_bvh_downloads_a_file_that_reimports(page, tmp_path):
@@ -647,3 +648,42 @@ def test_the_spread_slider_redraws_the_follower_and_enters_the_link(page):
     probe.wait_state(page, "s.get('model_name') === 'gan' && !s.get('spread_available') && !s.get('computing')")
     page.wait_for_selector("#spread-row", state="detached", timeout=5000)
     assert "spread=" not in probe.state(page, "url_query")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("width,height", [(1366, 768), (1280, 720)])
+def test_other_models_followers_beside_the_current_one_at_laptop_size_and_in_the_link(browser, studio, width, height):
+    """At laptop sizes, "compare with" draws the diffusion model's and the retrieval baseline's followers beside the GAN's,
+    side by side, each under its model's caption (the seeded one's with its seed); the link carries the choice and
+    opens the same comparison in a new tab."""
+    from explorer.rendering.palette import COMPARED
+
+    captions = ["the diffusion model\nseed 0", "1-NN retrieval"]
+    page = probe.open_studio(browser, studio.url, width, height, timeout_ms=90000)
+    other = None
+    try:
+        for name in ("diffusion", "retrieval"):
+            button = page.locator(f"#compare-{name}")
+            box = button.bounding_box()
+            assert box and box["x"] >= 0 and box["x"] + box["width"] <= 330, (name, box)  # inside the drawer
+            button.click()
+            probe.wait_state(page, f"s.get('compare_models').includes('{name}') && !s.get('computing')", 60000)
+        probe.wait_state(page, f"s.get('scene_layout') === 'side_by_side' && {captions!r}.every("
+                               "c => s.get('view_captions').includes(c))", 60000)
+        shown = probe.state(page, "view_captions")
+        assert "the paper's GAN" in shown[2] and shown[-2:] == captions, shown
+        probe.wait_state(page, "s.get('url_query').includes('compare=diffusion,retrieval')", 30000)
+        page.wait_for_function("() => location.search.includes('compare=diffusion,retrieval')", timeout=30000)
+        deadline = time.monotonic() + 30  # the other models' followers reach the picture
+        while probe.count_colors(probe.view_pixels(page), [COMPARED])[0] < 300 and time.monotonic() < deadline:
+            page.wait_for_timeout(200)
+        assert probe.count_colors(probe.view_pixels(page), [COMPARED])[0] >= 300
+        probe.shot(page, f"studio-compare-models-{width}x{height}")
+
+        other = probe.open_studio(browser, studio.url + probe.state(page, "url_query"), width, height, timeout_ms=90000)
+        probe.wait_state(other, f"{captions!r}.every(c => s.get('view_captions').includes(c))", 60000)
+        assert probe.state(other, "compare_models") == ["diffusion", "retrieval"]
+    finally:
+        page.close()
+        if other is not None:
+            other.close()

@@ -141,6 +141,46 @@ def test_variations_stand_right_of_the_synthesized_follower_with_their_seeds(sce
         scene.set_camera("default")
 
 
+def test_other_models_followers_stand_right_of_the_variations_captioned_and_follow_the_frame(scene):
+    """Other models' followers: side by side only, right of the synthesized follower and its variations, each in its
+    own colour under its own caption, on the same timeline; the synthesized follower's caption names its model."""
+    from explorer.rendering.palette import CHARACTER_TITLES, COMPARED
+    from explorer.rendering.scene import COMPARED_KEYS
+
+    synth = scene.sequences["synthesized"]
+    others = [("the diffusion model\nseed 7", synth + np.float32([0.0, 0.1, 0.0])), ("1-NN retrieval", synth[::-1].copy())]
+    scene.set_variations([synth, synth + np.float32([0.1, 0.0, 0.0])], [7, 8], "the paper's GAN")
+    scene.set_compared(others)
+    assert scene.captions_shown() == [] and not scene.figures["compared_1"].actors[0].GetVisibility()  # overlay
+    scene.set_layout("side_by_side")
+    try:
+        assert scene.captions_shown() == [CHARACTER_TITLES["leader"], CHARACTER_TITLES["ground_truth"],
+                                          f"{CHARACTER_TITLES['synthesized']}\nthe paper's GAN · seed 7", "seed 8",
+                                          "the diffusion model\nseed 7", "1-NN retrieval"]
+        xs = [scene.captions[k].position[0] for k in ("synthesized", "variation_1", *COMPARED_KEYS[:2])]
+        assert np.all(np.diff(xs) > 1.0), xs
+        assert _count(scene.screenshot(), COMPARED) > 100
+        scene.set_frame(5)
+        np.testing.assert_allclose(np.asarray(scene.figures["compared_2"].poly.points), synth[::-1][5], atol=1e-6)
+        scene.render()  # the mouse over one of its joints names it (the page's hover)
+        pose = synth[::-1][5]
+        j = int(np.argmax(np.linalg.norm(pose - pose[scene.skeleton.root], axis=-1)))  # a limb's end, apart from others
+        point = scene.figures["compared_2"].actors[0].GetMatrix().MultiplyPoint((*map(float, pose[j]), 1.0))[:3]
+        scene.renderer.SetWorldPoint(*point, 1.0)
+        scene.renderer.WorldToDisplay()
+        dx, dy, _ = scene.renderer.GetDisplayPoint()
+        width, height = scene.render_window.GetSize()
+        assert scene.joint_at(dx / width, 1.0 - dy / height) == ("compared_2", j)
+        scene.set_compared(others[:1])
+        assert not scene.figures["compared_2"].actors[0].GetVisibility() and scene.captions_shown()[-1] == others[0][0]
+    finally:
+        scene.set_compared([])
+        scene.set_variations([synth], None)
+        scene.set_frame(0)
+        scene.set_layout("overlay")
+        scene.set_camera("default")
+
+
 def test_exported_pictures_carry_the_legend_and_the_frame_number_and_the_view_stays_plain(scene, sample_data, tmp_path):
     """Every frame of an exported GIF carries its own number in the strip along the top (here the figures stand still,
     so only the number changes); a PNG's legend names only the figures shown; the view itself gets no strip."""

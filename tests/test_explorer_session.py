@@ -188,12 +188,14 @@ def test_reads_as_centres_a_start_centred_conv_classifier(sample_data, tmp_path)
                                reader.probabilities(follower), atol=1e-5)
 
 
-def test_playback_speed_from_the_page_is_clamped():
-    from explorer.ui.playback import playback_speed
+def test_playback_speed_and_picture_size_from_the_page_are_clamped():
+    from explorer.ui.playback import MIN_PLAYBACK_SCALE, PLAYBACK_SCALE, playback_scale, playback_speed
 
     assert playback_speed(1.5) == 1.5 and playback_speed(None) == 1.0 and playback_speed("x") == 1.0
     assert playback_speed(1e-300) == 0.25 and playback_speed(-2) == 0.25 and playback_speed(1e9) == 2.0
     assert playback_speed(float("nan")) == 1.0
+    assert playback_scale(0.75) == 0.75 and playback_scale(7) == 1.0 and playback_scale(0) == MIN_PLAYBACK_SCALE
+    assert playback_scale(None) == playback_scale(float("nan")) == playback_scale("x") == PLAYBACK_SCALE
 
 
 def test_uploaded_leader_has_no_ground_truth_and_bad_files_change_nothing(session, sample_data, tmp_path):
@@ -420,6 +422,66 @@ def test_a_sliders_variations_can_wait_for_its_first_picture(two_models):
     np.testing.assert_allclose(ses.variation_followers[2],
                                ses.model.synthesize_canonical(ses.leader, ses.label_vector(), seed=ses.seed + 2), atol=1e-4)
     ses.set_variation_count(1)
+
+
+@pytest.fixture(scope="module")
+def retrieval(sample_data):
+    from explorer.session.session import load_model
+    from imm_model.paths import SAMPLE_RETRIEVAL
+
+    if not SAMPLE_RETRIEVAL.exists():
+        pytest.skip(f"bundled retrieval model missing: {SAMPLE_RETRIEVAL}")
+    return load_model(SAMPLE_RETRIEVAL, sample_data)
+
+
+def test_compared_models_followers_are_each_models_own_synthesis(sample_data, model, diffusion, retrieval):
+    """Other models beside the current one: each one's follower is what it draws as the current model, and they follow
+    the sequence, the mix, the seed and the clean-up; a slider's wait with the variations."""
+    from explorer.session.session import Session
+
+    model.raw = diffusion.raw = retrieval.raw = False
+    ses = Session(sample_data, {"gan": model, "diffusion": diffusion, "retrieval": retrieval}, index=3)
+    ses.set_compared(["retrieval", "diffusion", "gan"])  # the current one among them is drawn once, as `synth`
+    assert ses.compared == ("gan", "diffusion", "retrieval") and ses.compared_names == ("diffusion", "retrieval")
+    ses.set_seed(7)
+    ses.set_label(np.eye(6)[2] * 0.5 + np.eye(6)[4], scale=1.2)
+    ses.select(5, match_label=False)
+    ses.set_cleanup(False)
+    drawn = {name: f.copy() for name, f in ses.compared_followers.items()}
+    assert set(drawn) == {"diffusion", "retrieval"} and ses.compared_caption("diffusion") == "the diffusion model\nseed 7"
+    assert ses.compared_caption("retrieval") == "1-NN retrieval"
+    gan = ses.synth.copy()
+    for name in ("diffusion", "retrieval"):
+        ses.set_model(name)
+        np.testing.assert_allclose(drawn[name], ses.synth, atol=1e-5)
+        assert name not in ses.compared_names and "gan" in ses.compared_followers
+        np.testing.assert_allclose(ses.compared_followers["gan"], gan, atol=1e-5)
+    ses.set_model("gan")
+    assert np.abs(drawn["diffusion"] - drawn["retrieval"]).mean() > 0.01
+    ses.set_label(np.eye(6)[1], variations=False)  # a slider: the others follow with the variations
+    assert ses.variations_due
+    np.testing.assert_array_equal(ses.compared_followers["diffusion"], drawn["diffusion"])
+    ses.draw_variations()
+    np.testing.assert_allclose(ses.compared_followers["diffusion"],
+                               diffusion.synthesize_canonical(ses.leader, ses.label_vector(), seed=7), atol=1e-5)
+    with pytest.raises(ValueError, match="compare: no model 'flow'; this studio has gan, diffusion, retrieval"):
+        ses.set_compared(["diffusion", "flow"])
+    assert ses.compared == ("gan", "diffusion", "retrieval")
+    ses.set_compared([])
+    assert ses.compared_followers == {}
+    ses.set_cleanup(True)
+
+
+def test_a_link_carries_the_compared_models():
+    from explorer.ui.url_state import parse_view, view_query
+
+    query = view_query({"seq": "s01s02/03/001", "weights": {"kicking": 1.0}, "compare": "diffusion,retrieval"})
+    assert query.endswith("&compare=diffusion,retrieval")
+    models = ("gan", "diffusion", "retrieval")
+    assert parse_view(query, ("kicking",), {"s01s02/03/001"}, (), models)[0]["compare"] == ["diffusion", "retrieval"]
+    assert parse_view("?compare=flow", (), set(), (), models)[1] == ["compare: model 'flow' is not one of gan, diffusion, retrieval"]
+    assert parse_view("?compare=a,b,c,d", (), set(), (), "abcde")[1] == ["compare: at most 3 models, not 4"]
+    assert parse_view("?compare=gan,gan", (), set(), (), models)[0]["compare"] == ["gan"]
 
 
 @pytest.fixture(scope="module")

@@ -10,6 +10,7 @@ LEADER = "#1f5fd6"
 GROUND_TRUTH = "#d62728"
 SYNTHESIZED = "#2ca02c"
 PINNED = "#7b1fa2"  # A/B: the pinned mix's follower, beside the current (green) one
+COMPARED = "#00897b"  # other models' followers, beside the current model's (green) one
 WARNING = "#ff6f00"  # limbs of the two bodies that interpenetrate (explorer/rendering/scene.py ContactOverlay)
 
 CHARACTERS = {"leader": LEADER, "ground_truth": GROUND_TRUTH, "synthesized": SYNTHESIZED}

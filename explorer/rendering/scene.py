@@ -26,12 +26,14 @@ from vtkmodules.vtkRenderingCore import vtkWindowToImageFilter  # noqa: E402
 from vtkmodules.vtkRenderingUI import vtkGenericRenderWindowInteractor  # noqa: E402
 
 from explorer.rendering.figures import ContactOverlay, StickFigure, Trail, add_actor, line_mesh, set_lines  # noqa: E402
-from explorer.rendering.palette import CHARACTER_TITLES, CHARACTERS, PINNED  # noqa: E402
+from explorer.rendering.palette import CHARACTER_TITLES, CHARACTERS, COMPARED, PINNED  # noqa: E402
 from imm_model.skeleton import Skeleton  # noqa: E402
 
 CHARACTER_KEYS = ("leader", "ground_truth", "synthesized")
 TRAIL_KEYS = ("leader", "synthesized")
 VARIATION_KEYS = ("variation_1", "variation_2", "variation_3")  # a seeded model's further followers, side by side
+COMPARED_KEYS = ("compared_1", "compared_2", "compared_3")  # other models' followers, right of those (set_compared)
+BESIDE_KEYS = VARIATION_KEYS + COMPARED_KEYS  # followers drawn only side by side, right of the synthesized one
 LAYOUTS = ("overlay", "side_by_side")
 CAMERA_PRESETS = ("default", "front", "side", "top")
 SIDE_SPACING = 1.5  # metres between figures in the side-by-side layout
@@ -74,10 +76,11 @@ class Scene:
         self.follow = False  # the camera follows the pair (set_follow): moved by the pair's centre from frame to frame
         self._followed: np.ndarray | None = None  # the pair's centre the camera was last placed for
         self.captions = {k: self._caption(CHARACTER_TITLES[k], CHARACTERS[k]) for k in CHARACTER_KEYS}
-        for k in VARIATION_KEYS:  # shown only side by side, right of the synthesized follower (set_variations)
-            self.figures[k] = StickFigure(self.plotter, skeleton, CHARACTERS["synthesized"])
+        for k in BESIDE_KEYS:  # shown only side by side, right of the synthesized follower (set_variations, set_compared)
+            color = COMPARED if k in COMPARED_KEYS else CHARACTERS["synthesized"]
+            self.figures[k] = StickFigure(self.plotter, skeleton, color)
             self.figures[k].set_visible(False)
-            self.captions[k] = self._caption("", CHARACTERS["synthesized"])
+            self.captions[k] = self._caption("", color)
         self.floor = self._floor()
         self.layout = "overlay"
         self.visible = {k: True for k in CHARACTER_KEYS}
@@ -122,7 +125,7 @@ class Scene:
         for k in CHARACTER_KEYS:
             self.figures[k].set_visible(self.visible[k] and k in self.sequences)
         self.figures["pinned"].set_visible(False)  # until set_pinned gives it the new leader's follower
-        for k in VARIATION_KEYS:  # until set_variations gives the new leader's
+        for k in BESIDE_KEYS:  # until set_variations and set_compared give the new leader's
             self.figures[k].set_visible(False)
         self.contact.flags = None  # until set_contact gives the new sequence's
         self._followed = None
@@ -147,12 +150,14 @@ class Scene:
         self.figures["pinned"].set_visible(pinned is not None and self.visible["synthesized"])
         self._apply_layout()
 
-    def set_variations(self, followers: list[np.ndarray], seeds: list[int] | None) -> None:
+    def set_variations(self, followers: list[np.ndarray], seeds: list[int] | None, model_title: str = "") -> None:
         """A seeded model's followers for seeds[0], seeds[1], ... (the first is the synthesized one): the others
         stand right of it in the side-by-side layout, each captioned with its seed. `seeds` None: a deterministic
-        model (one follower, captioned as usual)."""
+        model (one follower, captioned as usual). `model_title`: named under the synthesized follower's caption (when
+        other models' followers stand beside it)."""
+        second = " · ".join(filter(None, (model_title, "" if seeds is None else f"seed {seeds[0]}")))
         title = CHARACTER_TITLES["synthesized"]
-        self._caption_text("synthesized", title if seeds is None else f"{title}\nseed {seeds[0]}")  # one line would reach its neighbour
+        self._caption_text("synthesized", f"{title}\n{second}" if second else title)  # one line would reach its neighbour
         slots = self._slots()
         if seeds is None and slots == len(CHARACTER_KEYS):
             return  # a deterministic model's follower, as before: set_synthesized placed it
@@ -166,6 +171,29 @@ class Scene:
         self._apply_layout()
         if self.layout == "side_by_side" and self._slots() != slots:
             self.set_camera(self.camera_preset)  # room for more or fewer figures (a camera the user turned stays else)
+
+    def set_compared(self, followers: list[tuple[str, np.ndarray]]) -> None:
+        """Other models' followers [(caption, follower), ...] (up to len(COMPARED_KEYS)): they stand right of the
+        synthesized follower and its variations in the side-by-side layout, and follow the frame as it does."""
+        if len(followers) > len(COMPARED_KEYS):
+            raise ValueError(f"at most {len(COMPARED_KEYS)} other models' followers side by side, not {len(followers)}")
+        slots = self._slots()
+        for i, k in enumerate(COMPARED_KEYS):
+            if i < len(followers):
+                caption, follower = followers[i]
+                self.sequences[k] = follower
+                self._caption_text(k, caption)
+                self.figures[k].set_pose(follower[min(self.frame, len(follower) - 1)])
+            else:
+                self.sequences.pop(k, None)
+        self._apply_layout()
+        if self.layout == "side_by_side" and self._slots() != slots:
+            self.set_camera(self.camera_preset)  # room for more or fewer figures (a camera the user turned stays else)
+
+    def captions_shown(self) -> list[str]:
+        """The captions the view shows now, left to right (side by side only)."""
+        keys = (*CHARACTER_KEYS, *BESIDE_KEYS)
+        return [self.captions[k].input for k in keys if k in self.sequences and self.captions[k].GetVisibility()]
 
     def _caption_text(self, key: str, text: str) -> None:
         if self.captions[key].input != text:  # a new text is rasterized again at the next render
@@ -280,13 +308,18 @@ class Scene:
         top = float(max(s[..., 1].max() for s in self.sequences.values())) + 0.25
         along_z = self.camera_preset == "side"
         middle = (self._slots() - 1) / 2
-        variations = [(3 + i, k) for i, k in enumerate(VARIATION_KEYS)]
+        beside = [k for k in BESIDE_KEYS if k in self.sequences]  # variations, then other models' followers
+        beside = [(len(CHARACTER_KEYS) + i, k) for i, k in enumerate(beside)]
         size = caption_px(self._slots())
         # seen from the top a caption over the head would be on the figure: it goes towards the top of the picture
         above = (0.0, 0.0, -TOP_CAPTION_OFFSET) if self.camera_preset == "top" else (0.0, 0.0, 0.0)
-        for slot, k in (*enumerate(CHARACTER_KEYS), (2, "pinned"), *variations):  # the pinned one on the synthesized spot
+        for k in BESIDE_KEYS:
+            if k not in self.sequences:
+                self.figures[k].set_visible(False)
+                self.captions[k].SetVisibility(False)
+        for slot, k in (*enumerate(CHARACTER_KEYS), (2, "pinned"), *beside):  # the pinned one on the synthesized spot
             fig, cap = self.figures[k], self.captions.get(k)
-            if k in VARIATION_KEYS:
+            if k in BESIDE_KEYS:
                 fig.set_visible(k in self.sequences and self.layout == "side_by_side" and self.visible["synthesized"])
             if k not in self.sequences or self.layout == "overlay":
                 fig.place((0, 0, 0), (0, 0, 0), 0.0)
@@ -301,7 +334,7 @@ class Scene:
                 cap.position = (spot[0] + above[0], top, spot[2] + above[2])
                 if cap.size != size:
                     cap.size = size
-                cap.SetVisibility(self.visible["synthesized" if k in VARIATION_KEYS else k])
+                cap.SetVisibility(self.visible["synthesized" if k in BESIDE_KEYS else k])
 
     def shown(self, every_frame: bool = False) -> list[str]:
         """What the view shows: the figures of CHARACTER_KEYS and "pinned" that are drawn, then "contact" while limbs
@@ -315,8 +348,8 @@ class Scene:
         return keys + ["contact"] * touching
 
     def _slots(self) -> int:
-        """Spots side by side: leader, ground truth, synthesized, and its variations."""
-        return len(CHARACTER_KEYS) + sum(k in self.sequences for k in VARIATION_KEYS)
+        """Spots side by side: leader, ground truth, synthesized, its variations and other models' followers."""
+        return len(CHARACTER_KEYS) + sum(k in self.sequences for k in BESIDE_KEYS)
 
     # ---- camera -------------------------------------------------------------------------
     def _refit_if_resized(self) -> None:

@@ -17,7 +17,8 @@ back, and sent once the page reports that one shown (the view's image `load`, ac
 hands each arriving picture to its <img> at once, and a new `src` cancels a load still going: on a busy 2-core machine,
 pictures sent at 30/s were mostly cancelled (the page showed 6-8 a second). Playback sets its next frame as soon as
 this one's picture is encoded (explorer/ui/playback.py), so the next renders while the page shows this one, and
-its pictures are drafts (DRAFT_SCALE, stretched by the page; the still picture after it stops is full size).
+its pictures are drafts (at explorer/ui/playback.py's PLAYBACK_SCALE, stretched by the page; the still picture
+after it stops is full size).
 """
 
 from __future__ import annotations
@@ -102,7 +103,8 @@ class ViewStream:
     def __init__(self, server, render_window, name: str = "view"):
         self.render_window = render_window
         self.handler = None  # created when the server runs: its render loop is an asyncio task
-        self.draft_next = False  # the next interactive picture at DRAFT_SCALE (the still picture after it is full size)
+        self.draft_next: float | None = None  # the next interactive picture at this fraction of the view's size (the still
+        # picture after it is full size); None: full size
         self.gate = PictureGate()
         # the view's size goes to the server 16 ms after a change (trame-rca's default, 100 ms, delayed the first
         # picture); a `load` of the view's image (a capture listener: load does not bubble) acknowledges a picture
@@ -119,23 +121,24 @@ class ViewStream:
         self.handler.update()
 
     def _render_interactive(self, render):
-        """An interactive picture: after `draft_next` was set, rendered at DRAFT_SCALE of the window's size."""
-        if not self.draft_next:
+        """An interactive picture: after `draft_next` was set, rendered at that fraction of the window's size."""
+        scale, self.draft_next = self.draft_next, None
+        if scale is None or scale >= 1.0:
             return render()
-        self.draft_next = False
         width, height = self.render_window.GetSize()
-        self.render_window.SetSize(max(10, round(width * DRAFT_SCALE)), max(10, round(height * DRAFT_SCALE)))
+        self.render_window.SetSize(max(10, round(width * scale)), max(10, round(height * scale)))
         try:
             return render()  # renders and reads the pixels now; encoding goes on elsewhere
         finally:
             self.render_window.SetSize(width, height)
 
-    def update(self, draft: bool = False) -> None:
+    def update(self, draft: bool = False, scale: float = DRAFT_SCALE) -> None:
         """Render and send a new picture (nothing before the server runs: the page asks for one when it opens);
-        `draft`: its first picture at DRAFT_SCALE (a label change, or playback, where the time to the picture counts
-        most)."""
+        `draft`: its first picture at `scale` of the view's width and height (a label change, or playback, where the
+        time to the picture counts most)."""
         if self.handler is not None:
-            self.draft_next = self.draft_next or draft
+            if draft:
+                self.draft_next = min(scale, self.draft_next or 1.0)
             self.gate.asked()
             self.handler.update()
 

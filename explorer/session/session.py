@@ -23,6 +23,7 @@ FPS = 15.0  # SBU's frame rate
 MAX_UPLOAD_BYTES = 20_000_000
 UPLOAD_SUFFIXES = (".bvh", ".npz", ".txt")
 MAX_VARIATIONS = 4  # followers drawn side by side at once (seeds seed .. seed + 3)
+MAX_COMPARED = 3  # other models whose followers are drawn beside the current one's at once
 NEW_SEEDS = 10_000  # "new variation" draws a seed below this: short enough to read, type and share in a link
 
 
@@ -149,6 +150,8 @@ class Session:
         self.variation_count = 1  # followers drawn at once, seeds seed .. seed + count - 1 (`variations`)
         self.variation_followers: list[np.ndarray] = []
         self._variations_of: np.ndarray | None = None  # the follower `variation_followers` were drawn with
+        self.compared: tuple[str, ...] = ()  # other models drawn beside the current one (set_compared), in the switch's order
+        self.compared_followers: dict[str, np.ndarray] = {}  # their followers, drawn with the variations
         self._seeds = np.random.default_rng()
         self.reader = reader
         self.upload: Upload | None = None
@@ -353,7 +356,8 @@ class Session:
         if out.shape != self.leader.shape:
             raise ValueError(f"model returned shape {out.shape}, expected {self.leader.shape}")
         self.synth = out
-        if variations or not self.seeded or len(self.variation_followers) != self.variation_count:
+        # other models' followers wait with the variations (`variations` False): each costs a reaction
+        if variations or (not self.compared_names and (not self.seeded or len(self.variation_followers) != self.variation_count)):
             self.draw_variations()
         else:
             self.variation_followers = [out, *self.variation_followers[1:]]
@@ -365,8 +369,44 @@ class Session:
         return self._variations_of is not self.synth
 
     def draw_variations(self) -> None:
+        """The side-by-side followers beyond `synth`: the seeded model's variations and the compared models'."""
         self.variation_followers = self.variations(self.variation_count) if self.seeded else [self.synth]
+        self.compared_followers = self.followers_of(self.compared_names)
         self._variations_of = self.synth
+
+    # ---- other models beside the current one ----------------------------------------------------
+    def set_compared(self, names: Sequence[str]) -> None:
+        """Draw these models' followers beside the current one's (ValueError, one line, for an unknown name or too
+        many: nothing changes). The current model among them is drawn once, as the synthesized follower."""
+        names = list(dict.fromkeys(str(n) for n in names))
+        unknown = [n for n in names if n not in self.models]
+        if unknown:
+            raise ValueError(f"compare: no model {unknown[0]!r}; this studio has {', '.join(self.models)}")
+        if len(names) > MAX_COMPARED:
+            raise ValueError(f"compare: at most {MAX_COMPARED} models beside the current one, not {len(names)}")
+        self.compared = tuple(n for n in self.models if n in names)
+        self.compared_followers = self.followers_of(self.compared_names)
+
+    @property
+    def compared_names(self) -> tuple[str, ...]:
+        """The compared models but the current one (whose follower is `synth`)."""
+        return tuple(n for n in self.compared if n != self.model_name)
+
+    def followers_of(self, names: Sequence[str]) -> dict[str, np.ndarray]:
+        """{name: that model's follower} for the current leader and mix, each with the session's seed where it takes
+        one (and its own spread): what `synthesize` would draw after `set_model(name)`."""
+        out = {}
+        for name in names:
+            model = self.models[name]
+            follower = np.asarray(model.synthesize_canonical(self.leader, self.vector, seed=self.seed), np.float32)
+            if follower.shape != self.leader.shape:
+                raise ValueError(f"model {name!r} returned shape {follower.shape}, expected {self.leader.shape}")
+            out[name] = follower
+        return out
+
+    def compared_caption(self, name: str) -> str:
+        """How the view captions a model's follower: its title, and the seed it was drawn with where it takes one."""
+        return self.model_title(name) + (f"\nseed {self.seed}" if "seed" in self.models[name].settings else "")
 
     @property
     def cleaned_up(self) -> bool:

@@ -15,7 +15,7 @@ from trame.app import asynchronous
 
 from explorer.rendering import charts
 from explorer.rendering.palette import CHARACTER_TITLES, class_color, display_name
-from explorer.rendering.scene import CHARACTER_KEYS, Scene, floor_height
+from explorer.rendering.scene import CHARACTER_KEYS, COMPARED_KEYS, Scene, floor_height
 from explorer.session.latent import LatentMap
 from explorer.session.session import FPS, Session, one_line
 from explorer.trame_adapter import attachment
@@ -26,7 +26,7 @@ from explorer.ui.latent_panel import LatentPanel
 from explorer.ui.layout import LayoutParts, build_layout
 from explorer.ui.model_switch import ModelSwitch
 from explorer.ui.panel_api import Page
-from explorer.ui.playback import play
+from explorer.ui.playback import PLAYBACK_SCALE, play, playback_scale
 from explorer.ui.reads_as_panel import reads_as_rows, unread_note
 from explorer.ui.review_panel import ReviewPanel
 from explorer.ui.url_state import apply_view, current_view, view_query
@@ -99,6 +99,7 @@ class Studio:
                 "time_text": "",
                 "playing": False,
                 "speed": 1.0,
+                "playback_scale": PLAYBACK_SCALE,  # the view's size while playing (benchmarks/explorer_latency.py sets it)
                 "loop": True,
                 "scale": 1.0,
                 "label_text": "",
@@ -365,7 +366,8 @@ class Studio:
 
     def on_frame_change(self, frame, **_):
         self.scene.set_frame(int(frame or 0))
-        self.ctrl.view_update(draft=bool(self.state.playing))  # playback's pictures are drafts; the still one is full size
+        # playback's pictures at PLAYBACK_SCALE of the view's size; the still one is full size
+        self.ctrl.view_update(draft=bool(self.state.playing), scale=playback_scale(self.state.playback_scale))
         self._update_time()
 
     async def picture_encoded(self) -> bool:
@@ -403,6 +405,7 @@ class Studio:
     # ---- view ----------------------------------------------------------------------------
     def on_layout_change(self, scene_layout, **_):
         self.scene.set_layout(scene_layout)
+        self.state.view_captions = self.scene.captions_shown()
         self.ctrl.view_update()
 
     def hover_joint(self, where) -> None:
@@ -422,7 +425,9 @@ class Studio:
         seq, f = scene.sequences[key], scene.frame
         before, after = max(0, f - 1), min(len(seq) - 1, f + 1)
         speed = float(np.linalg.norm(seq[after, j] - seq[before, j])) * FPS / max(1, after - before)
-        figure = CHARACTER_TITLES.get(key, key.replace("_", " "))
+        # another model's follower is named as its caption names it ("the diffusion model · seed 7")
+        figure = (scene.captions[key].input.replace("\n", " · ") if key in COMPARED_KEYS
+                  else CHARACTER_TITLES.get(key, key.replace("_", " ")))
         joint = self.session.data.skeleton.joint_names[j].replace("_", " ")
         s.joint_hover = {"text": f"{figure} · {joint} · {speed:.2f} m/s", "x": round(100 * x, 2), "y": round(100 * y, 2)}
 
@@ -456,12 +461,12 @@ class Studio:
         if self._url_opened and not self.state.playing:
             self.state.url_query = view_query(current_view(self))
 
-    def push_view(self, draft: bool = False, **_):
+    def push_view(self, draft: bool = False, **kwargs):
         """Send a new picture (moving points or toggling actors does not touch the render window, which the local
-        view's geometry export checks: mark it); `draft`: a streamed view's first picture at reduced size (the local
-        view, vtk.js, ignores it)."""
+        view's geometry export checks: mark it); `draft`: a streamed view's first picture at reduced size, `scale` of
+        it (the local view, vtk.js, ignores both)."""
         self.scene.render_window.Modified()
-        self._view.update(draft=draft)
+        self._view.update(draft=draft, **kwargs)
 
     # ---- layout --------------------------------------------------------------------------
     def attach_view(self, view) -> None:

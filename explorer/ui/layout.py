@@ -15,7 +15,7 @@ from trame.widgets import client, html
 from trame.widgets import vuetify3 as v3
 
 from explorer.rendering.charts import CHART_CSS, DISTANCE_BOX
-from explorer.rendering.palette import CHARACTER_TITLES, CHARACTERS, PINNED, WARNING, class_color, display_name
+from explorer.rendering.palette import CHARACTER_TITLES, CHARACTERS, COMPARED, PINNED, WARNING, class_color, display_name
 from explorer.rendering.scene import CAMERA_PRESETS, CHARACTER_KEYS
 from explorer.rendering.view_stream import ViewStream
 
@@ -333,6 +333,8 @@ def scene_view(page: LayoutParts) -> None:
                     v_if=f"show_{key}" + (" && !sequence_uploaded" if key == "ground_truth" else ""), classes=f"legend-{key}",
                 )
             html.Span("● pinned: {{ pinned_text }}", v_if="pinned_text", style=f"color: {PINNED}; font-weight: 600")
+            html.Span("● other models", v_if="scene_layout === 'side_by_side' && compare_models.some(n => n !== model_name)",
+                      style=f"color: {COMPARED}; font-weight: 600; margin-left: 10px", classes="legend-compared")
         viewer_tools()
         first_use_hints()
         html.Div("{{ joint_hover.text }}", v_if="joint_hover", id="joint-hover", classes="text-caption px-1 rounded",

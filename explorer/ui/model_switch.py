@@ -1,6 +1,7 @@
 """The model switch (the paper's GAN / the diffusion model) and, for a model that takes a seed, its variations: the seed, a
 "new variation" button, N followers drawn at once (seeds seed .. seed + N - 1) side by side, each captioned with
-its seed, and, for a model trained with noised leaders, the spread (how loosely the reaction follows the leader).
+its seed, and, for a model trained with noised leaders, the spread (how loosely the reaction follows the leader);
+and "compare with": other models' followers drawn beside the current one's, each captioned with its model.
 The session (explorer/session/session.py) holds the models and draws the followers; this maps them onto the page.
 
 A diffusion reaction costs ~10x the GAN's (benchmarks/explorer_latency.py): slider moves are coalesced as for any
@@ -18,7 +19,7 @@ from typing import TYPE_CHECKING
 from trame.widgets import client, html
 from trame.widgets import vuetify3 as v3
 
-from explorer.session.session import MAX_VARIATIONS, Session
+from explorer.session.session import MAX_COMPARED, MAX_VARIATIONS, Session
 
 if TYPE_CHECKING:
     from explorer.rendering.scene import Scene
@@ -48,12 +49,15 @@ class ModelSwitch:
             "variation_count": ses.variation_count,
             "computing": False,  # a reaction is being drawn (COMPUTING_CSS)
             "variation_asked": 0,  # "new variation" presses
+            "compare_models": list(ses.compared),  # other models drawn beside the current one ("compare with")
+            "view_captions": [],  # the captions the view shows (side by side), left to right
         })  # fmt: skip
         page.state.change("model_name")(self._settled(self.on_model_picked))
         page.state.change("seed")(self._settled(self.on_seed_typed))
         page.state.change("variation_count")(self._settled(self.on_count_picked))
         # a state change, not a trigger: it reaches the server with the page's `computing`, which a trigger could overtake
         page.state.change("variation_asked")(self._settled(self.on_variation_asked))
+        page.state.change("compare_models")(self._settled(self.on_compare_picked))
         self._asked = 0
 
     @property
@@ -124,11 +128,30 @@ class ModelSwitch:
             self.state.scene_layout = "side_by_side"
         self.refresh()
 
+    def on_compare_picked(self, compare_models, **_):
+        """Other models to draw beside the current one: side by side (the overlay would put them on top of each other)."""
+        ses = self.page.session
+        names = [str(n) for n in compare_models or []]
+        if tuple(n for n in ses.models if n in names) == ses.compared:
+            return
+        try:
+            ses.set_compared(names)
+        finally:
+            self.state.compare_models = list(ses.compared)  # a refused choice leaves the buttons where the session is
+        if ses.compared_names and self.state.scene_layout != "side_by_side":
+            self.state.scene_layout = "side_by_side"
+        self.refresh()
+
     # ---- what the studio calls ----------------------------------------------------------------
     def show_variations(self) -> None:
-        """The session's followers beyond the first into the scene (after any re-synthesis)."""
+        """The session's followers beyond the first into the scene (after any re-synthesis): the seeded model's
+        variations and the compared models' followers, each captioned."""
         ses = self.page.session
-        self.scene.set_variations(ses.variation_followers, ses.variation_seeds() if ses.seeded else None)
+        others = [n for n in ses.compared_names if n in ses.compared_followers]
+        self.scene.set_variations(ses.variation_followers, ses.variation_seeds() if ses.seeded else None,
+                                  ses.model_title() if others else "")
+        self.scene.set_compared([(ses.compared_caption(n), ses.compared_followers[n]) for n in others])
+        self.state.view_captions = self.scene.captions_shown()
 
     def draw_variations(self) -> None:
         """The side-by-side variations of a slider's mix, drawn after its first picture (they cost a reaction each)."""
@@ -182,7 +205,8 @@ def model_chip() -> None:
 
 
 def model_panel(session: Session) -> None:
-    """The model switch above the label sliders, and the variation controls under it for a seeded model."""
+    """The model switch above the label sliders, "compare with" under it, and the variation controls for a seeded
+    model."""
     if len(session.models) > 1:
         html.Div("Model", classes="text-overline")
         # A click sets the choice and `computing` together, so that both reach the server in one message (with
@@ -192,6 +216,17 @@ def model_panel(session: Session) -> None:
             for name in session.models:
                 v3.VBtn(session.model_title(name), value=name, size="x-small", id=f"model-{name}",
                         click=f"if (model_name !== '{name}') {{ computing = true; model_name = '{name}'; }}")
+        # other models' followers beside the current one's (the current model's chip is off: it is drawn already); chips
+        # wrap in the drawer's width, where a button row would scroll its ends out of sight
+        with html.Div(classes="mb-2", id="compare-row",
+                      title="draw these models' followers beside the current one's, for the same leader, mix and seed"):
+            html.Div("compare with", classes="text-body-2")
+            with v3.VChipGroup(model_value=("compare_models",), multiple=True, max=MAX_COMPARED, column=True,
+                               selected_class="text-teal-darken-2", id="compare-models",
+                               update_modelValue="computing = true; compare_models = $event"):
+                for name in session.models:
+                    v3.VChip(session.model_title(name), value=name, size="small", filter=True, variant="outlined",
+                             id=f"compare-{name}", disabled=(f"model_name === '{name}'",))
     with html.Div(v_if="seeded", classes="mb-2", id="variation-controls"):
         with html.Div(classes="d-flex align-center mb-1", style="gap: 6px"):
             v3.VTextField(v_model=("seed",), label="seed", type="number", min=0, density="compact", hide_details=True,

@@ -22,6 +22,11 @@ MIN_YIELD_S = 0.005  # even when late, give the image delivery and incoming mess
 ENCODED_TIMEOUT_S = 0.5  # plays on at this pace at least if a picture never comes
 # A view that cannot tell (vtk.js drawing in the page, --render local) keeps the earlier fixed cap: frames a second.
 UNPACED_PER_S = 30 if (os.cpu_count() or 1) >= 4 else 15
+# Playback's pictures at this fraction of the view's width and height, stretched by the page (the still picture
+# when it stops is full size): the sharpest that kept ~30 pictures a second at 2x (benchmarks/explorer_latency.py
+# --playback-only measures each size back to back).
+PLAYBACK_SCALE = 0.6
+MIN_PLAYBACK_SCALE = 0.25
 
 
 def playback_speed(value) -> float:
@@ -31,6 +36,15 @@ def playback_speed(value) -> float:
     except (TypeError, ValueError):
         return 1.0
     return min(max(speed, SPEEDS[0]), SPEEDS[-1]) if math.isfinite(speed) else 1.0
+
+
+def playback_scale(value) -> float:
+    """The page's playback_scale, clamped to MIN_PLAYBACK_SCALE..1 (a crafted 0 or 1e9 must not break the picture)."""
+    try:
+        scale = float(value)
+    except (TypeError, ValueError):
+        return PLAYBACK_SCALE
+    return min(max(scale, MIN_PLAYBACK_SCALE), 1.0) if math.isfinite(scale) else PLAYBACK_SCALE
 
 
 class Player(Protocol):

@@ -1,7 +1,8 @@
 """The view in the URL's query string, so a link reopens what its sender saw:
 `?seq=s01s02/03/001&mix=kicking:1,hugging:0.5&scale=1&frame=12&layout=overlay&camera=front&map=tsne`, `&raw=1`
 when the clean-up is off, `&model=diffusion` when another model than the studio's first draws, `&seed=12` for a
-seeded model and `&spread=0.3` for one with a spread setting.
+seeded model, `&spread=0.3` for one with a spread setting and `&compare=diffusion,retrieval` for other models'
+followers drawn beside the current one's.
 
 Everything read from a URL is validated here (it comes from whoever wrote the link): unknown keys are ignored,
 bad values are named in one line and left out, the rest still applies.
@@ -13,6 +14,8 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 from urllib.parse import parse_qs, quote, urlencode
+
+from explorer.session.session import MAX_COMPARED
 
 if TYPE_CHECKING:
     from explorer.rendering.scene import Scene
@@ -26,14 +29,14 @@ MAX_SEED = 2**31 - 5  # room for the side-by-side variations after it (explorer/
 
 
 def view_query(view: dict) -> str:
-    """{seq, weights: {class: w}, scale, frame, layout, camera, map, raw, model, seed, spread} -> "?..." (None values
-    are left out)."""
+    """{seq, weights: {class: w}, scale, frame, layout, camera, map, raw, model, seed, spread, compare} -> "?..." (None
+    values are left out)."""
     parts = {}
     if view.get("seq"):
         parts["seq"] = view["seq"]
     mix = ",".join(f"{name}:{w:g}" for name, w in view.get("weights", {}).items() if w)
     parts["mix"] = mix or "none"
-    for key in ("scale", "frame", "layout", "camera", "map", "raw", "model", "seed", "spread"):
+    for key in ("scale", "frame", "layout", "camera", "map", "raw", "model", "seed", "spread", "compare"):
         if view.get(key) is not None:
             parts[key] = f"{view[key]:g}" if isinstance(view[key], float) else str(view[key])
     return "?" + urlencode(parts, safe=":,/", quote_via=quote)
@@ -79,6 +82,7 @@ def parse_view(query: str, class_names, sequence_ids, cameras, models=()) -> tup
         "model": lambda v: v if v in models else _fail(f"model {v!r} is not one of {', '.join(models) or 'this studio'}"),
         "seed": _seed,
         "spread": lambda v: _number(v, 0.0, 1.0, "spread"),
+        "compare": lambda v: _compared(v, models),
     }
     view, problems = {}, []
     for key, parse in parsers.items():
@@ -96,6 +100,16 @@ def _seed(text: str) -> int:
     if int(text) > MAX_SEED:
         raise ValueError(f"seed {text[:20]!r} is outside 0..{MAX_SEED}")
     return int(text)
+
+
+def _compared(text: str, models) -> list[str]:
+    names = list(dict.fromkeys(n for n in text.split(",") if n))
+    unknown = [n for n in names if n not in models]
+    if unknown:
+        raise ValueError(f"compare: model {unknown[0][:40]!r} is not one of {', '.join(models) or 'this studio'}")
+    if len(names) > MAX_COMPARED:
+        raise ValueError(f"compare: at most {MAX_COMPARED} models, not {len(names)}")
+    return names
 
 
 def _fail(message: str):
@@ -131,6 +145,7 @@ def current_view(studio: ViewHolder) -> dict:
         "model": None if ses.model is ses.map_model else ses.model_name,  # left out for the model the studio opens with
         "seed": ses.seed if ses.seeded else None,
         "spread": None if ses.spread is None else round(float(ses.spread), 3),
+        "compare": ",".join(ses.compared_names) or None,
     }
 
 
@@ -145,6 +160,8 @@ def apply_view(studio: ViewHolder, query: str) -> None:
             s.model_name = view["model"]
         if "seed" in view:
             s.seed = view["seed"]
+        if "compare" in view:
+            s.compare_models = view["compare"]
     if "spread" in view:
         if ses.spread is None:
             problems.append(f"spread: {ses.model_title()} has no spread setting")
