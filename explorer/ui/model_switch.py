@@ -213,8 +213,9 @@ def model_panel(session: Session) -> None:
         # v_model the choice could overtake `computing`, which would then stay on).
         with v3.VBtnToggle(model_value=("model_name",), density="compact", mandatory=True, variant="outlined", divided=True,
                            classes="mb-2", id="model-switch"):
+            # each by the name `imm explore --model` gave it (short enough for three in the drawer), its title on hover
             for name in session.models:
-                v3.VBtn(session.model_title(name), value=name, size="x-small", id=f"model-{name}",
+                v3.VBtn(name, value=name, size="x-small", id=f"model-{name}", title=session.model_title(name),
                         click=f"if (model_name !== '{name}') {{ computing = true; model_name = '{name}'; }}")
         # other models' followers beside the current one's (the current model's chip is off: it is drawn already); chips
         # wrap in the drawer's width, where a button row would scroll its ends out of sight
