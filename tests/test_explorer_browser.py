@@ -583,6 +583,12 @@ def test_switch_to_the_diffusion_model_draw_variations_and_back(page):
     probe.set_state(page, "scene_layout", "overlay")
     chip = page.locator("#model-chip")
     assert "the paper's GAN" in chip.inner_text() and page.locator("#variation-controls").count() == 0
+    # the bundled three by the names the studio was given, each within the drawer
+    buttons = [page.locator(f"#model-{name}") for name in ("gan", "diffusion", "retrieval")]
+    drawer = page.locator("#model-switch").bounding_box()
+    for button in buttons:
+        box = button.bounding_box()
+        assert box is not None and box["x"] + box["width"] <= drawer["x"] + drawer["width"] + 1, box
     gan = still_green()
     n = probe.state(page, "mix_count")
     page.locator("#model-diffusion").click()
@@ -607,7 +613,7 @@ def test_switch_to_the_diffusion_model_draw_variations_and_back(page):
     assert (three, figures(still_green())) == (3, 1), "three variations do not show three followers"
 
     page.locator("#model-gan").click()  # back in one click
-    probe.wait_state(page, "s.get('model_title') === \"the paper's GAN\" && !s.get('stochastic') && !s.get('computing')")
+    probe.wait_state(page, "s.get('model_title') === \"the paper's GAN\" && !s.get('seeded') && !s.get('computing')")
     probe.set_state(page, "scene_layout", "overlay")
     assert page.locator("#variation-controls").count() == 0 and "seed" not in chip.inner_text()
     assert "model=" not in probe.state(page, "url_query") and "seed=" not in probe.state(page, "url_query")
