@@ -585,7 +585,7 @@ def test_switch_to_the_diffusion_model_draw_variations_and_back(page):
     assert "the paper's GAN" in chip.inner_text() and page.locator("#variation-controls").count() == 0
     # the bundled three by the names the studio was given, each within the drawer
     buttons = [page.locator(f"#model-{name}") for name in ("gan", "diffusion", "retrieval")]
-    drawer = page.locator("#model-switch").bounding_box()
+    drawer = page.locator("#compare-row").bounding_box()  # a row as wide as the drawer
     for button in buttons:
         box = button.bounding_box()
         assert box is not None and box["x"] + box["width"] <= drawer["x"] + drawer["width"] + 1, box
