@@ -241,7 +241,7 @@ def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptio
     predictions = model_predictions(model, data, judges.test)
     result["model"] = method_scores(data, judges, predictions)
     result |= label_control(model, data, judges)
-    if getattr(model, "stochastic", False):
+    if "seed" in model.settings:  # a model that draws variations: their spread and best-of-N AFD
         result["variations"] = variations(model, data, judges, predictions)
     all_idx = np.arange(len(data))
     result["_latent"] = {"model": _latents(model, data, all_idx)} if latents else {}  # "_": for the figures, not the JSON
