@@ -37,7 +37,7 @@ def panel():
     from explorer.ui.review_panel import ReviewPanel
 
     server = get_server("review-panel-test", client_type="vue3")
-    session = SimpleNamespace(upload=None, index=3, label_text=lambda: "+1 hugging")
+    session = SimpleNamespace(upload=None, index=3, label_text=lambda: "+1 hugging", model_title=lambda name: name)
     page = Page(session, server.state, server.controller, server.trigger, lambda fn: fn)
     opened: list[int] = []
     calls: list[tuple] = []
@@ -50,7 +50,7 @@ def panel():
         return p.rows_out
 
     p = ReviewPanel(page, open_sequence=opened.append, compute_rows=compute,
-                    inputs=lambda: Inputs(model=None, model_name="gan", label=mix["label"], seed=0))
+                    inputs=lambda: Inputs(model=SimpleNamespace(settings={}), model_name="gan", label=mix["label"], seed=0))
     p.opened, p.server, p.rows_out, p.calls, p.mix = opened, server, list(ROWS), calls, mix
     return p
 
@@ -129,10 +129,9 @@ def test_an_open_review_recomputes_a_new_mix_once_debounced(panel):
         for label in ((0.2,), (0.3,), (0.4,)):  # a slider dragged: three mixes in a row
             panel.mix["label"] = label
             panel.follow()
-            await asyncio.sleep(0.01)
+            await asyncio.sleep(0)  # the debounce task runs between the moves
         assert len(panel.calls) == 1  # still within the debounce
-        await asyncio.sleep(review_panel.DEBOUNCE_S + 0.3)
-        await panel._task
+        await asyncio.wait_for(panel._task, review_panel.DEBOUNCE_S + 60)  # the debounced computation, once
 
     run(scenario())
     assert [c[0][1] for c in panel.calls] == [(1.0,), (0.4,)] and state.review_stale is False

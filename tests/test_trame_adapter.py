@@ -155,10 +155,14 @@ def test_interactive_frames_go_through_the_wrapper_and_keys_never_reach_vtk():
         assert area.handlers == [handler]
         handler.set_streamer(streamer)
         handler.update()
-        for _ in range(500):  # the scheduler's loop renders the interactive frame, then the still one, and hands
-            await asyncio.sleep(0.01)  # each encoded picture over: wait for the second hand-over, not the grab before it
-            if after and window.grabs > after[-1] and len(delivered) >= 2:
-                break
+        # the scheduler's loop renders the interactive frame, then the still one, and hands each encoded picture over:
+        # wait for the second hand-over, not the grab before it (a generous deadline: a busy 2-core machine)
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + 60
+        while not (after and window.grabs > after[-1] and len(delivered) >= 2):
+            if loop.time() > deadline:
+                break  # the assertions below say what is missing
+            await asyncio.sleep(0.01)
         handler.on_interaction(None, {"type": "KeyPress", "key": "r"})
         handler.on_interaction(None, {"type": "LeftButtonPress", "x": 1, "y": 1})
         await handler.close()
