@@ -151,7 +151,7 @@ def test_interactive_frames_go_through_the_wrapper_and_keys_never_reach_vtk():
             return result
 
         handler = trame_adapter.stream_view(area, window, wrap_interactive=wrap, target_fps=30, interactive_quality=70,
-                                            still_quality=85, deliver=delivered.append)
+                                            still_quality=85, deliver=lambda send, still: delivered.append((send, still)))
         assert area.handlers == [handler]
         handler.set_streamer(streamer)
         handler.update()
@@ -172,7 +172,9 @@ def test_interactive_frames_go_through_the_wrapper_and_keys_never_reach_vtk():
     assert len(delivered) == 2 and not streamer.pushed, (
         f"{where('trame-rca', 4)}: the encoded pictures did not go through the push callback ({len(delivered)} handed over, "
         f"{len(streamer.pushed)} pushed past it)")
-    for send in delivered:
+    assert [still for _, still in delivered] == [False, True], (
+        f"{where('trame-rca', 4)}: the picture's meta no longer tells the still picture by its quality")
+    for send, _ in delivered:
         send()
     assert [name for name, _ in streamer.pushed] == ["view", "view"] and all(len(c) > 0 for _, c in streamer.pushed), (
         f"{where('trame-rca', 4)}: a picture handed over did not reach the page's stream (RcaViewAdapter.push)")

@@ -116,3 +116,24 @@ def test_playback_sets_no_new_frame_until_the_last_ones_picture_is_encoded(monke
 
     blocked, frames = asyncio.run(run())
     assert len(blocked) == 1 and len(frames) >= 4 and frames == sorted(frames), (blocked, frames)
+
+
+def test_the_view_is_at_rest_once_the_still_picture_after_the_last_ask_is_shown():
+    """PictureGate.at_rest(), what the browser tests wait for after an action (tests/studio_probe.py)."""
+    async def run():
+        gate, sent, rest = PictureGate(timeout_s=10), [], []
+        gate.asked()
+        rest.append(gate.at_rest())  # asked, nothing encoded yet
+        gate.deliver(picture(sent, "interactive"), still=False)
+        gate.deliver(picture(sent, "still"), still=True)  # held: the interactive one is not shown yet
+        rest.append(gate.at_rest())
+        gate.shown()  # the interactive one: the still one goes
+        rest.append(gate.at_rest())
+        gate.shown()
+        rest.append(gate.at_rest())
+        gate.asked()  # the next change
+        rest.append(gate.at_rest())
+        return rest, sent
+
+    rest, sent = asyncio.run(run())
+    assert rest == [False, False, False, True, False] and sent == ["interactive", "still"]
