@@ -19,8 +19,9 @@ the installed packages still have each thing below, naming the package and its v
    `area.add_view_handler`), with that scheduler; its `on_interaction(origin, event)` is replaced on the instance
    so that key events never reach VTK's default key bindings; the scheduler's push callback, which the adapter sets
    to its `push(content, meta)`, is set again to hand that push to the caller (explorer/rendering/view_stream.py
-   holds a picture back until the page has shown the one before), and its `streamer` (None until a page connects)
-   says whether a push reaches a page.
+   holds a picture back until the page has shown the one before), with the still picture told from an interactive one
+   by the encoder's `meta["quality"]`, and its `streamer` (None until a page connects) says whether a push reaches a
+   page.
 5. Downloads (trame-server + wslink). `server.protocol.addAttachment(bytes)` turns a trigger's return value into a
    binary attachment the page can download (explorer/ui/exports.py).
 6. The websocket secret (trame-server + wslink). `server.cli.set_defaults(authKey=...)` sets wslink's `--authKey`
@@ -128,11 +129,12 @@ def _wrapping_scheduler():
 
 
 def stream_view(area, render_window, *, wrap_interactive: Callable, target_fps: float, interactive_quality: int,
-                still_quality: int, encoder: str = "jpeg", deliver: Callable[[Callable[[], None]], None] = lambda send: send()):
+                still_quality: int, encoder: str = "jpeg",
+                deliver: Callable[[Callable[[], bool], bool], None] = lambda send, still: send()):
     """A view handler streaming `render_window` into the page's RemoteControlledArea `area` (once the server runs: its
     scheduler's loop is an asyncio task), interactive frames rendered through `wrap_interactive`, each encoded picture
-    handed to `deliver(send)`, which sends it to the page by calling `send()` (now or later; False: no page yet), key
-    events dropped (the
+    handed to `deliver(send, still)`, which sends it to the page by calling `send()` (now or later; False: no page
+    yet); `still`: the picture is the still one, encoded at `still_quality`. Key events dropped (the
     studio's keys are its own: explorer/ui/keys.py; VTK's defaults would act on them, 'r' resetting the camera, 'w'
     drawing wireframes, 'e' ending the interactor). -> the handler (its `update()` asks for a picture)."""
     from trame_rca.rca import window_wrapper
@@ -150,7 +152,10 @@ def stream_view(area, render_window, *, wrap_interactive: Callable, target_fps: 
         push(content, meta)
         return True
 
-    scheduler.set_push_callback(lambda content, meta: deliver(functools.partial(send, content, meta)))  # was handler.push
+    def hand_over(content, meta) -> None:  # was handler.push
+        deliver(functools.partial(send, content, meta), meta.get("quality") == still_quality)
+
+    scheduler.set_push_callback(hand_over)
     area.add_view_handler(handler)
     forward = handler.on_interaction
 

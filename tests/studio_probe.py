@@ -62,6 +62,20 @@ class StudioProcess:
             self.stop()
             raise RuntimeError("studio did not start: " + " | ".join(self.lines[-5:]))
 
+    def read_log(self, timeout: float = 60.0) -> list[str]:
+        """`lines` once it holds everything the studio wrote before this call: a marker written into the studio's own
+        output pipes (through /proc) comes out of them after all of it."""
+        marks = {fd: f"studio-probe-mark-{fd}-{time.monotonic_ns()}" for fd in (1, 2)}
+        for fd, mark in marks.items():
+            with open(f"/proc/{self.proc.pid}/fd/{fd}", "w") as pipe:
+                pipe.write(mark + "\n")
+        deadline = time.monotonic() + timeout
+        while not set(marks.values()) <= set(self.lines):
+            if time.monotonic() > deadline:
+                raise TimeoutError("the studio's output was not read within the time")
+            time.sleep(0.02)
+        return [ln for ln in self.lines if not ln.startswith("studio-probe-mark-")]
+
     def stop(self) -> None:
         """Stop the launcher and its studio processes (its own process group, started above)."""
         if self.proc.poll() is None:
@@ -155,6 +169,20 @@ def images_seen(page) -> int:
 
 def wait_for_new_image(page, after: int, timeout_ms: int = 10000) -> None:
     page.wait_for_function("(n) => window.__immImages.length > n", arg=after, timeout=timeout_ms)
+
+
+def wait_for_view_at_rest(page, timeout_ms: int = 60000) -> None:
+    """Wait until the 3D view shows the picture an action ends on: the server has no picture to render or hold back,
+    the last one it sent is the sharp still picture, the page reported it shown, and the view's image is loaded
+    (explorer/rendering/view_stream.py's `view_at_rest`). Asked after the action's state reached the page, so the
+    server answers after it asked for the action's picture: an older still picture never counts."""
+    at_rest = f"""async () => {{ await window.trame.state.flush();  // a change the test just made goes first
+        return (await window.trame.trigger('view_at_rest')) === true && document.querySelector('{VIEW_IMG}').complete; }}"""
+    deadline = time.monotonic() + timeout_ms / 1000
+    while not page.evaluate(at_rest):  # (wait_for_function would take the async function's promise for a yes)
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"the 3D view did not come to rest within {timeout_ms} ms")
+        page.wait_for_timeout(100)
 
 
 def press_slider(page, css: str, key: str) -> None:

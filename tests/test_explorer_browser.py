@@ -71,7 +71,8 @@ def test_class_slider_changes_follower(page):
     probe.press_slider(page, f".slider-{names[other].replace(' ', '_')}", "End")
     page.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=10000)
     probe.wait_for_new_image(page, n_img)
-    time.sleep(0.3)
+    probe.wait_for_view_at_rest(page)  # the still picture, and the 'reads as' panel after it
+    probe.wait_state(page, f"s.get('reads_as')[{other}].asked === '+'")
     assert probe.state(page, f"w_{other}") == 1.0
     assert names[other] in probe.state(page, "label_text")
     reads = probe.state(page, "reads_as")  # the 'reads as' panel follows the mix
@@ -245,13 +246,13 @@ def test_dragging_the_view_turns_the_camera_and_keys_stay_out_of_vtk(page):
         page.mouse.move(x + 25 * step, y + 4 * step)
     page.mouse.up()
     probe.wait_for_new_image(page, n)
-    time.sleep(0.6)  # the sharper still picture that follows an interaction
+    probe.wait_for_view_at_rest(page)  # the sharper still picture that follows an interaction
     turned = probe.view_pixels(page)
     assert (np.abs(turned.astype(int) - before.astype(int)).max(-1) > 40).sum() > 500
     n = probe.images_seen(page)
     page.keyboard.press("w")
     page.keyboard.press("3")
-    time.sleep(0.6)
+    time.sleep(0.6)  # no event to wait for: time in which a key that reached VTK would have asked for a picture
     assert probe.images_seen(page) == n  # no render was asked for
     page.locator("#camera-default").click()  # back to the preset, for the tests after this one
     probe.wait_for_new_image(page, n)
@@ -293,7 +294,7 @@ def test_playback_sends_a_picture_once_the_page_showed_the_one_before_drafts_whi
         time.sleep(seconds)
         muted = page.evaluate("() => window.__pics") - n0
         page.evaluate("() => { window.__muted = false; window.__playSizes = []; }")
-        time.sleep(0.5)
+        page.wait_for_function("(n) => window.__pics > n", arg=n0 + muted, timeout=60000)  # acknowledged: it plays on
         n1 = page.evaluate("() => window.__pics")
         time.sleep(seconds)
         acknowledged = page.evaluate("() => window.__pics") - n1
@@ -338,7 +339,7 @@ def test_upload_a_bvh_leader_then_a_broken_file(page, tmp_path, sample_data):
     page.wait_for_selector(".legend-ground_truth", state="detached", timeout=5000)
     assert probe.state(page, "sequence_index") is None and shown not in page.locator(".v-input:has(#sequence-picker)").inner_text()
     assert probe.state(page, "num_frames") == len(sample_data.canonical(12)[0])
-    time.sleep(0.5)
+    probe.wait_for_view_at_rest(page)
     probe.shot(page, "studio-uploaded")
     page.get_by_role("button", name="Export").click()
     with page.expect_download(timeout=20000) as download:
@@ -467,14 +468,14 @@ def test_pin_a_mix_then_compare_swap_and_clear(page):
     probe.set_state(page, f"w_{other}", 1.0)
     pinned_line = "s.get('distance_chart').includes('data-series=\"pinned\"')"
     probe.wait_state(page, f"s.get('ab_text').includes('apart') && {pinned_line}")
-    time.sleep(0.5)
+    probe.wait_for_view_at_rest(page)
     assert probe.count_colors(probe.view_pixels(page), [PINNED])[0] > 300
     page.locator("#swap-mix").click()  # the pinned mix (own class only) back on the sliders
     probe.wait_state(page, f"s.get('w_{other}') === 0 && s.get('w_{own}') === 1")
     assert probe.state(page, "pinned_text") != "" and "+1" in probe.state(page, "pinned_text")
     page.locator("#clear-pin").click()
     probe.wait_state(page, f"s.get('pinned_text') === '' && !{pinned_line}")
-    time.sleep(0.5)
+    probe.wait_for_view_at_rest(page)
     assert probe.count_colors(probe.view_pixels(page), [PINNED])[0] < 50
 
 
@@ -501,7 +502,7 @@ def test_interpenetrating_limbs_are_marked(page, sample_data):
     assert page.locator("#distance-chart rect.penetration").count() >= 1
     probe.set_state(page, "frame", deepest)
     probe.wait_state(page, f"s.get('frame') === {deepest}")
-    time.sleep(0.8)
+    probe.wait_for_view_at_rest(page)
     assert probe.count_colors(probe.view_pixels(page), [WARNING])[0] > 100
     probe.shot(page, "studio-contact")
     count = probe.state(page, "mix_count")
@@ -551,7 +552,7 @@ def test_side_by_side_from_the_side_keeps_the_three_figures_apart(page):
     n = probe.images_seen(page)
     page.locator("#camera-side").click()
     probe.wait_for_new_image(page, n)
-    time.sleep(0.6)  # the still picture after the interactive one
+    probe.wait_for_view_at_rest(page)  # the still picture after the interactive one
     img = probe.view_pixels(page)
     probe.shot(page, "studio-side-by-side-side")
     try:
@@ -569,7 +570,7 @@ def test_switch_to_the_diffusion_model_draw_variations_and_back(page):
     from tests.studio_probe import color_mask
 
     def still_green():
-        time.sleep(0.8)  # the still picture after the draft
+        probe.wait_for_view_at_rest(page)  # the still picture after the draft
         return color_mask(probe.view_pixels(page), SYNTHESIZED)
 
     def figures(mask) -> int:  # green figures side by side: runs of image columns with green in them
@@ -628,7 +629,7 @@ def test_the_spread_slider_redraws_the_follower_and_enters_the_link(page):
     from tests.studio_probe import color_mask
 
     def still_green():
-        time.sleep(0.8)  # the still picture after the draft
+        probe.wait_for_view_at_rest(page)  # the still picture after the draft
         return color_mask(probe.view_pixels(page), SYNTHESIZED)
 
     _load_sequence(page, 6 if probe.state(page, "sequence_index") != 6 else 7)

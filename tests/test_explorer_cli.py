@@ -357,11 +357,13 @@ def test_the_next_spare_waits_for_quiet_tabs(monkeypatch):
     from explorer.serving.launcher import LaunchConfig, Launcher
     from imm_model.paths import SAMPLE_DATA
 
-    monkeypatch.setattr(launcher, "SPARE_DELAY_S", 0.05)
-    monkeypatch.setattr(launcher, "SPARE_QUIET_S", 0.3)
-    monkeypatch.setattr(launcher, "SPARE_LATEST_S", 1.5)
+    delay, quiet_s, latest = 0.05, 0.3, 2.5
+    monkeypatch.setattr(launcher, "SPARE_DELAY_S", delay)
+    monkeypatch.setattr(launcher, "SPARE_QUIET_S", quiet_s)
+    monkeypatch.setattr(launcher, "SPARE_LATEST_S", latest)
 
-    async def time_until_due(traffic_s: float, wanted_after_s: float | None = None) -> float:
+    async def until_due(traffic_s: float, wanted_after_s: float | None = None) -> tuple[float, float]:
+        """-> (seconds from the claim until the next spare is due, seconds since the last message then)"""
         front = Launcher(LaunchConfig(data=SAMPLE_DATA, models=(("gan", SAMPLE_CHECKPOINT),)))  # nothing is started
         t0 = time.monotonic()
         due = asyncio.ensure_future(front._spare_due())
@@ -369,12 +371,16 @@ def test_the_next_spare_waits_for_quiet_tabs(monkeypatch):
             front.note_traffic()
             if wanted_after_s is not None and time.monotonic() - t0 > wanted_after_s:
                 front.spare_wanted.set()
-            await asyncio.sleep(0.05)
+            await asyncio.sleep(0.05)  # a message every 50 ms
         await due
-        return time.monotonic() - t0
+        now = time.monotonic()
+        return now - t0, now - front.last_traffic
 
-    quiet, busy, asked, endless = (asyncio.run(time_until_due(*a)) for a in ((0,), (0.6,), (5, 0.2), (5,)))
-    assert quiet < 0.25  # no traffic: SPARE_DELAY_S after the claim
-    assert 0.85 < busy < 1.3  # 0.6 s of messages, then 0.3 s of quiet
-    assert asked < 0.45
-    assert 1.4 < endless < 1.9
+    # Lower bounds and which rule fired, no tight upper bounds: a busy machine only makes each wait longer (a stalled
+    # process wakes the traffic's earlier timer first, so constant traffic never looks quiet).
+    (quiet, _), (busy, busy_quiet), (asked, _), (endless, _) = (
+        asyncio.run(until_due(*a)) for a in ((0,), (0.6,), (60, 0.2), (60,)))
+    assert delay <= quiet < latest  # no traffic: SPARE_DELAY_S after the claim
+    assert busy_quiet >= quiet_s and busy < latest  # 0.6 s of messages, then SPARE_QUIET_S of quiet
+    assert 0.2 <= asked < latest  # another tab asked: at once, in the middle of the traffic
+    assert latest <= endless < 60  # never quiet: SPARE_LATEST_S after the claim

@@ -80,15 +80,33 @@ def test_concurrent_requests_share_one_fit_per_method(tmp_path, monkeypatch):
     import time
 
     from explorer.session import latent as latent_module
-    calls = []
+    calls, waiting = [], []
+
+    class CountingLock:
+        """The map's lock for one method, counting the requests that reached it."""
+
+        def __init__(self):
+            self.lock, self.arrived, self.count_lock = threading.Lock(), 0, threading.Lock()
+
+        def __enter__(self):
+            with self.count_lock:
+                self.arrived += 1
+            self.lock.acquire()
+
+        def __exit__(self, *exc):
+            self.lock.release()
 
     def slow_project(latents, method, seed=0):
         calls.append(method)
-        time.sleep(0.2)
+        deadline = time.monotonic() + 60
+        while lock.arrived < len(threads) and time.monotonic() < deadline:  # the fit runs until all ten are waiting
+            time.sleep(0.01)
+        waiting.append(lock.arrived)
         return np.zeros((len(latents), 2), np.float32) + len(calls)
 
     monkeypatch.setattr(latent_module, "project", slow_project)
     lm = latent_module.LatentMap(np.random.default_rng(0).normal(size=(20, 8)).astype(np.float32), {}, tmp_path / "latent-x.npz")
+    lm._locks["umap"] = lock = CountingLock()
     errors = []
 
     def request():
@@ -102,7 +120,7 @@ def test_concurrent_requests_share_one_fit_per_method(tmp_path, monkeypatch):
         t.start()
     for t in threads:
         t.join()
-    assert errors == [] and calls == ["umap"]
+    assert errors == [] and calls == ["umap"] and waiting == [len(threads)]  # all ten came while it ran
     assert sorted(p.name for p in tmp_path.iterdir()) == ["latent-x.lock", "latent-x.npz"]  # no temporary file left
 
 

@@ -38,7 +38,8 @@ def test_a_link_reopens_the_same_picture(studio, browser, page):
     try:
         probe.wait_state(other, f"s.get('url_query') === {query!r}", timeout_ms=30000)
         assert probe.state(other, "clean_up") is False
-        time.sleep(1.0)  # the last picture of both views
+        probe.wait_for_view_at_rest(page)  # the last picture of both views
+        probe.wait_for_view_at_rest(other)
         a, b = probe.view_pixels(page).astype(float), probe.view_pixels(other).astype(float)
         probe.shot(page, "studio-link-sender")
         probe.shot(other, "studio-link-receiver")
@@ -142,8 +143,7 @@ def test_five_clients_are_independent(studio, browser):
         n_mix = probe.state(pages[0], "mix_count")
         probe.press_slider(pages[0], f".slider-{names[other].replace(' ', '_')}", "End")
         pages[0].wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=10000)
-        time.sleep(0.5)
-        assert probe.state(pages[0], "label_text") != texts[0]
+        probe.wait_state(pages[0], f"s.get('label_text') !== {texts[0]!r}")
         for pg, text in zip(pages[1:], texts[1:], strict=True):
             assert probe.state(pg, "label_text") == text
             assert probe.state(pg, f"w_{other}") == 0
@@ -188,17 +188,62 @@ def test_a_hostile_upload_is_one_red_line_and_closed_tabs_leave_no_error(studio,
         n_mix = probe.state(pg, "mix_count")
         probe.press_slider(pg, f".slider-{names[1].replace(' ', '_')}", "End")
         pg.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=15000)
-        probe.press_key(pg, " ") if not probe.state(pg, "playing") else None
-        time.sleep(1.0)
+        serving = _play_until_pictures_flow(pg, studio)
     finally:
         pg.close()
     for _ in range(2):
         other = probe.open_studio(browser, studio.url, timeout_ms=90000)
-        probe.press_key(other, " ") if not probe.state(other, "playing") else None
-        time.sleep(1.0)
+        serving |= _play_until_pictures_flow(other, studio)
         other.close()
-    time.sleep(1.0)
-    assert not [ln for ln in studio.lines if "Traceback" in ln or "never retrieved" in ln], studio.lines[-20:]
+    # the closed tabs' processes retired (RECONNECT_GRACE_S after the close) and ended: what they logged is all there
+    deadline = time.monotonic() + 60
+    while any(pid in _studio_processes(studio) and pid not in _serving_a_tab(studio) for pid in serving):
+        assert time.monotonic() < deadline, "a closed tab's studio process did not end"
+        time.sleep(0.2)
+    lines = studio.read_log()
+    assert not [ln for ln in lines if "Traceback" in ln or "never retrieved" in ln], lines[-20:]
+
+
+def _studio_processes(studio) -> set[int]:
+    """The studio processes (children of the launcher's zygote) alive now."""
+    from pathlib import Path
+
+    def children(pid: int) -> set[int]:
+        try:
+            return {int(c) for task in Path(f"/proc/{pid}/task").iterdir() for c in (task / "children").read_text().split()}
+        except OSError:
+            return set()
+
+    return {p for zygote in children(studio.proc.pid) for p in children(zygote)}
+
+
+def _serving_a_tab(studio) -> set[int]:
+    """The studio processes with a websocket from the launcher open: each serves an open tab (a spare has none)."""
+    import os
+
+    established = set()  # socket inodes of established TCP connections
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        with open(table) as f:
+            established |= {row.split()[9] for row in list(f)[1:] if row.split()[3] == "01"}
+    serving = set()
+    for pid in _studio_processes(studio):
+        try:
+            links = [os.readlink(f"/proc/{pid}/fd/{fd}") for fd in os.listdir(f"/proc/{pid}/fd")]
+        except OSError:
+            continue
+        if any(link.startswith("socket:[") and link[8:-1] in established for link in links):
+            serving.add(pid)
+    return serving
+
+
+def _play_until_pictures_flow(pg, studio) -> set[int]:
+    """Start playback and wait for a few of its pictures (pictures in flight when the tab closes) -> the studio
+    processes then serving a tab, this one among them."""
+    probe.watch_view_images(pg)
+    n = probe.images_seen(pg)
+    probe.press_key(pg, " ") if not probe.state(pg, "playing") else None
+    probe.wait_for_new_image(pg, n + 3, timeout_ms=60000)
+    return _serving_a_tab(studio)
 
 
 def _network_log(page) -> dict[str, dict]:
@@ -297,8 +342,7 @@ def test_the_static_paths_answer_cache_headers_and_unknown_names_404(studio, pag
                     f"static/{key}/assets/..%2F..%2F..%2Fclaim", f"static/{key}/.%2E/index.html"):
         status, _, body = get(unknown)
         assert status == 404 and len(body) < 100, (unknown, status, body[:100])
-    time.sleep(0.3)
-    assert not [ln for ln in studio.lines if "Traceback" in ln or "Error handling request" in ln]
+    assert not [ln for ln in studio.read_log() if "Traceback" in ln or "Error handling request" in ln]
 
 
 def test_a_tab_opened_while_claims_are_rate_limited_tries_again_and_gets_its_studio(studio, browser):

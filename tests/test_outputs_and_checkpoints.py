@@ -364,19 +364,22 @@ def _alive(pid: int) -> bool:
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
 def test_killing_the_runner_ends_its_workers(tmp_path, sig):
     """A worker busy with a long job (a trainer) ends when the runner is killed, even with -9."""
-    script = ("import time\nfrom imm_model.reproduce.runner import Runner, Task\n"
-              "with Runner(backend='local') as r:\n    r.run([Task('long', time.sleep, (120,))], 'jobs')\n")
+    started = tmp_path / "started"  # the job writes its worker's pid here, then runs long
+    (tmp_path / "long_job.py").write_text("import os, time\n\ndef run(started):\n    with open(started + '.tmp', 'w') as f:\n"
+                                          "        f.write(str(os.getpid()))\n    os.replace(started + '.tmp', started)\n"
+                                          "    time.sleep(120)\n")
+    script = (f"import sys\nsys.path.insert(0, {str(tmp_path)!r})\nimport long_job\nfrom imm_model.reproduce.runner import Runner, Task\n"
+              f"with Runner(backend='local') as r:\n    r.run([Task('long', long_job.run, ({str(started)!r},))], 'jobs')\n")
     driver = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline, workers = time.monotonic() + 60, set()
-        while time.monotonic() < deadline and len(workers) < (os.cpu_count() or 1):  # the pool: a worker per core
+        while time.monotonic() < deadline and (len(workers) < (os.cpu_count() or 1) or not started.exists()):
             workers |= {p for p in _children(driver.pid) if "spawn_main" in Path(f"/proc/{p}/cmdline").read_text()}
-            time.sleep(0.2)
-        time.sleep(1.0)  # the job handed to a worker
-        assert workers
+            time.sleep(0.2)  # the pool (a worker per core) up and the job running in one of them
+        assert started.exists() and int(started.read_text()) in workers, (started.exists(), workers)
         driver.send_signal(sig)
         driver.wait(30)
-        deadline = time.monotonic() + 15
+        deadline = time.monotonic() + 60
         while time.monotonic() < deadline and any(_alive(p) for p in workers):
             time.sleep(0.2)
         assert not any(_alive(p) for p in workers)

@@ -151,14 +151,18 @@ def test_interactive_frames_go_through_the_wrapper_and_keys_never_reach_vtk():
             return result
 
         handler = trame_adapter.stream_view(area, window, wrap_interactive=wrap, target_fps=30, interactive_quality=70,
-                                            still_quality=85, deliver=delivered.append)
+                                            still_quality=85, deliver=lambda send, still: delivered.append((send, still)))
         assert area.handlers == [handler]
         handler.set_streamer(streamer)
         handler.update()
-        for _ in range(500):  # the scheduler's loop renders the interactive frame, then the still one, and hands
-            await asyncio.sleep(0.01)  # each encoded picture over: wait for the second hand-over, not the grab before it
-            if after and window.grabs > after[-1] and len(delivered) >= 2:
-                break
+        # the scheduler's loop renders the interactive frame, then the still one, and hands each encoded picture over:
+        # wait for the second hand-over, not the grab before it (a generous deadline: a busy 2-core machine)
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + 60
+        while not (after and window.grabs > after[-1] and len(delivered) >= 2):
+            if loop.time() > deadline:
+                break  # the assertions below say what is missing
+            await asyncio.sleep(0.01)
         handler.on_interaction(None, {"type": "KeyPress", "key": "r"})
         handler.on_interaction(None, {"type": "LeftButtonPress", "x": 1, "y": 1})
         await handler.close()
@@ -168,7 +172,9 @@ def test_interactive_frames_go_through_the_wrapper_and_keys_never_reach_vtk():
     assert len(delivered) == 2 and not streamer.pushed, (
         f"{where('trame-rca', 4)}: the encoded pictures did not go through the push callback ({len(delivered)} handed over, "
         f"{len(streamer.pushed)} pushed past it)")
-    for send in delivered:
+    assert [still for _, still in delivered] == [False, True], (
+        f"{where('trame-rca', 4)}: the picture's meta no longer tells the still picture by its quality")
+    for send, _ in delivered:
         send()
     assert [name for name, _ in streamer.pushed] == ["view", "view"] and all(len(c) > 0 for _, c in streamer.pushed), (
         f"{where('trame-rca', 4)}: a picture handed over did not reach the page's stream (RcaViewAdapter.push)")

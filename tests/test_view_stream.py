@@ -35,14 +35,22 @@ def test_one_picture_in_flight_and_the_latest_held_back_goes_when_the_page_shows
     assert sent == ["a", "c", "d"] and (gate.sent, gate.shown_count, gate.replaced) == (3, 2, 1)
 
 
+async def until(condition, timeout_s: float = 60.0) -> None:
+    """Poll `condition()` on the running loop until it holds (a generous deadline: a busy 2-core machine)."""
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + timeout_s
+    while not condition():
+        assert loop.time() < deadline, "the condition never held"
+        await asyncio.sleep(0.01)
+
+
 def test_a_picture_never_reported_shown_holds_the_next_only_until_the_timeout():
     async def run():
         gate, sent = PictureGate(timeout_s=0.05), []
         gate.deliver(picture(sent, "a"))
         gate.deliver(picture(sent, "b"))
-        await asyncio.sleep(0.01)
-        held_then = list(sent)
-        await asyncio.sleep(0.1)  # no acknowledgement (a hidden tab): b goes after the timeout
+        held_then = list(sent)  # the timeout cannot have fired: the loop has not run since
+        await until(lambda: len(sent) == 2)  # no acknowledgement (a hidden tab): b goes after the timeout
         return held_then, sent
 
     held_then, sent = asyncio.run(run())
@@ -52,16 +60,16 @@ def test_a_picture_never_reported_shown_holds_the_next_only_until_the_timeout():
 def test_playback_waits_for_its_picture_encoded_not_for_the_one_before_to_be_shown():
     async def run():
         gate, sent = PictureGate(timeout_s=10), []
-        await asyncio.wait_for(gate.wait_encoded(), 1)  # nothing asked for: no wait
+        await asyncio.wait_for(gate.wait_encoded(), 60)  # nothing asked for: no wait
         gate.asked()
         waiter = asyncio.ensure_future(gate.wait_encoded())
-        await asyncio.sleep(0.01)
+        await asyncio.sleep(0)  # one turn of the loop: the waiter runs up to its wait
         waiting = not waiter.done()
         gate.deliver(picture(sent, "a"))
-        await asyncio.wait_for(waiter, 1)
+        await asyncio.wait_for(waiter, 60)
         gate.asked()
         gate.deliver(picture(sent, "b"))  # held (a is not shown) but encoded: the next frame may render meanwhile
-        await asyncio.wait_for(gate.wait_encoded(), 1)
+        await asyncio.wait_for(gate.wait_encoded(), 60)
         return waiting, sent
 
     waiting, sent = asyncio.run(run())
@@ -97,13 +105,35 @@ def test_playback_sets_no_new_frame_until_the_last_ones_picture_is_encoded(monke
 
         studio.picture_encoded = picture_encoded
         task = asyncio.ensure_future(play(studio))
-        await asyncio.sleep(0.3)  # 9 frames' time at 2x
+        await until(lambda: studio.frames)  # the first frame set: playback waits for its picture
+        await asyncio.sleep(0.3)  # 9 frames' time at 2x, in which it must set no other
         blocked = list(studio.frames)
         encoded.set()
-        await asyncio.sleep(0.3)
+        await until(lambda: len(studio.frames) >= 4)
         studio.state.playing = False
-        await asyncio.wait_for(task, 2)
+        await asyncio.wait_for(task, 60)
         return blocked, studio.frames
 
     blocked, frames = asyncio.run(run())
     assert len(blocked) == 1 and len(frames) >= 4 and frames == sorted(frames), (blocked, frames)
+
+
+def test_the_view_is_at_rest_once_the_still_picture_after_the_last_ask_is_shown():
+    """PictureGate.at_rest(), what the browser tests wait for after an action (tests/studio_probe.py)."""
+    async def run():
+        gate, sent, rest = PictureGate(timeout_s=10), [], []
+        gate.asked()
+        rest.append(gate.at_rest())  # asked, nothing encoded yet
+        gate.deliver(picture(sent, "interactive"), still=False)
+        gate.deliver(picture(sent, "still"), still=True)  # held: the interactive one is not shown yet
+        rest.append(gate.at_rest())
+        gate.shown()  # the interactive one: the still one goes
+        rest.append(gate.at_rest())
+        gate.shown()
+        rest.append(gate.at_rest())
+        gate.asked()  # the next change
+        rest.append(gate.at_rest())
+        return rest, sent
+
+    rest, sent = asyncio.run(run())
+    assert rest == [False, False, False, True, False] and sent == ["interactive", "still"]

@@ -38,10 +38,11 @@ ACK_TIMEOUT_S = 0.25  # a picture the page never reports shown (a hidden tab, a 
 
 
 class PictureGate:
-    """At most one picture on its way to the page: `deliver(send)` sends an encoded picture (calls `send()`, which
-    returns False if no page was there to send it to) at once if none is in flight, else holds it back, replacing one
-    held before; on `shown()` (the page showed a picture), or ACK_TIMEOUT_S after a send, the one held back goes.
-    `asked()`: a picture was asked of the renderer; `wait_encoded()`: until it is encoded (sent or held)."""
+    """At most one picture on its way to the page: `deliver(send, still)` sends an encoded picture (calls `send()`,
+    which returns False if no page was there to send it to) at once if none is in flight, else holds it back,
+    replacing one held before; on `shown()` (the page showed a picture), or ACK_TIMEOUT_S after a send, the one held
+    back goes. `asked()`: a picture was asked of the renderer; `wait_encoded()`: until it is encoded (sent or held);
+    `at_rest()`: the view shows what it will until the next change (the still picture, shown)."""
 
     def __init__(self, timeout_s: float = ACK_TIMEOUT_S):
         self.timeout_s = timeout_s
@@ -49,6 +50,9 @@ class PictureGate:
         self.held: Callable[[], bool | None] | None = None  # the send() of the latest picture encoded meanwhile
         self.pending = False  # a picture was asked for and is not encoded yet
         self.sent = self.shown_count = self.replaced = 0  # since the start
+        self.held_still = False  # the picture held back is the still one (the sharper picture after a render)
+        self.sent_still = False  # the last picture sent was the still one
+        self.shown_since_sent = False  # the page reported a picture shown after the last send
         self._encoded: asyncio.Event | None = None  # made in the server's loop
         self._timer: asyncio.TimerHandle | None = None
 
@@ -56,17 +60,18 @@ class PictureGate:
         self.pending = True  # until the next picture is encoded (the renderer renders once for any number of asks)
         self._settle()
 
-    def deliver(self, send: Callable[[], bool | None]) -> None:
+    def deliver(self, send: Callable[[], bool | None], still: bool = False) -> None:
         self.pending = False
         if self.in_flight:
             self.replaced += self.held is not None
-            self.held = send
+            self.held, self.held_still = send, still
         else:
-            self._send(send)
+            self._send(send, still)
         self._settle()
 
     def shown(self) -> None:
         self.shown_count += 1
+        self.shown_since_sent = True
         self.release()
 
     def release(self) -> None:
@@ -77,16 +82,22 @@ class PictureGate:
             self._timer = None
         held, self.held = self.held, None
         if held is not None:
-            self._send(held)
+            self._send(held, self.held_still)
 
     async def wait_encoded(self) -> None:
         self._settle()
         await self._encoded.wait()
 
-    def _send(self, send: Callable[[], bool | None]) -> None:
+    def at_rest(self) -> bool:
+        """No picture asked for or held back, and the last one sent, the still one, reported shown: what a test waits
+        for after an action instead of a fixed time (tests/studio_probe.py, through the trigger `<name>_at_rest`)."""
+        return not self.pending and self.held is None and self.sent_still and self.shown_since_sent
+
+    def _send(self, send: Callable[[], bool | None], still: bool) -> None:
         if send() is False:
             return  # no page to show it yet: nothing in flight
         self.sent += 1
+        self.sent_still, self.shown_since_sent = still, False
         self.in_flight = True
         self._timer = asyncio.get_running_loop().call_later(self.timeout_s, self.release)
 
@@ -111,6 +122,7 @@ class ViewStream:
         self.area = rca.RemoteControlledArea(name=name, display="image", style="width: 100%; height: 100%", resize_throttle_ms=16,
                                              raw_attrs=[f"@load.capture=\"trigger('{name}_shown')\""])
         server.trigger(f"{name}_shown")(lambda *_: self.gate.shown())
+        server.trigger(f"{name}_at_rest")(lambda *_: self.gate.at_rest())
         server.controller.on_server_ready.add(self._start)
 
     def _start(self, **_) -> None:
