@@ -413,6 +413,7 @@ def test_generate_draws_variations_with_seeds(tiny_model, sample_data, tmp_path,
     assert "samples must be" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_evaluation_reports_a_stochastic_models_variations_and_mixed_readings(tiny_model, sample_data, tmp_path, monkeypatch):
     from imm_model.evaluation.loso import EvalOptions, evaluate_fold
     from imm_model.model.classifier_config import ClassifierConfig

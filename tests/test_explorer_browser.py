@@ -215,6 +215,7 @@ def test_distance_chart_click_seeks_and_cursor_follows(page):
     assert abs(cursor["x"] - (box["x"] + box["width"] * 0.75)) < box["width"] / max(1, n - 1) + 2
 
 
+@pytest.mark.slow
 def test_umap_fits_while_the_page_keeps_working(page):
     """The first UMAP fit runs in a separate process: the map says so, a slider still re-synthesizes meanwhile,
     then the UMAP map replaces the t-SNE one."""

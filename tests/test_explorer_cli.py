@@ -194,6 +194,7 @@ def test_a_lost_loader_is_one_line_not_a_hang(tmp_path):
 
 
 @pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
+@pytest.mark.slow
 def test_a_claim_nobody_connects_to_is_released(tmp_path, monkeypatch):
     """A tab that claims a process, loads its page and never connects (closed at once) does not hold the only slot
     for long. (A claim whose page is never asked for goes sooner: tests/test_studio_hardening.py.)"""

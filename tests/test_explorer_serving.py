@@ -15,6 +15,7 @@ from tests.relays import PrefixProxy, TcpRelay
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(240)]
 
 
+@pytest.mark.slow
 def test_a_link_reopens_the_same_picture(studio, browser, page):
     """The address bar follows the view; the copied link, opened in a new tab (a new studio process), shows the
     same sequence, mix, frame, layout and camera: the two pictures match."""
@@ -86,6 +87,7 @@ def test_single_port_through_a_forwarded_port(studio, browser, tmp_path):
         relay.close()
 
 
+@pytest.mark.slow
 def test_behind_a_reverse_proxy_with_a_path_prefix(browser, tmp_path):
     """--base-url: the printed address is the proxy's; through /imm/ the page loads and a slider re-synthesizes."""
     from urllib.parse import urlsplit
@@ -125,6 +127,7 @@ def test_local_rendering_draws_in_the_page_and_follows_a_slider(browser, tmp_pat
         pg.close()
 
 
+@pytest.mark.slow
 def test_five_clients_are_independent(studio, browser):
     pages = []
     try:
@@ -166,6 +169,7 @@ def test_five_clients_are_independent(studio, browser):
             pg.close()
 
 
+@pytest.mark.slow
 def test_a_hostile_upload_is_one_red_line_and_closed_tabs_leave_no_error(studio, browser, tmp_path):
     """Through the page: an .npz of 0.5 MB that unpacks to 540 MB is read within the upload's budget (its own
     process, explorer/serving/upload_reader.py) and answered by the red one-line alert; the view and the slider keep

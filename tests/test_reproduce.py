@@ -25,6 +25,7 @@ def _reproduce(out: Path, env: dict, *extra: str) -> subprocess.Popen:
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
 
 
+@pytest.mark.slow
 def test_tiny_reproduce_killed_then_resumed_writes_all_four_tables(tmp_path):
     pytest.importorskip("ray")
     env = os.environ | {"IMM_CACHE_DIR": str(tmp_path / "cache"), "RAY_USAGE_STATS_ENABLED": "0"}

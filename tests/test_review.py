@@ -40,6 +40,7 @@ def rows(gan, sample_data, judge, features):
     return review.review_table(gan, sample_data, judge=judge, features=features)
 
 
+@pytest.mark.slow
 def test_rows_cover_the_held_out_split(rows, gan, sample_data):
     test = loso_fold(sample_data.subject_pairs, gan.held_out_subject).test
     assert sorted(r.index for r in rows) == sorted(int(i) for i in test)

@@ -10,7 +10,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import io
-import json
 import os
 import re
 import signal
@@ -428,6 +427,7 @@ def _assert_ends_within(pid: int, seconds: float) -> None:
         time.sleep(0.1)
 
 
+@pytest.mark.slow
 def test_hostile_uploads_get_one_line_and_a_hung_tab_is_ended_within_seconds(small_studio):
     """Both slots taken by tabs that upload the eight hostile files (each answered in one line within the budget,
     the view kept, the studio process's peak memory bounded); one tab's process then hangs for good (SIGSTOP: no
@@ -643,15 +643,7 @@ def test_a_frame_larger_than_a_studio_takes_is_refused_by_the_proxy(small_studio
 # ---- slots --------------------------------------------------------------------------------------------------------
 
 
-def _claim_like_the_page(url: str, limit_s: float = 15.0) -> tuple[int, str]:
-    """The front page's claim, tried again a second after a rate-limited answer -> (status, the tab's path)."""
-    deadline = time.monotonic() + limit_s
-    while (answer := _post_claim(url, {"Origin": url.rstrip("/")}))[0] == 429 and time.monotonic() < deadline:
-        time.sleep(1.0)
-    status, body = answer
-    return status, json.loads(body)["url"] if status == 200 else body.decode(errors="replace")
-
-
+@pytest.mark.slow
 def test_a_script_posting_claims_cannot_keep_a_tab_from_a_studio(small_studio):
     """A local script with the page's Origin posts 4 claims a second for 8 s and never asks for a page: before, it
     held both slots and the next tab got 503. The next tab gets a studio, and it works."""
@@ -663,12 +655,18 @@ def test_a_script_posting_claims_cannot_keep_a_tab_from_a_studio(small_studio):
         statuses.append(_claim_status(small_studio.url))
         time.sleep(0.25)
     assert statuses.count(200) >= 4, statuses  # the script did get studios
-    status, path = _claim_like_the_page(small_studio.url)
-    assert status == 200, path
 
-    async def go():
+    async def go():  # the front page's claim, tried again a second after a rate-limited answer, with its cookie
         tab = RawTab(small_studio.url)
-        tab.http, tab.path = aiohttp.ClientSession(), path
+        tab.http = aiohttp.ClientSession(cookie_jar=aiohttp.CookieJar(unsafe=True))
+        deadline = time.monotonic() + 15
+        while True:
+            async with tab.http.post(tab.url + "claim", headers={"Origin": tab.origin}) as r:
+                if r.status != 429 or time.monotonic() > deadline:
+                    assert r.status == 200, await r.text()
+                    tab.path = (await r.json())["url"]
+                    break
+            await asyncio.sleep(1.0)
         await tab.connect()
         frames = tab.state.get("num_frames")
         await tab.close()

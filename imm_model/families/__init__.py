@@ -94,7 +94,7 @@ def _read_recipe(path: Path) -> dict:
     try:
         d = json.loads(read_input_text(path, "config", MAX_SETTINGS_BYTES))  # a regular file, within the bound
     except (json.JSONDecodeError, RecursionError) as err:
-        where = f"{err.msg} at line {err.lineno}" if isinstance(err, json.JSONDecodeError) else type(err).__name__
+        where = f"{err.msg} at line {err.lineno}" if isinstance(err, json.JSONDecodeError) else "nested too deeply"
         raise ValueError(f"{path}: invalid JSON ({where})") from None
     if not isinstance(d, dict):
         raise ValueError(f"{path}: a config is a JSON object ({{\"base\": \"imm\", ...overrides}}), not {type(d).__name__}")
