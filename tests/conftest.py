@@ -5,7 +5,12 @@ from __future__ import annotations
 
 import os
 
-import pytest
+# One math thread per test process (and the processes it starts): the suite's torch and numpy work is small, and beside
+# another busy process two threads on two cores spin against each other (a tiny training test took minutes, not 7 s).
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
+
+import pytest  # noqa: E402
 
 from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA, k3hi_raw_root, sbu_raw_root
 
