@@ -119,7 +119,11 @@ def state(page, key: str):
 
 
 def set_state(page, key: str, value) -> None:
+    """Set a state key as the page would, and wait until it has left for the server: trame's client holds a change
+    back while a call of its own is under way, and a trigger sent meanwhile would overtake it."""
     page.evaluate("([k, v]) => window.trame.state.set(k, v)", [key, value])
+    page.wait_for_function("() => { const d = window.trame.state.dirtyKeys; return !d || !d.has || d.size === 0; }",
+                           timeout=30000)
 
 
 def view_pixels(page) -> np.ndarray:
