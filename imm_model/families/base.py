@@ -4,7 +4,10 @@
     follower = model.synthesize(leader_world, {"kicking": 1.0, "hugging": 0.5})  # (T, J, 3) metres
 
 Labels are multi-hot: one float per class (+1 perform, 0 neutral, -1 avoid, fractions blend, values beyond 1
-exaggerate), given as {class name: value} (missing classes are 0) or a length-C sequence. A world leader is checked
+exaggerate), given as {class name: value} (missing classes are 0) or a length-C sequence. A model that reads a label
+per body part (`part_labels`) also takes "upper:<class>" (trunk and arms) and "lower:<class>" (legs, and where the
+follower stands) keys, or a length-2C sequence (upper, then lower); a class name alone is both parts, and a part key
+overrides that part of it. Its label vector is then (2C,); a whole-body label stays (C,). A world leader is checked
 and standardized with its canonical frame once (`prepare_leader`), the family's network runs in that frame
 (`_network`), the follower goes through the clean-up and is mapped back to the leader's world frame. A family
 implements `_network` and `latent_canonical_batch`, and declares in `settings` the sampler settings it takes (a seed
@@ -33,6 +36,31 @@ MAX_LABEL_VALUE = 10.0
 MAX_BONE_M = 5.0  # a checkpoint's follower bone lengths, metres
 MAX_TRAIN_LENGTH = 100_000  # a checkpoint's max_train_length, frames
 MAX_SAMPLES = 64  # reactions drawn by one call
+PARTS = ("upper", "lower")  # a part label's prefixes, in the order of a (2C,) label vector's halves
+
+
+def label_keys(vector: np.ndarray, class_names: Sequence[str]) -> dict[str, float]:
+    """A label vector, (C,) or (2C,), -> its nonzero values as one spells them: a class name where both parts agree,
+    "upper:<class>" / "lower:<class>" where they differ (the inverse of `ReactionModel.label_vector`)."""
+    vec = np.asarray(vector, np.float64).reshape(-1)
+    c = len(class_names)
+    if len(vec) == c:
+        return {n: float(v) for n, v in zip(class_names, vec, strict=True) if v != 0}
+    out: dict[str, float] = {}
+    for i, name in enumerate(class_names):
+        upper, lower = float(vec[i]), float(vec[c + i])
+        if upper == lower:
+            if upper:
+                out[name] = upper
+            continue
+        out |= {f"{part}:{name}": v for part, v in zip(PARTS, (upper, lower), strict=True) if v}
+    return out
+
+
+def whole_body(labels: np.ndarray, num_classes: int) -> np.ndarray:
+    """(N, C) or (N, 2C) label vectors -> (N, C): a part label as the mean of its two parts."""
+    labels = np.asarray(labels)
+    return labels if labels.shape[-1] == num_classes else 0.5 * (labels[..., :num_classes] + labels[..., num_classes:])
 
 
 @dataclass(frozen=True)
@@ -80,6 +108,8 @@ class ReactionModel:
     # reactions), "spread" (how loosely it follows the leader), "memory" (start from a real reaction). None: one
     # reaction per leader and label.
     settings: tuple[str, ...] = ()
+    part_labels: bool = False  # reads a label per body part ("upper:<class>", "lower:<class>"); a family may set it
+
 
     @property
     def stochastic(self) -> bool:
@@ -188,15 +218,11 @@ class ReactionModel:
 
     # ---- labels and inputs ----------------------------------------------------------------
     def label_vector(self, label: Mapping[str, float] | Sequence[float] | np.ndarray, scale: float = 1.0) -> np.ndarray:
-        """A label (name -> value mapping, or one value per class) -> (C,) float32, times `scale`."""
+        """A label (name -> value mapping, or one value per class; per class and part for a part model) -> float32,
+        times `scale`: (C,) for a whole-body label, (2C,) (upper, then lower) when a part is named."""
         c = len(self.class_names)
         if isinstance(label, Mapping):
-            unknown = [k for k in label if k not in self.class_names]
-            if unknown:
-                raise LabelError(f"unknown class {unknown[0]!r}; classes: {', '.join(self.class_names)}")
-            vec = np.zeros(c, dtype=np.float64)
-            for k, v in label.items():
-                vec[self.class_names.index(k)] = as_float(v, k)
+            vec = self._parse_label_mapping(label)
         else:
             if isinstance(label, str | bytes):
                 raise LabelError("a label is a mapping {class: value} or a sequence of numbers, not a string")
@@ -204,8 +230,10 @@ class ReactionModel:
                 vec = np.asarray(label, dtype=np.float64)
             except (TypeError, ValueError):
                 raise LabelError("label values must be numbers") from None
-            if vec.ndim != 1 or len(vec) != c:
-                raise LabelError(f"label has shape {vec.shape}; expected {c} values ({', '.join(self.class_names)})")
+            widths = (c, 2 * c) if self.part_labels else (c,)
+            if vec.ndim != 1 or len(vec) not in widths:
+                per_part = f", or {2 * c} (upper body's, then lower body's)" if self.part_labels else ""
+                raise LabelError(f"label has shape {vec.shape}; expected {c} values ({', '.join(self.class_names)}){per_part}")
         scale = as_float(scale, "scale")
         with np.errstate(all="ignore"):
             vec = vec * scale
@@ -213,9 +241,33 @@ class ReactionModel:
             raise LabelError("label values must be finite (no NaN or infinity)")
         if np.abs(vec).max(initial=0.0) > MAX_LABEL_VALUE:
             k = int(np.argmax(np.abs(vec)))
-            raise LabelError(f"label value {self.class_names[k]}={vec[k]:g} (after the scale) is outside the range of "
+            name = self.class_names[k % c] if len(vec) == c else f"{PARTS[k // c]}:{self.class_names[k % c]}"
+            raise LabelError(f"label value {name}={vec[k]:g} (after the scale) is outside the range of "
                              f"label values, -{MAX_LABEL_VALUE:g}..{MAX_LABEL_VALUE:g}")
         return vec.astype(np.float32)
+
+    def _parse_label_mapping(self, label: Mapping) -> np.ndarray:
+        """{class or part:class: value} -> (C,) float64, or (2C,) when a part is named (a class alone on both parts, a
+        part key overriding its part)."""
+        c = len(self.class_names)
+        whole, parts = {}, {}
+        for key, value in label.items():
+            part, sep, name = str(key).partition(":") if isinstance(key, str) and ":" in key else ("", "", key)
+            if name not in self.class_names or (sep and part not in PARTS):
+                raise LabelError(f"unknown class {key!r}; classes: {', '.join(self.class_names)}"
+                                 + (f", each alone or after {' or '.join(p + ':' for p in PARTS)}" if self.part_labels else ""))
+            if sep and not self.part_labels:
+                raise LabelError(f"{self.title} takes no label per body part ({key!r}); give the class alone, for the whole body")
+            (parts if sep else whole)[(part, name) if sep else name] = as_float(value, str(key))
+        vec = np.zeros(c, dtype=np.float64)
+        for name, v in whole.items():
+            vec[self.class_names.index(name)] = v
+        if not parts:
+            return vec
+        vec = np.concatenate([vec, vec])
+        for (part, name), v in parts.items():
+            vec[PARTS.index(part) * c + self.class_names.index(name)] = v
+        return vec
 
     def check_leader(self, leader: np.ndarray) -> np.ndarray:
         """Validate a (T, J, 3) leader motion -> float64 array, else DataFormatError (one line)."""
@@ -301,7 +353,7 @@ class ReactionModel:
         certain part of a reaction; the network's two answers disagree about it, and for the steered models their mean is
         nearer the real placement (docs/experiments/mirror-placement.md). The motion is left
         as it was."""
-        rows = [i for i in range(len(leaders)) if not (labels[i] != 0)[self.handed].any()]
+        rows = [i for i in range(len(leaders)) if not (labels[i].reshape(-1, len(self.class_names)) != 0)[:, self.handed].any()]
         if not rows:
             return
         twins = self._network([self.skeleton.mirrored(np.asarray(leaders[i])) for i in rows], labels[rows], [seeds[i] for i in rows])
@@ -326,9 +378,12 @@ class ReactionModel:
         raise NotImplementedError
 
     def _label_array(self, label_vectors: np.ndarray, n: int) -> np.ndarray:
+        """(n, C) label vectors, or (n, 2C) for a part model."""
         labels = np.asarray(label_vectors, dtype=np.float32).reshape(n, -1)
-        if labels.shape[1] != len(self.class_names):
-            raise LabelError(f"label vectors have {labels.shape[1]} values; expected {len(self.class_names)}")
+        c = len(self.class_names)
+        if labels.shape[1] not in ((c, 2 * c) if self.part_labels else (c,)):
+            raise LabelError(f"label vectors have {labels.shape[1]} values; expected {c}"
+                             + (f" or {2 * c} (per part)" if self.part_labels else ""))
         return labels
 
 

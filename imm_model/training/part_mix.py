@@ -9,6 +9,12 @@ the row's length), labelled with both classes (two-hot), beside its own leader. 
 trunk and arms is fixed per pair, not drawn: the class whose real followers move their trunk and arms more, for the
 motion of their legs and placement (`upper_shares`). A drawn side would teach the network, which regresses the clean
 reaction, the average of the two composites for a two-hot label: a blend again.
+
+A network that reads a label per body part (DiffusionConfig.part_labels) is told which class gave which part, so
+there the side is drawn (`part_rows`): a composite carries its upper body's class on the upper label and its lower
+body's on the lower label, a one-class row its class on both; and with probability `part_drop` a row's label names
+one part only (the other part's label zeros), which teaches the network each part's term alone, the terms the
+sampler composes a part label from.
 """
 
 from __future__ import annotations
@@ -87,4 +93,31 @@ def mixed_rows(follower: torch.Tensor, lengths: torch.Tensor, actions: torch.Ten
     mask = (torch.arange(follower.shape[1])[None] < lengths[:, None])[..., None]
     follower = torch.where(composed[:, None, None], mixed * mask, follower)
     labels = labels + composed[:, None].float() * torch.nn.functional.one_hot(actions[donor], num_classes).float()
+    return follower, labels
+
+
+def part_rows(follower: torch.Tensor, lengths: torch.Tensor, actions: torch.Tensor, num_classes: int, mix_prob: float,
+              part_drop: float, skeleton, gen: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+    """Followers (B, T, 3J) and classes (B,) -> (followers with some rows composed by parts, labels (B, 2C): the upper
+    body's one-hot, then the lower body's; one part's zeros on the rows whose label names one part only). A composed
+    row takes its own follower's upper or lower body, drawn, and the other from a row of another class."""
+    b = len(follower)
+    donor = torch.randint(b, (b,), generator=gen)
+    composed = (torch.rand(b, generator=gen) < mix_prob) & (actions[donor] != actions)
+    own_upper = torch.rand(b, generator=gen) < 0.5
+    upper_class = torch.where(composed & ~own_upper, actions[donor], actions)
+    lower_class = torch.where(composed & own_upper, actions[donor], actions)
+    if composed.any():
+        upper, _, centre = part_indices(skeleton)
+        other = resample_rows(follower[donor], lengths[donor], lengths).unflatten(-1, (-1, 3))
+        own = follower.unflatten(-1, (-1, 3))
+        first = torch.where(own_upper[:, None, None, None], own, other)
+        second = torch.where(own_upper[:, None, None, None], other, own)
+        mixed = compose(first, second, upper, centre).flatten(-2)
+        mask = (torch.arange(follower.shape[1])[None] < lengths[:, None])[..., None]
+        follower = torch.where(composed[:, None, None], mixed * mask, follower)
+    one_part = torch.rand(b, generator=gen) < part_drop
+    keep_upper = torch.rand(b, generator=gen) < 0.5
+    labels = torch.cat([torch.nn.functional.one_hot(upper_class, num_classes).float() * (~one_part | keep_upper)[:, None],
+                        torch.nn.functional.one_hot(lower_class, num_classes).float() * (~one_part | ~keep_upper)[:, None]], 1)
     return follower, labels

@@ -33,7 +33,7 @@ def annealed_leader_sampler(model, tau1: float, tau2: float, noise: float):
     """A sampler for `model.sampler` whose network call reads the annealed noisy leader (numpy runtime only)."""
     steps = model.config.diffusion_steps
 
-    def sampler(clean, x, mask, labels, start_noise, guidance, steps_, seeds, pair_terms=False):
+    def sampler(clean, x, mask, labels, start_noise, guidance, steps_, seeds, **network):
         m = mask[..., None].astype(np.float32)
 
         def denoise(x_t, step, leader_on, label, label_on):
@@ -47,7 +47,7 @@ def annealed_leader_sampler(model, tau1: float, tau2: float, noise: float):
             reps = len(x_t) // len(x)
             return model.fast.conditioned(np.tile(y, (reps, 1, 1)), leader_on, label, label_on, np.tile(mask, (reps, 1)))(x_t, step)
 
-        return ds.sample(denoise, x, mask, labels, start_noise, guidance, steps_, seeds=seeds, pair_terms=pair_terms)
+        return ds.sample(denoise, x, mask, labels, start_noise, guidance, steps_, seeds=seeds, **network)
 
     return sampler
 

@@ -155,7 +155,7 @@ def routed_sampler(model, power: float, relative: bool = False):
     sum rule."""
     routing = BodyRouting.of(model.skeleton, model.weights["follower_std"])
 
-    def sampler(denoise, x, mask, labels, noise, guidance, steps, seeds=None, pair_terms=False):
+    def sampler(denoise, x, mask, labels, noise, guidance, steps, seeds=None, **network):
         return routed_sample(denoise, x, mask, labels, noise, guidance, steps, routing, power, relative)
 
     return sampler

@@ -38,7 +38,7 @@ def imputing_sampler(model, gan, mode: str):
             c = np.broadcast_to((c * w).sum(-2, keepdims=True) / w.sum(-2, keepdims=True), c.shape)
         return c
 
-    def sampler(inner, x, mask, labels, noise, guidance, steps, seeds=None, pair_terms=False):
+    def sampler(inner, x, mask, labels, noise, guidance, steps, seeds=None, **network):
         b, t = mask.shape
         lengths = mask.sum(1)
         # the canonical leaders back from the sampler's normalized ones, and the GAN's own followers for them
@@ -58,7 +58,7 @@ def imputing_sampler(model, gan, mode: str):
             pos = pos + shift[..., None, :]
             return ((pos.reshape(-1, b, t, 3 * joints) - mean) / std * mask[..., None]).reshape(x0.shape).astype(np.float32)
 
-        return sample(denoise, x, mask, labels, noise, guidance, steps, seeds=seeds, pair_terms=pair_terms)
+        return sample(denoise, x, mask, labels, noise, guidance, steps, seeds=seeds, **network)
 
     return sampler
 

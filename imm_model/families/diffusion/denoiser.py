@@ -53,7 +53,8 @@ class Block(nn.Module):
 
 
 class ReactionDenoiser(nn.Module):
-    """x_t (B, T, D) normalized follower + leader (B, T, D) normalized + step (B,) + label (B, C) -> x0 (B, T, D).
+    """x_t (B, T, D) normalized follower + leader (B, T, D) normalized + step (B,) + label (B, L) -> x0 (B, T, D), L the
+    config's label_width.
 
     `leader_on` / `label_on` (B,) bool select the real input or the learned "absent" one per row. With
     `cfg.leader_noise`, `leader_level` (B,) is the step of the forward process whose noise the leader carries
@@ -70,7 +71,7 @@ class ReactionDenoiser(nn.Module):
         self.step_mlp = nn.Sequential(nn.Linear(w, w), nn.SiLU(), nn.Linear(w, w))
         if cfg.leader_noise:
             self.leader_noise_mlp = nn.Sequential(nn.Linear(w, w), nn.SiLU(), nn.Linear(w, w))
-        self.label = nn.Linear(cfg.num_classes, w)
+        self.label = nn.Linear(cfg.label_width, w)  # one value per class (per class and part for a part model)
         self.absent_label = nn.Parameter(torch.zeros(w))
         self.blocks = nn.ModuleList(Block(w, cfg.heads, cfg.ff_mult, cfg.dropout) for _ in range(cfg.layers))
         self.out_norm = nn.LayerNorm(w)

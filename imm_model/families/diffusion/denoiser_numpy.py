@@ -87,7 +87,7 @@ def _attention(q: np.ndarray, k: np.ndarray, v: np.ndarray, pad: np.ndarray | No
 
 class NumpyDenoiser:
     """ReactionDenoiser.forward on numpy arrays: x_t (B, T, D) normalized, step int, leader (B, T, D) normalized,
-    leader_on (B,), label (B, C), label_on (B,), mask (B, T) -> x0 (B, T, D) float32."""
+    leader_on (B,), label (B, L), label_on (B,), mask (B, T) -> x0 (B, T, D) float32."""
 
     def __init__(self, weights: dict[str, np.ndarray], cfg: DiffusionConfig):
         self.cfg = cfg
@@ -128,7 +128,7 @@ class NumpyDenoiser:
     @staticmethod
     def expected_shapes(cfg: DiffusionConfig) -> dict[str, tuple[int, ...]]:
         """The torch module's state-dict names and shapes, for checking a checkpoint without torch."""
-        w, d, k, c = cfg.width, cfg.pose_dim, cfg.frames_per_token, cfg.num_classes
+        w, d, k, c = cfg.width, cfg.pose_dim, cfg.frames_per_token, cfg.label_width
         shapes: dict[str, tuple[int, ...]] = {
             "input.weight": (w, k * (2 * d + 1)), "input.bias": (w,), "absent_leader": (d,),
             "step_mlp.0.weight": (w, w), "step_mlp.0.bias": (w,), "step_mlp.2.weight": (w, w), "step_mlp.2.bias": (w,),

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from imm_model.errors import CheckpointError, LabelError
-from imm_model.families.base import ReactionModel, check_compatible, described_weights
+from imm_model.families.base import ReactionModel, check_compatible, described_weights, whole_body
 from imm_model.families.diffusion.denoiser_numpy import NumpyDenoiser
 from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, sample
 
@@ -35,12 +35,22 @@ class DiffusionReactionModel(ReactionModel):
         self.fast = NumpyDenoiser(weights, config) if self.device == "cpu" else None
         self.memory = None  # the reaction memory (reaction_memory.py) its sampler may start from
         # the sampling loop, sampler.py `sample` (an experiment may put another with its signature here: it gets the
-        # network call, the normalized leaders and masks, labels, starting noise, guidance, steps, seeds, pair terms)
+        # network call, the normalized leaders and masks, labels, starting noise, guidance, steps, seeds, and the
+        # network's pair_terms and part_labels)
         self.sampler = sample
 
     @property
     def settings(self) -> tuple[str, ...]:
         return ("seed", "spread", "memory") if self.config.leader_noise else ("seed", "memory")
+
+    @property
+    def part_labels(self) -> bool:
+        return self.config.part_labels
+
+    def _label_input(self, labels: np.ndarray) -> np.ndarray:
+        """(N, C) or (N, 2C) label vectors -> what the sampler composes: a part model's whole-body label on both parts."""
+        labels = self._label_array(labels, len(labels))
+        return np.concatenate([labels, labels], 1) if self.part_labels and labels.shape[1] == len(self.class_names) else labels
 
     @property
     def spread(self) -> float | None:
@@ -122,6 +132,7 @@ class DiffusionReactionModel(ReactionModel):
         if level and not self.config.leader_noise:
             raise LabelError(f"leader noise {self.guidance.leader_noise:g} needs a model trained with noised leaders "
                              "(this one reads only the clean leader)")
+        labels = self._label_input(labels)
         out: list[np.ndarray] = []
         for start in range(0, len(leaders), self.BATCH):
             rows = list(range(start, min(start + self.BATCH, len(leaders))))
@@ -135,7 +146,7 @@ class DiffusionReactionModel(ReactionModel):
                 noise = forward_noised(self._memory_starts([leaders[i] for i in rows], labels[rows], [seeds[i] for i in rows]),
                                        noise, mask, schedule_step(self.guidance.memory_level, steps), steps)
             x0 = self.sampler(denoise, x, mask, labels[rows], noise, self.guidance, steps, seeds=[seeds[i] for i in rows],
-                        pair_terms=self.config.pair_terms)
+                                  pair_terms=self.config.pair_terms, part_labels=self.config.part_labels)
             followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
             out += [followers[k, : len(leaders[i])].reshape(len(leaders[i]), -1, 3) for k, i in enumerate(rows)]
         return out
@@ -145,8 +156,9 @@ class DiffusionReactionModel(ReactionModel):
         if self.memory is None:
             raise LabelError(f"guidance memory_level {self.guidance.memory_level:g} starts the sampler from the model's "
                              "reaction memory, and none is attached (attach_memory, or memory_level 1)")
+        whole = whole_body(labels, len(self.class_names))  # the memory keeps whole-body reactions
         starts = [self.memory.start(np.asarray(a).reshape(len(a), -1, 3), w, s).reshape(len(a), -1)
-                  for a, w, s in zip(leaders, labels, seeds, strict=True)]
+                  for a, w, s in zip(leaders, whole, seeds, strict=True)]
         x, mask = self._padded(starts)
         return (x - self.weights["follower_mean"]) / self.weights["follower_std"] * mask[..., None]
 
@@ -187,7 +199,7 @@ class DiffusionReactionModel(ReactionModel):
     def latent_canonical_batch(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> np.ndarray:
         """N canonical leaders + (N, C) labels -> (N, width): the denoiser's last hidden state, averaged over frames,
         for the leader and label with the follower all noise (the first sampler step's view of the reaction)."""
-        labels = self._label_array(label_vectors, len(leaders))
+        labels = self._label_input(np.asarray(label_vectors).reshape(len(leaders), -1))
         x, mask = self._normalize_leaders(leaders)
         on = np.ones(len(leaders), bool)
         step = self.config.diffusion_steps - 1

@@ -1,5 +1,5 @@
 """The diffusion family's recipes: a typed config (each field's accepted values declared beside it,
-imm_model/typed_config.py) and the named recipes `imm-diffusion` (the bundled model's) and `imm-diffusion-mixed`."""
+imm_model/typed_config.py) and the named recipes `imm-diffusion` (the bundled model's), `imm-diffusion-mixed` and `imm-diffusion-parts`."""
 
 from __future__ import annotations
 
@@ -37,6 +37,9 @@ class DiffusionTrainConfig:
     # probability a training row becomes a two-class composite by body parts, labelled with both classes
     # (training/part_mix.py; model.pair_terms): what the sampler's pair terms read
     mix_prob: float = param(0.0, FRACTION)
+    # probability a training row's label names one body part only, the other part's label left out (model.part_labels):
+    # what the sampler's one-part terms read
+    part_drop: float = param(0.0, FRACTION)
     lambda_velocity: float = param(1.0, Interval(float, 0, None))  # weight of the frame-to-frame velocity error beside x0's
     # weights of the geometric terms on the x0 prediction in metres (training/geometry.py): a planted foot's drag (per
     # m^2) and the torso direction's error
@@ -56,7 +59,9 @@ class DiffusionTrainConfig:
 
     RULES: ClassVar = (("leader_noise_prob", lambda c: c.leader_noise_prob == 0 or c.model.get("leader_noise") is True,
                         "0 unless model.leader_noise is true"),
-             ("mix_prob", lambda c: c.mix_prob == 0 or c.model.get("pair_terms") is True, "0 unless model.pair_terms is true"))
+             ("mix_prob", lambda c: c.mix_prob == 0 or c.model.get("pair_terms") is True or c.model.get("part_labels") is True,
+              "0 unless model.pair_terms or model.part_labels is true"),
+             ("part_drop", lambda c: c.part_drop == 0 or c.model.get("part_labels") is True, "0 unless model.part_labels is true"))
 
     def __post_init__(self) -> None:
         validate(self, "training config")
@@ -95,4 +100,11 @@ IMM_DIFFUSION = DiffusionTrainConfig(
 IMM_DIFFUSION_MIXED = replace(IMM_DIFFUSION, name="imm-diffusion-mixed", model=IMM_DIFFUSION.model | {"pair_terms": True},
                               mix_prob=0.3)
 
-NAMED: dict[str, DiffusionTrainConfig] = {"imm-diffusion": IMM_DIFFUSION, "imm-diffusion-mixed": IMM_DIFFUSION_MIXED}
+# A label per body part: every row teaches both parts' labels (a one-class row its class on both, a composite by parts
+# one class on each, with the side drawn), and some name one part only, so that the sampler can compose each part's
+# signed values (sampler.py `label_terms`; docs/experiments/part-labels.md).
+IMM_DIFFUSION_PARTS = replace(IMM_DIFFUSION, name="imm-diffusion-parts", model=IMM_DIFFUSION.model | {"part_labels": True},
+                              mix_prob=0.3, part_drop=0.3)
+
+NAMED: dict[str, DiffusionTrainConfig] = {"imm-diffusion": IMM_DIFFUSION, "imm-diffusion-mixed": IMM_DIFFUSION_MIXED,
+                                          "imm-diffusion-parts": IMM_DIFFUSION_PARTS}

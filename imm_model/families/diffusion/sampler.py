@@ -50,8 +50,14 @@ class DiffusionConfig:
     # the network was trained on two-class composites (training's mix_prob) and reads two-hot labels: the sampler adds,
     # for each pair of performed classes, the joint pair term (see `sample`)
     pair_terms: bool = param(False, Flag())
+    # the network reads two labels, one for the upper body (trunk and arms) and one for the lower body (legs and where
+    # the follower stands), trained on both (training's part_drop and mix_prob): the sampler composes a label per part
+    # (see `label_terms`)
+    part_labels: bool = param(False, Flag())
 
-    RULES: ClassVar = (("width", lambda c: c.width % c.heads == 0, "a multiple of heads"),)
+    RULES: ClassVar = (("width", lambda c: c.width % c.heads == 0, "a multiple of heads"),
+                       ("part_labels", lambda c: not (c.part_labels and c.pair_terms),
+                        "false with pair_terms (a part model composes its own pair terms)"))
 
     def __post_init__(self) -> None:
         validate(self, "diffusion config")
@@ -59,6 +65,11 @@ class DiffusionConfig:
     @property
     def pose_dim(self) -> int:
         return 3 * self.num_joints
+
+    @property
+    def label_width(self) -> int:
+        """The network's label input: one value per class, or per class and part (upper, then lower)."""
+        return 2 * self.num_classes if self.part_labels else self.num_classes
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -161,47 +172,94 @@ def step_noise(seeds, lengths, shape: tuple[int, int, int]):
         yield z
 
 
+def label_terms(labels: np.ndarray, pair_terms: bool = False, part_labels: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Signed labels (B, C), or (B, 2C) for a part model (upper body's C values, then lower body's), already times the
+    scale -> the label inputs the network is asked for, (K, L), and each row's weight on each term, (K, B), such that
+
+        x0 = x0(A, -) + s * sum_k weight[k, b] * (x0(A, condition_k) - x0(A, -)).
+
+    A whole-label network: one term per class some row weighs (condition e_c, weight the value); with `pair_terms`,
+    for each pair of classes some row performs (both values > 0), the joint condition e_i + e_j weighs m = min(w_i, w_j)
+    and each class term m less: the term s * m * (x0(e_i + e_j) - x0(e_i) - x0(e_j) + x0(-)), zero while either value
+    is 0, so the reaction moves continuously from the sum rule, and at w_i = w_j = 1 guidance on the joint condition.
+
+    A part network reads (upper one-hot, lower one-hot); a part left out is zeros. Per class, the value both parts
+    share (same sign, the smaller magnitude) weighs the whole-body condition (e_c, e_c), the condition the network saw
+    on every one-class row, so a whole-body label composes as a whole-label model's does; what is left on one part
+    weighs that part's condition alone ((e_c, 0) or (0, e_c)). For each class performed on the upper body only and
+    another on the lower body only, the composite condition (e_i, e_j) the network learned from part composites
+    enters as a pair term does, with m = min of the two leftovers."""
+    b = labels.shape[0]
+    c = labels.shape[1] // 2 if part_labels else labels.shape[1]
+    conditions: list[np.ndarray] = []
+    weights: list[np.ndarray] = []
+
+    def term(condition: np.ndarray, weight: np.ndarray) -> int:
+        conditions.append(condition.astype(np.float32))
+        weights.append(weight.astype(np.float64))
+        return len(conditions) - 1
+
+    def joint(first: int, second: int, condition: np.ndarray, m: np.ndarray) -> None:
+        term(condition, m)
+        weights[first] = weights[first] - m
+        weights[second] = weights[second] - m
+
+    eye = np.eye(c, dtype=np.float32)
+    zero = np.zeros(c, np.float32)
+    if not part_labels:
+        of = {cls: term(eye[cls], labels[:, cls]) for cls in np.flatnonzero(np.abs(labels).sum(0) > 0).tolist()}
+        if pair_terms:
+            performed = np.maximum(labels, 0)
+            for i, j in itertools.combinations(sorted(of), 2):
+                m = np.minimum(performed[:, i], performed[:, j])
+                if (m > 0).any():
+                    joint(of[i], of[j], eye[i] + eye[j], m)
+    else:
+        upper, lower = labels[:, :c].astype(np.float64), labels[:, c:].astype(np.float64)
+        shared = np.where(upper * lower > 0, np.sign(upper) * np.minimum(np.abs(upper), np.abs(lower)), 0.0)
+        upper_only, lower_only = upper - shared, lower - shared
+        for cls in np.flatnonzero(np.abs(shared).sum(0) > 0).tolist():
+            term(np.concatenate([eye[cls], eye[cls]]), shared[:, cls])
+        ups = {cls: term(np.concatenate([eye[cls], zero]), upper_only[:, cls])
+               for cls in np.flatnonzero(np.abs(upper_only).sum(0) > 0).tolist()}
+        lows = {cls: term(np.concatenate([zero, eye[cls]]), lower_only[:, cls])
+                for cls in np.flatnonzero(np.abs(lower_only).sum(0) > 0).tolist()}
+        for i, j in itertools.product(sorted(ups), sorted(lows)):
+            m = np.minimum(np.maximum(upper_only[:, i], 0), np.maximum(lower_only[:, j], 0))
+            if i != j and (m > 0).any():
+                joint(ups[i], lows[j], np.concatenate([eye[i], eye[j]]), m)
+    width = 2 * c if part_labels else c
+    if not conditions:
+        return np.zeros((0, width), np.float32), np.zeros((0, b), np.float32)
+    return np.stack(conditions), np.stack(weights).astype(np.float32)
+
+
 def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, noise: np.ndarray, guidance: Guidance,
-           diffusion_steps: int, seeds=None, pair_terms: bool = False) -> np.ndarray:
+           diffusion_steps: int, seeds=None, pair_terms: bool = False, part_labels: bool = False) -> np.ndarray:
     """DDIM from `noise` (B, T, D), x_t at the start step (Guidance.memory_level's), -> normalized followers x0 (B, T, D),
     numpy float32. With guidance.eta > 0 each step but the last adds noise drawn from the rows' `seeds` (B ints,
     required then; see step_noise).
 
     `denoise(x_t, step, leader_on, label, label_on)` is the network on a batch of the same rows repeated per term:
-    x_t (N, T, D), step int, leader_on (N,) bool, label (N, C) one-hot, label_on (N,) bool -> x0 (N, T, D); it reads
-    `leaders` (normalized, B rows, repeated alike) and `mask` from its closure. labels (B, C) are signed weights
-    (already times the scale). Each step evaluates, in one batch, the leader-only term, one term per class any row
-    weighs, and (with leader_scale != 1) the unconditioned term.
-
-    With `pair_terms` (a network trained on two-class composites, DiffusionConfig.pair_terms) each pair of classes
-    that some row performs (both values > 0) adds the term s * min(w_i, w_j) * (x0(A, e_i + e_j) - x0(A, e_i) -
-    x0(A, e_j) + x0(A, -)): zero while either value is 0, so the reaction moves continuously from the sum rule, and at
-    w_i = w_j = 1 the two class terms and the pair term add up to guidance on the joint two-class condition,
-    x0(A, -) + s * (x0(A, e_i + e_j) - x0(A, -)), which the network learned from the composites."""
+    x_t (N, T, D), step int, leader_on (N,) bool, label (N, L) the label input, label_on (N,) bool -> x0 (N, T, D); it
+    reads `leaders` (normalized, B rows, repeated alike) and `mask` from its closure. labels (B, C), or (B, 2C) with
+    `part_labels`, are signed weights (already times the scale). Each step evaluates, in one batch, the leader-only
+    term, the label terms of `label_terms` (`pair_terms`, `part_labels`: what the network was trained to read) and
+    (with leader_scale != 1) the unconditioned term."""
     b, t, d = noise.shape
-    c = labels.shape[1]
-    classes = np.flatnonzero(np.abs(labels).sum(0) > 0).tolist()  # classes some row asks about
-    performed = np.maximum(labels, 0)
-    pairs = [(i, j) for i, j in itertools.combinations(classes, 2) if (performed[:, i] * performed[:, j] > 0).any()] \
-        if pair_terms else []
-    n_terms = 1 + len(classes) + len(pairs) + (guidance.leader_scale != 1.0)
-    one_hot = np.zeros((n_terms, b, c), np.float32)
+    conditions, weights = label_terms(labels, pair_terms, part_labels)
+    k = len(conditions)
+    n_terms = 1 + k + (guidance.leader_scale != 1.0)
+    label_input = np.zeros((n_terms, b, conditions.shape[1]), np.float32)
+    label_input[1:1 + k] = conditions[:, None]
     label_on = np.zeros((n_terms, b), bool)
-    for k, cls in enumerate(classes, start=1):
-        one_hot[k, :, cls] = 1.0
-        label_on[k] = True
-    for k, pair in enumerate(pairs, start=1 + len(classes)):
-        one_hot[k, :, list(pair)] = 1.0
-        label_on[k] = True
-    term_of = {cls: k for k, cls in enumerate(classes, start=1)}
-    pair_unguided = np.stack([np.minimum(performed[:, p], performed[:, q]) for p, q in pairs])[..., None, None] \
-        if pairs else None  # (P, B, 1, 1)
+    label_on[1:1 + k] = True
     leader_on = np.ones((n_terms, b), bool)
     if guidance.leader_scale != 1.0:
         leader_on[-1] = False
-    one_hot, label_on, leader_on = one_hot.reshape(-1, c), label_on.reshape(-1), leader_on.reshape(-1)
+    label_input, label_on, leader_on = label_input.reshape(n_terms * b, -1), label_on.reshape(-1), leader_on.reshape(-1)
     no_leader = np.zeros_like(leader_on)
-    unguided = labels[:, classes].T[..., None, None].astype(np.float32)  # (K, B, 1, 1): the class terms at s = 1
+    unguided = weights[..., None, None]  # (K, B, 1, 1): the label terms at s = 1
 
     alpha_bar = cosine_alpha_bar(diffusion_steps)
     steps = np.linspace(schedule_step(guidance.memory_level, diffusion_steps), 0, guidance.sample_steps).round().astype(int)
@@ -213,15 +271,12 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
         fresh = step_noise(seeds, mask.sum(1), (b, t, d))
     for i, step in enumerate(steps):
         with_leader = leader_on if step <= guidance.leader_below * (diffusion_steps - 1) else no_leader
-        terms = denoise(np.tile(x, (n_terms, 1, 1)), int(step), with_leader, one_hot, label_on).reshape(n_terms, b, t, d)
+        terms = denoise(np.tile(x, (n_terms, 1, 1)), int(step), with_leader, label_input, label_on).reshape(n_terms, b, t, d)
         base = terms[0]
         x0 = base
         strength = np.float32(guidance.label_scale) if step <= guidance.guided_below * (diffusion_steps - 1) else np.float32(1)
-        if classes:
-            x0 = x0 + (unguided * strength * (terms[1:1 + len(classes)] - base)).sum(0)
-        for k, (first, second) in enumerate(pairs):
-            joint = terms[1 + len(classes) + k] - terms[term_of[first]] - terms[term_of[second]] + base
-            x0 = x0 + pair_unguided[k] * strength * joint
+        if k:
+            x0 = x0 + (unguided * strength * (terms[1:1 + k] - base)).sum(0)
         if guidance.leader_scale != 1.0:
             x0 = terms[-1] + guidance.leader_scale * (x0 - terms[-1])
         x0 = np.clip(x0, -guidance.clip, guidance.clip) * m

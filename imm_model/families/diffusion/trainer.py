@@ -28,7 +28,7 @@ from imm_model.families.diffusion.recipes import FAMILY, DiffusionTrainConfig
 from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, cosine_alpha_bar
 from imm_model.training.data import Augmenter, PaddedData, data_meta, derive_seed
 from imm_model.training.geometry import GeometricTerms
-from imm_model.training.part_mix import mixed_rows, upper_shares
+from imm_model.training.part_mix import mixed_rows, part_rows, upper_shares
 
 LOG_FIELDS = ("step", "loss", "x0", "velocity", "foot_contact", "torso", "lr", "seconds")
 
@@ -86,7 +86,10 @@ class DiffusionTrainer:
         noise = torch.randn(follower.shape, generator=gen)
         label_on = torch.rand(b, generator=gen) >= cfg.label_drop
         leader_on = torch.rand(b, generator=gen) >= cfg.leader_drop
-        if cfg.mix_prob:  # drawn only then, so that recipes without it keep their random stream
+        if self.model_cfg.part_labels:
+            follower, label = part_rows(follower, lengths, actions, len(self.data.class_names), cfg.mix_prob, cfg.part_drop,
+                                        self.data.skeleton, gen)
+        elif cfg.mix_prob:  # drawn only then, so that recipes without it keep their random stream
             follower, label = mixed_rows(follower, lengths, actions, self.upper_shares, cfg.mix_prob, self.data.skeleton, gen)
         else:
             label = torch.nn.functional.one_hot(actions, len(self.data.class_names)).float()
