@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from imm_model.data.labels import label_keys, label_text
 from imm_model.device import add_device_argument
 from imm_model.errors import DataFormatError, printable
 from imm_model.inputs import check_input
@@ -85,7 +86,7 @@ def label_vectors(args: argparse.Namespace, model) -> list[np.ndarray]:
 
 
 def label_slug(vec: np.ndarray, class_names) -> str:
-    return "_".join(f"{n}{v:+g}" for n, v in zip(class_names, vec, strict=True) if v) or "neutral"
+    return "_".join(f"{k.replace(':', '-')}{v:+g}" for k, v in label_keys(vec, class_names).items()) or "neutral"
 
 
 def _leaders(args: argparse.Namespace) -> list[tuple[str, np.ndarray, str]]:
@@ -194,7 +195,7 @@ def _generate_one(args: argparse.Namespace, model, leader_item, vec: np.ndarray,
     _, leader, source = leader_item
     follower = _synthesize(model, [leader], vec, seed)[0]
     _write(args.out, leader, follower, model, vec, args.scale, None if args.leader else source, seed, args.force)
-    desc = ", ".join(f"{n}={v:g}" for n, v in zip(model.class_names, vec, strict=True) if v != 0) or "all zero"
+    desc = label_text(vec, model.class_names) or "all zero"
     beside = f" (the leader in {leader_copy(args.out)})" if args.out.suffix.lower() == ".bvh" else ""
     print(printable(f"wrote {args.out}{beside}: follower {follower.shape[0]} frames x {follower.shape[1]} joints (label {desc})"))
     return 0

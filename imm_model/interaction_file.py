@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from imm_model.data.canonical import CanonicalFrame
+from imm_model.data.labels import label_text
 from imm_model.skeleton import Skeleton
 
 FORMAT = "imm-interaction-1"
@@ -38,6 +39,7 @@ def interaction_arrays(leader: np.ndarray, follower: np.ndarray, frame: Canonica
         "fps": np.float32(fps),
         "class_names": np.array(list(class_names)),
         "label": np.asarray(label, np.float32),
+        "label_text": np.array(label_text(label, class_names)),
         "scale": np.float32(scale),
         "checkpoint": np.array(checkpoint),
     }

@@ -136,6 +136,24 @@ def test_label_control_with_known_judges():
     assert avoid["change"] == pytest.approx(0.2)  # this judge raises the avoided class: "avoid" failed, and it shows
 
 
+def test_part_tables_with_known_judges():
+    """Synthetic judges: one reads each part's label exactly, one reads the upper label on both parts."""
+    c, names = 3, ("a", "b", "c")
+    leader_classes = np.array([0, 1, 2, 2])
+    upper_reads = lambda labels: np.eye(c)[np.argmax(labels[:, :c], -1)]  # noqa: E731
+    lower_reads = lambda labels: np.eye(c)[np.argmax(labels[:, c:], -1)]  # noqa: E731
+    half_real = lambda a, b: np.arange(4) % 2 == 0  # noqa: E731  real composites read so for half the leaders
+    rows = control.part_pair_table(upper_reads, lower_reads, half_real, 4, names)
+    assert len(rows) == 6 and {(r["upper"], r["lower"]) for r in rows} == {(x, y) for x in names for y in names if x != y}
+    assert all(r["read"] == 1.0 and r["real"] == 0.5 for r in rows)
+    rows = control.part_pair_table(upper_reads, upper_reads, half_real, 4, names)  # the legs follow the arms: never a pair
+    assert all(r["read"] == 0.0 for r in rows)
+    lowering = lambda labels: np.full((len(labels), c), 0.5) + 0.2 * labels[:, c:]  # noqa: E731  reads the lower label
+    avoid = control.part_avoid_effect({"upper": lowering, "lower": lowering}, leader_classes, c)
+    assert avoid["lower"]["share_lowered"] == 1.0 and avoid["lower"]["change"] == pytest.approx(-0.2)
+    assert avoid["upper"]["share_lowered"] == 0.0  # -1 on the upper part: this judge does not move
+
+
 def test_segment_distance_matches_brute_force():
     rng = np.random.default_rng(1)
     s = np.linspace(0, 1, 301)[:, None]

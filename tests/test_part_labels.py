@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import torch
 
+from imm_model.data.labels import label_keys, whole_body
 from imm_model.errors import LabelError
 from imm_model.families import load_model
-from imm_model.families.base import label_keys, whole_body
 from imm_model.families.diffusion.recipes import IMM_DIFFUSION, IMM_DIFFUSION_PARTS, DiffusionTrainConfig
 from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, label_terms, sample
 from imm_model.model.classifier import body_part_view
@@ -171,3 +171,20 @@ def test_a_part_model_synthesizes_whole_and_part_labels(part_model, sample_data,
     twin = part_model.on_torch()
     np.testing.assert_allclose(twin.synthesize(leader, {"upper:shaking_hands": 1, "lower:pushing": -1}, seed=2), split, atol=1e-4)
     assert np.isfinite(part_model.latent(leader, {"upper:kicking": 1})).all()
+
+
+def test_imm_generate_takes_part_keys_and_writes_them(part_model, sample_data, tmp_path, capsys):
+    from imm_model.cli import main
+
+    sid = sample_data.sequence_ids[3]
+    out = tmp_path / "split.npz"
+    assert main(["generate", "--checkpoint", str(part_model.path), "--sequence", sid, "--label",
+                 "upper:shaking_hands=1,lower:pushing=-1", "--seed", "2", "--out", str(out)]) == 0
+    assert "label upper:shaking_hands=1,lower:pushing=-1" in capsys.readouterr().out
+    with np.load(out) as f:
+        assert str(f["label_text"]) == "upper:shaking_hands=1,lower:pushing=-1" and f["label"].shape == (2 * C,)
+        np.testing.assert_allclose(f["follower"], part_model.synthesize(
+            f["leader"], {"upper:shaking_hands": 1, "lower:pushing": -1}, seed=2), atol=1e-4)
+    assert main(["generate", "--sequence", sid, "--label", "upper:shaking_hands=1", "--out", str(tmp_path / "gan.npz")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "takes no label per body part ('upper:shaking_hands')" in err[0]

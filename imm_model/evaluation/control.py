@@ -6,12 +6,16 @@
 - mix: every pair of classes at +1 each; mean probability on the pair and on each member, and the share of leaders
   whose reaction reads as both (the mean can pass while each leader's reaction reads as one member only).
 - avoid: -1 on the leader's class vs an all-zero label: the change in that class's probability.
+- part pairs (a model with a label per body part): every ordered pair, class A on the trunk and arms and class B on
+  the legs and placement; the share of leaders whose upper-body judge reads A and lower-body judge reads B, beside the
+  same share for real part composites (real followers' parts put together), the judges' own ceiling.
+- part avoid: -1 on the leader's class on one part vs an all-zero label: that part judge's change.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from itertools import combinations
+from itertools import combinations, permutations
 
 import numpy as np
 
@@ -72,6 +76,37 @@ def part_mix_table(whole: Judge, upper: Judge, lower: Judge, num_leaders: int, c
         rows.append({"pair": [class_names[i], class_names[j]], "whole": float(by_whole.mean()), "parts": float(by_parts.mean()),
                      "mixed": float((by_whole | by_parts).mean())})
     return rows
+
+
+def part_pair_table(upper: Judge, lower: Judge, real_reads: Callable[[int, int], np.ndarray], num_leaders: int,
+                    class_names: tuple[str, ...]) -> list[dict]:
+    """One row per ordered pair of classes (A upper, B lower, A != B): the share of leaders whose reaction to the part
+    label upper:A=1, lower:B=1 reads as A on the trunk and arms and as B on the legs and placement (each part judge at
+    PART_SHARE or more), and the same share for real part composites; `real_reads(a, b)` -> (N,) bool, whether each
+    leader's real composite reads so. The judges get (N, 2C) part label vectors (upper, then lower)."""
+    c, rows = len(class_names), []
+    for a, b in permutations(range(c), 2):
+        labels = np.zeros((num_leaders, 2 * c), np.float32)
+        labels[:, a], labels[:, c + b] = 1.0, 1.0
+        read = (upper(labels)[:, a] >= PART_SHARE) & (lower(labels)[:, b] >= PART_SHARE)
+        rows.append({"upper": class_names[a], "lower": class_names[b], "read": float(read.mean()),
+                     "real": float(np.mean(real_reads(a, b)))})
+    return rows
+
+
+def part_avoid_effect(parts: dict[str, Judge], leader_classes: np.ndarray, num_classes: int) -> dict[str, dict[str, float]]:
+    """Per part: -1 on the leader's class on that part alone (the other part 0) against an all-zero label; the mean
+    change in that part judge's probability of the class, and the share of leaders for whom it is lowered."""
+    n, c = len(leader_classes), num_classes
+    own = np.arange(n), leader_classes
+    out = {}
+    for k, (part, judge) in enumerate(parts.items()):
+        zero = judge(np.zeros((n, 2 * c), np.float32))[own]
+        labels = np.zeros((n, 2 * c), np.float32)
+        labels[np.arange(n), k * c + leader_classes] = -1.0
+        avoid = judge(labels)[own]
+        out[part] = {"change": float((avoid - zero).mean()), "share_lowered": float((avoid < zero).mean())}
+    return out
 
 
 def avoid_effect(judge: Judge, leader_classes: np.ndarray, num_classes: int) -> dict[str, float]:

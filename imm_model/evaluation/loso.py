@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from itertools import permutations
 from pathlib import Path
 
 import numpy as np
@@ -71,7 +72,8 @@ class FoldJudges:
     """The fold's three real-data classifiers, and their accuracy on the fold's real test sequences."""
 
     def __init__(self, data: InteractionDataset, subject: str, opts: EvalOptions):
-        self.data, self.test = data, loso_fold(data.subject_pairs, subject).test
+        fold = loso_fold(data.subject_pairs, subject)
+        self.data, self.test, self.train = data, fold.test, fold.train
         self.interaction = cache.fold_classifier(opts.interaction, data, subject, opts.progress)
         self.follower = cache.fold_classifier(opts.follower, data, subject, opts.progress)
         self.judge = cache.fold_classifier(opts.judge, data, subject, opts.progress)
@@ -159,7 +161,33 @@ def label_control(model, data: InteractionDataset, judges: FoldJudges) -> dict:
         return judges.part_view("lower", followers(labels))
 
     out["mix_parts"] = control.part_mix_table(whole, upper, lower, len(y), data.class_names)
+    if model.part_labels:
+        real = real_part_readings(data, judges)
+        out["part_pairs"] = control.part_pair_table(upper, lower, lambda a, b: real[a, b], len(y), data.class_names)
+        out["part_avoid"] = control.part_avoid_effect({"upper": upper, "lower": lower}, y, c)
     return out
+
+
+def real_part_readings(data: InteractionDataset, judges: FoldJudges) -> np.ndarray:
+    """(C, C, N) bool: for each test leader, whether the real part composite of class a's trunk and arms and class b's
+    legs and placement reads so to the body-part judges (each at PART_SHARE or more). A class's part comes from the
+    real follower (of the fold's training pairs) whose leader is nearest the test leader, resampled to its length."""
+    import torch
+
+    from imm_model.families.retrieval.model import nearest_follower
+    from imm_model.training.part_mix import compose, part_indices
+
+    c = len(data.class_names)
+    pools = [[data.canonical(int(i)) for i in judges.train if data.actions[i] == k] for k in range(c)]
+    nearest = [[nearest_follower(leader, pools[k]) for k in range(c)] for leader in judges.leaders]  # (N, C) followers
+    upper_joints, _, centre = part_indices(data.skeleton)
+    reads = np.zeros((c, c, len(judges.leaders)), bool)
+    for a, b in permutations(range(c), 2):
+        composites = [compose(torch.from_numpy(row[a])[None], torch.from_numpy(row[b])[None], upper_joints, centre)[0].numpy()
+                      for row in nearest]
+        pu, pl = judges.part_view("upper", composites), judges.part_view("lower", composites)
+        reads[a, b] = (pu[:, a] >= control.PART_SHARE) & (pl[:, b] >= control.PART_SHARE)
+    return reads
 
 
 VARIATIONS = 5  # reactions drawn per test leader for multimodality and best-of-N AFD

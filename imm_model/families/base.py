@@ -26,6 +26,7 @@ import numpy as np
 
 from imm_model.cleanup import clean_follower
 from imm_model.data.canonical import CanonicalFrame
+from imm_model.data.labels import PARTS
 from imm_model.data.sequence import check_world_positions
 from imm_model.errors import CheckpointError, DataFormatError, LabelError
 
@@ -36,33 +37,6 @@ MAX_LABEL_VALUE = 10.0
 MAX_BONE_M = 5.0  # a checkpoint's follower bone lengths, metres
 MAX_TRAIN_LENGTH = 100_000  # a checkpoint's max_train_length, frames
 MAX_SAMPLES = 64  # reactions drawn by one call
-PARTS = ("upper", "lower")  # a part label's prefixes, in the order of a (2C,) label vector's halves
-
-
-def label_keys(vector: np.ndarray, class_names: Sequence[str]) -> dict[str, float]:
-    """A label vector, (C,) or (2C,), -> its nonzero values as one spells them: a class name where both parts agree,
-    "upper:<class>" / "lower:<class>" where they differ (the inverse of `ReactionModel.label_vector`)."""
-    vec = np.asarray(vector, np.float64).reshape(-1)
-    c = len(class_names)
-    if len(vec) == c:
-        return {n: float(v) for n, v in zip(class_names, vec, strict=True) if v != 0}
-    out: dict[str, float] = {}
-    for i, name in enumerate(class_names):
-        upper, lower = float(vec[i]), float(vec[c + i])
-        if upper == lower:
-            if upper:
-                out[name] = upper
-            continue
-        out |= {f"{part}:{name}": v for part, v in zip(PARTS, (upper, lower), strict=True) if v}
-    return out
-
-
-def whole_body(labels: np.ndarray, num_classes: int) -> np.ndarray:
-    """(N, C) or (N, 2C) label vectors -> (N, C): a part label as the mean of its two parts."""
-    labels = np.asarray(labels)
-    return labels if labels.shape[-1] == num_classes else 0.5 * (labels[..., :num_classes] + labels[..., num_classes:])
-
-
 @dataclass(frozen=True)
 class Family:
     """One model family, as the registry (families/__init__.py) knows it. Imports that cost (torch) wait for use."""

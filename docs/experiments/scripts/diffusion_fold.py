@@ -55,6 +55,14 @@ def headline(result: dict) -> dict:
         "real_interpenetration": p["real_interpenetration"],
         "start_root_m": m["afd_parts"]["start_root_m"], "limb_m": m["afd_parts"]["limb_m"],
     }
+    if "part_pairs" in result:  # a model with a label per body part: the ordered pairs and the part negations
+        pairs = result["part_pairs"]
+        ratios = [r["read"] / r["real"] for r in pairs if r["real"] > 0]
+        out |= {"part_read": float(np.mean([r["read"] for r in pairs])), "part_real": float(np.mean([r["real"] for r in pairs])),
+                "part_worst_ratio": float(min(ratios)) if ratios else None,
+                "part_per_pair": {f"{r['upper']}/{r['lower']}": [round(r["read"], 4), round(r["real"], 4)] for r in pairs},
+                "part_avoid_lower_share": result["part_avoid"]["lower"]["share_lowered"],
+                "part_avoid_upper_share": result["part_avoid"]["upper"]["share_lowered"]}
     if "variations" in result:
         v = result["variations"]
         out |= {"multimodality": v["multimodality"], "real_class_diversity": v["real_class_diversity"],

@@ -10,8 +10,9 @@ from typing import Any
 
 import numpy as np
 
+from imm_model.data.labels import whole_body
 from imm_model.errors import CheckpointError, LabelError
-from imm_model.families.base import ReactionModel, check_compatible, described_weights, whole_body
+from imm_model.families.base import ReactionModel, check_compatible, described_weights
 from imm_model.families.diffusion.denoiser_numpy import NumpyDenoiser
 from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, sample
 
