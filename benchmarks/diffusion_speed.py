@@ -1,11 +1,13 @@
-"""Diffusion sampling speed: one 46-frame reaction with 0-3 classes composed, against the GAN in the same run.
+"""Diffusion sampling speed: one 46-frame reaction with 0-3 classes composed (and, for a model with a label per body
+part, 1-3 part terms), against the GAN in the same run.
 
     .venv/bin/python benchmarks/diffusion_speed.py --checkpoint sample_data/imm_diffusion.safetensors [--threads 1]
         [--repeats 30] [--device cpu|cuda] [--gan sample_data/imm_sbu.safetensors] [--spread S] [--memory LEVEL]
 
 Prints the median and p90 of `ReactionModel.synthesize_canonical` (clean-up included) for each number of classes
 composed (each class is one more network term per sampler step, and so is each pair of classes for a model with pair
-terms, such as `imm-diffusion-mixed`'s), the sampler's steps, and the GAN's median on the same leader, interleaved so
+terms, such as `imm-diffusion-mixed`'s; for a part model each (part, class) term is one, and a class on each part adds
+their composite term), the sampler's steps, and the GAN's median on the same leader (whole-body labels), interleaved so
 that both see the same machine load. `--memory` starts the sampler from the reaction memory (the bundled data's
 pairs of the model's training subjects), its retrieval included in the time.
 """
@@ -60,16 +62,23 @@ def main() -> None:
     leader = data.canonical(int(np.argmax(data.lengths)))[0]
     print(f"checkpoint {args.checkpoint}; {len(leader)} frames; torch and BLAS threads {args.threads}; device {device}; "
           f"{model.guidance.sample_steps} sampler steps; spread {model.spread}; memory {model.guidance.memory_level}; "
-          f"pair terms {model.config.pair_terms}")
-    for k in range(4):
-        label = np.zeros(len(model.class_names), np.float32)
-        label[:k] = 1.0
+          f"pair terms {model.config.pair_terms}; part labels {model.part_labels}")
+    names = model.class_names
+    cases = [(f"{k} classes composed", {n: 1.0 for n in names[:k]}) for k in range(4)]
+    if model.part_labels:
+        cases += [(f"parts: {text}", dict((k, float(v)) for k, v in (kv.split("=") for kv in text.split(","))))
+                  for text in (f"upper:{names[2]}=1", f"upper:{names[2]}=1,lower:{names[1]}=-1",
+                               f"upper:{names[2]}=1,lower:{names[1]}=1", f"upper:{names[2]}=1,lower:{names[1]}=1,{names[3]}=-1")]
+    for title, keys in cases:
+        label = model.label_vector(keys)
+        whole = np.zeros(len(names), np.float32)
+        whole[[names.index(k.rpartition(":")[2]) for k, v in keys.items() if v > 0]] = 1.0  # the GAN: the classes asked for
         times, gan_times = [], []
         for _ in range(args.repeats):  # interleaved: both models meet the same load
             times += timed(lambda label=label: model.synthesize_canonical(leader, label), 1)
-            gan_times += timed(lambda label=label: gan.synthesize_canonical(leader, label), 1)
+            gan_times += timed(lambda whole=whole: gan.synthesize_canonical(leader, whole), 1)
         p90 = statistics.quantiles(times, n=10)[-1]
-        print(f"{k} classes composed: median {statistics.median(times):.1f} ms, p90 {p90:.1f} ms "
+        print(f"{title}: median {statistics.median(times):.1f} ms, p90 {p90:.1f} ms "
               f"(GAN median {statistics.median(gan_times):.1f} ms; ratio {statistics.median(times) / statistics.median(gan_times):.1f}x)")
 
 

@@ -97,6 +97,12 @@ def group_summary(results: list[dict], class_names: tuple[str, ...]) -> dict:
     if all("mix_parts" in r for r in results):  # the mixed reading by the whole body or by body parts
         out["mix_parts"] = _mean_mix(results, "mix_parts")
         out["mix_mixed_mean"] = float(np.mean([row["mixed"] for row in out["mix_parts"]]))
+    if all("part_pairs" in r for r in results):  # a label per body part: each ordered pair, beside real composites
+        out["part_pairs"] = [{"upper": row["upper"], "lower": row["lower"]}
+                             | {key: _stat([r["part_pairs"][k][key] for r in results])[0] for key in ("read", "real")}
+                             for k, row in enumerate(results[0]["part_pairs"])]
+        out["part_avoid"] = {part: {key: _stat([r["part_avoid"][part][key] for r in results])[0]
+                                    for key in results[0]["part_avoid"][part]} for part in results[0]["part_avoid"]}
     if all("variations" in r for r in results):  # stochastic models: multimodality and best-of-N AFD
         keys = [k for k in results[0]["variations"] if all(k in r["variations"] for r in results)]  # older results lack some
         out["variations"] = {k: _stat([r["variations"][k] for r in results])[0] for k in keys}

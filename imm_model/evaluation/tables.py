@@ -75,6 +75,26 @@ def part_mix_table(group: dict) -> str:
     return "\n".join(lines)
 
 
+def part_pair_table(group: dict) -> str:
+    """A model with a label per body part: per ordered pair (A on the trunk and arms, B on the legs and placement), the
+    share of leaders whose parts read so, beside real part composites' share; and the part negations. Empty for a
+    model without part labels."""
+    if "part_pairs" not in group:
+        return ""
+    rows = group["part_pairs"]
+    lines = ["| upper body | lower body | read as asked (each part >= 0.4) | real part composites | ratio |", "|---|---|---:|---:|---:|"]
+    for r in rows:
+        ratio = f"{r['read'] / r['real']:.2f}" if r["real"] > 0 else "–"
+        lines.append(f"| {r['upper']} | {r['lower']} | {r['read']:.2f} | {r['real']:.2f} | {ratio} |")
+    read, real = np.mean([r["read"] for r in rows]), np.mean([r["real"] for r in rows])
+    lines.append(f"| **mean** | | **{read:.2f}** | {real:.2f} | {read / real:.2f} |" if real > 0 else f"| **mean** | | {read:.2f} | 0 | |")
+    avoid = group.get("part_avoid", {})
+    lines += ["\n-1 on the leader's class on one part, against an all-zero label: "
+              + "; ".join(f"the {part} body's judge lowers it for {v['share_lowered']:.2f} of leaders (mean change "
+                          f"{v['change']:+.3f})" for part, v in avoid.items())]
+    return "\n".join(lines)
+
+
 def variations_table(group: dict) -> str:
     """A stochastic model's spread and best-of-N AFD; empty for a deterministic model."""
     v = group.get("variations")
@@ -176,6 +196,7 @@ def markdown_report(summary: dict) -> str:
                   f"{s['avoid_judge']['p_zero']:.2f} -> {s['avoid_judge']['p_avoid']:.2f}.", "",
                   "### Mix", "", mix_table(s), "",
                   *_section("Mixed, by the whole body or by body parts (share of leaders)", part_mix_table(s)),
+                  *_section("A label per body part (share of leaders)", part_pair_table(s)),
                   *_section("Variations (stochastic models)", variations_table(s)),
                   "### Plausibility", "", plausibility_table(s), "",
                   *_section("Contact per class (share of frames the bodies touch)", contact_table(s))]
