@@ -14,6 +14,11 @@ class at +1 is a conjunction, at -1 a negation, fractions weigh it, the studio's
 labels give the label-free reaction. The leader term itself can be guided too (x0(-, -) + g * (x0(A, -) - x0(-, -)))
 when g != 1. Above the noise level `Guidance.leader_below` every term is the leader-absent one.
 
+A network that reads a label per body part (`DiffusionConfig.part_labels`: an upper-body and a lower-body one-hot)
+composes the same way over (part, class) terms (`label_terms`): a class both parts share weighs the whole-body
+condition, a class on one part weighs that part's condition alone, and a class on each part adds the composite
+condition the network learned from real followers composed by parts.
+
 A sampler seed fixes the starting noise and, with stochastic steps (eta > 0), each step's fresh noise from a stream
 of its own; both depend on the seed and the shape only, so the reaction is a continuous function of the label: a moved
 slider moves the reaction, it does not jump to another sample. eta 0 is plain DDIM, where the starting noise is all.
