@@ -133,7 +133,7 @@ def test_latent_map_is_a_plotly_figure_and_a_click_loads_and_plays(page):
                          " return el.data.find((t) => t.meta === 'ring').x[0]; }")
     assert ring == pytest.approx(probe.state(page, "latent_points")["x"][current], abs=1e-3)
     gaps = np.linalg.norm(points[:, None] - points[None], axis=-1) + np.eye(len(points)) * 1e9
-    gaps[:, current] = gaps[current, :] = 0  # never the current sequence, nor a point beside it
+    gaps[current, :] = 0  # never the current sequence; a point beside it has little room by its distance to it
     target = int(np.argmax(gaps.min(1)))  # the point with the most room around it
     x, y = points[target]
     page.mouse.move(x, y)
