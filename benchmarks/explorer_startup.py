@@ -8,6 +8,9 @@ was shown, and when the latent map was drawn (a Plotly figure whose plotly.js th
 on a cold cache the map is also fitted after the page opens).
 
     .venv/bin/python benchmarks/explorer_startup.py        # ~1 minute; run it on an idle machine
+    .venv/bin/python benchmarks/explorer_startup.py --model gan=sample_data/imm_sbu.safetensors ...  # other models first
+
+Arguments, if any, go to `imm explore` (default: the bundled models, the diffusion model first).
 """
 
 from __future__ import annotations
@@ -72,7 +75,7 @@ def main() -> int:
             context.add_init_script(PAGE_MARKS)
             page = context.new_page()
             t0 = time.monotonic()
-            studio = probe.StudioProcess(cache_dir=cache, timeout=120)
+            studio = probe.StudioProcess(*sys.argv[1:], cache_dir=cache, timeout=120)
             navigated = time.monotonic() - t0
             page.goto(studio.url, timeout=120000)
             probe.wait_for_view(page, 120000)

@@ -33,7 +33,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, required=True,
                    help="one item: a .npz or .bvh file (the leader as NAME.leader.bvh beside a .bvh); several: a folder")
     p.add_argument("--format", choices=("npz", "bvh"), default="npz", help="file type of each item in a batch (default npz)")
-    p.add_argument("--checkpoint", type=Path, default=None, help="default: the bundled model")
+    p.add_argument("--checkpoint", type=Path, default=None,
+                   help="default: the bundled diffusion model; the GAN is sample_data/imm_sbu.safetensors")
     p.add_argument("--data", type=Path, default=None, help="dataset for --sequence(s) (default: the bundled sample)")
     p.add_argument("--bvh-map", type=Path, default=None, help="JSON {kinect joint: BVH joint name} for a skeleton the name table misses")
     p.add_argument("--raw", action="store_true",

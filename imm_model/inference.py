@@ -32,11 +32,11 @@ def _cached_model(path: str) -> ReactionModel:
 
 
 def _model(checkpoint: ReactionModel | Path | str | None) -> ReactionModel:
-    from imm_model.paths import SAMPLE_CHECKPOINT
+    from imm_model.paths import SAMPLE_DEFAULT
 
     if isinstance(checkpoint, ReactionModel):
         return checkpoint
-    return _cached_model(str(Path(checkpoint) if checkpoint is not None else SAMPLE_CHECKPOINT))
+    return _cached_model(str(Path(checkpoint) if checkpoint is not None else SAMPLE_DEFAULT))
 
 
 def synthesize(leader_motion: np.ndarray, label, scale: float = 1.0, checkpoint=None) -> np.ndarray:

@@ -133,7 +133,7 @@ def test_latent_map_is_a_plotly_figure_and_a_click_loads_and_plays(page):
                          " return el.data.find((t) => t.meta === 'ring').x[0]; }")
     assert ring == pytest.approx(probe.state(page, "latent_points")["x"][current], abs=1e-3)
     gaps = np.linalg.norm(points[:, None] - points[None], axis=-1) + np.eye(len(points)) * 1e9
-    gaps[:, current] = gaps[current, :] = 0  # never the current sequence, nor a point beside it
+    gaps[current, :] = 0  # never the current sequence; a point beside it has little room by its distance to it
     target = int(np.argmax(gaps.min(1)))  # the point with the most room around it
     x, y = points[target]
     page.mouse.move(x, y)
@@ -564,9 +564,10 @@ def test_side_by_side_from_the_side_keeps_the_three_figures_apart(page):
         page.locator("#camera-default").click()
 
 
-def test_switch_to_the_diffusion_model_draw_variations_and_back(page):
-    """The model switch: the diffusion model draws another follower and the chip says so; "new variation" draws
-    another seed's; three variations stand side by side; one click brings the GAN, and its follower, back."""
+def test_opens_on_the_diffusion_model_draws_variations_and_the_gan_is_one_click_away(page):
+    """The studio opens on the diffusion model (the default, docs/experiments/default-model.md) and the chip says so;
+    "new variation" draws another seed's follower; three variations stand side by side; one click brings the paper's
+    GAN, which draws another follower without a seed, and one more the diffusion model, and its follower, back."""
     from explorer.rendering.palette import SYNTHESIZED
     from tests.studio_probe import color_mask
 
@@ -584,25 +585,23 @@ def test_switch_to_the_diffusion_model_draw_variations_and_back(page):
     _load_sequence(page, 3)
     probe.set_state(page, "scene_layout", "overlay")
     chip = page.locator("#model-chip")
-    assert "the paper's GAN" in chip.inner_text() and page.locator("#variation-controls").count() == 0
-    # the bundled three by the names the studio was given, each within the drawer
-    buttons = [page.locator(f"#model-{name}") for name in ("gan", "diffusion", "retrieval")]
+    probe.wait_state(page, "s.get('model_name') === 'diffusion' && s.get('seeded') && !s.get('computing')")
+    assert "the diffusion model · seed" in chip.inner_text() and page.locator("#variation-controls").count() == 1
+    # the bundled three by the names the studio was given, each within the drawer, the default first
+    buttons = [page.locator(f"#model-{name}") for name in ("diffusion", "gan", "retrieval")]
     drawer = page.locator("#compare-row").bounding_box()  # a row as wide as the drawer
-    for button in buttons:
-        box = button.bounding_box()
+    boxes = [button.bounding_box() for button in buttons]
+    for box in boxes:
         assert box is not None and box["x"] + box["width"] <= drawer["x"] + drawer["width"] + 1, box
-    gan = still_green()
-    n = probe.state(page, "mix_count")
-    page.locator("#model-diffusion").click()
-    probe.wait_state(page, f"s.get('model_title') === 'the diffusion model' && s.get('mix_count') > {n} && !s.get('computing')")
-    assert "the diffusion model · seed" in chip.inner_text()
+    assert [(b["y"], b["x"]) for b in boxes] == sorted((b["y"], b["x"]) for b in boxes), boxes  # in the switch's order
+    assert "model=" not in probe.state(page, "url_query")  # the model the studio opens with is left out of a link
     diffusion = still_green()
-    assert int((gan ^ diffusion).sum()) > 100, "the follower did not change with the model"
     seed, n = probe.state(page, "seed"), probe.state(page, "mix_count")
     page.locator("#new-variation").click()
     probe.wait_state(page, f"s.get('seed') !== {seed} && s.get('mix_count') > {n} && !s.get('computing')")
     assert f"seed {probe.state(page, 'seed')}" in chip.inner_text()
-    assert f"&model=diffusion&seed={probe.state(page, 'seed')}&" in probe.state(page, "url_query")  # a link keeps both
+    query = probe.state(page, "url_query")
+    assert f"&seed={probe.state(page, 'seed')}&" in query and "model=" not in query, query  # a link keeps the seed
     assert int((diffusion ^ still_green()).sum()) > 100, "a new variation drew the same follower"
     probe.shot(page, "studio-diffusion-variation")
 
@@ -614,18 +613,27 @@ def test_switch_to_the_diffusion_model_draw_variations_and_back(page):
     probe.wait_state(page, "s.get('variation_count') === 1 && !s.get('computing')")
     assert (three, figures(still_green())) == (3, 1), "three variations do not show three followers"
 
-    page.locator("#model-gan").click()  # back in one click
-    probe.wait_state(page, "s.get('model_title') === \"the paper's GAN\" && !s.get('seeded') && !s.get('computing')")
     probe.set_state(page, "scene_layout", "overlay")
+    seed = probe.state(page, "seed")
+    variation = still_green()
+    n = probe.state(page, "mix_count")
+    page.locator("#model-gan").click()  # the GAN in one click
+    probe.wait_state(page, f"s.get('model_title') === \"the paper's GAN\" && !s.get('seeded') && s.get('mix_count') > {n} "
+                           "&& !s.get('computing')")
     assert page.locator("#variation-controls").count() == 0 and "seed" not in chip.inner_text()
-    assert "model=" not in probe.state(page, "url_query") and "seed=" not in probe.state(page, "url_query")
+    query = probe.state(page, "url_query")
+    assert "&model=gan" in query and "seed=" not in query, query
+    assert int((variation ^ still_green()).sum()) > 100, "the follower did not change with the model"
+    page.locator("#model-diffusion").click()  # and back in one click
+    probe.wait_state(page, f"s.get('model_name') === 'diffusion' && s.get('seed') === {seed} && !s.get('computing')")
+    assert f"the diffusion model · seed {seed}" in chip.inner_text() and "model=" not in probe.state(page, "url_query")
     back = still_green()
-    assert int((back ^ gan).sum()) < 0.1 * int(gan.sum()), "the GAN's follower is not the one it drew before"
+    assert int((back ^ variation).sum()) < 0.1 * int(variation.sum()), "the diffusion model's follower is not the one it drew"
 
 
 def test_the_spread_slider_redraws_the_follower_and_enters_the_link(page):
-    """The bundled diffusion model reads a noised leader: its spread slider shows with it (not with the GAN), a moved
-    slider redraws the follower with the same seed, and a link carries the value."""
+    """The bundled diffusion model, the one the studio opens with, reads a noised leader: its spread slider shows with
+    it (not with the GAN), a moved slider redraws the follower with the same seed, and a link carries the value."""
     from explorer.rendering.palette import SYNTHESIZED
     from tests.studio_probe import color_mask
 
@@ -635,10 +643,7 @@ def test_the_spread_slider_redraws_the_follower_and_enters_the_link(page):
 
     _load_sequence(page, 6 if probe.state(page, "sequence_index") != 6 else 7)
     probe.set_state(page, "scene_layout", "overlay")
-    assert page.locator("#spread-row").count() == 0  # the GAN has no spread
-    n = probe.state(page, "mix_count")
-    page.locator("#model-diffusion").click()
-    probe.wait_state(page, f"s.get('model_name') === 'diffusion' && s.get('mix_count') > {n} && !s.get('computing')")
+    probe.wait_state(page, "s.get('model_name') === 'diffusion' && !s.get('computing')")
     assert page.locator("#spread-row").is_visible() and probe.state(page, "spread_available")
     seed, default = probe.state(page, "seed"), probe.state(page, "spread")
     assert 0 < default < 1
@@ -654,23 +659,27 @@ def test_the_spread_slider_redraws_the_follower_and_enters_the_link(page):
     probe.wait_state(page, f"s.get('spread') === {default} && !s.get('computing')")
     page.locator("#model-gan").click()
     probe.wait_state(page, "s.get('model_name') === 'gan' && !s.get('spread_available') && !s.get('computing')")
-    page.wait_for_selector("#spread-row", state="detached", timeout=5000)
-    assert "spread=" not in probe.state(page, "url_query")
+    try:
+        page.wait_for_selector("#spread-row", state="detached", timeout=5000)  # the GAN has no spread
+        assert "spread=" not in probe.state(page, "url_query")
+    finally:
+        page.locator("#model-diffusion").click()
+        probe.wait_state(page, "s.get('model_name') === 'diffusion' && s.get('spread_available') && !s.get('computing')")
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("width,height", [(1366, 768), (1280, 720)])
 def test_other_models_followers_beside_the_current_one_at_laptop_size_and_in_the_link(browser, studio, width, height):
-    """At laptop sizes, "compare with" draws the diffusion model's and the retrieval baseline's followers beside the GAN's,
-    side by side, each under its model's caption (the seeded one's with its seed); the link carries the choice and
-    opens the same comparison in a new tab."""
+    """At laptop sizes, "compare with" draws the GAN's and the retrieval baseline's followers beside the diffusion
+    model's (the one the studio opens with, its caption with its seed), side by side, each under its model's caption;
+    the link carries the choice and opens the same comparison in a new tab."""
     from explorer.rendering.palette import COMPARED
 
-    captions = ["the diffusion model\nseed 0", "1-NN retrieval"]
+    captions = ["the paper's GAN", "1-NN retrieval"]
     page = probe.open_studio(browser, studio.url, width, height, timeout_ms=90000)
     other = None
     try:
-        for name in ("diffusion", "retrieval"):
+        for name in ("gan", "retrieval"):
             button = page.locator(f"#compare-{name}")
             box = button.bounding_box()
             assert box and box["x"] >= 0 and box["x"] + box["width"] <= 330, (name, box)  # inside the drawer
@@ -679,9 +688,9 @@ def test_other_models_followers_beside_the_current_one_at_laptop_size_and_in_the
         probe.wait_state(page, f"s.get('scene_layout') === 'side_by_side' && {captions!r}.every("
                                "c => s.get('view_captions').includes(c))", 60000)
         shown = probe.state(page, "view_captions")
-        assert "the paper's GAN" in shown[2] and shown[-2:] == captions, shown
-        probe.wait_state(page, "s.get('url_query').includes('compare=diffusion,retrieval')", 30000)
-        page.wait_for_function("() => location.search.includes('compare=diffusion,retrieval')", timeout=30000)
+        assert "the diffusion model" in shown[2] and shown[-2:] == captions, shown
+        probe.wait_state(page, "s.get('url_query').includes('compare=gan,retrieval')", 30000)
+        page.wait_for_function("() => location.search.includes('compare=gan,retrieval')", timeout=30000)
         deadline = time.monotonic() + 30  # the other models' followers reach the picture
         while probe.count_colors(probe.view_pixels(page), [COMPARED])[0] < 300 and time.monotonic() < deadline:
             page.wait_for_timeout(200)
@@ -690,7 +699,7 @@ def test_other_models_followers_beside_the_current_one_at_laptop_size_and_in_the
 
         other = probe.open_studio(browser, studio.url + probe.state(page, "url_query"), width, height, timeout_ms=90000)
         probe.wait_state(other, f"{captions!r}.every(c => s.get('view_captions').includes(c))", 60000)
-        assert probe.state(other, "compare_models") == ["diffusion", "retrieval"]
+        assert probe.state(other, "compare_models") == ["gan", "retrieval"]
     finally:
         page.close()
         if other is not None:

@@ -13,7 +13,7 @@ from imm_model.data.splits import loso_fold
 from imm_model.errors import DataFormatError, LabelError
 from imm_model.evaluation.metrics import afd
 from imm_model.inference import ReactionModel, parse_label
-from imm_model.paths import SAMPLE_CHECKPOINT
+from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DIFFUSION, SAMPLE_MODELS
 
 
 @pytest.fixture(scope="module")
@@ -77,8 +77,8 @@ def test_batch_equals_single_and_latent(model, sample_data):
     assert z.shape == (3, model.config.latent_dim)
     world = sample_data.world(7)[0]
     np.testing.assert_allclose(model.latent(world, {"hugging": 1}), z[1], atol=1e-4)
-    np.testing.assert_allclose(imm_model.latent(world, {"hugging": 1}), z[1], atol=1e-4)
-    assert imm_model.synthesize(world, [0, 0, 0, 1, 0, 0]).shape == world.shape
+    np.testing.assert_allclose(imm_model.latent(world, {"hugging": 1}, checkpoint=SAMPLE_CHECKPOINT), z[1], atol=1e-4)
+    assert imm_model.synthesize(world, [0, 0, 0, 1, 0, 0], checkpoint=SAMPLE_CHECKPOINT).shape == world.shape
     assert not np.allclose(model.latent(world, {"kicking": 1}), z[1])  # the label enters the encoding
 
 
@@ -128,6 +128,28 @@ def test_bundled_model_beats_a_trivial_baseline_on_its_held_out_subject(model, s
         bone_err.append(np.abs(sk.bone_lengths(pred) - sk.bone_lengths(gt)).mean())
     assert np.mean(ours) < 0.9 * np.mean(trivial)
     assert np.mean(bone_err) < 0.05  # metres
+
+
+def test_the_default_model_is_the_bundled_diffusion_model(model, sample_data, tmp_path):
+    """ReactionModel.load(), the one-call helpers, `imm generate` and the studio's switch default to the diffusion
+    model (docs/experiments/default-model.md); the GAN stays bundled and loads by its path."""
+    default = ReactionModel.load()
+    assert default.family == "diffusion" and default.stochastic and default.path == SAMPLE_DIFFUSION
+    assert model.family == "gan" and not model.stochastic
+    assert list(SAMPLE_MODELS) == ["diffusion", "gan", "retrieval"] and SAMPLE_MODELS["gan"] == SAMPLE_CHECKPOINT
+    world = sample_data.world(7)[0]
+    ours = imm_model.synthesize(world, {"hugging": 1})
+    np.testing.assert_allclose(ours, default.synthesize(world, {"hugging": 1}), atol=1e-5)
+    assert not np.allclose(ours, model.synthesize(world, {"hugging": 1}), atol=1e-2)  # not the GAN's follower
+    out = tmp_path / "d.npz"
+    assert main(["generate", "--sequence", sample_data.sequence_ids[7], "--label", "hugging", "--out", str(out)]) == 0
+    with np.load(out) as z:
+        assert str(z["checkpoint"]) == SAMPLE_DIFFUSION.name and int(z["seed"]) == 0
+        np.testing.assert_allclose(z["follower"], ours, atol=1e-4)
+    assert main(["generate", "--sequence", sample_data.sequence_ids[7], "--label", "hugging", "--out", str(out), "--force",
+                 "--checkpoint", str(SAMPLE_CHECKPOINT)]) == 0
+    with np.load(out) as z:
+        assert str(z["checkpoint"]) == SAMPLE_CHECKPOINT.name and "seed" not in z.files
 
 
 def test_generate_cli(tmp_path, sample_data, capsys):

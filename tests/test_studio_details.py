@@ -12,8 +12,7 @@ pytestmark = [pytest.mark.browser, pytest.mark.timeout(300)]
 
 
 def test_a_refused_seed_leaves_the_seed_drawn_on_the_chip_and_the_field(page):
-    page.locator("#model-diffusion").click()
-    probe.wait_state(page, "s.get('model_name') === 'diffusion' && !s.get('computing')", timeout_ms=60000)
+    probe.wait_state(page, "s.get('model_name') === 'diffusion' && !s.get('computing')", timeout_ms=60000)  # the default
     try:
         seed = probe.state(page, "seed")
         field = page.locator("#seed-field")
@@ -26,8 +25,6 @@ def test_a_refused_seed_leaves_the_seed_drawn_on_the_chip_and_the_field(page):
         assert "primary" in (page.locator("#variation-count .v-btn--active").get_attribute("class") or "")  # the count shows
     finally:
         probe.set_state(page, "error", "")
-        page.locator("#model-gan").click()
-        probe.wait_state(page, "s.get('model_name') === 'gan' && !s.get('computing')", timeout_ms=60000)
 
 
 def test_the_legend_lists_only_the_figures_shown(page):

@@ -22,7 +22,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "each fold's training subjects once and cached ($IMM_CACHE_DIR, default ~/.cache/imm-studio).")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--checkpoint", type=Path, default=None,
-                     help="a checkpoint (default: the bundled one); may contain {subject}, e.g. runs/loso/fold-{subject}/best.safetensors")
+                     help="a checkpoint (default: the bundled GAN, imm_sbu.safetensors); may contain {subject}, e.g. "
+                          "runs/loso/fold-{subject}/best.safetensors")
     src.add_argument("--run", type=Path, nargs="+", default=None, help="run directories made by `imm train --fold all` (one per seed)")
     p.add_argument("--fold", default=None, help="sXX or 'all' (default: the checkpoint's held-out subject; all for --run)")
     p.add_argument("--data", type=Path, default=None, help="dataset bundle (default: the bundled SBU sample)")

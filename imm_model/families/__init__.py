@@ -23,12 +23,12 @@ LEGACY_FAMILY = "gan"  # checkpoints saved before sidecars named their family ho
 
 
 def load_model(path: Path | str | None = None, device: str = "cpu") -> ReactionModel:
-    """Load a checkpoint of any family (default: the bundled model) as that family's ReactionModel; any problem is
-    one CheckpointError line naming the file."""
+    """Load a checkpoint of any family (default: the bundled default model, paths.SAMPLE_DEFAULT, the diffusion model)
+    as that family's ReactionModel; any problem is one CheckpointError line naming the file."""
     from imm_model.checkpoint import load_checkpoint
-    from imm_model.paths import SAMPLE_CHECKPOINT
+    from imm_model.paths import SAMPLE_DEFAULT
 
-    path = Path(path) if path is not None else SAMPLE_CHECKPOINT
+    path = Path(path) if path is not None else SAMPLE_DEFAULT
     arrays, meta = load_checkpoint(path, framework="np")
     name = meta.get("family", LEGACY_FAMILY)
     if name not in FAMILIES:

@@ -119,7 +119,8 @@ class ReactionModel:
     # ---- loading and saving ---------------------------------------------------------------
     @classmethod
     def load(cls, path: Path | str | None = None, device: str = "cpu") -> ReactionModel:
-        """Load a checkpoint of any registered family (default: the bundled model). Any problem -> CheckpointError."""
+        """Load a checkpoint of any registered family (default: the bundled diffusion model, paths.SAMPLE_DEFAULT).
+        Any problem -> CheckpointError."""
         from imm_model.families import load_model
 
         return load_model(path, device)
