@@ -258,7 +258,7 @@ def label_mix(page: LayoutParts) -> None:
             class_slider(f"w_{i}", i, f"class-slider slider-{name}", f"slider-{i}")
             # the parts apart: the lower body's slider starts where the class's is; linked again, both take the class's
             v3.VBtn(icon=(f"apart_{i} ? 'mdi-link-variant-off' : 'mdi-link-variant'",), v_if="part_labels", size="x-small",
-                    variant="text", density="comfortable", id=f"parts-{i}", classes="part-toggle",
+                    variant="text", density="comfortable", id=f"parts-{i}", classes="part-toggle", style="flex: 0 0 24px; width: 24px",
                     color=(f"apart_{i} ? 'primary' : undefined",), click=f"lower_{i} = w_{i}; apart_{i} = !apart_{i}",
                     title=(f"apart_{i} ? 'link the parts: {display_name(name)} for the whole body' : "
                            f"'set {display_name(name)} apart for the upper body (trunk, arms) and the lower body (legs, stance)'",))
@@ -266,12 +266,13 @@ def label_mix(page: LayoutParts) -> None:
             html.Div(style="flex: 0 0 118px")
             part_tag("lower")
             class_slider(f"lower_{i}", i, f"lower-slider lower-slider-{name}", f"lower-slider-{i}")
-            html.Div(style="flex: 0 0 28px")
+            html.Div(style="flex: 0 0 24px")
     with html.Div(classes="d-flex align-center", style="height: 30px"):
         html.Div("scale", classes="text-body-2", style="width: 118px; font-weight: 600")
         v3.VSlider(v_model=("scale",), min=0, max=2, step=0.05, density="compact", hide_details=True, id="scale-slider")
         html.Div("{{ Number(scale).toFixed(2) }}", classes="text-caption ml-1", style="width: 38px; text-align: right")
-    html.Div("{{ label_text }}", classes="text-body-2 mt-1 pa-2 rounded bg-grey-lighten-4", id="label-text")
+    html.Div("{{ label_text }}", classes="text-body-2 mt-1 pa-2 rounded bg-grey-lighten-4", id="label-text",
+             style="overflow-wrap: anywhere")  # part keys are long words
     compare_row(page)
     reads_as_panel()
 
