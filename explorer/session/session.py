@@ -13,6 +13,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from explorer.rendering.palette import display_name
+from imm_model.data import labels
 from imm_model.data.dataset import InteractionDataset
 from imm_model.errors import CheckpointError, DataFormatError, IMMError, LabelError
 from imm_model.evaluation.metrics import afd
@@ -69,6 +70,7 @@ class ReactionModelLike(Protocol):
     skeleton: Any
     raw: bool  # True: the network's own follower, without the clean-up (imm_model/cleanup.py)
     title: str  # how people name the model's family ("the paper's GAN")
+    part_labels: bool  # reads a label per body part ("upper:<class>", "lower:<class>"; imm_model/data/labels.py)
     settings: tuple[str, ...]  # the sampler settings it takes: "seed" (a seed picks among reactions), "spread", "memory"
     spread: float | None  # how loosely its sampler follows the leader, 0..1, settable; None: the model has no such setting
 
@@ -100,6 +102,24 @@ def label_words(weights: Sequence[float], class_names: Sequence[str], scale: flo
     if abs(scale - 1.0) > 1e-6:
         text += f"  × {scale:.2g}"
     return text
+
+
+def mix_words(mix: Sequence[float], class_names: Sequence[str], scale: float = 1.0) -> str:
+    """A mix, (C,) or (2C,) (upper body's, then lower body's), in words: `label_words` for a whole-body mix, the part
+    keys as `imm generate --label` spells them where the parts differ ("upper:shaking_hands=1,lower:pushing=-1  × 2")."""
+    if len(mix) == len(class_names):
+        return label_words(mix, class_names, scale)
+    return labels.label_text(np.asarray(mix), class_names) + (f"  × {scale:.2g}" if abs(scale - 1.0) > 1e-6 else "")
+
+
+def takes_parts(model: ReactionModelLike) -> bool:
+    """True: `model` reads a label per body part."""
+    return bool(getattr(model, "part_labels", False))
+
+
+def no_parts(model: ReactionModelLike) -> LabelError:
+    """Why a model without part labels cannot draw a part mix, in one line (and the way out)."""
+    return LabelError(f"{model.title} takes no label per body part: link each class's parts (or reset the mix) first")
 
 
 def mean_joint_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -158,12 +178,14 @@ class Session:
         # reads an upload out of this process, within a time and memory budget (explorer/serving/upload_reader.py); None: here
         self.upload_reader: Callable[[str, bytes], Leader] | None = None
         self.class_names = tuple(data.class_names)
-        self.weights = np.zeros(len(self.class_names), np.float32)
+        # the mix: one weight per class and body part, the upper body's (trunk and arms) then the lower body's (legs and
+        # where the follower stands); a class with both parts alike is labelled for the whole body
+        self.part_weights = np.zeros((2, len(self.class_names)), np.float32)
         self.scale = 1.0
         self.vector = np.zeros(len(self.class_names), np.float32)  # the mix as the models read it, checked once per change
         self.index = -1
         self.synth: np.ndarray | None = None
-        # A/B: a pinned mix and its follower for the current leader (None: nothing pinned)
+        # A/B: a pinned mix (as `mix()` gives it) and its follower for the current leader (None: nothing pinned)
         self.pinned_weights: np.ndarray | None = None
         self.pinned_scale = 1.0
         self.pinned_vector = self.vector
@@ -248,27 +270,63 @@ class Session:
         return self.set_label(np.zeros(len(self.class_names), np.float32), 1.0)
 
     def set_label(self, weights: Sequence[float], scale: float | None = None, variations: bool = True) -> np.ndarray:
-        """The mix (and scale) -> its follower; `variations` False: the side-by-side variations wait for
-        `draw_variations` (a slider's picture goes first)."""
+        """The mix (and scale) -> its follower: one weight per class (C,) for the whole body, or per class and part (2C,),
+        the upper body's then the lower body's. `variations` False: the side-by-side variations wait for
+        `draw_variations` (a slider's picture goes first). A part mix is refused (LabelError, one line) while a model
+        without part labels draws: nothing changes."""
         w = np.clip(np.asarray(weights, np.float32).reshape(-1), -1.0, 1.0)
-        if w.shape != (len(self.class_names),):
-            raise ValueError(f"{len(w)} label weights for {len(self.class_names)} classes")
+        c = len(self.class_names)
+        if len(w) not in (c, 2 * c):
+            raise ValueError(f"{len(w)} label weights for {c} classes (or {2 * c}: the upper body's, then the lower body's)")
+        parts = np.stack([w[:c], w[-c:]])
         scale = self.scale if scale is None else float(scale)
-        self.vector = self.model.label_vector([float(x) for x in w], scale=scale)  # refused here: nothing changes
-        self.weights, self.scale = w, scale
+        keys = labels.label_keys(parts[0] if np.array_equal(*parts) else parts.reshape(-1), self.class_names)
+        vector = self.model.label_vector(keys, scale=scale)  # the part keys; refused here: nothing changes
+        for name in self.compared_names if len(vector) > c else ():
+            if not takes_parts(self.models[name]):
+                raise LabelError(f"compare: {one_line(no_parts(self.models[name]))}")
+        self.vector, self.part_weights, self.scale = vector, parts, scale
         return self.synthesize(variations)
 
+    @property
+    def weights(self) -> np.ndarray:
+        """(C,) the mix as one weight per class: the whole body's (where the parts differ, their mean)."""
+        return labels.whole_body(self.part_weights.reshape(-1), len(self.class_names)).astype(np.float32)
+
+    @property
+    def parts_differ(self) -> bool:
+        """True: a class weighs differently on the upper and the lower body (the mix is a label per part)."""
+        return not np.array_equal(*self.part_weights)
+
+    @property
+    def part_labels(self) -> bool:
+        """True: the current model and every compared one read a label per body part (the page offers part mixes)."""
+        return all(takes_parts(self.models[n]) for n in (self.model_name, *self.compared_names))
+
+    def mix(self) -> np.ndarray:
+        """The mix unscaled, as `set_label` takes it: (C,) when both parts are alike, else (2C,) (upper's, lower's)."""
+        return self.part_weights[0].copy() if not self.parts_differ else self.part_weights.reshape(-1).copy()
+
+    def label_keys(self) -> dict[str, float]:
+        """The mix unscaled, as one spells it: {"kicking": 1, "upper:shaking_hands": 1, "lower:pushing": -1}."""
+        return labels.label_keys(self.mix(), self.class_names)
+
     def label_vector(self) -> np.ndarray:
-        """The mix (weights times scale) as every model of the session reads it (they share the data's classes)."""
+        """The mix (weights times scale) as every model drawing it reads it: (C,), or (2C,) for a part mix (only part
+        models draw one)."""
         return self.vector
 
     def label_text(self) -> str:
-        return label_words(self.weights, self.class_names, self.scale)
+        return mix_words(self.mix(), self.class_names, self.scale)
 
     def mix_latent(self) -> np.ndarray:
         """The current leader + mix in the latent space of the map's model (the star on the latent map), whichever
-        model synthesizes: another model's latents are of another size and meaning."""
-        return self.map_model.latent_canonical_batch([self.leader], self.vector[None, :])[0]
+        model synthesizes: another model's latents are of another size and meaning. A map model without part labels
+        places a part mix as its whole-body mean (the star is a place on the map, not a reaction drawn)."""
+        vec = self.vector
+        if not takes_parts(self.map_model):
+            vec = labels.whole_body(vec, len(self.class_names)).astype(np.float32)
+        return self.map_model.latent_canonical_batch([self.leader], vec[None, :])[0]
 
     # ---- models and variations ------------------------------------------------------------
     @property
@@ -291,6 +349,11 @@ class Session:
             raise ValueError(f"no model {name!r}; this studio has {', '.join(self.models)}")
         if name == self.model_name:
             return self.synth
+        if self.parts_differ and not takes_parts(self.models[name]):
+            # Refused rather than falling back to a whole-body mix: that fallback (each class at the mean of its parts)
+            # is a label nobody asked for, which the link, the pin and an export would then carry silently; refused,
+            # the part mix stays on the sliders and the message says how to switch.
+            raise no_parts(self.models[name])
         previous = (self.model, self.model_name, self.synth, self.variation_followers)
         self.models[name].raw = self.model.raw
         self.model, self.model_name = self.models[name], name
@@ -384,6 +447,9 @@ class Session:
             raise ValueError(f"compare: no model {unknown[0]!r}; this studio has {', '.join(self.models)}")
         if len(names) > MAX_COMPARED:
             raise ValueError(f"compare: at most {MAX_COMPARED} models beside the current one, not {len(names)}")
+        for name in names if self.parts_differ else ():  # as for a switch (set_model): a part mix is never approximated
+            if not takes_parts(self.models[name]):
+                raise LabelError(f"compare: {one_line(no_parts(self.models[name]))}")
         self.compared = tuple(n for n in self.models if n in names)
         self.compared_followers = self.followers_of(self.compared_names)
 
@@ -423,7 +489,7 @@ class Session:
     # ---- A/B: a pinned mix beside the current one ---------------------------------------------
     def pin(self) -> None:
         """Keep the current mix and its follower, to compare the next mixes with."""
-        self.pinned_weights, self.pinned_scale, self.pinned = self.weights.copy(), self.scale, self.synth.copy()
+        self.pinned_weights, self.pinned_scale, self.pinned = self.mix(), self.scale, self.synth.copy()
         self.pinned_vector = self.vector.copy()
         self.pinned_model, self.pinned_seed, self.pinned_spread = self.model_name, self.seed, self.spread
 
@@ -448,7 +514,7 @@ class Session:
         """The pinned mix in words, and its model (and seed) when they are not the current ones."""
         if self.pinned_weights is None:
             return ""
-        text = label_words(self.pinned_weights, self.class_names, self.pinned_scale)
+        text = mix_words(self.pinned_weights, self.class_names, self.pinned_scale)
         if self.pinned_model != self.model_name:
             text += f" · {self.model_title(self.pinned_model)}"
         if "seed" in self.models[self.pinned_model].settings and (self.pinned_model != self.model_name or self.pinned_seed != self.seed):
@@ -513,5 +579,5 @@ class Session:
 
     def export_name(self, ext: str) -> str:
         sid = Path(self.upload.name).stem if self.upload else self.data.sequence_ids[self.index].replace("/", "-")
-        mix = "_".join(f"{n}{w:+g}" for n, w in zip(self.class_names, self.weights, strict=True) if w) or "neutral"
+        mix = "_".join(f"{k}{w:+g}" for k, w in self.label_keys().items()) or "neutral"
         return f"{sid}_{mix}.{ext}"

@@ -105,6 +105,7 @@ class Studio:
                 "label_text": "",
                 "reads_as": [],  # explorer/ui/reads_as_panel.py
                 "reads_as_note": "",
+                "part_labels": False,  # the models drawing read a label per body part: the drawer offers part mixes
                 "scene_layout": "overlay",
                 "show_leader": True,
                 "show_ground_truth": True,
@@ -131,8 +132,9 @@ class Studio:
                 "held_out_subject": d.info.get("held_out_subject", ""),
             }
         )
-        for i in range(len(names)):
-            s[f"w_{i}"] = 0.0
+        for i in range(len(names)):  # a class's slider (the whole body; with its parts apart, the upper body) and its lower body's
+            s[f"w_{i}"] = s[f"lower_{i}"] = 0.0
+            s[f"apart_{i}"] = False
 
     def _pair_held_out(self, pair: str) -> bool:
         d = self.session.data
@@ -144,7 +146,8 @@ class Studio:
         s.change("sequence_index")(self.on_sequence_picked)
         s.change("upload_file")(self.on_leader_uploaded)
         s.change("frame")(self.on_frame_change)
-        s.change(*[f"w_{i}" for i in range(len(self.session.class_names))], "scale", "spread")(self.on_mix_change)
+        n = len(self.session.class_names)
+        s.change(*[f"{k}_{i}" for k in ("w", "lower", "apart") for i in range(n)], "scale", "spread")(self.on_mix_change)
         s.change("scene_layout")(self.on_layout_change)
         s.change("show_leader", "show_ground_truth", "show_synthesized")(self.on_visibility_change)
         s.change("playing")(self.on_playing_change)
@@ -260,9 +263,20 @@ class Studio:
 
     # ---- label mixing --------------------------------------------------------------------
     def _write_label_state(self) -> None:
-        for i, w in enumerate(self.session.weights):
-            self.state[f"w_{i}"] = round(float(w), 3)
+        """The sliders onto the session's mix: a class whose parts differ shows them apart."""
+        upper, lower = self.session.part_weights
+        for i, (u, lo) in enumerate(zip(upper, lower, strict=True)):
+            self.state[f"w_{i}"], self.state[f"lower_{i}"] = round(float(u), 3), round(float(lo), 3)
+            self.state[f"apart_{i}"] = bool(u != lo)
         self.state.scale = self.session.scale
+
+    def slider_mix(self) -> list[float]:
+        """The sliders' mix, as Session.set_label takes it: one weight per class, or per class and part (the upper
+        body's, then the lower body's) while a class has its parts apart (linked again, both take the class's slider)."""
+        s, n = self.state, len(self.session.class_names)
+        upper = [float(s[f"w_{i}"] or 0.0) for i in range(n)]
+        lower = [float(s[f"lower_{i}"] or 0.0) if s[f"apart_{i}"] and s.part_labels else upper[i] for i in range(n)]
+        return upper if lower == upper else upper + lower
 
     def on_mix_change(self, **_):
         """Coalesce slider messages: the latest mix wins, at most one synthesis in flight, no fixed
@@ -293,15 +307,20 @@ class Studio:
     def apply_mix(self) -> bool:
         """Synthesize with the sliders' mix and push the new picture; True when the mix changed."""
         s, ses = self.state, self.session
-        weights = [float(s[f"w_{i}"] or 0.0) for i in range(len(ses.class_names))]
+        weights = self.slider_mix()
         scale = float(s.scale if s.scale is not None else 1.0)
         spread = float(s.spread or 0.0) if ses.spread is not None else None
-        if (np.allclose(weights, ses.weights) and abs(scale - ses.scale) < 1e-9 and spread == ses.spread and ses.synth is not None
-                and s.mix_count):
+        if (len(weights) == len(ses.mix()) and np.allclose(weights, ses.mix()) and abs(scale - ses.scale) < 1e-9
+                and spread == ses.spread and ses.synth is not None and s.mix_count):
             return False
         if spread is not None:
             ses.set_spread(spread, synthesize=False)
-        ses.set_label(weights, scale, variations=False)  # the side-by-side variations follow with the review
+        try:
+            ses.set_label(weights, scale, variations=False)  # the side-by-side variations follow with the review
+        except Exception:
+            with s:  # refused (a part mix beside a model without part labels): the sliders show the mix drawn
+                self._write_label_state()
+            raise
         self.scene.set_synthesized(ses.synth)
         self.model_switch.show_variations()
         self.ctrl.view_update(draft=True)  # the picture first: it is what the user is watching; the panels follow it
@@ -320,8 +339,11 @@ class Studio:
         """Review numbers, distance chart and latent star for the current synthesized follower."""
         s, ses = self.state, self.session
         s.label_text = ses.label_text()
+        s.part_labels = ses.part_labels
+        for i in range(len(ses.class_names)) if not ses.part_labels else ():  # none apart where no part mix can be drawn
+            s[f"apart_{i}"] = False
         s.reads_as = reads_as_rows(ses.reads_as(), ses.weights, ses.class_names)
-        s.reads_as_note = unread_note(s.reads_as)
+        s.reads_as_note = unread_note(s.reads_as, ses.parts_differ)
         self._distances = ses.distances_m()
         self._ab_distances = ses.ab_distances_m()
         s.ab_text = f"pinned ↔ current: joints {self._ab_distances.mean():.2f} m apart" if len(self._ab_distances) else ""
@@ -352,10 +374,13 @@ class Studio:
         self.set_label(np.zeros(len(self.session.class_names)))
 
     def set_label(self, weights, scale: float = 1.0) -> None:
-        """Move the sliders (the mix follows them, as when the user drags)."""
+        """Move the sliders (the mix follows them, as when the user drags): one weight per class, or per class and part
+        (the upper body's, then the lower body's)."""
+        n = len(self.session.class_names)
+        upper, lower = (float(w) for w in weights[:n]), (float(w) for w in weights[-n:])
         with self.state:
-            for i, w in enumerate(weights):
-                self.state[f"w_{i}"] = float(w)
+            for i, (u, lo) in enumerate(zip(upper, lower, strict=True)):
+                self.state[f"w_{i}"], self.state[f"lower_{i}"], self.state[f"apart_{i}"] = u, lo, u != lo
             self.state.scale = float(scale)
 
     # ---- playback ------------------------------------------------------------------------

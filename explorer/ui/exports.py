@@ -23,6 +23,7 @@ import numpy as np
 from explorer.rendering.palette import CHARACTER_TITLES, PINNED, WARNING, display_name
 from explorer.rendering.palette import CHARACTERS as CHARACTER_COLORS
 from explorer.session.session import FPS, one_line
+from imm_model.data.labels import label_text
 
 if TYPE_CHECKING:
     from explorer.rendering.scene import Scene
@@ -116,7 +117,7 @@ class Exports:
         if scene.layout == "side_by_side":
             shown = [k for k in shown if k == "pinned"]
         legend = [(titles[k], colors[k]) for k in shown]
-        mix, about = mix_text(ses.weights, ses.class_names, ses.scale), about_text(ses)
+        mix, about = mix_text(ses.mix(), ses.class_names, ses.scale), about_text(ses)
         n = len(scene.sequences["leader"])
         return lambda image, f: annotate(image, legend, mix, about, f"frame {f + 1} / {n}")
 
@@ -139,7 +140,10 @@ class Exports:
 
 
 def mix_text(weights, class_names, scale: float) -> str:
-    """The mix as the page's sliders write it: 'kicking +1.00, hugging +0.50 · scale 1.00'."""
+    """The mix as the page's sliders write it: 'kicking +1.00, hugging +0.50 · scale 1.00'; a mix per body part, (2C,)
+    (the upper body's weights, then the lower body's), by its part keys: 'upper:shaking_hands=1,lower:pushing=-1 · scale 1.00'."""
+    if len(weights) == 2 * len(class_names):
+        return f"{label_text(np.asarray(weights), class_names)} · scale {scale:.2f}"
     parts = [f"{display_name(n)} {w:+.2f}" for n, w in zip(class_names, weights, strict=True) if abs(w) > 1e-6]
     return f"{', '.join(parts) or 'neutral (all classes 0)'} · scale {scale:.2f}"
 

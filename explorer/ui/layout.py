@@ -240,7 +240,9 @@ def sequence_picker(page: LayoutParts) -> None:
 
 
 def label_mix(page: LayoutParts) -> None:
-    """One slider per class (-1 avoid .. +1 perform), the scale, the label in words and what it reads as."""
+    """One slider per class (-1 avoid .. +1 perform), the scale, the label in words and what it reads as. With a model
+    that reads a label per body part, a class's parts can be set apart: its slider is then the upper body's (trunk and
+    arms) and a second one, under it, the lower body's (legs and where the follower stands)."""
     with html.Div(classes="d-flex align-center"):
         html.Div("Label mix", classes="text-overline")
         v3.VSpacer()
@@ -250,32 +252,42 @@ def label_mix(page: LayoutParts) -> None:
         with html.Div(classes="d-flex align-center", style="height: 30px"):
             html.Div(
                 f"{i + 1} {display_name(name)}", classes=(f"key_slider === {i} ? 'text-body-2 text-decoration-underline' : 'text-body-2'",),
-                style=f"width: 118px; color: {class_color(i)}; font-weight: 600", title="keys: 1-6 select, up/down move",
+                style=f"width: 118px; flex: 0 0 118px; color: {class_color(i)}; font-weight: 600", title="keys: 1-6 select, up/down move",
             )
-            v3.VSlider(
-                v_model=(f"w_{i}",),
-                min=-1,
-                max=1,
-                step=0.05,
-                density="compact",
-                hide_details=True,
-                color=class_color(i),
-                track_color="grey-lighten-2",
-                classes=f"class-slider slider-{name}",
-                id=f"slider-{i}",
-            )
-            html.Div(
-                f"{{{{ (w_{i} >= 0 ? '+' : '') + Number(w_{i}).toFixed(2) }}}}",
-                classes="text-caption ml-1",
-                style="width: 38px; text-align: right",
-            )
+            part_tag("upper", f"part_labels && apart_{i}")
+            class_slider(f"w_{i}", i, f"class-slider slider-{name}", f"slider-{i}")
+            # the parts apart: the lower body's slider starts where the class's is; linked again, both take the class's
+            v3.VBtn(icon=(f"apart_{i} ? 'mdi-link-variant-off' : 'mdi-link-variant'",), v_if="part_labels", size="x-small",
+                    variant="text", density="comfortable", id=f"parts-{i}", classes="part-toggle", style="flex: 0 0 24px; width: 24px",
+                    color=(f"apart_{i} ? 'primary' : undefined",), click=f"lower_{i} = w_{i}; apart_{i} = !apart_{i}",
+                    title=(f"apart_{i} ? 'link the parts: {display_name(name)} for the whole body' : "
+                           f"'set {display_name(name)} apart for the upper body (trunk, arms) and the lower body (legs, stance)'",))
+        with html.Div(v_if=f"part_labels && apart_{i}", classes="d-flex align-center", style="height: 30px"):
+            html.Div(style="flex: 0 0 118px")
+            part_tag("lower")
+            class_slider(f"lower_{i}", i, f"lower-slider lower-slider-{name}", f"lower-slider-{i}")
+            html.Div(style="flex: 0 0 24px")
     with html.Div(classes="d-flex align-center", style="height: 30px"):
         html.Div("scale", classes="text-body-2", style="width: 118px; font-weight: 600")
         v3.VSlider(v_model=("scale",), min=0, max=2, step=0.05, density="compact", hide_details=True, id="scale-slider")
         html.Div("{{ Number(scale).toFixed(2) }}", classes="text-caption ml-1", style="width: 38px; text-align: right")
-    html.Div("{{ label_text }}", classes="text-body-2 mt-1 pa-2 rounded bg-grey-lighten-4", id="label-text")
+    html.Div("{{ label_text }}", classes="text-body-2 mt-1 pa-2 rounded bg-grey-lighten-4", id="label-text",
+             style="overflow-wrap: anywhere")  # part keys are long words
     compare_row(page)
     reads_as_panel()
+
+
+def class_slider(key: str, i: int, classes: str, slider_id: str) -> None:
+    """A class's slider (-1 .. +1, in its colour) and its value."""
+    v3.VSlider(v_model=(key,), min=-1, max=1, step=0.05, density="compact", hide_details=True, color=class_color(i),
+               track_color="grey-lighten-2", classes=classes, id=slider_id)
+    html.Div(f"{{{{ ({key} >= 0 ? '+' : '') + Number({key}).toFixed(2) }}}}", classes="text-caption ml-1",
+             style="width: 38px; flex: 0 0 38px; text-align: right")
+
+
+def part_tag(part: str, shown: str | None = None) -> None:
+    """Which body part the slider beside it weighs."""
+    html.Div(part, v_if=shown, classes="text-caption text-medium-emphasis", style="flex: 0 0 36px")
 
 
 def character_toggles(page: LayoutParts) -> None:

@@ -1,7 +1,10 @@
 """The "reads as" panel: which interaction the synthesized reaction on screen reads as, per the follower-only
 classifier (imm_model/reads_as.py), one bar per class, the asked-for classes marked. Updated with every slider
 move, so a user sees whether a mix reads as intended; an asked-for class the classifier barely sees is named under
-the bars (the mixes that fail the mix target show this way, docs/user-guide.md "Mixes that do not read")."""
+the bars (the mixes that fail the mix target show this way, docs/user-guide.md "Mixes that do not read").
+
+The bundled classifier reads the whole follower: for a mix per body part the panel shows that reading with a caption
+(a reading per part needs the evaluation's body-part judges, imm_model/evaluation/loso.py, which are not bundled)."""
 
 from __future__ import annotations
 
@@ -27,9 +30,15 @@ def reads_as_rows(probabilities: np.ndarray | None, weights: Sequence[float], cl
             for i, (n, p, w) in enumerate(zip(class_names, probabilities, weights, strict=True))]
 
 
-def unread_note(rows: Sequence[dict]) -> str:
+PART_NOTE = "the whole body's reading: a reading per body part needs part judges, which the studio does not have"
+
+
+def unread_note(rows: Sequence[dict], parts_differ: bool = False) -> str:
     """'' when every class asked for with at least ASKED_WEIGHT reads; else which ones get under MIX_SHARE of the
-    probability, in one line."""
+    probability, in one line. A mix per body part gets PART_NOTE instead (the whole-body classifier cannot tell whether
+    a part reads as asked)."""
+    if parts_differ and rows:
+        return PART_NOTE
     unread = [r for r in rows if r.get("w", 1.0) >= ASKED_WEIGHT and r["asked"] == "+" and r["p"] < MIX_SHARE]
     if not unread:
         return ""
@@ -52,4 +61,5 @@ def reads_as_panel() -> None:
                                bg_color="grey-lighten-2", classes="reads-as-bar", style="flex: 1 1 auto")
             html.Div("{{ (row.asked ? row.asked + ' ' : '') + (row.p * 100).toFixed(0) + '%' }}", classes="text-caption ml-1",
                      style="flex: 0 0 48px; text-align: right; white-space: nowrap")
-        html.Div("{{ reads_as_note }}", v_if="reads_as_note", id="reads-as-note", classes="text-caption text-warning mt-1")
+        html.Div("{{ reads_as_note }}", v_if="reads_as_note", id="reads-as-note",
+                 classes=("'text-caption mt-1 ' + (reads_as_note.startsWith('Does not') ? 'text-warning' : 'text-medium-emphasis')",))

@@ -32,7 +32,7 @@ from trame.widgets import client, html
 from trame.widgets import vuetify3 as v3
 
 from explorer.rendering.palette import display_name
-from explorer.session.session import one_line
+from explorer.session.session import no_parts, one_line, takes_parts
 from imm_model.evaluation.review import LOWER_IS_WORSE, SORT_KEYS, ReviewRow, next_worst, sort_rows
 
 if TYPE_CHECKING:
@@ -81,7 +81,7 @@ class ReviewInputs:
     data: Any
     judge: Any
     labels: str  # "match" or "mix"
-    weights: tuple[float, ...]  # the mix ("mix" only)
+    weights: tuple[float, ...]  # the mix ("mix" only): per class, or per class and part (Session.mix)
     scale: float
     indices: tuple[int, ...]  # the rows' dataset indices
     split: str  # "held" or "all"
@@ -98,6 +98,8 @@ class ReviewInputs:
         """(N, C): each row's label as `model` takes it (its own class at +1, or the mix)."""
         n = len(self.data.class_names)
         if self.labels == "mix":
+            if len(self.weights) > n and not takes_parts(model):  # a part mix is never approximated (Session.set_model)
+                raise no_parts(model)
             vec = np.asarray(model.label_vector(list(self.weights), scale=self.scale), np.float32)
             return np.repeat(vec[None], len(indices), 0)
         own = {c: np.asarray(model.label_vector(list(np.eye(n)[c]), scale=1.0), np.float32) for c in range(n)}
@@ -116,7 +118,7 @@ def session_inputs(session, labels: str, split: str) -> ReviewInputs:
     subject = getattr(first, "held_out_subject", None) or data.info.get("held_out_subject") or None
     indices = default_split(first, data) if split == "held" else np.arange(len(data))
     return ReviewInputs(models=models, data=data, judge=session.reader, labels=labels,
-                        weights=tuple(round(float(w), 6) for w in session.weights), scale=round(float(session.scale), 6),
+                        weights=tuple(round(float(w), 6) for w in session.mix()), scale=round(float(session.scale), 6),
                         indices=tuple(int(i) for i in indices), split=split, subject=subject, seed=int(session.seed), raw=raw)
 
 

@@ -1,5 +1,6 @@
 """The view in the URL's query string, so a link reopens what its sender saw:
-`?seq=s01s02/03/001&mix=kicking:1,hugging:0.5&scale=1&frame=12&layout=overlay&camera=front&map=tsne`, `&raw=1`
+`?seq=s01s02/03/001&mix=kicking:1,hugging:0.5&scale=1&frame=12&layout=overlay&camera=front&map=tsne` (a class by
+part: `mix=upper:shaking_hands:1,lower:pushing:-1`, the label keys of imm_model/data/labels.py), `&raw=1`
 when the clean-up is off, `&model=diffusion` when another model than the studio's first draws, `&seed=12` for a
 seeded model, `&spread=0.3` for one with a spread setting and `&compare=diffusion,retrieval` for other models'
 followers drawn beside the current one's.
@@ -15,7 +16,9 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 from urllib.parse import parse_qs, quote, urlencode
 
-from explorer.session.session import MAX_COMPARED
+from explorer.session.session import MAX_COMPARED, one_line
+from imm_model.data.labels import PARTS
+from imm_model.errors import LabelError
 
 if TYPE_CHECKING:
     from explorer.rendering.scene import Scene
@@ -29,8 +32,8 @@ MAX_SEED = 2**31 - 5  # room for the side-by-side variations after it (explorer/
 
 
 def view_query(view: dict) -> str:
-    """{seq, weights: {class: w}, scale, frame, layout, camera, map, raw, model, seed, spread, compare} -> "?..." (None
-    values are left out)."""
+    """{seq, weights: {label key: w} (a class, or "upper:<class>" / "lower:<class>"), scale, frame, layout, camera, map,
+    raw, model, seed, spread, compare} -> "?..." (None values are left out)."""
     parts = {}
     if view.get("seq"):
         parts["seq"] = view["seq"]
@@ -53,14 +56,18 @@ def _number(text: str, lo: float, hi: float, what: str) -> float:
 
 
 def _weights(text: str, class_names) -> dict[str, float]:
+    """"kicking:1,upper:hugging:0.5" -> {label key: weight} (a class alone is the whole body)."""
     if text == "none":
         return {}
     weights = {}
     for item in text.split(","):
-        name, _, value = item.partition(":")
+        key, _, value = item.rpartition(":") if item.count(":") > 1 else item.partition(":")
+        part, _, name = key.rpartition(":")
         if name not in class_names:
-            raise ValueError(f"mix: unknown class {name!r}")
-        weights[name] = _number(value, -1.0, 1.0, f"mix weight of {name}")
+            raise ValueError(f"mix: unknown class {name[:40]!r}")
+        if part and part not in PARTS:
+            raise ValueError(f"mix: unknown body part {part[:20]!r} in {key[:60]!r} ({' or '.join(PARTS)})")
+        weights[key] = _number(value, -1.0, 1.0, f"mix weight of {key}")
     return weights
 
 
@@ -135,7 +142,7 @@ def current_view(studio: ViewHolder) -> dict:
     ses, s = studio.session, studio.state
     return {
         "seq": None if ses.upload else ses.data.sequence_ids[ses.index],
-        "weights": {n: round(float(w), 3) for n, w in zip(ses.class_names, ses.weights, strict=True)},
+        "weights": ses.label_keys(),
         "scale": round(float(ses.scale), 3),
         "frame": None if s.playing else int(s.frame or 0),
         "layout": s.scene_layout,
@@ -170,9 +177,14 @@ def apply_view(studio: ViewHolder, query: str) -> None:
                 s.spread = view["spread"]  # applied with the mix below (app.py's mix handler)
     if "seq" in view:
         studio.load_sequence(ses.data.index_of(view["seq"]))
+    if "mix" in view:  # as the model the link opens reads it (one without part labels refuses a part key: left out)
+        try:
+            view["mix"] = ses.model.label_vector(view["mix"])
+        except LabelError as err:
+            problems.append(f"mix: {one_line(err)}")
+            del view["mix"]
     if "mix" in view or "scale" in view:
-        weights = [view.get("mix", {}).get(n, 0.0) for n in ses.class_names] if "mix" in view else ses.weights
-        studio.set_label(weights, view.get("scale", 1.0))
+        studio.set_label(view.get("mix", ses.mix()), view.get("scale", 1.0))
     with s:
         if "frame" in view:
             s.frame = min(view["frame"], ses.num_frames - 1)
