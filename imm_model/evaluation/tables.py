@@ -42,8 +42,10 @@ def metric_table(group: dict, metric: str, digits: int = 3) -> str:
             row.append(_pm(e["ratio_nn1"]))
         lines.append("| " + " | ".join(row) + " |")
     mean = lambda key, src=None: float(np.nanmean([(src(e) if src else e)[key] for e in classes.values()]))  # noqa: E731
-    row = ["**mean**", f"**{_pm(mean(metric), digits=digits)}**"]
-    row += [_pm(mean(metric, lambda e, b=b: e["baselines"][b]), digits=digits) for b in names]
+    # the mean over classes has an interval for AFD (evaluation/report.py `_overall`), computed per result
+    ci = lambda o: o.get("ci", {}).get(metric) if metric == "afd" else None  # noqa: E731
+    row = ["**mean**", f"**{with_interval(mean(metric), ci(group['model_overall']), digits)}**"]
+    row += [with_interval(mean(metric, lambda e, b=b: e["baselines"][b]), ci(group["baselines_overall"][b]), digits) for b in names]
     row += ["", f"**{_pm(mean(ratio))}**"]
     if metric == "afd" and "nn1" in names:
         row.append(_pm(mean("ratio_nn1")))
