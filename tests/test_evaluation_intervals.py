@@ -56,6 +56,14 @@ def test_precision_and_recall_are_one_for_identical_sets_and_precision_drops_whe
     assert np.isnan(distribution.precision_recall(x[:3], x[:3])[0])  # k = 3 needs more than 3 points
 
 
+@pytest.mark.parametrize("n, d", [(30, 64), (200, 4)])  # fewer sequences than features (a fold), and more
+def test_the_bootstraps_fid_without_a_square_root_equals_fid(n, d):
+    real = np.maximum(_features(n, d, seed=10), 0)  # synthetic, ReLU-like as the classifier's features
+    generated = np.maximum(_features(n, d, seed=11) + 0.3, 0)
+    assert distribution._fid_by_factors(real, generated) == pytest.approx(distribution.fid(real, generated), rel=1e-6)
+    assert distribution._fid_by_factors(real, real) == pytest.approx(0.0, abs=1e-9)
+
+
 def test_a_bootstrap_interval_holds_the_estimate_and_narrows_with_more_sequences():
     rng = np.random.default_rng(6)
     widths = []

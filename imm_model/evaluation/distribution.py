@@ -33,6 +33,18 @@ def fid(real: np.ndarray, generated: np.ndarray) -> float:
     return float(np.sum((mu1 - mu2) ** 2) + np.trace(s1 + s2 - 2.0 * np.real(covmean)))
 
 
+def _fid_by_factors(real: np.ndarray, generated: np.ndarray) -> float:
+    """fid() without a matrix square root, for the bootstrap's many resamples: with each covariance written as
+    S = F Fᵀ (F the centred features / √(n - 1)), tr √(S1 S2) is the nuclear norm of F1ᵀ F2, the sum of the singular
+    values of an (N, M) matrix (Ns of ~30 here, against a 64 x 64 sqrtm). Equal to fid() up to rounding (tested)."""
+    if len(real) < 2 or len(generated) < 2:
+        return float("nan")
+    a, b = real - real.mean(0), generated - generated.mean(0)
+    na, nb = len(a) - 1, len(b) - 1
+    cross = np.linalg.svd(a @ b.T, compute_uv=False).sum() / np.sqrt(na * nb)
+    return float(np.sum((real.mean(0) - generated.mean(0)) ** 2) + (a * a).sum() / na + (b * b).sum() / nb - 2.0 * cross)
+
+
 def diversity(features: np.ndarray, pairs: int = 300, seed: int = 0) -> float:
     """Action2Motion's diversity: mean feature distance between random pairs of distinct sequences."""
     n = len(features)
@@ -134,7 +146,7 @@ def distribution_intervals(real: np.ndarray, generated: np.ndarray, k: int = PR_
         return _mmd2_unbiased(kxx[np.ix_(idx, idx)], kyy[np.ix_(idx, idx)], kxy[np.ix_(idx, idx)], idx[:, None] == idx[None, :])
 
     in_real, in_generated = manifold_membership(real, generated, k)
-    out = {"fid": intervals.bootstrap_interval(lambda idx: fid(real[idx], generated[idx]), n),
+    out = {"fid": intervals.bootstrap_interval(lambda idx: _fid_by_factors(real[idx], generated[idx]), n),
            "kid": intervals.bootstrap_interval(kid_at, n)}
     if len(in_real):
         out["precision"] = intervals.mean_interval(in_real)
