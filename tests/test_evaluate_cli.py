@@ -33,6 +33,7 @@ def test_evaluate_bundled_checkpoint_against_every_baseline(tmp_path, quick_clas
                  "--json", str(js), "--markdown", str(md), "--figures", str(fig)]) == 0
     out = capsys.readouterr().out
     assert "ratio to the strongest baseline" in out and "| **mean** |" in out
+    assert "all folds: AFD, distribution and jitter (95 % interval: bootstrap over sequences" in out  # one run: its bootstrap
     r = json.loads(js.read_text())
     assert r["folds"] == ["s04"] and set(r["groups"]) == {"all", "dev"}
     assert r["followers"] == {"clean_up": True, "average_placement": False}
@@ -50,7 +51,11 @@ def test_evaluate_bundled_checkpoint_against_every_baseline(tmp_path, quick_clas
     assert set(r["classifier"]["real_accuracy"]) == {"interaction", "follower", "follower_judge", "upper_judge", "lower_judge"}
     assert 0 <= r["adherence_off_diagonal"] <= 1 and len(r["adherence_matrix"]) == 6
     assert len(r["mix"]) == 15 and {"p_zero", "p_avoid", "change"} <= set(r["avoid"])
-    assert {"bone_error_cm", "interpenetration", "foot_skate_mps", "speed_ratio"} <= set(r["plausibility"])
+    assert {"bone_error_cm", "interpenetration", "foot_skate_mps", "speed_ratio", "jitter_ratio"} <= set(r["plausibility"])
+    for key in ("afd", "fid", "kid", "precision", "recall", "jitter_ratio"):  # every headline figure with its interval
+        lo, hi = r["model_overall"]["ci"][key]
+        value = r["model_overall"][key] if key in r["model_overall"] else r["plausibility"][key]
+        assert lo <= hi and (key == "fid" or lo <= value <= hi), (key, lo, value, hi)  # FID's sits above it (docs)
     text = md.read_text()
     assert "### FID per class" in text and "### Mix" in text and "label-free (Men-style)" in text and "### Contact per class" in text
     assert {p.name for p in fig.glob("*.png")} == {"afd.png", "fid.png", "adherence.png", "mix.png", "latent_tsne.png"}

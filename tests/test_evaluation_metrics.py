@@ -11,7 +11,7 @@ import torch
 from imm_model import cache
 from imm_model.contact import segment_distances
 from imm_model.data.splits import loso_fold
-from imm_model.evaluation import control, distribution, plausibility
+from imm_model.evaluation import control, distribution, intervals, plausibility
 from imm_model.evaluation.baselines import knn_dtw_follower, template_follower
 from imm_model.model import classifier as classifiers
 from imm_model.model import classifier_config as classifier_configs
@@ -288,7 +288,8 @@ def test_report_groups_folds_and_seeds():
     assert s["mix_pairs_ok"] == 1 and s["mix_pairs_ok_judge"] == 0  # 0.2 < 0.25 on the second member
     assert s["model_overall"]["afd_parts"]["limb_m"] == pytest.approx(0.2)
     text = markdown_report(s)
-    assert "## dev folds" in text and "## test folds" in text and "0.800 ± 0.141" in text
+    lo, hi = intervals.t_interval([0.6, 0.8, 0.8, 1.0])  # the class's 95 % interval over the four results
+    assert "## dev folds" in text and "## test folds" in text and f"| a | 0.800 [{lo:.2f}, {hi:.2f}] |" in text
     assert "| model | 0.400 | 0.400 | 0.200 |" in text  # where the AFD comes from, all folds and seeds
 
 

@@ -1,6 +1,7 @@
 """`imm evaluate`: a checkpoint (one fold) or runs (all their folds, several seeds) against every baseline.
 
-Prints the headline and the AFD table; writes the whole summary as JSON, Markdown and PNG figures.
+Prints the headline, the AFD table and each fold group's AFD, FID, KID, precision/recall and jitter with 95 %
+intervals (evaluation/intervals.py); writes the whole summary as JSON, Markdown and PNG figures.
 docs/evaluation-protocol.md defines every number.
 """
 
@@ -15,7 +16,8 @@ from pathlib import Path
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
-        "evaluate", help="AFD, FID, recognition, label control and plausibility of a model vs strong baselines on LOSO folds",
+        "evaluate", help="AFD, FID, KID, precision/recall, recognition, label control and plausibility of a model vs strong "
+                         "baselines on LOSO folds, with 95 percent intervals",
         description="With --checkpoint and no --fold: the subject the checkpoint held out. With --run DIR [DIR ...] (one per "
                     "seed): every DIR/fold-sXX/final.safetensors (a refit) or else best.safetensors on its own held-out subject "
                     "(--fold all, the default for --run) or one fold. Classifiers and the label-free baseline are trained on "
@@ -107,7 +109,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from imm_model.data.splits import all_subjects
     from imm_model.evaluation.loso import evaluate_fold
     from imm_model.evaluation.report import summarize
-    from imm_model.evaluation.tables import headline, metric_table
+    from imm_model.evaluation.tables import headline, metric_table, printed_distribution
     from imm_model.inference import ReactionModel
     from imm_model.outputs import check_finite
     from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA
@@ -140,6 +142,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     check_finite(summary["mean"]["afd"], "the model's mean AFD (a checkpoint with NaN weights?)")
     print(headline(summary))
     print(metric_table(summary, "afd"))
+    print(printed_distribution(summary))
     _write_outputs(args, summary, latent, data)
     return 0
 

@@ -18,16 +18,15 @@ import numpy as np
 from imm_model import cache
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold
-from imm_model.evaluation import control, distribution
+from imm_model.evaluation import control, distribution, intervals
 from imm_model.evaluation.baselines import (
     HEURISTIC_BASELINES,
     baseline_predictions,
-    evaluate_predictions,
     fold_baseline_model,
     sequence_afds,
 )
 from imm_model.evaluation.metrics import afd_parts, per_class_mean
-from imm_model.evaluation.plausibility import frame_rate, interpenetration, plausibility
+from imm_model.evaluation.plausibility import acceleration_mps2, frame_rate, interpenetration, plausibility
 from imm_model.model import classifier as classifiers
 from imm_model.model import classifier_config as classifier_configs
 
@@ -104,14 +103,22 @@ def _per_class(values: np.ndarray, test: np.ndarray, data: InteractionDataset) -
 
 
 def method_scores(data: InteractionDataset, judges: FoldJudges, predictions: dict[int, np.ndarray]) -> dict:
-    """AFD, AFD squared, FID, recognition accuracy, diversity and plausibility of one method's predictions."""
+    """AFD, AFD squared, FID, KID, precision and recall, recognition accuracy, diversity and plausibility of one method's
+    predictions; `intervals` holds the 95 % bootstrap interval over the test sequences of each headline figure, and
+    every class its AFDs' (`afd_ci`, `afd_squared_ci`)."""
     test, y = judges.test, data.actions[judges.test]
+    missing = [int(i) for i in test if int(i) not in predictions]
+    if missing:
+        raise ValueError(f"no prediction for {len(missing)} test sequences (e.g. {data.sequence_ids[missing[0]]})")
     followers = [predictions[int(i)] for i in test]
+    by_sequence = {key: sequence_afds(data, dict(zip(map(int, test), followers, strict=True)), squared=squared)
+                   for key, squared in (("afd", False), ("afd_squared", True))}
+    seq = {key: np.array([v[int(i)] for i in test]) for key, v in by_sequence.items()}  # in test's order
     probs, feats = judges.interaction_view(followers)
+    correct = probs.argmax(-1) == y
     per_class: dict[str, dict] = {c: {} for c in data.class_names if (y == data.class_names.index(c)).any()}
-    for key, values in (("afd", evaluate_predictions(data, test, predictions)),
-                        ("afd_squared", evaluate_predictions(data, test, predictions, squared=True)),
-                        ("accuracy", _per_class(probs.argmax(-1) == y, test, data))):
+    for key, values in (("afd", _per_class(seq["afd"], test, data)), ("afd_squared", _per_class(seq["afd_squared"], test, data)),
+                        ("accuracy", _per_class(correct, test, data))):
         for c, v in values.items():
             per_class[c][key] = v
     reals = [data.canonical(int(i))[1] for i in test]
@@ -120,13 +127,23 @@ def method_scores(data: InteractionDataset, judges: FoldJudges, predictions: dic
     for c in per_class:
         members = y == data.class_names.index(c)
         per_class[c]["fid"] = distribution.fid(judges.real_features[members], feats[members])
+        per_class[c]["afd_ci"] = intervals.mean_interval(seq["afd"][members])
+        per_class[c]["afd_squared_ci"] = intervals.mean_interval(seq["afd_squared"][members])
         # contact counts against a method only beyond what real pairs of the class show (hugs touch, kicks rarely)
         per_class[c]["contact"], per_class[c]["real_contact"] = float(contact[members].mean()), float(real_contact[members].mean())
     parts = [afd_parts(f, r, data.skeleton.root) for f, r in zip(followers, reals, strict=True)]
+    precision, recall = distribution.precision_recall(judges.real_features, feats)
+    fps = frame_rate(data.dataset)
+    jitter = [np.array([acceleration_mps2(m, fps) for m in ms]) for ms in (followers, reals)]
     return {"classes": per_class, "fid": distribution.fid(judges.real_features, feats),
+            "kid": distribution.kid(judges.real_features, feats), "precision": precision, "recall": recall,
             "accuracy": distribution.accuracy(probs, y), "diversity": distribution.diversity(feats),
             "afd_parts": {k: float(np.mean([p[k] for p in parts])) for k in parts[0]},
-            "plausibility": plausibility(judges.leaders, followers, reals, data.skeleton, frame_rate(data.dataset))}
+            "plausibility": plausibility(judges.leaders, followers, reals, data.skeleton, fps),
+            "intervals": distribution.distribution_intervals(judges.real_features, feats) | {
+                "afd": intervals.group_mean_interval(seq["afd"], y), "accuracy": intervals.mean_interval(correct),
+                "jitter_mps2": intervals.mean_interval(jitter[0]), "real_jitter_mps2": intervals.mean_interval(jitter[1]),
+                "jitter_ratio": intervals.ratio_interval(*jitter)}}
 
 
 def label_control(model, data: InteractionDataset, judges: FoldJudges) -> dict:

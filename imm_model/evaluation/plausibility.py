@@ -21,6 +21,10 @@
 - lean_error_deg: mean over sequences of |the follower's torso lean - the real follower's| (degrees; the lean is the
   angle of hips-centre-to-neck from the vertical, + towards the follower's own facing, averaged over the sequence). A
   model that caricatures its class (a punched follower thrown far back) scores high here; AFD hides it among limbs.
+- jitter_mps2: mean joint acceleration magnitude, |second difference of positions| x fps^2 in m/s^2 at the data's frame
+  rate, over frames and joints, averaged over sequences; real_jitter_mps2 the same for the real followers, unsmoothed
+  (Kinect's own jitter is part of what real motion looks like), and jitter_ratio generated / real: 1 = as jerky as the
+  recorded followers, above 1 = a model adds high-frequency noise.
 """
 
 from __future__ import annotations
@@ -90,6 +94,13 @@ def mean_speed(motion: np.ndarray, fps: float, reference: int | list[int] | None
     return float(speeds.mean() * fps) if len(speeds) else float("nan")
 
 
+def acceleration_mps2(motion: np.ndarray, fps: float) -> float:
+    """Mean |x[t+1] - 2 x[t] + x[t-1]| x fps^2 (m/s^2) over frames and joints of (T, J, 3); nan under 3 frames."""
+    if len(motion) < 3:
+        return float("nan")
+    return float(np.linalg.norm(np.diff(np.asarray(motion, np.float64), n=2, axis=0), axis=-1).mean() * fps * fps)
+
+
 def torso_lean_per_frame_deg(motion: np.ndarray, skeleton: Skeleton) -> np.ndarray:
     """(T, J, 3) -> (T,) the torso's angle from the vertical (degrees, + = towards its own facing): the vector from the
     hips' centre (the root's neighbours other than the top one) to the highest neighbour (the neck); NaN without one."""
@@ -135,6 +146,9 @@ def plausibility(leaders: list[np.ndarray], followers: list[np.ndarray], reals: 
     out["root_sway_mps"], out["real_root_sway_mps"] = speed(followers, body, root), speed(real_smooth, body, root)
     interior = {"edge": EDGE_FRAMES}
     out["interior_limb_speed_ratio"] = speed(followers, body, **interior) / speed(real_smooth, body, **interior)
+    out["jitter_mps2"] = float(np.nanmean([acceleration_mps2(b, fps) for b in followers]))
+    out["real_jitter_mps2"] = float(np.nanmean([acceleration_mps2(r, fps) for r in reals]))
+    out["jitter_ratio"] = out["jitter_mps2"] / out["real_jitter_mps2"] if out["real_jitter_mps2"] > 0 else float("nan")
     out["lean_error_deg"] = float(np.nanmean([abs(torso_lean_deg(b, skeleton) - torso_lean_deg(r, skeleton))
                                            for b, r in zip(followers, reals, strict=True)]))
     return out

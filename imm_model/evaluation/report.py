@@ -1,15 +1,18 @@
 """Fold results (evaluation/loso.py) -> the summary `imm evaluate` prints and writes as JSON and Markdown.
 
 Every number is a mean over the (fold, seed) results it covers, with its standard deviation beside it
-(`*_std`, population std over those results). Groups: all folds, the dev folds (s01, s03, s04: already
-used to choose recipes) and the test folds (s02, s05, s06, s07). Per class, the strongest baseline is the
-one with the lowest mean AFD (for FID: the lowest mean FID), and the model's ratio to it is reported.
+(`*_std`, population std over those results) and, for the figures the tables show, its 95 % interval (`*_ci`, and
+`ci` in the overall entries; evaluation/intervals.py): the t-interval over the results when there are two or more,
+else the one result's bootstrap over its test sequences (none where the fold result has none). Groups: all folds,
+the dev folds (s01, s03, s04: already used to choose recipes) and the test folds (s02, s05, s06, s07). Per class, the strongest
+baseline is the one with the lowest mean AFD (for FID: the lowest mean FID), and the model's ratio to it is reported.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from imm_model.evaluation import intervals
 from imm_model.reads_as import MIX_SHARE
 
 PER_CLASS_METRICS = ("afd", "afd_squared", "fid", "accuracy", "contact", "real_contact")
@@ -25,6 +28,16 @@ def _with_std(out: dict, key: str, values: list[float]) -> None:
     out[key], out[f"{key}_std"] = _stat(values)
 
 
+def _ci(values: list[float], singles: list) -> list[float]:
+    """The 95 % interval of a figure over results: t over two or more, else the one result's own bootstrap."""
+    return list(intervals.pooled(values, singles[0] if len(singles) == 1 else None)[1])
+
+
+def _method_afd(scores: dict) -> float:
+    """A method's AFD on one result: the mean over classes of the per-class means (as fold_figures' `afd`)."""
+    return float(np.mean([c["afd"] for c in scores["classes"].values()]))
+
+
 def _method_classes(results: list[dict], get, class_names) -> dict[str, dict]:
     """Per class mean/std over results of each per-class metric of one method (`get(result)` -> scores)."""
     classes = {}
@@ -32,19 +45,30 @@ def _method_classes(results: list[dict], get, class_names) -> dict[str, dict]:
         entry: dict = {}
         for metric in PER_CLASS_METRICS:
             # results saved before a metric was measured have none of it
-            _with_std(entry, metric, [get(r)["classes"][c][metric] for r in results if metric in get(r)["classes"].get(c, {})])
+            scored = [get(r)["classes"][c] for r in results if metric in get(r)["classes"].get(c, {})]
+            _with_std(entry, metric, [e[metric] for e in scored])
+            entry[f"{metric}_ci"] = _ci([e[metric] for e in scored], [e.get(f"{metric}_ci") for e in scored])
         classes[c] = entry
     return classes
 
 
+OVERALL_FIGURES = ("afd", "fid", "kid", "precision", "recall", "accuracy", "diversity")
+
+
 def _overall(results: list[dict], get) -> dict:
-    out: dict = {}
-    for key in ("fid", "accuracy", "diversity"):
-        _with_std(out, key, [get(r)[key] for r in results])
+    """A method's figures over all classes (mean, std) and `ci`, each one's 95 % interval, plausibility's included."""
+    out: dict = {"ci": {}}
+    singles = [get(r).get("intervals", {}) for r in results]  # results saved before intervals have none
+    for key in OVERALL_FIGURES:
+        values = [_method_afd(get(r)) if key == "afd" else get(r).get(key) for r in results]  # older results lack KID etc.
+        _with_std(out, key, values)
+        out["ci"][key] = _ci(values, [i.get(key) for i in singles])
     for part in ("plausibility", "afd_parts"):
         if all(part in get(r) for r in results):  # results saved before AFD parts were measured have none
             keys = [k for k in get(results[0])[part] if all(k in get(r)[part] for r in results)]  # measures added later
             out[part] = {k: _stat([get(r)[part][k] for r in results])[0] for k in keys}
+            out["ci"] |= {k: _ci([get(r)[part][k] for r in results], [i.get(k) for i in singles]) for k in keys
+                          if k not in out["ci"]}
     return out
 
 
@@ -79,6 +103,8 @@ def group_summary(results: list[dict], class_names: tuple[str, ...]) -> dict:
 
     out = {
         "n_results": len(results),
+        "interval": {"level": intervals.LEVEL, "method": "t over results" if len(results) > 1 else
+                     f"bootstrap over sequences ({intervals.RESAMPLES} resamples)"},
         "classes": classes,
         "mean": {k: mean_over(k) for k in ("afd", "afd_squared", "fid", "accuracy", "adherence", "ratio_strongest", "ratio_nn1")}
         | {f"{b}_afd": float(np.nanmean([base[b][c]["afd"] for c in class_names])) for b in names},
@@ -139,9 +165,10 @@ def fold_figures(result: dict) -> dict[str, float]:
     m, nn1 = result["model"], result["baselines"].get("nn1")
     p = m["plausibility"]
     mixes = result["mix_parts"]
+    nan = float("nan")  # a figure a result saved before it was measured lacks
     out = {
-        "afd": float(np.mean([c["afd"] for c in m["classes"].values()])),
-        "fid": m["fid"],
+        "afd": _method_afd(m),
+        "fid": m["fid"], "kid": m.get("kid", nan), "precision": m.get("precision", nan), "recall": m.get("recall", nan),
         "judge_real_accuracy": result["classifier"]["real_accuracy"]["follower_judge"],
         "off_label": result["adherence_off_diagonal_judge"],
         "true_label": float(np.nanmean(np.diag(np.array(result["adherence_matrix_judge"], dtype=float)))),
@@ -156,6 +183,7 @@ def fold_figures(result: dict) -> dict[str, float]:
         "interpenetration": p["interpenetration"],
         "real_interpenetration": p["real_interpenetration"],
         "contact_ratio": p["interpenetration"] / p["real_interpenetration"] if p["real_interpenetration"] > 0 else float("nan"),
+        **{k: p.get(k, nan) for k in JITTER_FIGURES},
         **{f"fid_{c}": v["fid"] for c, v in m["classes"].items()},
     }
     classes = [v for v in m["classes"].values() if "real_contact" in v]
@@ -165,11 +193,25 @@ def fold_figures(result: dict) -> dict[str, float]:
         # a class whose real pairs never touch counts with any contact at all
         out["classes_beyond_real_contact"] = sum(v["contact"] > CONTACT_TOLERANCE * v["real_contact"] for v in classes)
     if nn1:
-        out |= {"afd_nn1": float(np.mean([c["afd"] for c in nn1["classes"].values()])), "fid_nn1": nn1["fid"],
+        out |= {"afd_nn1": _method_afd(nn1), "fid_nn1": nn1["fid"],
+                **{f"{k}_nn1": nn1.get(k, nan) for k in ("kid", "precision", "recall")},
+                "jitter_ratio_nn1": nn1["plausibility"].get("jitter_ratio", nan),
                 **{f"fid_nn1_{c}": v["fid"] for c, v in nn1["classes"].items()}}
     if "variations" in result:
         v = result["variations"]
         out |= {"multimodality_ratio": v["multimodality"] / v["real_class_diversity"], "afd_best_of_n": v["afd_best_of_n"]}
         if "real_same_leader_diversity" in v:
             out["multimodality_same_leader_ratio"] = v["multimodality"] / v["real_same_leader_diversity"]
+    return out
+
+
+JITTER_FIGURES = ("jitter_mps2", "real_jitter_mps2", "jitter_ratio")
+
+
+def fold_figure_intervals(result: dict) -> dict[str, tuple[float, float]]:
+    """The 95 % bootstrap interval over one fold's test sequences of each fold_figures figure that has one (AFD, FID,
+    KID, precision, recall, jitter, the same for the 1-NN as `*_nn1`); empty for a result saved before intervals."""
+    out = {k: intervals.as_interval(v) for k, v in result["model"].get("intervals", {}).items()}
+    nn1 = result["baselines"].get("nn1", {})
+    out |= {f"{k}_nn1": intervals.as_interval(v) for k, v in nn1.get("intervals", {}).items()}
     return out

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from imm_model.evaluation.intervals import with_interval
+
 BASELINE_TITLES = {"nn1": "1-NN", "knn_dtw": "DTW 3-NN avg", "template": "class template", "men": "label-free (Men-style)"}
 
 
@@ -13,8 +15,18 @@ def _pm(mean: float, std: float | None = None, digits: int = 3) -> str:
     return f"{mean:.{digits}f}" if std is None or not np.isfinite(std) or std == 0 else f"{mean:.{digits}f} ± {std:.{digits}f}"
 
 
+def _cell(entry: dict, key: str, digits: int = 3, ci: dict | None = None) -> str:
+    """`mean [low, high]` with the entry's 95 % interval (`key_ci` beside it, or `ci[key]`); a summary saved before
+    intervals has none and shows mean ± std."""
+    interval = ci.get(key) if ci is not None else entry.get(f"{key}_ci")
+    if interval is not None and all(np.isfinite(interval)):
+        return with_interval(entry[key], interval, digits)
+    return _pm(entry[key], entry.get(f"{key}_std"), digits)
+
+
 def metric_table(group: dict, metric: str, digits: int = 3) -> str:
-    """Per class: model, every baseline (mean ± std over folds/seeds), the strongest baseline and the ratio."""
+    """Per class: model, every baseline (mean [95 % interval] over folds/seeds, or over one fold's sequences), the
+    strongest baseline and the ratio."""
     classes = group["classes"]
     names = list(next(iter(classes.values()))["baselines"])
     strongest, ratio = f"strongest_baseline_{metric}", f"ratio_strongest_{metric}"
@@ -23,15 +35,17 @@ def metric_table(group: dict, metric: str, digits: int = 3) -> str:
         head.append("model / 1-NN")
     lines = ["| " + " | ".join(head) + " |", "|---|" + "---:|" * (len(head) - 1)]
     for c, e in classes.items():
-        row = [c, _pm(e[metric], e[f"{metric}_std"], digits)]
-        row += [_pm(e["baselines"][b][metric], e["baselines"][b][f"{metric}_std"], digits) for b in names]
+        row = [c, _cell(e, metric, digits)]
+        row += [_cell(e["baselines"][b], metric, digits) for b in names]
         row += [BASELINE_TITLES.get(e[strongest], str(e[strongest])), _pm(e[ratio])]
         if metric == "afd" and "nn1" in names:
             row.append(_pm(e["ratio_nn1"]))
         lines.append("| " + " | ".join(row) + " |")
     mean = lambda key, src=None: float(np.nanmean([(src(e) if src else e)[key] for e in classes.values()]))  # noqa: E731
-    row = ["**mean**", f"**{_pm(mean(metric), digits=digits)}**"]
-    row += [_pm(mean(metric, lambda e, b=b: e["baselines"][b]), digits=digits) for b in names]
+    # the mean over classes has an interval for AFD (evaluation/report.py `_overall`), computed per result
+    ci = lambda o: o.get("ci", {}).get(metric) if metric == "afd" else None  # noqa: E731
+    row = ["**mean**", f"**{with_interval(mean(metric), ci(group['model_overall']), digits)}**"]
+    row += [with_interval(mean(metric, lambda e, b=b: e["baselines"][b]), ci(group["baselines_overall"][b]), digits) for b in names]
     row += ["", f"**{_pm(mean(ratio))}**"]
     if metric == "afd" and "nn1" in names:
         row.append(_pm(mean("ratio_nn1")))
@@ -157,8 +171,25 @@ def overall_table(group: dict) -> str:
              "|---|---:|---:|---:|"]
     rows = [("model", group["model_overall"])] + [(BASELINE_TITLES.get(b, b), v) for b, v in group["baselines_overall"].items()]
     for name, o in rows:
-        cells = [_pm(o[k], o[f"{k}_std"], 2) for k in ("fid", "accuracy", "diversity")]
+        cells = [_cell(o, k, 2, o.get("ci", {})) for k in ("fid", "accuracy", "diversity")]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def distribution_table(group: dict) -> str:
+    """Per method: AFD, FID, KID, precision and recall (k = 3) and jitter, each with its 95 % interval; the real
+    followers' jitter beside. Empty for a summary saved before KID was measured."""
+    rows = [("model", group["model_overall"])] + [(BASELINE_TITLES.get(b, b), v) for b, v in group["baselines_overall"].items()]
+    if not all(np.isfinite(o.get("kid", np.nan)) for _, o in rows):
+        return ""
+    lines = ["| method | AFD | FID | KID | precision | recall | jitter (m/s²) | jitter / real |", "|---|" + "---:|" * 7]
+    for name, o in rows:
+        p, ci = o["plausibility"], o["ci"]
+        cells = [_cell(o, "afd", 3, ci), _cell(o, "fid", 2, ci), _cell(o, "kid", 3, ci), _cell(o, "precision", 2, ci),
+                 _cell(o, "recall", 2, ci), _cell(p, "jitter_mps2", 1, ci), _cell(p, "jitter_ratio", 2, ci)]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    real = group["model_overall"]
+    lines.append(f"| real followers | | | | | | {_cell(real['plausibility'], 'real_jitter_mps2', 1, real['ci'])} | 1 |")
     return "\n".join(lines)
 
 
@@ -170,7 +201,8 @@ def headline(summary: dict) -> str:
         acc = s["classifier"]["real_accuracy"]
         m = s["mean"]
         nn1 = f", to 1-NN {m['ratio_nn1']:.3f}" if np.isfinite(m["ratio_nn1"]) else ""
-        lines.append(f"{g} ({', '.join(folds)}; {s['n_results']} results): AFD {m['afd']:.3f}, ratio to the strongest baseline "
+        afd = with_interval(m["afd"], s["model_overall"].get("ci", {}).get("afd"))
+        lines.append(f"{g} ({', '.join(folds)}; {s['n_results']} results): AFD {afd}, ratio to the strongest baseline "
                      f"{m['ratio_strongest']:.3f}{nn1}; off-label adherence {s['adherence_off_diagonal']:.2f} "
                      f"(judge {s['adherence_off_diagonal_judge']:.2f}); classifiers on real data: interaction "
                      f"{acc['interaction']:.2f}, follower {acc['follower']:.2f}, judge {acc['follower_judge']:.2f}")
@@ -181,15 +213,27 @@ def _section(title: str, table: str) -> list[str]:
     return [f"### {title}", "", table, ""] if table else []
 
 
+def report_groups(summary: dict) -> dict[str, dict]:
+    """all, dev and test; only all when the folds are of one group (it equals that group)."""
+    return summary["groups"] if len(summary["groups"]) > 2 else {"all": summary["groups"]["all"]}
+
+
+def printed_distribution(summary: dict) -> str:
+    """What `imm evaluate` prints beside the AFD table: each group's distribution_table."""
+    return "\n\n".join(f"{g} folds: {_distribution_title(s)}\n{t}" for g, s in report_groups(summary).items()
+                       if (t := distribution_table(s)))
+
+
 def markdown_report(summary: dict) -> str:
     parts = ["# Evaluation", "", headline(summary).replace("\n", "\n\n"), ""]
-    groups = summary["groups"] if len(summary["groups"]) > 2 else {"all": summary["groups"]["all"]}  # all == its one group
+    groups = report_groups(summary)
     for g, s in groups.items():
         parts += [f"## {g} folds", "", "### AFD (normalized SBU units, lower is better)", "", metric_table(s, "afd"), "",
                   *_section("Where the AFD comes from (canonical metres, per joint and frame)", afd_parts_table(s)),
                   "### AFD squared (the authors' code's variant)", "", metric_table(s, "afd_squared"), "",
                   "### FID per class (interaction-classifier features)", "", metric_table(s, "fid", 2), "",
                   "### All classes", "", overall_table(s), "",
+                  *_section(_distribution_title(s), distribution_table(s)),
                   "### Label control (follower-only classifiers)", "", control_table(s), "",
                   f"Avoid (-1 on the leader's class vs all zero): P(leader's class) {s['avoid']['p_zero']:.2f} -> "
                   f"{s['avoid']['p_avoid']:.2f} (change {s['avoid']['change']:+.2f}); independent judge "
@@ -201,3 +245,7 @@ def markdown_report(summary: dict) -> str:
                   "### Plausibility", "", plausibility_table(s), "",
                   *_section("Contact per class (share of frames the bodies touch)", contact_table(s))]
     return "\n".join(parts)
+
+
+def _distribution_title(group: dict) -> str:
+    return f"AFD, distribution and jitter (95 % interval: {group.get('interval', {}).get('method', 'none')})"

@@ -10,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from imm_model.evaluation.report import CONTACT_TOLERANCE, fold_figures, group_summary
+from imm_model.evaluation import intervals
+from imm_model.evaluation.report import CONTACT_TOLERANCE, fold_figure_intervals, fold_figures, group_summary
 from imm_model.evaluation.tables import BASELINE_TITLES, _pm
 from imm_model.outputs import write_files
 from imm_model.reproduce import paper_numbers as paper
@@ -144,7 +145,9 @@ def recognition_section(results: dict, class_names: list[str]) -> str:
 
 # the models table's rows: (title, evaluation/report.py fold_figures key, digits)
 MODEL_FIGURES = (
-    ("FID", "fid", 2), ("FID, 1-NN retrieval", "fid_nn1", 2), ("AFD, one sample", "afd", 3),
+    ("FID", "fid", 2), ("FID, 1-NN retrieval", "fid_nn1", 2), ("KID", "kid", 3), ("KID, 1-NN retrieval", "kid_nn1", 3),
+    ("precision (k = 3)", "precision", 2), ("... 1-NN retrieval", "precision_nn1", 2),
+    ("recall (k = 3)", "recall", 2), ("... 1-NN retrieval", "recall_nn1", 2), ("AFD, one sample", "afd", 3),
     ("AFD, best of 5 samples", "afd_best_of_n", 3), ("AFD, 1-NN retrieval", "afd_nn1", 3),
     ("judge's accuracy on real followers", "judge_real_accuracy", 2), ("asked for another class: reads as it", "off_label", 2),
     ("asked for the leader's class: reads as it", "true_label", 2), ("two-class mixes read as mixed", "mixed", 2),
@@ -152,6 +155,8 @@ MODEL_FIGURES = (
     ("-1 lowers the class's reading", "avoid_share_lowered", 2),
     ("limb speed between the ends / real", "interior_limb_speed_ratio", 2), ("lean error (degrees)", "lean_error_deg", 1),
     ("bone error (cm)", "bone_error_cm", 1), ("feet sliding (m/s)", "foot_skate_mps", 3),
+    ("jitter: joint acceleration (m/s²)", "jitter_mps2", 1), ("... real followers", "real_jitter_mps2", 1),
+    ("... generated / real", "jitter_ratio", 2), ("... 1-NN retrieval / real", "jitter_ratio_nn1", 2),
     ("frames in contact / real", "contact_ratio", 2), ("... in the worst class", "contact_ratio_worst_class", 2),
     (f"classes with contact beyond {CONTACT_TOLERANCE:g} x the real pairs'", "classes_beyond_real_contact", 1),
     ("variations: multimodality / real diversity", "multimodality_ratio", 2),
@@ -160,18 +165,24 @@ MODEL_FIGURES = (
 
 
 def models_section(results: dict, class_names: list[str]) -> str:
-    """The bundled GAN recipe beside the diffusion model (evaluation/report.py fold_figures), mean ± std over folds and
-    seeds, dev and test folds apart; then FID per class."""
-    figures = {(r, g): [fold_figures(res) for j, res in results.items() if res is not None and j.kind == "metrics"
-                        and j.run.recipe == r and res["group"] == g and j.baselines == ("nn1",)]
-               for g in ("dev", "test") for r in MODEL_RECIPES}
+    """The bundled GAN recipe beside the diffusion model (evaluation/report.py fold_figures), each figure with its 95 %
+    interval (evaluation/intervals.py: t over the folds and seeds of a column, or one run's bootstrap over its test
+    sequences), dev and test folds apart; then FID per class."""
+    runs = {(r, g): [res for j, res in results.items() if res is not None and j.kind == "metrics"
+                     and j.run.recipe == r and res["group"] == g and j.baselines == ("nn1",)]
+            for g in ("dev", "test") for r in MODEL_RECIPES}
+    figures = {k: [fold_figures(res) for res in v] for k, v in runs.items()}
+    bootstrap = {k: [fold_figure_intervals(res) for res in v] for k, v in runs.items()}
     columns = [k for k, v in figures.items() if v]
     if not columns:
         return "No run of this table has finished."
 
     def cell(key: tuple[str, str], name: str, digits: int) -> str:
-        values = [f[name] for f in figures[key] if name in f]
-        return _pm(*_stat(values), digits=digits) if values else "-"
+        scored = [(f[name], b.get(name)) for f, b in zip(figures[key], bootstrap[key], strict=True) if name in f]
+        if not scored:
+            return "-"
+        mean, ci = intervals.pooled([v for v, _ in scored], scored[0][1] if len(scored) == 1 else None)
+        return intervals.with_interval(mean, ci, digits)
 
     titles = [f"{r}, {g} folds ({len(figures[r, g])} runs)" for r, g in columns]
     rows = [[title, *(cell(k, name, d) for k in columns)] for title, name, d in MODEL_FIGURES]
@@ -179,15 +190,14 @@ def models_section(results: dict, class_names: list[str]) -> str:
     retrieval = list({group: (recipe, group) for recipe, group in reversed(columns)}.values())
     per_class = [[c, *(cell(k, f"fid_{c}", 2) for k in columns), *(cell(k, f"fid_nn1_{c}", 2) for k in retrieval)]
                  for c in class_names]
-    note = ("AFD in the paper's normalized units; FID over the interaction classifier's features "
+    note = ("Each figure: mean [95 % interval]. With two or more runs in a column (folds x seeds) the interval is the "
+            "t-interval over them (mean ± t·sd/√n); with one run, its bootstrap over the fold's test sequences "
+            f"({intervals.RESAMPLES} resamples), for the figures that have one. AFD in the paper's normalized units; FID, "
+            "KID and precision/recall (k = 3 nearest neighbours: a fold holds ~30 sequences) over the interaction "
+            "classifier's features; jitter is the mean joint acceleration at the data's frame rate "
             "(docs/evaluation-protocol.md). Dev folds s01, s03, s04 chose the recipes; s02, s05, s06, s07 are test folds.")
     return "\n\n".join([_table(["", *titles], rows), note, "FID per class:",
                          _table(["class", *titles, *(f"1-NN, {g} folds" for _, g in retrieval)], per_class)])
-
-
-def _stat(values: list[float]) -> tuple[float, float | None]:
-    v = np.asarray([x for x in values if x is not None and np.isfinite(x)], dtype=np.float64)
-    return (float(v.mean()), float(v.std()) if len(v) > 1 else None) if len(v) else (float("nan"), None)
 
 
 def disagreements_section() -> str:
