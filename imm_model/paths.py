@@ -43,10 +43,12 @@ SAMPLE_DIFFUSION = SAMPLE_DIR / "imm_diffusion.safetensors"  # the reaction diff
 # the model ReactionModel.load(), `imm generate` and the studio use when none is given
 # (docs/experiments/default-model.md: its FID over 7 folds x 3 seeds is not worse than the GAN's)
 SAMPLE_DEFAULT = SAMPLE_DIFFUSION
+# the diffusion model that reads a label per body part (`imm-diffusion-parts`), the studio's fourth model
+SAMPLE_PARTS = SAMPLE_DIR / "imm_diffusion_parts.safetensors"
 SAMPLE_RETRIEVAL = SAMPLE_DIR / "imm_retrieval.safetensors"  # 1-NN retrieval from the bundled data, s04 held out
 SAMPLE_JUDGE = SAMPLE_DIR / "follower_judge.safetensors"  # the studio's "reads as" classifier (imm_model/reads_as.py)
 # the bundled models by the names the studio gives them, in its switch's order (the first, the default, opens it)
-SAMPLE_MODELS = {"diffusion": SAMPLE_DEFAULT, "gan": SAMPLE_CHECKPOINT, "retrieval": SAMPLE_RETRIEVAL}
+SAMPLE_MODELS = {"diffusion": SAMPLE_DEFAULT, "gan": SAMPLE_CHECKPOINT, "retrieval": SAMPLE_RETRIEVAL, "parts": SAMPLE_PARTS}
 
 
 def shared_datasets() -> Path:

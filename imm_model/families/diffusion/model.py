@@ -24,7 +24,6 @@ class DiffusionReactionModel(ReactionModel):
     On a CPU the denoiser runs in numpy (denoiser_numpy.py: no `import torch`), on a GPU in torch."""
 
     family = "diffusion"
-    title = "the diffusion model"
     weights_prefix = "denoiser"
     BATCH = 64  # sequences per sampler batch (bounds memory for `imm evaluate`'s hundreds of reactions)
 
@@ -47,6 +46,10 @@ class DiffusionReactionModel(ReactionModel):
     @property
     def part_labels(self) -> bool:
         return self.config.part_labels
+
+    @property
+    def title(self) -> str:  # what the studio's switch and the messages call it
+        return "the diffusion model by parts" if self.config.part_labels else "the diffusion model"
 
     def _label_input(self, labels: np.ndarray) -> np.ndarray:
         """(N, C) or (N, 2C) label vectors -> what the sampler composes: a part model's whole-body label on both parts."""
