@@ -404,10 +404,11 @@ def test_generate_draws_variations_with_seeds(tiny_model, sample_data, tmp_path,
     assert main(base + ["--seed", "6", "--out", str(one)]) == 0
     assert np.allclose(np.load(one)["follower"], followers[1], atol=1e-5)  # a seed is the same reaction wherever drawn
     assert [int(np.load(f)["seed"]) for f in files] == [5, 6, 7] and int(np.load(one)["seed"]) == 6  # the file says which
-    assert main(["generate", "--sequence", sid, "--label", "hugging", "--out", str(tmp_path / "gan.npz")]) == 0
+    gan = ["--checkpoint", str(SAMPLE_CHECKPOINT)]
+    assert main(["generate", *gan, "--sequence", sid, "--label", "hugging", "--out", str(tmp_path / "gan.npz")]) == 0
     assert "seed" not in np.load(tmp_path / "gan.npz")  # a deterministic model's file names no seed
     capsys.readouterr()
-    assert main(["generate", "--sequence", sid, "--label", "hugging", "--samples", "2", "--out", str(tmp_path / "gan")]) == 2
+    assert main(["generate", *gan, "--sequence", sid, "--label", "hugging", "--samples", "2", "--out", str(tmp_path / "gan")]) == 2
     assert "deterministic" in capsys.readouterr().err and not (tmp_path / "gan").exists()
     assert main(base + ["--samples", "0", "--out", str(tmp_path / "none")]) == 2
     assert "samples must be" in capsys.readouterr().err
