@@ -43,10 +43,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     build.add_argument("--out", type=Path, default=None, help="output .npz (default: sample_data/sbu_interactions.npz)")
     build.add_argument("--force", action="store_true", help="replace --out if it exists")
     build.set_defaults(func=_cmd_build_sample)
-    judge = sub.add_parser("build-judge", help="train the studio's 'reads as' classifier (follower-only, real data only)")
+    judge = sub.add_parser("build-judge", help="train one of the studio's 'reads as' classifiers (follower-only, real data only)")
+    judge.add_argument("--inputs", choices=("follower", "upper", "lower"), default="follower",
+                       help="what it reads: the whole follower, or its upper or lower body (the part judges; default follower)")
     judge.add_argument("--fold", default="s04", help="held-out subject, as the bundled model's (default s04)")
     judge.add_argument("--data", type=Path, default=None, help="dataset bundle (default: the bundled SBU sample)")
-    judge.add_argument("--out", type=Path, default=None, help="output .safetensors (default: the bundled follower_judge.safetensors)")
+    judge.add_argument("--out", type=Path, default=None, help="output .safetensors (default: the bundled follower_judge, upper_judge or lower_judge.safetensors, by --inputs)")
     judge.add_argument("--force", action="store_true", help="replace --out and its .json sidecar if they exist")
     judge.set_defaults(func=_cmd_build_judge)
 
@@ -87,18 +89,21 @@ def _cmd_build_judge(args: argparse.Namespace) -> int:
     from imm_model.cache import fold_classifier
     from imm_model.checkpoint import save_checkpoint, sidecar_path
     from imm_model.data.dataset import InteractionDataset
-    from imm_model.model.classifier_config import FOLLOWER_JUDGE
+    from imm_model.model.classifier_config import FOLLOWER_JUDGE, LOWER_JUDGE, UPPER_JUDGE
     from imm_model.outputs import Output, plan_outputs
-    from imm_model.paths import SAMPLE_DATA, SAMPLE_JUDGE
+    from imm_model.paths import SAMPLE_DATA, SAMPLE_JUDGE, SAMPLE_LOWER_JUDGE, SAMPLE_UPPER_JUDGE
 
+    cfg, default_out = {"follower": (FOLLOWER_JUDGE, SAMPLE_JUDGE), "upper": (UPPER_JUDGE, SAMPLE_UPPER_JUDGE),
+                        "lower": (LOWER_JUDGE, SAMPLE_LOWER_JUDGE)}[args.inputs]
     data_path = args.data or SAMPLE_DATA
-    out = args.out or SAMPLE_JUDGE
+    out = args.out or default_out
     plan_outputs([Output(out), Output(sidecar_path(out), "--out's sidecar")], [data_path], args.force)
     data = InteractionDataset.load(data_path)
-    model = fold_classifier(FOLLOWER_JUDGE, data, args.fold)
-    save_checkpoint(out, model.state_dict(), {"kind": "classifier", "config": FOLLOWER_JUDGE.to_dict(), "subject": args.fold,
+    model = fold_classifier(cfg, data, args.fold)
+    save_checkpoint(out, model.state_dict(), {"kind": "classifier", "config": cfg.to_dict(), "subject": args.fold,
                                               "class_names": list(data.class_names), "dataset": data.dataset}, args.force)
-    print(f"wrote {out}: follower-only {FOLLOWER_JUDGE.arch} classifier, subject {args.fold} held out")
+    read = "follower-only" if cfg.inputs == "follower" else f"follower {cfg.inputs}-body"
+    print(f"wrote {out}: {read} {cfg.arch} classifier, subject {args.fold} held out")
     return 0
 
 

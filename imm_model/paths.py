@@ -47,6 +47,9 @@ SAMPLE_DEFAULT = SAMPLE_DIFFUSION
 SAMPLE_PARTS = SAMPLE_DIR / "imm_diffusion_parts.safetensors"
 SAMPLE_RETRIEVAL = SAMPLE_DIR / "imm_retrieval.safetensors"  # 1-NN retrieval from the bundled data, s04 held out
 SAMPLE_JUDGE = SAMPLE_DIR / "follower_judge.safetensors"  # the studio's "reads as" classifier (imm_model/reads_as.py)
+# the body-part judges: the follower's upper and lower body read alone, the studio's reading per part of a mix
+SAMPLE_UPPER_JUDGE = SAMPLE_DIR / "upper_judge.safetensors"
+SAMPLE_LOWER_JUDGE = SAMPLE_DIR / "lower_judge.safetensors"
 # the bundled models by the names the studio gives them, in its switch's order (the first, the default, opens it)
 SAMPLE_MODELS = {"diffusion": SAMPLE_DEFAULT, "gan": SAMPLE_CHECKPOINT, "retrieval": SAMPLE_RETRIEVAL, "parts": SAMPLE_PARTS}
 

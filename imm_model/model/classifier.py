@@ -23,6 +23,7 @@ import numpy as np
 import torch
 import torch.nn as nn
 
+from imm_model.model.body_parts import body_part_view
 from imm_model.model.classifier_config import ClassifierConfig
 
 VERSION = 2  # part of every cache key: bump when the architecture or training code changes its numbers
@@ -76,27 +77,6 @@ class MotionClassifier(nn.Module):
 
 
 # ---- inputs -----------------------------------------------------------------------------------
-def body_part_view(follower: np.ndarray, part: str, skeleton=None) -> np.ndarray:
-    """(T, J, 3) follower -> (T, J, 3) what a body-part judge reads, the other joints zero:
-    "upper": trunk and arms relative to the body centre (the root's neighbours: neck and hips), i.e. posture and
-    gestures wherever the body stands; "lower": legs relative to the body centre, and the centre itself in the root's
-    slot, i.e. steps and placement."""
-    from imm_model.skeleton import KINECT15
-
-    skeleton = skeleton or KINECT15
-    b = np.asarray(follower, np.float32)
-    centre = b[:, skeleton.root_neighbours].mean(1, keepdims=True)
-    legs = skeleton.leg_joints
-    out = np.zeros_like(b)
-    if part == "upper":
-        upper = [j for j in range(b.shape[1]) if j not in legs]
-        out[:, upper] = b[:, upper] - centre
-    else:
-        out[:, legs] = b[:, legs] - centre
-        out[:, skeleton.root] = centre[:, 0]
-    return out
-
-
 def motion_inputs(leaders: list[np.ndarray], followers: list[np.ndarray], inputs: str) -> list[np.ndarray]:
     """Per-sequence classifier input (T, D): [A, B] flattened for "interaction", B alone for "follower", a body part
     of B (body_part_view) for "upper" and "lower"."""
