@@ -47,7 +47,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     p.add_argument("--sequence", default=None, help="sequence id (e.g. s04s02/01/001) or index to open first")
     p.add_argument("--judge", default=None,
-                   help="follower-only classifier for the 'reads as' panel (default: the bundled one; 'none' hides the panel)")
+                   help="follower-only classifier for the 'reads as' panel (default: the bundled one, with the bundled body-part "
+                        "judges for mixes by body part; a custom one reads the whole body only; 'none' hides the panel)")
     p.set_defaults(func=run_explore)
 
 

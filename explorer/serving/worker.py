@@ -49,7 +49,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--port", type=int, default=0)
     p.add_argument("--render", choices=("remote", "local"), default="remote")
     p.add_argument("--sequence", default=None, help="sequence id or index to open first")
-    p.add_argument("--judge", type=Path, default=None, help="'reads as' classifier (default: the bundled one; 'none' hides the panel)")
+    p.add_argument("--judge", type=Path, default=None, help="'reads as' classifier (default: the bundled one and its body-part judges; a custom one reads the whole "
+                   "body only; 'none' hides the panel)")
     return p.parse_args(argv)
 
 
@@ -72,7 +73,7 @@ def load_everything(args: argparse.Namespace):
     first, checkpoint = next(iter(models.values())), args.model[0][1]
     # The studio fits a missing projection after the page opens (a cold cache's t-SNE costs ~3 s here)
     latent = LatentMap.build(first, data, cache_dir, cache_key(checkpoint, args.data), methods=())
-    return data, models, latent, load_reader(args.judge)
+    return data, models, latent, load_reader(args.judge), load_part_readers(args.judge)
 
 
 def load_models(named: list[tuple[str, Path]], data) -> dict:
@@ -101,6 +102,17 @@ def load_reader(path: Path | None):
     return ReadsAs.load(path or SAMPLE_JUDGE)
 
 
+def load_part_readers(path: Path | None) -> dict:
+    """The body-part judges {"upper": ..., "lower": ...} beside the bundled judge; none with --judge none or a custom
+    --judge (a judge of other data would not match them), nor where they are absent."""
+    from imm_model.paths import SAMPLE_LOWER_JUDGE, SAMPLE_UPPER_JUDGE
+    from imm_model.reads_as import ReadsAs
+
+    if path is not None:
+        return {}
+    return {part: ReadsAs.load(p) for part, p in (("upper", SAMPLE_UPPER_JUDGE), ("lower", SAMPLE_LOWER_JUDGE)) if p.exists()}
+
+
 def start_index(data, sequence: str | None) -> int:
     if sequence is None:
         held = [i for i in range(len(data)) if data.held_out[i]]
@@ -112,7 +124,7 @@ def start_index(data, sequence: str | None) -> int:
     raise ValueError(f"--sequence {sequence!r}: no such sequence (an id such as {data.sequence_ids[0]}, or an index 0..{len(data) - 1})")
 
 
-def serve(data, models, latent, reader, args: argparse.Namespace, *, secret: str, say: Channel, uploads=None) -> int:
+def serve(data, models, latent, reader, part_readers, args: argparse.Namespace, *, secret: str, say: Channel, uploads=None) -> int:
     """Serve one tab (`models` by name, the first opening it); `uploads` reads its uploaded files out of this process
     (explorer/serving/upload_reader.py)."""
     from explorer.serving.page_shell import use_page_shell
@@ -123,7 +135,7 @@ def serve(data, models, latent, reader, args: argparse.Namespace, *, secret: str
 
     server = make_server("imm-studio")
     set_secret(server, secret)  # wslink's default secret is public: every process gets its own
-    session = Session(data, models, args.start, reader)
+    session = Session(data, models, args.start, reader, part_readers)
     session.upload_reader = uploads
     Studio(server, session, latent, export_dir=args.export_dir, render=args.render)
 

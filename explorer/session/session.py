@@ -152,16 +152,18 @@ class ReaderLike(Protocol):
 
 class Session:
     def __init__(self, data: InteractionDataset, models: Mapping[str, ReactionModelLike], index: int = 0,
-                 reader: ReaderLike | None = None) -> None:
+                 reader: ReaderLike | None = None, part_readers: Mapping[str, ReaderLike] | None = None) -> None:
         """`models` by name, in the switch's order: the first opens the session (and is the one the latent map is of),
-        the others are one switch away."""
+        the others are one switch away. `reader` reads the whole follower, `part_readers` ({"upper": ..., "lower": ...},
+        the body-part judges) each part of a mix by body part."""
         if not models:
             raise ValueError("a session needs at least one model")
         self.models: dict[str, ReactionModelLike] = dict(models)
         for name, m in self.models.items():
             check_compatible(m, data, f"model {name!r}")
-        if reader is not None and tuple(reader.class_names) != tuple(data.class_names):
-            raise CheckpointError(f"the 'reads as' classifier's classes {list(reader.class_names)} differ from the data's")
+        for r in (reader, *(part_readers or {}).values()):
+            if r is not None and tuple(r.class_names) != tuple(data.class_names):
+                raise CheckpointError(f"the 'reads as' classifier's classes {list(r.class_names)} differ from the data's")
         self.data = data
         self.model_name = next(iter(self.models))
         self.model = self.models[self.model_name]
@@ -174,6 +176,7 @@ class Session:
         self.compared_followers: dict[str, np.ndarray] = {}  # their followers, drawn with the variations
         self._seeds = np.random.default_rng()
         self.reader = reader
+        self.part_readers = dict(part_readers or {})
         self.upload: Upload | None = None
         # reads an upload out of this process, within a time and memory budget (explorer/serving/upload_reader.py); None: here
         self.upload_reader: Callable[[str, bytes], Leader] | None = None
@@ -538,6 +541,13 @@ class Session:
     def reads_as(self) -> np.ndarray | None:
         """(C,) the follower-only classifier's class probabilities for the synthesized follower (None without one)."""
         return None if self.reader is None else np.asarray(self.reader.probabilities(self.synth), np.float64)
+
+    def reads_as_parts(self) -> dict[str, np.ndarray]:
+        """{"upper": (C,), "lower": (C,)}: each body-part judge's reading of the synthesized follower while the mix's
+        parts differ ({} when they do not, or without part judges)."""
+        if not self.parts_differ:
+            return {}
+        return {part: np.asarray(r.probabilities(self.synth), np.float64) for part, r in self.part_readers.items()}
 
     def distances_m(self) -> np.ndarray:
         """(T,) per frame, how far the synthesized follower's joints are from the ground truth's on average, metres

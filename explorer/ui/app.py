@@ -27,7 +27,7 @@ from explorer.ui.layout import LayoutParts, build_layout
 from explorer.ui.model_switch import ModelSwitch
 from explorer.ui.panel_api import Page
 from explorer.ui.playback import PLAYBACK_SCALE, play, playback_scale
-from explorer.ui.reads_as_panel import reads_as_rows, unread_note
+from explorer.ui.reads_as_panel import part_rows, reads_as_rows, unread_note
 from explorer.ui.review_panel import ReviewPanel
 from explorer.ui.url_state import apply_view, current_view, view_query
 
@@ -105,6 +105,7 @@ class Studio:
                 "label_text": "",
                 "reads_as": [],  # explorer/ui/reads_as_panel.py
                 "reads_as_note": "",
+                "reads_as_parts": [],  # the body-part judges' readings while the mix's parts differ
                 "part_labels": False,  # the models drawing read a label per body part: the drawer offers part mixes
                 "scene_layout": "overlay",
                 "show_leader": True,
@@ -343,7 +344,8 @@ class Studio:
         for i in range(len(ses.class_names)) if not ses.part_labels else ():  # none apart where no part mix can be drawn
             s[f"apart_{i}"] = False
         s.reads_as = reads_as_rows(ses.reads_as(), ses.weights, ses.class_names)
-        s.reads_as_note = unread_note(s.reads_as, ses.parts_differ)
+        s.reads_as_parts = part_rows(ses.reads_as_parts(), ses.part_weights, ses.class_names)
+        s.reads_as_note = unread_note(s.reads_as, ses.parts_differ, s.reads_as_parts)
         self._distances = ses.distances_m()
         self._ab_distances = ses.ab_distances_m()
         s.ab_text = f"pinned ↔ current: joints {self._ab_distances.mean():.2f} m apart" if len(self._ab_distances) else ""

@@ -3,8 +3,10 @@ classifier (imm_model/reads_as.py), one bar per class, the asked-for classes mar
 move, so a user sees whether a mix reads as intended; an asked-for class the classifier barely sees is named under
 the bars (the mixes that fail the mix target show this way, docs/user-guide.md "Mixes that do not read").
 
-The bundled classifier reads the whole follower: for a mix per body part the panel shows that reading with a caption
-(a reading per part needs the evaluation's body-part judges, imm_model/evaluation/loso.py, which are not bundled)."""
+The bundled classifier reads the whole follower. For a mix per body part the panel shows that reading and, under it, the
+body-part judges' (sample_data/upper_judge and lower_judge.safetensors): each part's top classes, its asked class
+marked, and a one-line note; without part judges (a custom --judge, or none) a caption says the reading is the whole
+body's."""
 
 from __future__ import annotations
 
@@ -33,12 +35,42 @@ def reads_as_rows(probabilities: np.ndarray | None, weights: Sequence[float], cl
 PART_NOTE = "the whole body's reading: a reading per body part needs part judges, which the studio does not have"
 
 
-def unread_note(rows: Sequence[dict], parts_differ: bool = False) -> str:
+PART_NAMES = {"upper": "upper body", "lower": "lower body"}
+
+
+def part_rows(readings: dict[str, np.ndarray], part_weights: np.ndarray, class_names: Sequence[str]) -> list[dict]:
+    """The parts' readings, compact: per part its top two classes and its asked class (the largest |weight| of the
+    part; None when it asks nothing), each {"name", "p", "color", "asked"} as reads_as_rows gives them."""
+    out = []
+    for part, weights in zip(("upper", "lower"), part_weights, strict=True):
+        if part not in readings:
+            continue
+        rows = reads_as_rows(readings[part], weights, class_names)
+        top = [int(i) for i in np.argsort(-readings[part], kind="stable")[:2]]
+        asked = int(np.argmax(np.abs(weights))) if np.abs(weights).max() > 1e-6 else None
+        shown = top + ([asked] if asked is not None and asked not in top else [])
+        out.append({"part": PART_NAMES[part], "classes": [rows[i] for i in shown],
+                    "asked": None if asked is None else rows[asked]})
+    return out
+
+
+def part_note(parts: Sequence[dict]) -> str:
+    """One line: how each part reads its asked class ('upper body reads as shaking hands 61% · lower body reads as
+    pushing 12% (asked -1)'), or its top class where it asks none."""
+    said = []
+    for part in parts:
+        row = part["asked"] or part["classes"][0]
+        weight = "" if part["asked"] is None or row["w"] == 1 else f" (asked {row['w']:g})"
+        said.append(f"{part['part']} reads as {row['name']} {row['p'] * 100:.0f}%{weight}")
+    return " · ".join(said)
+
+
+def unread_note(rows: Sequence[dict], parts_differ: bool = False, parts: Sequence[dict] = ()) -> str:
     """'' when every class asked for with at least ASKED_WEIGHT reads; else which ones get under MIX_SHARE of the
-    probability, in one line. A mix per body part gets PART_NOTE instead (the whole-body classifier cannot tell whether
-    a part reads as asked)."""
+    probability, in one line. A mix per body part gets the parts' note (part_note) instead, or PART_NOTE without part
+    judges (the whole-body classifier cannot tell whether a part reads as asked)."""
     if parts_differ and rows:
-        return PART_NOTE
+        return part_note(parts) if parts else PART_NOTE
     unread = [r for r in rows if r.get("w", 1.0) >= ASKED_WEIGHT and r["asked"] == "+" and r["p"] < MIX_SHARE]
     if not unread:
         return ""
@@ -61,5 +93,11 @@ def reads_as_panel() -> None:
                                bg_color="grey-lighten-2", classes="reads-as-bar", style="flex: 1 1 auto")
             html.Div("{{ (row.asked ? row.asked + ' ' : '') + (row.p * 100).toFixed(0) + '%' }}", classes="text-caption ml-1",
                      style="flex: 0 0 48px; text-align: right; white-space: nowrap")
+        with html.Div(v_if="reads_as_parts.length", id="reads-as-parts", classes="mt-1"):
+            with html.Div(v_for="part in reads_as_parts", key=("part.part",), classes="text-caption reads-as-part",
+                          style="white-space: nowrap; overflow: hidden; text-overflow: ellipsis"):
+                html.Span("{{ part.part }}: ", classes="text-medium-emphasis")
+                html.Span("{{ (j ? ' · ' : '') + (c.asked ? c.asked + ' ' : '') + c.name + ' ' + (c.p * 100).toFixed(0) + '%' }}",
+                          v_for="(c, j) in part.classes", key=("j",), style=("{fontWeight: c.asked ? 700 : 400}",))
         html.Div("{{ reads_as_note }}", v_if="reads_as_note", id="reads-as-note",
                  classes=("'text-caption mt-1 ' + (reads_as_note.startsWith('Does not') ? 'text-warning' : 'text-medium-emphasis')",))
