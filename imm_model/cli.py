@@ -48,7 +48,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                        help="what it reads: the whole follower, or its upper or lower body (the part judges; default follower)")
     judge.add_argument("--fold", default="s04", help="held-out subject, as the bundled model's (default s04)")
     judge.add_argument("--data", type=Path, default=None, help="dataset bundle (default: the bundled SBU sample)")
-    judge.add_argument("--out", type=Path, default=None, help="output .safetensors (default: the bundled follower_judge, upper_judge or lower_judge.safetensors, by --inputs)")
+    judge.add_argument("--out", type=Path, default=None,
+                       help="output .safetensors (default: the bundled follower_judge, upper_judge or lower_judge"
+                            ".safetensors, by --inputs)")
     judge.add_argument("--force", action="store_true", help="replace --out and its .json sidecar if they exist")
     judge.set_defaults(func=_cmd_build_judge)
 

@@ -169,7 +169,8 @@ class _State(dict):
 @pytest.mark.timeout(300)
 def test_the_drawer_sets_a_class_apart_for_one_part_and_the_link_and_picture_follow(browser, part_checkpoint, tmp_path):
     """At 1366x768: a class's parts set apart in the Label mix drawer, its lower body's slider moved: the label text,
-    the link and the picture follow; the GAN (no part labels) is refused in one line while the parts differ."""
+    the link, the picture and the part judges' readings follow; the GAN (no part labels) is refused in one line while
+    the parts differ."""
     from tests import studio_probe as probe
 
     with probe.StudioProcess("--model", f"diffusion={part_checkpoint}", "--model", f"gan={SAMPLE_CHECKPOINT}",
@@ -191,7 +192,14 @@ def test_the_drawer_sets_a_class_apart_for_one_part_and_the_link_and_picture_fol
             probe.wait_state(page, "s.get('label_text') === 'upper:shaking_hands=1,lower:shaking_hands=-1'")
             probe.wait_state(page, "s.get('url_query').includes('mix=upper:shaking_hands:1,lower:shaking_hands:-1')")
             page.wait_for_function("() => location.search.includes('mix=upper:shaking_hands:1,lower:shaking_hands:-1')")
-            assert "part judges" in page.locator("#reads-as-note").inner_text()
+            # the bundled part judges read each part: two compact readings, the asked class of each marked, one note
+            probe.wait_state(page, "s.get('reads_as_parts').length === 2")
+            parts = probe.state(page, "reads_as_parts")
+            assert [p["part"] for p in parts] == ["upper body", "lower body"]
+            assert parts[0]["asked"]["asked"] == "+" and parts[1]["asked"]["asked"] == "-"
+            assert page.locator("#reads-as-parts .reads-as-part").count() == 2
+            note = page.locator("#reads-as-note").inner_text()
+            assert note.startswith("upper body reads as shaking hands ") and note.endswith("(asked -1)"), note
             probe.wait_for_view_at_rest(page)
             changed = int((np.abs(probe.view_pixels(page).astype(int) - before.astype(int)).sum(-1) > 60).sum())
             assert changed > 200, changed  # the follower moved
@@ -203,7 +211,8 @@ def test_the_drawer_sets_a_class_apart_for_one_part_and_the_link_and_picture_fol
             probe.wait_state(page, "s.get('model_name') === 'diffusion' && s.get('computing') === false")
             assert probe.state(page, "apart_2") is True
             page.click("#parts-2")  # linked again: both parts take the class's slider, and the switch goes through
-            probe.wait_state(page, "s.get('label_text') === 'shaking hands +1'")
+            probe.wait_state(page, "s.get('label_text') === 'shaking hands +1' && s.get('reads_as_parts').length === 0")
+            assert page.locator("#reads-as-parts").count() == 0
             page.click("#model-gan")
             probe.wait_state(page, "s.get('model_name') === 'gan' && s.get('part_labels') === false")
             assert page.locator("#parts-2").count() == 0

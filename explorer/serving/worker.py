@@ -49,8 +49,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--port", type=int, default=0)
     p.add_argument("--render", choices=("remote", "local"), default="remote")
     p.add_argument("--sequence", default=None, help="sequence id or index to open first")
-    p.add_argument("--judge", type=Path, default=None, help="'reads as' classifier (default: the bundled one and its body-part judges; a custom one reads the whole "
-                   "body only; 'none' hides the panel)")
+    p.add_argument("--judge", type=Path, default=None,
+                   help="'reads as' classifier (default: the bundled one and its body-part judges; a custom one reads the "
+                        "whole body only; 'none' hides the panel)")
     return p.parse_args(argv)
 
 

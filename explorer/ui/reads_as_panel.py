@@ -32,7 +32,7 @@ def reads_as_rows(probabilities: np.ndarray | None, weights: Sequence[float], cl
             for i, (n, p, w) in enumerate(zip(class_names, probabilities, weights, strict=True))]
 
 
-PART_NOTE = "the whole body's reading: a reading per body part needs part judges, which the studio does not have"
+PART_NOTE = "the whole body's reading: a reading per body part needs part judges, which come only with the bundled judge"
 
 
 PART_NAMES = {"upper": "upper body", "lower": "lower body"}
