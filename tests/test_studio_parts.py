@@ -200,6 +200,7 @@ def test_the_drawer_sets_a_class_apart_for_one_part_and_the_link_and_picture_fol
             assert page.locator("#reads-as-parts .reads-as-part").count() == 2
             note = page.locator("#reads-as-note").inner_text()
             assert note.startswith("upper body reads as shaking hands ") and note.endswith("(asked -1)"), note
+            page.locator("#reads-as").screenshot(path=str(probe.ARTIFACTS / "studio-parts-reads-as.png"))
             probe.wait_for_view_at_rest(page)
             changed = int((np.abs(probe.view_pixels(page).astype(int) - before.astype(int)).sum(-1) > 60).sum())
             assert changed > 200, changed  # the follower moved

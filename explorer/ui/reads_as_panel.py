@@ -94,8 +94,7 @@ def reads_as_panel() -> None:
             html.Div("{{ (row.asked ? row.asked + ' ' : '') + (row.p * 100).toFixed(0) + '%' }}", classes="text-caption ml-1",
                      style="flex: 0 0 48px; text-align: right; white-space: nowrap")
         with html.Div(v_if="reads_as_parts.length", id="reads-as-parts", classes="mt-1"):
-            with html.Div(v_for="part in reads_as_parts", key=("part.part",), classes="text-caption reads-as-part",
-                          style="white-space: nowrap; overflow: hidden; text-overflow: ellipsis"):
+            with html.Div(v_for="part in reads_as_parts", key=("part.part",), classes="text-caption reads-as-part"):
                 html.Span("{{ part.part }}: ", classes="text-medium-emphasis")
                 html.Span("{{ (j ? ' · ' : '') + (c.asked ? c.asked + ' ' : '') + c.name + ' ' + (c.p * 100).toFixed(0) + '%' }}",
                           v_for="(c, j) in part.classes", key=("j",), style=("{fontWeight: c.asked ? 700 : 400}",))
