@@ -73,6 +73,21 @@ def resample_rows(motion: torch.Tensor, lengths: torch.Tensor, target: torch.Ten
     return out
 
 
+def with_composites(follower: torch.Tensor, lengths: torch.Tensor, donor: torch.Tensor, composed: torch.Tensor,
+                    own_upper: torch.Tensor, skeleton) -> torch.Tensor:
+    """Followers (B, T, 3J) -> the `composed` rows replaced by the composite of their own follower and row `donor`'s
+    (resampled to their length): their own trunk and arms on the donor's legs and placement where `own_upper`, else the
+    other way round; padding stays zero."""
+    upper, _, centre = part_indices(skeleton)
+    other = resample_rows(follower[donor], lengths[donor], lengths).unflatten(-1, (-1, 3))
+    own = follower.unflatten(-1, (-1, 3))
+    first = torch.where(own_upper[:, None, None, None], own, other)
+    second = torch.where(own_upper[:, None, None, None], other, own)
+    mixed = compose(first, second, upper, centre).flatten(-2)
+    mask = (torch.arange(follower.shape[1])[None] < lengths[:, None])[..., None]
+    return torch.where(composed[:, None, None], mixed * mask, follower)
+
+
 def mixed_rows(follower: torch.Tensor, lengths: torch.Tensor, actions: torch.Tensor, shares: torch.Tensor, mix_prob: float,
                skeleton, gen: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
     """Followers (B, T, 3J), classes (B,) and the classes' upper-body shares (C,) -> (followers with some rows
@@ -84,14 +99,7 @@ def mixed_rows(follower: torch.Tensor, lengths: torch.Tensor, actions: torch.Ten
     labels = torch.nn.functional.one_hot(actions, num_classes).float()
     if not composed.any():
         return follower, labels
-    upper, _, centre = part_indices(skeleton)
-    other = resample_rows(follower[donor], lengths[donor], lengths).unflatten(-1, (-1, 3))
-    own = follower.unflatten(-1, (-1, 3))
-    first = torch.where(own_upper[:, None, None, None], own, other)
-    second = torch.where(own_upper[:, None, None, None], other, own)
-    mixed = compose(first, second, upper, centre).flatten(-2)
-    mask = (torch.arange(follower.shape[1])[None] < lengths[:, None])[..., None]
-    follower = torch.where(composed[:, None, None], mixed * mask, follower)
+    follower = with_composites(follower, lengths, donor, composed, own_upper, skeleton)
     labels = labels + composed[:, None].float() * torch.nn.functional.one_hot(actions[donor], num_classes).float()
     return follower, labels
 
@@ -108,14 +116,7 @@ def part_rows(follower: torch.Tensor, lengths: torch.Tensor, actions: torch.Tens
     upper_class = torch.where(composed & ~own_upper, actions[donor], actions)
     lower_class = torch.where(composed & own_upper, actions[donor], actions)
     if composed.any():
-        upper, _, centre = part_indices(skeleton)
-        other = resample_rows(follower[donor], lengths[donor], lengths).unflatten(-1, (-1, 3))
-        own = follower.unflatten(-1, (-1, 3))
-        first = torch.where(own_upper[:, None, None, None], own, other)
-        second = torch.where(own_upper[:, None, None, None], other, own)
-        mixed = compose(first, second, upper, centre).flatten(-2)
-        mask = (torch.arange(follower.shape[1])[None] < lengths[:, None])[..., None]
-        follower = torch.where(composed[:, None, None], mixed * mask, follower)
+        follower = with_composites(follower, lengths, donor, composed, own_upper, skeleton)
     one_part = torch.rand(b, generator=gen) < part_drop
     keep_upper = torch.rand(b, generator=gen) < 0.5
     labels = torch.cat([torch.nn.functional.one_hot(upper_class, num_classes).float() * (~one_part | keep_upper)[:, None],
