@@ -112,11 +112,6 @@ def mix_words(mix: Sequence[float], class_names: Sequence[str], scale: float = 1
     return labels.label_text(np.asarray(mix), class_names) + (f"  × {scale:.2g}" if abs(scale - 1.0) > 1e-6 else "")
 
 
-def takes_parts(model: ReactionModelLike) -> bool:
-    """True: `model` reads a label per body part."""
-    return bool(getattr(model, "part_labels", False))
-
-
 def no_parts(model: ReactionModelLike) -> LabelError:
     """Why a model without part labels cannot draw a part mix, in one line (and the way out)."""
     return LabelError(f"{model.title} takes no label per body part: link each class's parts (or reset the mix) first")
@@ -286,7 +281,7 @@ class Session:
         keys = labels.label_keys(parts[0] if np.array_equal(*parts) else parts.reshape(-1), self.class_names)
         vector = self.model.label_vector(keys, scale=scale)  # the part keys; refused here: nothing changes
         for name in self.compared_names if len(vector) > c else ():
-            if not takes_parts(self.models[name]):
+            if not self.models[name].part_labels:
                 raise LabelError(f"compare: {one_line(no_parts(self.models[name]))}")
         self.vector, self.part_weights, self.scale = vector, parts, scale
         return self.synthesize(variations)
@@ -304,7 +299,7 @@ class Session:
     @property
     def part_labels(self) -> bool:
         """True: the current model and every compared one read a label per body part (the page offers part mixes)."""
-        return all(takes_parts(self.models[n]) for n in (self.model_name, *self.compared_names))
+        return all(self.models[n].part_labels for n in (self.model_name, *self.compared_names))
 
     def mix(self) -> np.ndarray:
         """The mix unscaled, as `set_label` takes it: (C,) when both parts are alike, else (2C,) (upper's, lower's)."""
@@ -327,7 +322,7 @@ class Session:
         model synthesizes: another model's latents are of another size and meaning. A map model without part labels
         places a part mix as its whole-body mean (the star is a place on the map, not a reaction drawn)."""
         vec = self.vector
-        if not takes_parts(self.map_model):
+        if not self.map_model.part_labels:
             vec = labels.whole_body(vec, len(self.class_names)).astype(np.float32)
         return self.map_model.latent_canonical_batch([self.leader], vec[None, :])[0]
 
@@ -352,7 +347,7 @@ class Session:
             raise ValueError(f"no model {name!r}; this studio has {', '.join(self.models)}")
         if name == self.model_name:
             return self.synth
-        if self.parts_differ and not takes_parts(self.models[name]):
+        if self.parts_differ and not self.models[name].part_labels:
             # Refused rather than falling back to a whole-body mix: that fallback (each class at the mean of its parts)
             # is a label nobody asked for, which the link, the pin and an export would then carry silently; refused,
             # the part mix stays on the sliders and the message says how to switch.
@@ -451,7 +446,7 @@ class Session:
         if len(names) > MAX_COMPARED:
             raise ValueError(f"compare: at most {MAX_COMPARED} models beside the current one, not {len(names)}")
         for name in names if self.parts_differ else ():  # as for a switch (set_model): a part mix is never approximated
-            if not takes_parts(self.models[name]):
+            if not self.models[name].part_labels:
                 raise LabelError(f"compare: {one_line(no_parts(self.models[name]))}")
         self.compared = tuple(n for n in self.models if n in names)
         self.compared_followers = self.followers_of(self.compared_names)

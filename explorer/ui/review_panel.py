@@ -32,7 +32,7 @@ from trame.widgets import client, html
 from trame.widgets import vuetify3 as v3
 
 from explorer.rendering.palette import display_name
-from explorer.session.session import no_parts, one_line, takes_parts
+from explorer.session.session import no_parts, one_line
 from imm_model.evaluation.review import LOWER_IS_WORSE, SORT_KEYS, ReviewRow, next_worst, sort_rows
 
 if TYPE_CHECKING:
@@ -98,7 +98,7 @@ class ReviewInputs:
         """(N, C): each row's label as `model` takes it (its own class at +1, or the mix)."""
         n = len(self.data.class_names)
         if self.labels == "mix":
-            if len(self.weights) > n and not takes_parts(model):  # a part mix is never approximated (Session.set_model)
+            if len(self.weights) > n and not model.part_labels:  # a part mix is never approximated (Session.set_model)
                 raise no_parts(model)
             vec = np.asarray(model.label_vector(list(self.weights), scale=self.scale), np.float32)
             return np.repeat(vec[None], len(indices), 0)

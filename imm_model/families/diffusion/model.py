@@ -52,8 +52,8 @@ class DiffusionReactionModel(ReactionModel):
         return "the diffusion model by parts" if self.config.part_labels else "the diffusion model"
 
     def _label_input(self, labels: np.ndarray) -> np.ndarray:
-        """(N, C) or (N, 2C) label vectors -> what the sampler composes: a part model's whole-body label on both parts."""
-        labels = self._label_array(labels, len(labels))
+        """(N, C) or (N, 2C) checked label vectors (`_label_array`) -> what the sampler composes: a part model's
+        whole-body label on both parts."""
         return np.concatenate([labels, labels], 1) if self.part_labels and labels.shape[1] == len(self.class_names) else labels
 
     @property
@@ -203,7 +203,7 @@ class DiffusionReactionModel(ReactionModel):
     def latent_canonical_batch(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> np.ndarray:
         """N canonical leaders + (N, C) labels -> (N, width): the denoiser's last hidden state, averaged over frames,
         for the leader and label with the follower all noise (the first sampler step's view of the reaction)."""
-        labels = self._label_input(np.asarray(label_vectors).reshape(len(leaders), -1))
+        labels = self._label_input(self._label_array(label_vectors, len(leaders)))
         x, mask = self._normalize_leaders(leaders)
         on = np.ones(len(leaders), bool)
         step = self.config.diffusion_steps - 1
