@@ -26,7 +26,7 @@ from threadpoolctl import threadpool_limits
 from imm_model.data.dataset import InteractionDataset
 from imm_model.device import add_device_argument, resolve_device
 from imm_model.inference import ReactionModel
-from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA
+from imm_model.paths import SAMPLE_GAN, SAMPLE_DATA
 
 
 def timed(fn, repeats: int) -> list[float]:
@@ -42,7 +42,7 @@ def timed(fn, repeats: int) -> list[float]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--checkpoint", required=True)
-    ap.add_argument("--gan", default=str(SAMPLE_CHECKPOINT))
+    ap.add_argument("--gan", default=str(SAMPLE_GAN))
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--repeats", type=int, default=30)
     ap.add_argument("--spread", type=float, default=None, help="the sampler's spread (default: the model's own)")

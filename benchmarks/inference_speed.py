@@ -22,7 +22,7 @@ import torch
 from imm_model.data.dataset import InteractionDataset
 from imm_model.device import add_device_argument, resolve_device
 from imm_model.inference import ReactionModel
-from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA
+from imm_model.paths import SAMPLE_GAN, SAMPLE_DATA
 
 
 def peak_rss_mb() -> float:
@@ -31,7 +31,7 @@ def peak_rss_mb() -> float:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--checkpoint", default=str(SAMPLE_CHECKPOINT))
+    ap.add_argument("--checkpoint", default=str(SAMPLE_GAN))
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--repeats", type=int, default=200)
     add_device_argument(ap, default="cpu")  # the studio synthesizes on the CPU (NumPy runtime)

@@ -80,7 +80,7 @@ def library_tables(args) -> None:
     from imm_model.evaluation import review
     from imm_model.evaluation.review import ReviewThresholds, fold_interaction_features, real_foot_threshold, review_table
     from imm_model.inference import ReactionModel
-    from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA, SAMPLE_DIFFUSION, SAMPLE_JUDGE
+    from imm_model.paths import SAMPLE_GAN, SAMPLE_DATA, SAMPLE_DIFFUSION, SAMPLE_JUDGE
     from imm_model.reads_as import ReadsAs
 
     DEFAULT_CHUNK = review.CPU_SAMPLER_CHUNK
@@ -93,7 +93,7 @@ def library_tables(args) -> None:
     t2 = time.perf_counter()
     print(f"judge + interaction classifier loaded in {t1 - t0:.2f} s; foot threshold "
           f"{thresholds.foot_skate_mps:.3f} m/s from the real followers in {t2 - t1:.2f} s")
-    runs = [("gan", SAMPLE_CHECKPOINT, None), ("diffusion", SAMPLE_DIFFUSION, None)]
+    runs = [("gan", SAMPLE_GAN, None), ("diffusion", SAMPLE_DIFFUSION, None)]
     runs += [(f"diffusion, {c} rows per call", SAMPLE_DIFFUSION, c) for c in args.chunk]
     for name, path, chunk in runs:
         model = ReactionModel.load(path)

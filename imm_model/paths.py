@@ -38,7 +38,7 @@ def _sample_dir() -> Path:
 
 SAMPLE_DIR = _sample_dir()
 SAMPLE_DATA = SAMPLE_DIR / "sbu_interactions.npz"
-SAMPLE_CHECKPOINT = SAMPLE_DIR / "imm_sbu.safetensors"  # the paper's GAN (`imm-steer`), one click away in the studio
+SAMPLE_GAN = SAMPLE_DIR / "imm_sbu.safetensors"  # the paper's GAN (`imm-steer`), one click away in the studio
 SAMPLE_DIFFUSION = SAMPLE_DIR / "imm_diffusion.safetensors"  # the reaction diffusion model (`imm-diffusion`)
 # the model ReactionModel.load(), `imm generate` and the studio use when none is given
 # (docs/experiments/default-model.md: its FID over 7 folds x 3 seeds is not worse than the GAN's)
@@ -51,7 +51,7 @@ SAMPLE_JUDGE = SAMPLE_DIR / "follower_judge.safetensors"  # the studio's "reads 
 SAMPLE_UPPER_JUDGE = SAMPLE_DIR / "upper_judge.safetensors"
 SAMPLE_LOWER_JUDGE = SAMPLE_DIR / "lower_judge.safetensors"
 # the bundled models by the names the studio gives them, in its switch's order (the first, the default, opens it)
-SAMPLE_MODELS = {"diffusion": SAMPLE_DEFAULT, "gan": SAMPLE_CHECKPOINT, "retrieval": SAMPLE_RETRIEVAL, "parts": SAMPLE_PARTS}
+SAMPLE_MODELS = {"diffusion": SAMPLE_DEFAULT, "gan": SAMPLE_GAN, "retrieval": SAMPLE_RETRIEVAL, "parts": SAMPLE_PARTS}
 
 
 def shared_datasets() -> Path:

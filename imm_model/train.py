@@ -95,7 +95,7 @@ def _train_folds(args: argparse.Namespace, family, cfg, data, folds: list, devic
     for subject in folds:
         out = fold_dir(args.out, subject)
         done = family.train(cfg, data, subject, out, device, resume=args.resume, progress=not args.quiet)
-        print(f"fold {subject or 'none'}: {done['line']}")
+        print(f"fold {subject or 'none'}: {done.line}")
         if args.export:
             export_generator(final_checkpoint(out), args.export)
             print(f"exported generator to {args.export}")

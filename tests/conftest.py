@@ -12,7 +12,7 @@ os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 import pytest  # noqa: E402
 
-from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA, k3hi_raw_root, sbu_raw_root
+from imm_model.paths import SAMPLE_GAN, SAMPLE_DATA, k3hi_raw_root, sbu_raw_root
 
 
 @pytest.fixture(scope="session")
@@ -45,8 +45,8 @@ def k3hi_root():
 def browser():
     if not os.path.exists("/usr/bin/chromium"):
         pytest.skip("needs /usr/bin/chromium (apt-get install -y chromium)")
-    if not SAMPLE_CHECKPOINT.exists():
-        pytest.skip(f"bundled checkpoint missing: {SAMPLE_CHECKPOINT}")
+    if not SAMPLE_GAN.exists():
+        pytest.skip(f"bundled checkpoint missing: {SAMPLE_GAN}")
     sync_api = pytest.importorskip("playwright.sync_api")
     from tests import studio_probe as probe
 

@@ -129,7 +129,7 @@ def test_outputs_never_replace_files_or_inputs_and_never_write_nan(tmp_path, cap
     import torch
 
     from imm_model.checkpoint import load_checkpoint, save_checkpoint
-    from imm_model.paths import SAMPLE_CHECKPOINT
+    from imm_model.paths import SAMPLE_GAN
 
     out = tmp_path / "x.npz"
     args = ["generate", "--sequence", "s01s02/03/001", "--label", "kicking=1", "--out", str(out)]
@@ -139,7 +139,7 @@ def test_outputs_never_replace_files_or_inputs_and_never_write_nan(tmp_path, cap
     assert main(args + ["--force"]) == 0
     assert main(["generate", "--leader", str(out), "--label", "kicking=1", "--out", str(out), "--force"]) == 2
     assert "an input of this command" in capsys.readouterr().err
-    tensors, meta = load_checkpoint(SAMPLE_CHECKPOINT)
+    tensors, meta = load_checkpoint(SAMPLE_GAN)
     key = next(k for k in tensors if k.startswith("generator.") and tensors[k].is_floating_point())
     tensors[key] = torch.full_like(tensors[key], float("nan"))
     save_checkpoint(tmp_path / "nan.safetensors", tensors, meta)

@@ -17,7 +17,7 @@ from imm_model.contact import CONTACT_M
 from imm_model.errors import CheckpointError
 from imm_model.evaluation.plausibility import foot_skate_mps
 from imm_model.inference import ReactionModel
-from imm_model.paths import SAMPLE_CHECKPOINT
+from imm_model.paths import SAMPLE_GAN
 
 
 def _feet(skeleton):
@@ -65,7 +65,7 @@ def test_plant_feet_holds_a_foot_on_the_floor_and_keeps_the_leg(sample_data):
 def test_clean_follower_on_the_bundled_model(sample_data):
     """On the network's hug for a kicking leader: rigid bones at the given lengths, feet slide less, and the
     motion is cleaned up, not replaced."""
-    model = ReactionModel.load(SAMPLE_CHECKPOINT)
+    model = ReactionModel.load(SAMPLE_GAN)
     model.raw = True
     sk = sample_data.skeleton
     lengths = np.asarray(follower_bone_lengths([sample_data.canonical(i)[1] for i in range(40)], sk))
@@ -78,7 +78,7 @@ def test_clean_follower_on_the_bundled_model(sample_data):
 
 
 def test_the_model_cleans_up_unless_raw_and_reads_its_bone_lengths(sample_data, tmp_path):
-    tensors, meta = load_checkpoint(SAMPLE_CHECKPOINT)
+    tensors, meta = load_checkpoint(SAMPLE_GAN)
     lengths = np.linspace(0.1, 0.4, len(sample_data.skeleton.bones))
     path = tmp_path / "with_lengths.safetensors"
     save_checkpoint(path, tensors, meta | {"follower_bone_lengths": lengths.tolist()})
@@ -102,7 +102,7 @@ def test_evaluation_cleans_up_every_model_alike(sample_data, tmp_path):
     from imm_model.data.splits import loso_fold
     from imm_model.evaluation.loso import EvalOptions, prepare_model
 
-    tensors, meta = load_checkpoint(SAMPLE_CHECKPOINT)
+    tensors, meta = load_checkpoint(SAMPLE_GAN)
     old = tmp_path / "old.safetensors"
     save_checkpoint(old, tensors, {k: v for k, v in meta.items() if k != "follower_bone_lengths"})
     model = ReactionModel.load(old)
@@ -111,7 +111,7 @@ def test_evaluation_cleans_up_every_model_alike(sample_data, tmp_path):
     train = loso_fold(sample_data.subject_pairs, "s04").train
     expected = follower_bone_lengths([sample_data.canonical(int(i))[1] for i in train], sample_data.skeleton)
     np.testing.assert_allclose(model.bone_lengths, expected)
-    np.testing.assert_allclose(model.bone_lengths, ReactionModel.load(SAMPLE_CHECKPOINT).bone_lengths)  # the bundle's own
+    np.testing.assert_allclose(model.bone_lengths, ReactionModel.load(SAMPLE_GAN).bone_lengths)  # the bundle's own
     assert not model.raw
     prepare_model(model, sample_data, "s04", EvalOptions(raw=True, average_placement=True))
     assert model.raw and model.average_placement

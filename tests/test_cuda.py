@@ -15,7 +15,7 @@ import torch
 
 from imm_model.families.gan.trainer import Trainer
 from imm_model.inference import ReactionModel
-from imm_model.paths import SAMPLE_CHECKPOINT
+from imm_model.paths import SAMPLE_GAN
 from tests.test_training import TINY
 from tests.test_training_terms import quick_follower_classifier
 
@@ -49,6 +49,6 @@ def test_a_training_epoch_runs_on_cuda(cfg, sample_data, tmp_path, monkeypatch):
 def test_inference_on_cuda_matches_the_cpu(sample_data):
     leader = sample_data.canonical(0)[0]
     label = np.eye(6, dtype=np.float32)[[1, 3]].sum(0)
-    cpu = ReactionModel.load(SAMPLE_CHECKPOINT).synthesize_canonical(leader, label)
-    gpu = ReactionModel.load(SAMPLE_CHECKPOINT, device="cuda").synthesize_canonical(leader, label)
+    cpu = ReactionModel.load(SAMPLE_GAN).synthesize_canonical(leader, label)
+    gpu = ReactionModel.load(SAMPLE_GAN, device="cuda").synthesize_canonical(leader, label)
     assert np.abs(cpu - gpu).max() < 1e-3  # metres; TF32 and cuDNN kernels round differently from the CPU

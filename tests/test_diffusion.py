@@ -22,7 +22,7 @@ from imm_model.families.diffusion.recipes import IMM_DIFFUSION, DiffusionTrainCo
 from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, cosine_alpha_bar, initial_noise, sample
 from imm_model.families.diffusion.trainer import DiffusionTrainer
 from imm_model.inference import ReactionModel
-from imm_model.paths import SAMPLE_CHECKPOINT
+from imm_model.paths import SAMPLE_GAN
 
 TINY = replace(IMM_DIFFUSION, name="tiny-diffusion", model=dict(width=16, layers=1, heads=2, ff_mult=1, dropout=0.0),
                guidance=dict(label_scale=2.5, sample_steps=4), steps=12, batch_size=8, warmup_steps=2, checkpoint_every=6,
@@ -97,7 +97,7 @@ def test_trained_model_loads_as_the_diffusion_family(tiny_model):
     assert model.class_names[0] == "kicking" and model.guidance.sample_steps == 4
     meta = load_checkpoint(tiny_model)[1]
     assert meta["family"] == "diffusion" and meta["training"]["step"] == TINY.steps
-    gan = ReactionModel.load(SAMPLE_CHECKPOINT)
+    gan = ReactionModel.load(SAMPLE_GAN)
     assert not gan.stochastic and gan.family == "gan"
 
 
@@ -361,7 +361,7 @@ def test_seed_and_samples_checked_in_one_line(tiny_model, leader):
 
 
 def test_the_gan_answers_the_same_api_with_one_reaction(leader):
-    gan = ReactionModel.load(SAMPLE_CHECKPOINT)
+    gan = ReactionModel.load(SAMPLE_GAN)
     draws = gan.synthesize(leader, {"kicking": 1}, seed=5, samples=3)
     assert draws.shape == (3, *leader.shape) and np.array_equal(draws[0], draws[2])
     assert np.array_equal(draws[0], gan.synthesize(leader, {"kicking": 1}))
@@ -404,7 +404,7 @@ def test_generate_draws_variations_with_seeds(tiny_model, sample_data, tmp_path,
     assert main(base + ["--seed", "6", "--out", str(one)]) == 0
     assert np.allclose(np.load(one)["follower"], followers[1], atol=1e-5)  # a seed is the same reaction wherever drawn
     assert [int(np.load(f)["seed"]) for f in files] == [5, 6, 7] and int(np.load(one)["seed"]) == 6  # the file says which
-    gan = ["--checkpoint", str(SAMPLE_CHECKPOINT)]
+    gan = ["--checkpoint", str(SAMPLE_GAN)]
     assert main(["generate", *gan, "--sequence", sid, "--label", "hugging", "--out", str(tmp_path / "gan.npz")]) == 0
     assert "seed" not in np.load(tmp_path / "gan.npz")  # a deterministic model's file names no seed
     capsys.readouterr()
@@ -431,7 +431,7 @@ def test_evaluation_reports_a_stochastic_models_variations_and_mixed_readings(ti
     rows = result["mix_parts"]
     assert len(rows) == 15 and all(max(r["whole"], r["parts"]) <= r["mixed"] <= r["whole"] + r["parts"] + 1e-9 for r in rows)
     assert 0 <= result["avoid_judge"]["share_lowered"] <= 1
-    gan = evaluate_fold(ReactionModel.load(SAMPLE_CHECKPOINT), sample_data, "s04",
+    gan = evaluate_fold(ReactionModel.load(SAMPLE_GAN), sample_data, "s04",
                         EvalOptions(baselines=("nn1",), progress=False, **judges), latents=False)
     assert "variations" not in gan and len(gan["mix_parts"]) == 15
 

@@ -8,7 +8,7 @@ import pytest
 
 from imm_model.checkpoint import load_checkpoint, save_checkpoint
 from imm_model.cli import main
-from imm_model.paths import SAMPLE_CHECKPOINT
+from imm_model.paths import SAMPLE_GAN
 
 CLASSES = ("kicking", "pushing", "shaking_hands", "hugging", "exchanging_objects", "punching")
 
@@ -25,13 +25,15 @@ def quick_classifiers(tmp_path, monkeypatch):
 def test_evaluate_bundled_checkpoint_against_every_baseline(tmp_path, quick_classifiers, capsys):
     from tests.test_training import TINY
 
+    # the default path: no --men-run, so the label-free baseline is trained through its family and cached (a tiny budget)
     men_cfg = tmp_path / "men.json"
     men_cfg.write_text(json.dumps({"base": "men", "model": TINY.model | {"label_input": False}, "epochs": 1}))
-    assert main(["train", "--config", str(men_cfg), "--fold", "s04", "--out", str(tmp_path / "men"), "--quiet"]) == 0
     js, md, fig = tmp_path / "e.json", tmp_path / "e.md", tmp_path / "fig"
-    assert main(["evaluate", "--classifier-config", str(quick_classifiers), "--men-run", str(tmp_path / "men"), "--quiet",
+    assert main(["evaluate", "--classifier-config", str(quick_classifiers), "--men-config", str(men_cfg), "--quiet",
                  "--json", str(js), "--markdown", str(md), "--figures", str(fig)]) == 0
-    out = capsys.readouterr().out
+    captured = capsys.readouterr()
+    out = captured.out
+    assert "cache: trained the men baseline for fold s04" in captured.err
     assert "ratio to the strongest baseline" in out and "| **mean** |" in out
     assert "all folds: AFD, distribution and jitter (95 % interval: bootstrap over sequences" in out  # one run: its bootstrap
     r = json.loads(js.read_text())
@@ -75,6 +77,7 @@ def test_evaluate_argument_errors(tmp_path, quick_classifiers, capsys):
     assert "unknown baseline 'oracle'" in _one_line_error(["evaluate", "--baselines", "nn1,oracle"], capsys)
     assert "at least one of" in _one_line_error(["evaluate", "--baselines", ",,"], capsys)
     assert "run directory not found" in _one_line_error(["evaluate", "--men-run", str(tmp_path / "none")], capsys)
+    assert "unknown config 'nobody'" in _one_line_error(["evaluate", "--men-config", "nobody"], capsys)
     missing = ["evaluate", "--classifier-config", str(tmp_path / "none.json")]
     assert "none.json: classifier config not found" in _one_line_error(missing, capsys)
     bad = tmp_path / "bad.json"
@@ -83,7 +86,7 @@ def test_evaluate_argument_errors(tmp_path, quick_classifiers, capsys):
 
 
 def test_checkpoint_that_does_not_match_the_data(tmp_path, quick_classifiers, capsys):
-    tensors, meta = load_checkpoint(SAMPLE_CHECKPOINT)
+    tensors, meta = load_checkpoint(SAMPLE_GAN)
     meta = {k: v for k, v in meta.items() if k != "format"}
     save_checkpoint(tmp_path / "classes.safetensors", tensors, meta | {"class_names": ["a", "b", "c", "d", "e", "f"]})
     assert "do not match the data's" in _one_line_error(["evaluate", "--checkpoint", str(tmp_path / "classes.safetensors")], capsys)

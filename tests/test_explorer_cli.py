@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_JUDGE
+from imm_model.paths import SAMPLE_GAN, SAMPLE_JUDGE
 
 pytest.importorskip("trame")
 
@@ -65,10 +65,10 @@ def test_a_judge_with_nan_weights_is_refused(tmp_path):
                           "nan.safetensors: weights that are not finite numbers")
 
 
-@pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
+@pytest.mark.skipif(not SAMPLE_GAN.exists(), reason="bundled checkpoint missing")
 @pytest.mark.parametrize("given, words", [(["--model", "gan"], "expected NAME=CHECKPOINT"),
                                           (["--model", "a b=x.safetensors"], "expected NAME=CHECKPOINT"),
-                                          (["--model", f"gan={SAMPLE_CHECKPOINT}", "--model", f"gan={SAMPLE_CHECKPOINT}"],
+                                          (["--model", f"gan={SAMPLE_GAN}", "--model", f"gan={SAMPLE_GAN}"],
                                            "--model gan: given twice")])
 def test_a_bad_model_option_is_one_line(tmp_path, given, words):
     assert_one_line_error(run_explore(*given, "--cache-dir", str(tmp_path)), words)
@@ -80,7 +80,7 @@ def test_corrupt_checkpoint(tmp_path):
     assert_one_line_error(run_explore("--model", f"bad={bad}", "--cache-dir", str(tmp_path)), "bad.safetensors")
 
 
-@pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
+@pytest.mark.skipif(not SAMPLE_GAN.exists(), reason="bundled checkpoint missing")
 def test_checkpoint_not_matching_data_classes(tmp_path, sample_data):
     other = dataclasses.replace(sample_data, class_names=tuple(f"class_{i}" for i in range(len(sample_data.class_names))))
     path = tmp_path / "other_classes.npz"
@@ -88,7 +88,7 @@ def test_checkpoint_not_matching_data_classes(tmp_path, sample_data):
     assert_one_line_error(run_explore("--data", str(path), "--cache-dir", str(tmp_path)), "do not match the data's", "class_0")
 
 
-@pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
+@pytest.mark.skipif(not SAMPLE_GAN.exists(), reason="bundled checkpoint missing")
 def test_checkpoint_not_matching_data_skeleton(tmp_path, sample_data):
     sk = sample_data.skeleton
     other_sk = dataclasses.replace(sk, name="renamed", joint_names=tuple(f"j{i}" for i in range(sk.num_joints)))
@@ -133,7 +133,7 @@ def _claim(host: str, port: int, origin: str | None = "same", host_header: str |
     return r.status, answer
 
 
-@pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
+@pytest.mark.skipif(not SAMPLE_GAN.exists(), reason="bundled checkpoint missing")
 def test_launcher_hands_out_processes_only_to_its_own_page(tmp_path):
     """Bare GETs take no studio process (twenty of them, then a claim still gets one at once); a claim from another
     web origin or for another host name is refused; a claim's studio is served on the launcher's own port; past
@@ -169,7 +169,7 @@ def test_launcher_hands_out_processes_only_to_its_own_page(tmp_path):
         assert status == 503 and "maximum of 1 clients" in body
 
 
-@pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
+@pytest.mark.skipif(not SAMPLE_GAN.exists(), reason="bundled checkpoint missing")
 def test_a_lost_loader_is_one_line_not_a_hang(tmp_path):
     """The zygote killed (out of memory, say): its studio processes go with it, and a new tab is told so at once."""
     import os
@@ -193,7 +193,7 @@ def test_a_lost_loader_is_one_line_not_a_hang(tmp_path):
         assert studio.proc.poll() is None  # the launcher itself stays up and answers
 
 
-@pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
+@pytest.mark.skipif(not SAMPLE_GAN.exists(), reason="bundled checkpoint missing")
 @pytest.mark.slow
 def test_a_claim_nobody_connects_to_is_released(tmp_path, monkeypatch):
     """A tab that claims a process, loads its page and never connects (closed at once) does not hold the only slot
@@ -220,7 +220,7 @@ def test_a_claim_nobody_connects_to_is_released(tmp_path, monkeypatch):
 
 
 
-@pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
+@pytest.mark.skipif(not SAMPLE_GAN.exists(), reason="bundled checkpoint missing")
 def test_a_token_guards_the_front_page_the_claim_and_the_studio(tmp_path):
     """With --token only the printed URL opens the studio; its cookie then admits the claim and the studio."""
     import http.client
@@ -285,7 +285,7 @@ def _hello(port: int, secret: str) -> dict:
     return asyncio.run(go())
 
 
-@pytest.mark.skipif(not SAMPLE_CHECKPOINT.exists(), reason="bundled checkpoint missing")
+@pytest.mark.skipif(not SAMPLE_GAN.exists(), reason="bundled checkpoint missing")
 def test_a_studio_process_answers_only_its_own_secret(tmp_path):
     """Another local user who finds a studio process's loopback port cannot log in with wslink's public default;
     the proxy puts the process's own secret into the browser's hello. Also the zygote's protocol: studio processes
@@ -293,7 +293,7 @@ def test_a_studio_process_answers_only_its_own_secret(tmp_path):
     from explorer.serving.proxy import with_secret
     from imm_model.paths import SAMPLE_DATA
 
-    cmd = [sys.executable, "-m", "explorer.serving.zygote", "--data", str(SAMPLE_DATA), "--model", f"gan={SAMPLE_CHECKPOINT}",
+    cmd = [sys.executable, "-m", "explorer.serving.zygote", "--data", str(SAMPLE_DATA), "--model", f"gan={SAMPLE_GAN}",
            "--cache-dir", str(tmp_path), "--port", "0"]
     proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     try:
@@ -365,7 +365,7 @@ def test_the_next_spare_waits_for_quiet_tabs(monkeypatch):
 
     async def until_due(traffic_s: float, wanted_after_s: float | None = None) -> tuple[float, float]:
         """-> (seconds from the claim until the next spare is due, seconds since the last message then)"""
-        front = Launcher(LaunchConfig(data=SAMPLE_DATA, models=(("gan", SAMPLE_CHECKPOINT),)))  # nothing is started
+        front = Launcher(LaunchConfig(data=SAMPLE_DATA, models=(("gan", SAMPLE_GAN),)))  # nothing is started
         t0 = time.monotonic()
         due = asyncio.ensure_future(front._spare_due())
         while time.monotonic() - t0 < traffic_s and not due.done():

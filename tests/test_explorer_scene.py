@@ -191,11 +191,11 @@ def test_exported_pictures_carry_the_legend_and_the_frame_number_and_the_view_st
     from explorer.rendering.palette import GROUND_TRUTH, LEADER, SYNTHESIZED
     from explorer.session.session import Session, load_model
     from explorer.ui.exports import Exports
-    from imm_model.paths import SAMPLE_CHECKPOINT
+    from imm_model.paths import SAMPLE_GAN
 
-    if not SAMPLE_CHECKPOINT.exists():
-        pytest.skip(f"bundled checkpoint missing: {SAMPLE_CHECKPOINT}")
-    session = Session(sample_data, {"gan": load_model(SAMPLE_CHECKPOINT, sample_data)}, index=0)
+    if not SAMPLE_GAN.exists():
+        pytest.skip(f"bundled checkpoint missing: {SAMPLE_GAN}")
+    session = Session(sample_data, {"gan": load_model(SAMPLE_GAN, sample_data)}, index=0)
     page = SimpleNamespace(session=session, state=SimpleNamespace(notice=""), guarded=lambda fn: fn,
                            trigger=lambda name: (lambda fn: fn), ctrl=SimpleNamespace(view_update=lambda: None))
     exports = Exports(page, scene, tmp_path, attach=bytes)

@@ -9,18 +9,18 @@ import numpy as np
 import pytest
 
 from imm_model.errors import CheckpointError
-from imm_model.paths import SAMPLE_CHECKPOINT
+from imm_model.paths import SAMPLE_GAN
 
 pytest.importorskip("trame")
 
 
 @pytest.fixture(scope="module")
 def model(sample_data):
-    if not SAMPLE_CHECKPOINT.exists():
-        pytest.skip(f"bundled checkpoint missing: {SAMPLE_CHECKPOINT}")
+    if not SAMPLE_GAN.exists():
+        pytest.skip(f"bundled checkpoint missing: {SAMPLE_GAN}")
     from explorer.session.session import load_model
 
-    return load_model(SAMPLE_CHECKPOINT, sample_data)
+    return load_model(SAMPLE_GAN, sample_data)
 
 
 @pytest.fixture()
@@ -167,7 +167,7 @@ def test_reads_as_refuses_other_classes_and_files(sample_data, model, tmp_path):
     with pytest.raises(CheckpointError):
         ReadsAs.load(bad)
     with pytest.raises(CheckpointError, match="not a reaction classifier"):
-        ReadsAs.load(SAMPLE_CHECKPOINT)
+        ReadsAs.load(SAMPLE_GAN)
 
 
 def test_reads_as_centres_a_start_centred_conv_classifier(sample_data, tmp_path):

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from imm_model.cli import main
-from imm_model.paths import SAMPLE_CHECKPOINT
+from imm_model.paths import SAMPLE_GAN
 
 BVH_FIXTURES = Path(__file__).parent / "fixtures" / "bvh"
 
@@ -30,7 +30,7 @@ def test_grid_over_sequences_writes_one_file_per_item(tmp_path, sample_data, cap
     # --raw: the network's follower, bones not held to the bundled model's lengths
     raw = tmp_path / "raw.npz"
     assert main(["generate", "--sequence", ids[0], "--label", "hugging=1", "--raw", "--out", str(raw)]) == 0
-    lengths = np.asarray(json.loads(SAMPLE_CHECKPOINT.with_suffix(".json").read_text())["follower_bone_lengths"])
+    lengths = np.asarray(json.loads(SAMPLE_GAN.with_suffix(".json").read_text())["follower_bone_lengths"])
     with np.load(single) as a, np.load(raw) as r:
         for follower, rigid in ((a["follower"], True), (r["follower"], False)):
             error = np.abs(sample_data.skeleton.bone_lengths(follower) - lengths).max()

@@ -419,17 +419,17 @@ SIDECAR_CASES = {
 @pytest.fixture(scope="module")
 def checkpoint_meta():
     from imm_model.checkpoint import load_checkpoint
-    from imm_model.paths import SAMPLE_CHECKPOINT
+    from imm_model.paths import SAMPLE_GAN
 
-    return load_checkpoint(SAMPLE_CHECKPOINT, framework="np")[1]
+    return load_checkpoint(SAMPLE_GAN, framework="np")[1]
 
 
 def _checkpoint_with(tmp_path: Path, meta: dict) -> Path:
     from imm_model.checkpoint import sidecar_path
-    from imm_model.paths import SAMPLE_CHECKPOINT
+    from imm_model.paths import SAMPLE_GAN
 
     path = tmp_path / "hostile.safetensors"
-    shutil.copy(SAMPLE_CHECKPOINT, path)
+    shutil.copy(SAMPLE_GAN, path)
     sidecar_path(path).write_text(json.dumps(meta))
     return path
 

@@ -13,12 +13,12 @@ from imm_model.data.splits import loso_fold
 from imm_model.errors import DataFormatError, LabelError
 from imm_model.evaluation.metrics import afd
 from imm_model.inference import ReactionModel, parse_label
-from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DIFFUSION, SAMPLE_MODELS
+from imm_model.paths import SAMPLE_GAN, SAMPLE_DIFFUSION, SAMPLE_MODELS
 
 
 @pytest.fixture(scope="module")
 def model():
-    return ReactionModel.load(SAMPLE_CHECKPOINT)
+    return ReactionModel.load(SAMPLE_GAN)
 
 
 def test_bundled_checkpoint_describes_itself(model, sample_data):
@@ -26,7 +26,7 @@ def test_bundled_checkpoint_describes_itself(model, sample_data):
     assert model.skeleton == sample_data.skeleton
     assert model.held_out_subject == sample_data.info["held_out_subject"] == "s04"
     assert model.config.latent_dim > 0 and model.info["code_version"]
-    assert SAMPLE_CHECKPOINT.with_suffix(".json").exists()
+    assert SAMPLE_GAN.with_suffix(".json").exists()
 
 
 def test_label_vector(model):
@@ -77,15 +77,15 @@ def test_batch_equals_single_and_latent(model, sample_data):
     assert z.shape == (3, model.config.latent_dim)
     world = sample_data.world(7)[0]
     np.testing.assert_allclose(model.latent(world, {"hugging": 1}), z[1], atol=1e-4)
-    np.testing.assert_allclose(imm_model.latent(world, {"hugging": 1}, checkpoint=SAMPLE_CHECKPOINT), z[1], atol=1e-4)
-    assert imm_model.synthesize(world, [0, 0, 0, 1, 0, 0], checkpoint=SAMPLE_CHECKPOINT).shape == world.shape
+    np.testing.assert_allclose(imm_model.latent(world, {"hugging": 1}, checkpoint=SAMPLE_GAN), z[1], atol=1e-4)
+    assert imm_model.synthesize(world, [0, 0, 0, 1, 0, 0], checkpoint=SAMPLE_GAN).shape == world.shape
     assert not np.allclose(model.latent(world, {"kicking": 1}), z[1])  # the label enters the encoding
 
 
 def test_average_placement_moves_the_follower_and_keeps_its_motion(sample_data):
     """Averaged placement shifts the whole follower by one offset (its motion is the network's own), makes the
     placement mirror-consistent, and leaves a handed label (handshakes are never mirrored in training) alone."""
-    model, skeleton = ReactionModel.load(SAMPLE_CHECKPOINT), sample_data.skeleton
+    model, skeleton = ReactionModel.load(SAMPLE_GAN), sample_data.skeleton
     leaders = [sample_data.canonical(i)[0] for i in (0, 7)]
     labels = np.eye(6, dtype=np.float32)[[0, 2]]  # kicking; shaking hands (handed)
     model.raw = True
@@ -103,7 +103,7 @@ def test_average_placement_moves_the_follower_and_keeps_its_motion(sample_data):
 
 
 def test_average_placement_leaves_a_model_trained_without_mirroring_alone(tmp_path, sample_data):
-    tensors, meta = load_checkpoint(SAMPLE_CHECKPOINT)
+    tensors, meta = load_checkpoint(SAMPLE_GAN)
     unmirrored = tmp_path / "unmirrored.safetensors"
     save_checkpoint(unmirrored, tensors, meta | {"train_config": meta["train_config"] | {"mirror_prob": 0.0}})
     model = ReactionModel.load(unmirrored)
@@ -136,7 +136,7 @@ def test_the_default_model_is_the_bundled_diffusion_model(model, sample_data, tm
     default = ReactionModel.load()
     assert default.family == "diffusion" and default.stochastic and default.path == SAMPLE_DIFFUSION
     assert model.family == "gan" and not model.stochastic
-    assert list(SAMPLE_MODELS) == ["diffusion", "gan", "retrieval", "parts"] and SAMPLE_MODELS["gan"] == SAMPLE_CHECKPOINT
+    assert list(SAMPLE_MODELS) == ["diffusion", "gan", "retrieval", "parts"] and SAMPLE_MODELS["gan"] == SAMPLE_GAN
     world = sample_data.world(7)[0]
     ours = imm_model.synthesize(world, {"hugging": 1})
     np.testing.assert_allclose(ours, default.synthesize(world, {"hugging": 1}), atol=1e-5)
@@ -147,9 +147,9 @@ def test_the_default_model_is_the_bundled_diffusion_model(model, sample_data, tm
         assert str(z["checkpoint"]) == SAMPLE_DIFFUSION.name and int(z["seed"]) == 0
         np.testing.assert_allclose(z["follower"], ours, atol=1e-4)
     assert main(["generate", "--sequence", sample_data.sequence_ids[7], "--label", "hugging", "--out", str(out), "--force",
-                 "--checkpoint", str(SAMPLE_CHECKPOINT)]) == 0
+                 "--checkpoint", str(SAMPLE_GAN)]) == 0
     with np.load(out) as z:
-        assert str(z["checkpoint"]) == SAMPLE_CHECKPOINT.name and "seed" not in z.files
+        assert str(z["checkpoint"]) == SAMPLE_GAN.name and "seed" not in z.files
 
 
 def test_generate_cli(tmp_path, sample_data, capsys):

@@ -26,7 +26,7 @@ from imm_model.checkpoint import DIGEST, final_checkpoint, load_checkpoint, save
 from imm_model.cli import main
 from imm_model.errors import CheckpointError, IMMError
 from imm_model.outputs import Output, plan_outputs, write_atomic, write_files
-from imm_model.paths import SAMPLE_CHECKPOINT
+from imm_model.paths import SAMPLE_GAN
 
 SEQUENCE = "s01s02/03/001"
 
@@ -110,7 +110,7 @@ def test_generate_batch_counts_the_files_it_writes(leaders, tmp_path, capsys):
 
 def test_generate_never_writes_over_a_checkpoint_sidecar(tmp_path, capsys):
     for suffix in (".safetensors", ".json"):
-        shutil.copy(SAMPLE_CHECKPOINT.with_suffix(suffix), tmp_path / f"ck{suffix}")
+        shutil.copy(SAMPLE_GAN.with_suffix(suffix), tmp_path / f"ck{suffix}")
     before = _files(tmp_path)
     assert _generate("--sequence", SEQUENCE, "--checkpoint", str(tmp_path / "ck.safetensors"), "--out",
                      str(tmp_path / "ck.json"), "--force") == 2
@@ -139,7 +139,7 @@ def test_a_full_disk_is_one_line_and_leaves_the_old_output(tmp_path, capsys, mon
 # ---- imm evaluate: refused before evaluating ----------------------------------------------------------------------
 def test_evaluate_reports_never_replace_the_checkpoint_sidecar_or_each_other(tmp_path, capsys):
     for suffix in (".safetensors", ".json"):
-        shutil.copy(SAMPLE_CHECKPOINT.with_suffix(suffix), tmp_path / f"X{suffix}")
+        shutil.copy(SAMPLE_GAN.with_suffix(suffix), tmp_path / f"X{suffix}")
     before = _files(tmp_path)
     assert main(["evaluate", "--checkpoint", str(tmp_path / "X.safetensors"), "--json", str(tmp_path / "X.json"),
                  "--force", "--quiet"]) == 2
@@ -184,7 +184,7 @@ def test_write_files_renames_all_or_nothing(tmp_path):
 
 # ---- checkpoints ---------------------------------------------------------------------------------------------------
 def _pair(tmp_path: Path, name: str, epoch: int, shift: float) -> Path:
-    tensors, meta = load_checkpoint(SAMPLE_CHECKPOINT)
+    tensors, meta = load_checkpoint(SAMPLE_GAN)
     tensors = {k: v + shift if v.is_floating_point() else v for k, v in tensors.items()}
     path = tmp_path / f"{name}.safetensors"
     save_checkpoint(path, tensors, meta | {"training": meta["training"] | {"epoch": epoch}})
@@ -216,8 +216,8 @@ def test_a_mismatched_checkpoint_pair_is_refused(tmp_path):
 def test_checkpoints_saved_before_digests_load_and_are_still_matched(tmp_path):
     from safetensors.torch import save_file
 
-    tensors, meta = load_checkpoint(SAMPLE_CHECKPOINT)
-    assert DIGEST not in meta and DIGEST not in json.loads(SAMPLE_CHECKPOINT.with_suffix(".json").read_text())
+    tensors, meta = load_checkpoint(SAMPLE_GAN)
+    assert DIGEST not in meta and DIGEST not in json.loads(SAMPLE_GAN.with_suffix(".json").read_text())
     old = tmp_path / "old.safetensors"  # written as the code before digests wrote them
     save_file(tensors, str(old), metadata={"imm": json.dumps(meta, sort_keys=True)})
     old.with_suffix(".json").write_text(json.dumps(meta))
@@ -267,7 +267,7 @@ def overwritten_run(tmp_path_factory):
     fold = d / "ov" / "fold-s04"
     fold.mkdir(parents=True)
     for suffix in (".safetensors", ".json"):  # the previous run's shipped model
-        shutil.copy(SAMPLE_CHECKPOINT.with_suffix(suffix), fold / f"final{suffix}")
+        shutil.copy(SAMPLE_GAN.with_suffix(suffix), fold / f"final{suffix}")
     (fold / "notes.txt").write_text("not the run's")
     base = ["train", "--config", str(d / "tiny.json"), "--fold", "s04", "--out", str(d / "ov"), "--quiet", "--threads", "1"]
     assert main([*base, "--overwrite", "--export", str(d / "e.safetensors")]) == 0

@@ -15,7 +15,7 @@ from imm_model.families import load_model
 from imm_model.families.diffusion.recipes import IMM_DIFFUSION, IMM_DIFFUSION_PARTS, DiffusionTrainConfig
 from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, label_terms, sample
 from imm_model.model.classifier import body_part_view
-from imm_model.paths import SAMPLE_CHECKPOINT
+from imm_model.paths import SAMPLE_GAN
 from imm_model.training.part_mix import part_indices, part_rows
 
 C = 6
@@ -151,7 +151,7 @@ def test_a_bad_part_label_is_refused_in_one_line(part_model, label, words):
 
 
 def test_a_model_without_part_labels_refuses_a_part_key_naming_it():
-    gan = load_model(SAMPLE_CHECKPOINT)
+    gan = load_model(SAMPLE_GAN)
     with pytest.raises(LabelError, match=r"takes no label per body part \('upper:shaking_hands'\)"):
         gan.label_vector({"upper:shaking_hands": 1})
     with pytest.raises(LabelError, match="expected 6 values"):

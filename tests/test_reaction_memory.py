@@ -12,7 +12,7 @@ from imm_model.data.splits import loso_fold
 from imm_model.errors import LabelError
 from imm_model.families.diffusion.reaction_memory import NEIGHBOURS, RESAMPLED_FRAMES, ReactionMemory, resample
 from imm_model.inference import ReactionModel
-from imm_model.paths import SAMPLE_CHECKPOINT
+from imm_model.paths import SAMPLE_GAN
 from tests.test_diffusion import leader, tiny_model  # noqa: F401 - fixtures
 
 
@@ -105,7 +105,7 @@ def test_generate_starts_from_the_memory_on_request(tiny_model, sample_data, tmp
     assert main(base + ["--memory", "2", "--out", str(tmp_path / "bad.npz")]) == 2
     err = capsys.readouterr().err
     assert "memory_level" in err and len(err.strip().splitlines()) == 1 and not (tmp_path / "bad.npz").exists()
-    gan = ["--checkpoint", str(SAMPLE_CHECKPOINT)]
+    gan = ["--checkpoint", str(SAMPLE_GAN)]
     assert main(["generate", *gan, "--sequence", sid, "--label", "hugging", "--memory", "0.5", "--out", str(tmp_path / "gan.npz")]) == 2
     assert "GAN" in capsys.readouterr().err and not (tmp_path / "gan.npz").exists()
 

@@ -10,13 +10,13 @@ from imm_model.evaluation import review
 from imm_model.inference import ReactionModel
 from imm_model.model import classifier as classifiers
 from imm_model.model import classifier_config as classifier_configs
-from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DIFFUSION, SAMPLE_JUDGE
+from imm_model.paths import SAMPLE_GAN, SAMPLE_DIFFUSION, SAMPLE_JUDGE
 from imm_model.reads_as import ReadsAs
 
 
 @pytest.fixture(scope="module")
 def gan():
-    return ReactionModel.load(SAMPLE_CHECKPOINT)
+    return ReactionModel.load(SAMPLE_GAN)
 
 
 @pytest.fixture(scope="module")

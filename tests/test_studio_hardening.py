@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA
+from imm_model.paths import SAMPLE_GAN, SAMPLE_DATA
 
 pytest.importorskip("trame")
 
@@ -74,7 +74,7 @@ def test_an_upload_reader_that_hangs_or_hogs_is_stopped_and_the_next_upload_is_r
     from imm_model.data.dataset import InteractionDataset
 
     data = InteractionDataset.load(SAMPLE_DATA)
-    model = load_model(SAMPLE_CHECKPOINT, data)
+    model = load_model(SAMPLE_GAN, data)
     hostile = {"spin.bvh": _spin, "hog.bvh": _hog, "crash.bvh": _crash}
 
     def read(name, content):  # the helper is forked now: what it runs is fixed here
@@ -143,7 +143,7 @@ def _request(path: str = "/claim", method: str = "POST", host: str = "localhost:
 def _launcher(**config):
     from explorer.serving.launcher import LaunchConfig, Launcher
 
-    return Launcher(LaunchConfig(data=SAMPLE_DATA, models=(("gan", SAMPLE_CHECKPOINT),), **config))
+    return Launcher(LaunchConfig(data=SAMPLE_DATA, models=(("gan", SAMPLE_GAN),), **config))
 
 
 def test_the_origin_check_accepts_the_scheme_the_page_was_served_over():
@@ -338,8 +338,8 @@ def _first_claim_after(url: str, since: float, limit_s: float = 15.0) -> float:
 
 @pytest.fixture(scope="module")
 def small_studio(tmp_path_factory):
-    if not SAMPLE_CHECKPOINT.exists():
-        pytest.skip(f"bundled checkpoint missing: {SAMPLE_CHECKPOINT}")
+    if not SAMPLE_GAN.exists():
+        pytest.skip(f"bundled checkpoint missing: {SAMPLE_GAN}")
     from tests.studio_probe import StudioProcess
 
     old = os.environ.get("IMM_STUDIO_CLAIM_TIMEOUT")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from imm_model.errors import LabelError
-from imm_model.paths import SAMPLE_CHECKPOINT
+from imm_model.paths import SAMPLE_GAN
 
 pytest.importorskip("trame")
 
@@ -40,11 +40,11 @@ def part_checkpoint(tmp_path_factory, sample_data):
 @pytest.fixture()
 def session(sample_data, part_checkpoint):
     """A part model first (it opens), the bundled GAN (no part labels) one switch away."""
-    if not SAMPLE_CHECKPOINT.exists():
-        pytest.skip(f"bundled checkpoint missing: {SAMPLE_CHECKPOINT}")
+    if not SAMPLE_GAN.exists():
+        pytest.skip(f"bundled checkpoint missing: {SAMPLE_GAN}")
     from explorer.session.session import Session, load_model
 
-    models = {"diffusion": load_model(part_checkpoint, sample_data), "gan": load_model(SAMPLE_CHECKPOINT, sample_data)}
+    models = {"diffusion": load_model(part_checkpoint, sample_data), "gan": load_model(SAMPLE_GAN, sample_data)}
     return Session(sample_data, models, index=0)
 
 
@@ -173,7 +173,7 @@ def test_the_drawer_sets_a_class_apart_for_one_part_and_the_link_and_picture_fol
     the parts differ."""
     from tests import studio_probe as probe
 
-    with probe.StudioProcess("--model", f"diffusion={part_checkpoint}", "--model", f"gan={SAMPLE_CHECKPOINT}",
+    with probe.StudioProcess("--model", f"diffusion={part_checkpoint}", "--model", f"gan={SAMPLE_GAN}",
                              cache_dir=tmp_path) as studio:
         page = probe.open_studio(browser, studio.url, 1366, 768)
         try:

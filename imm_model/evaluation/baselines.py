@@ -104,19 +104,17 @@ def evaluate_predictions(data: InteractionDataset, test_idx: np.ndarray, predict
 
 
 def fold_baseline_model(config: str, data: InteractionDataset, subject: str, progress: bool = True) -> Path:
-    """A training recipe (e.g. the label-free `men`) trained on fold `subject`, cached (imm_model/cache.py) -> its
-    final checkpoint."""
+    """A training recipe (a name, e.g. the label-free `men`, or a JSON file of overrides on one) trained on fold
+    `subject` by its family (the registry, families/__init__.py), cached (imm_model/cache.py) -> its final checkpoint."""
     import json
     import time
 
     from imm_model import cache
     from imm_model.checkpoint import final_checkpoint, load_checkpoint
     from imm_model.errors import CheckpointError
-    from imm_model.families.gan.recipes import load_config
-    from imm_model.families.gan.refit import refit
-    from imm_model.families.gan.trainer import Trainer
+    from imm_model.families import load_recipe
 
-    cfg = load_config(config)
+    family, cfg = load_recipe(config)
     key = cache.entry_key("model", data, subject, cfg.to_dict())
     out = cache.cache_dir() / "models" / f"{cfg.name}-{subject}-{key}"
     done = out / "done.json"
@@ -128,10 +126,7 @@ def fold_baseline_model(config: str, data: InteractionDataset, subject: str, pro
         except CheckpointError as err:
             cache.note(f"cache: {err}; rebuilding")
     t0 = time.perf_counter()
-    trainer = Trainer(cfg, data, subject, out)
-    state = trainer.fit(progress=progress)
-    if cfg.refit:
-        refit(trainer, progress=progress)
-    done.write_text(json.dumps({"key": key, "best_epoch": state.best_epoch}) + "\n")
+    trained = family.train(cfg, data, subject, out, "cpu", resume=False, progress=progress)
+    done.write_text(json.dumps({"key": key, "line": trained.line}) + "\n")
     cache.note(f"cache: trained the {cfg.name} baseline for fold {subject} in {time.perf_counter() - t0:.0f} s")
     return final_checkpoint(out)

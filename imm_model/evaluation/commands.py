@@ -32,6 +32,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--baselines", default="nn1,knn_dtw,template,men", help="comma-separated subset of nn1,knn_dtw,template,men")
     p.add_argument("--men-run", type=Path, default=None,
                    help="a run of `imm train --config men --fold all` to use as the label-free baseline (default: train and cache it)")
+    p.add_argument("--men-config", default="men",
+                   help="the recipe the label-free baseline is trained and cached with when no --men-run is given: a name "
+                        "or a JSON file of overrides on one (default: men)")
     p.add_argument("--classifier-config", type=Path, default=None,
                    help="JSON of ClassifierConfig overrides applied to every classifier (e.g. {\"epochs\": 30})")
     p.add_argument("--json", type=Path, default=None, help="write the whole summary as JSON")
@@ -50,6 +53,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _options(args: argparse.Namespace):
     from imm_model.checkpoint import final_checkpoint
     from imm_model.evaluation.loso import EvalOptions
+    from imm_model.families import load_recipe
     from imm_model.inputs import MAX_SETTINGS_BYTES, read_input_text
     from imm_model.model.classifier_config import FOLLOWER, FOLLOWER_JUDGE, INTERACTION, LOWER_JUDGE, UPPER_JUDGE, ClassifierConfig
 
@@ -72,7 +76,9 @@ def _options(args: argparse.Namespace):
     baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
     if not baselines:
         raise ValueError("--baselines: name at least one of nn1, knn_dtw, template, men")
-    return EvalOptions(baselines=baselines, men_checkpoint=men, progress=not args.quiet, raw=args.raw,
+    if args.men_run is None and "men" in baselines:
+        load_recipe(args.men_config)  # an unknown recipe or a bad file is refused before hours of evaluation
+    return EvalOptions(baselines=baselines, men_checkpoint=men, men_config=args.men_config, progress=not args.quiet, raw=args.raw,
                        average_placement=args.average_placement, **configs)
 
 
@@ -112,13 +118,13 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from imm_model.evaluation.tables import headline, metric_table, printed_distribution
     from imm_model.inference import ReactionModel
     from imm_model.outputs import check_finite
-    from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA
+    from imm_model.paths import SAMPLE_GAN, SAMPLE_DATA
 
     torch.set_num_threads(2)
     cache_dir()  # an unusable cache folder is refused before any classifier or baseline is trained for it
     data = InteractionDataset.load(args.data or SAMPLE_DATA)
     if args.run is None and args.checkpoint is None:
-        args.checkpoint = SAMPLE_CHECKPOINT
+        args.checkpoint = SAMPLE_GAN
     opts = _options(args)
     jobs = _jobs(args, all_subjects(data.subject_pairs))
     _plan_outputs(args, jobs)  # refused before hours of evaluation, not after

@@ -43,6 +43,7 @@ class EvalOptions:
     baselines: tuple[str, ...] = BASELINES
     # {subject} -> a trained label-free checkpoint; None: train `men` on the fold (cached)
     men_checkpoint: Callable[[str], Path] | None = None
+    men_config: str = "men"  # the recipe (a name or a JSON file of overrides) `men` is trained with when none is given
     interaction: classifier_configs.ClassifierConfig = classifier_configs.INTERACTION
     follower: classifier_configs.ClassifierConfig = classifier_configs.FOLLOWER
     judge: classifier_configs.ClassifierConfig = classifier_configs.FOLLOWER_JUDGE
@@ -292,7 +293,7 @@ def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptio
     result["_latent"] = {"model": _latents(model, data, all_idx)} if latents else {}  # "_": for the figures, not the JSON
     for name in opts.baselines:
         if name == "men":
-            path = opts.men_checkpoint(subject) if opts.men_checkpoint else fold_baseline_model("men", data, subject, opts.progress)
+            path = opts.men_checkpoint(subject) if opts.men_checkpoint else fold_baseline_model(opts.men_config, data, subject, opts.progress)
             men = ReactionModel.load(path)
             check_compatible(men, data, str(men.path))
             prepare_model(men, data, subject, opts)

@@ -38,6 +38,14 @@ MAX_BONE_M = 5.0  # a checkpoint's follower bone lengths, metres
 MAX_TRAIN_LENGTH = 100_000  # a checkpoint's max_train_length, frames
 MAX_SAMPLES = 64  # reactions drawn by one call
 @dataclass(frozen=True)
+class Trained:
+    """What a family's `train` reports of one fold's run."""
+
+    line: str  # what it wrote, in one line (`imm train` prints it)
+    counts: dict[str, int]  # how long it trained, as a reproduction records it ({"epochs": .., "best_epoch": ..}, {"steps": ..})
+
+
+@dataclass(frozen=True)
 class Family:
     """One model family, as the registry (families/__init__.py) knows it. Imports that cost (torch) wait for use."""
 
@@ -45,7 +53,7 @@ class Family:
     title: str  # how people name a model of it ("the paper's GAN")
     model_class: Callable[[], type[ReactionModel]]  # the class that loads its checkpoints
     recipes: Callable[[], Mapping[str, Any]]  # its named recipes, {name: config}
-    train: Callable[..., str]  # (config, data, subject, out_dir, device, resume, progress) -> a line saying what it wrote
+    train: Callable[..., Trained]  # (config, data, subject, out_dir, device, resume, progress) -> what it wrote
     default_recipe: str  # the recipe a JSON recipe file that names this family but no base builds on
     length_option: str | None  # the config field `imm train --epochs/--steps` overrides (None: nothing to train long)
     # what a saved run's config must match for a run to continue it (defaults: equal, but for the length option)

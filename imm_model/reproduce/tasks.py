@@ -43,7 +43,7 @@ def train_run(job: TrainJob, runs: Path, data_path: Path, key: str, threads: int
     stamp_job(job, runs, key)
     with FolderLock(job.run_dir(runs), "run"):  # e.g. a trainer of a killed reproduce that is still running
         done = job.family.train(job.config(), data, subject, job.run_dir(runs), resume=True, progress=False)
-        info = {"key": key} | {k: v for k, v in done.items() if k != "line"}
+        info = {"key": key} | done.counts
         info["seconds"] = round(time.perf_counter() - t0, 1)
         mark_done(job, runs, info)
     return info

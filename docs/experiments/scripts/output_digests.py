@@ -23,7 +23,7 @@ import numpy as np
 from imm_model.data.bvh import read_bvh
 from imm_model.data.dataset import InteractionDataset
 from imm_model.inference import ReactionModel
-from imm_model.paths import REPO_ROOT, SAMPLE_CHECKPOINT, SAMPLE_DATA, SAMPLE_DIFFUSION
+from imm_model.paths import REPO_ROOT, SAMPLE_GAN, SAMPLE_DATA, SAMPLE_DIFFUSION
 
 
 def digest(array: np.ndarray) -> str:
@@ -66,7 +66,7 @@ def main() -> int:
     g.add_argument("--compare", type=Path)
     args = p.parse_args()
     data = InteractionDataset.load(SAMPLE_DATA)
-    found = {path.name: model_digests(ReactionModel.load(path), data) for path in (SAMPLE_CHECKPOINT, SAMPLE_DIFFUSION)}
+    found = {path.name: model_digests(ReactionModel.load(path), data) for path in (SAMPLE_GAN, SAMPLE_DIFFUSION)}
     if args.out:
         args.out.write_text(json.dumps(found, indent=0, sort_keys=True))
         print(f"wrote {sum(map(len, found.values()))} digests to {args.out}")

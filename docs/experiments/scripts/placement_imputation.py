@@ -71,11 +71,11 @@ def main() -> None:
     from imm_model.evaluation.loso import EvalOptions, evaluate_fold
     from imm_model.evaluation.report import fold_figures
     from imm_model.inference import ReactionModel
-    from imm_model.paths import SAMPLE_CHECKPOINT, SAMPLE_DATA, SAMPLE_DIFFUSION
+    from imm_model.paths import SAMPLE_GAN, SAMPLE_DATA, SAMPLE_DIFFUSION
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--checkpoint", type=Path, default=SAMPLE_DIFFUSION)
-    ap.add_argument("--gan", type=Path, default=SAMPLE_CHECKPOINT, help="the placement's model (same held-out fold)")
+    ap.add_argument("--gan", type=Path, default=SAMPLE_GAN, help="the placement's model (same held-out fold)")
     ap.add_argument("--fold", required=True)
     ap.add_argument("--mode", nargs="+", choices=("none", "offset", "path"), default=["offset"])
     ap.add_argument("--out", type=Path, default=None, help="append one JSON line per mode here")

@@ -3,7 +3,7 @@ the signed multi-hot label (+1 conjunction, -1 negation); a seed is a variation.
 
 from __future__ import annotations
 
-from imm_model.families.base import Family
+from imm_model.families.base import Family, Trained
 
 
 def _model_class():
@@ -18,7 +18,7 @@ def _recipes():
     return NAMED
 
 
-def _train(cfg, data, subject, out_dir, device="cpu", resume: bool = False, progress: bool = True) -> dict:
+def _train(cfg, data, subject, out_dir, device="cpu", resume: bool = False, progress: bool = True) -> Trained:
     from imm_model.families.diffusion.trainer import train
 
     return train(cfg, data, subject, out_dir, device, resume, progress)

@@ -23,6 +23,7 @@ from imm_model.data.dataset import InteractionDataset
 from imm_model.data.sequence import MAX_COORDINATE_M
 from imm_model.data.splits import loso_fold
 from imm_model.errors import CheckpointError, TrainingError
+from imm_model.families.base import Trained
 from imm_model.families.diffusion.denoiser import ReactionDenoiser, q_sample
 from imm_model.families.diffusion.recipes import FAMILY, DiffusionTrainConfig
 from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, cosine_alpha_bar
@@ -205,11 +206,10 @@ class DiffusionTrainer:
 
 
 def train(cfg: DiffusionTrainConfig, data: InteractionDataset, subject: str | None, out_dir: Path, device="cpu",
-          resume: bool = False, progress: bool = True) -> dict:
-    """One fold's run to the end (continued from last.safetensors with `resume`) -> what it did: a line to print and
-    the figures a run record keeps."""
+          resume: bool = False, progress: bool = True) -> Trained:
+    """One fold's run to the end (continued from last.safetensors with `resume`) -> what it did."""
     trainer = DiffusionTrainer(cfg, data, subject, out_dir, device)
     if resume and (trainer.out / "last.safetensors").exists():
         trainer.resume()
     final = trainer.fit(progress=progress)
-    return {"line": f"{cfg.steps} steps -> {final}", "steps": cfg.steps}
+    return Trained(f"{cfg.steps} steps -> {final}", {"steps": cfg.steps})

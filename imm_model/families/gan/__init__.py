@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from imm_model.families.base import Family
+from imm_model.families.base import Family, Trained
 
 
 def _model_class():
@@ -24,7 +24,7 @@ def _same_recipe(saved, current: dict) -> bool:
     return same_recipe(saved, current)
 
 
-def _train(cfg, data, subject, out_dir, device="cpu", resume: bool = False, progress: bool = True) -> dict:
+def _train(cfg, data, subject, out_dir, device="cpu", resume: bool = False, progress: bool = True) -> Trained:
     """One fold's run: epochs with validation, then (a recipe with `refit`) the refit on training + validation."""
     from imm_model.families.gan.refit import refit
     from imm_model.families.gan.trainer import Trainer
@@ -38,7 +38,7 @@ def _train(cfg, data, subject, out_dir, device="cpu", resume: bool = False, prog
     if cfg.refit:
         path = refit(trainer, progress=progress)
         line += f"; refit on training + validation for {state.best_epoch + 1} epochs -> {path}"
-    return {"line": line, "best_epoch": state.best_epoch, "epochs": state.epoch}
+    return Trained(line, {"best_epoch": state.best_epoch, "epochs": state.epoch})
 
 
 FAMILY = Family(name="gan", title="the paper's GAN", model_class=_model_class, recipes=_recipes, train=_train,

@@ -3,7 +3,7 @@ model every learned family is compared with)."""
 
 from __future__ import annotations
 
-from imm_model.families.base import Family
+from imm_model.families.base import Family, Trained
 
 
 def _model_class():
@@ -18,7 +18,7 @@ def _recipes():
     return NAMED
 
 
-def _train(cfg, data, subject, out_dir, device="cpu", resume: bool = False, progress: bool = True) -> dict:
+def _train(cfg, data, subject, out_dir, device="cpu", resume: bool = False, progress: bool = True) -> Trained:
     """Nothing to learn: the fold's checkpoint names the data it retrieves from and the subject it never sees."""
     from pathlib import Path
 
@@ -29,7 +29,7 @@ def _train(cfg, data, subject, out_dir, device="cpu", resume: bool = False, prog
     model = RetrievalReactionModel.build(data, subject)
     model.save(final)
     held_out = f", {subject} held out" if subject else ""
-    return {"line": f"retrieves from {sum(map(len, model.pairs))} training sequences{held_out} -> {final}"}
+    return Trained(f"retrieves from {sum(map(len, model.pairs))} training sequences{held_out} -> {final}", {})
 
 
 FAMILY = Family(name="retrieval", title="1-NN retrieval", model_class=_model_class, recipes=_recipes, train=_train,
