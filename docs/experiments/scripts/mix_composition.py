@@ -3,7 +3,7 @@
 two realism figures of the mixed reactions, one JSON line per composition x sampler seed (docs/experiments/mix-composition.md).
 
 "sum" is the library's sampler (imm_model.families.diffusion.sampler.sample). "parts" and "relative" live in this script
-only: `routed_sample` is the library's DDIM loop with the sum of the class terms replaced by `compose_parts` (the
+only: `routed_sample` runs the library's DDIM loop (`ddim`) with the sum of the class terms replaced by `compose_parts` (the
 routing of the record's Design section). Before measuring, `self_check` asserts on a tiny synthetic batch that the
 routed sampler with one positive class, or with p = 0, gives the library's sum rule.
 
@@ -109,10 +109,10 @@ def compose_parts(base: np.ndarray, class_terms: np.ndarray, weights: np.ndarray
 
 
 def routed_sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, noise: np.ndarray, guidance,
-                  diffusion_steps: int, routing: BodyRouting, power: float, relative: bool = False) -> np.ndarray:
+                  diffusion_steps: int, routing: BodyRouting, power: float, relative: bool = False, seeds=None) -> np.ndarray:
     """imm_model.families.diffusion.sampler.sample (same arguments and terms) with the classes composed by
-    compose_parts instead of the sum rule."""
-    from imm_model.families.diffusion.sampler import cosine_alpha_bar
+    compose_parts instead of the sum rule, on the library's DDIM loop (`ddim`)."""
+    from imm_model.families.diffusion.sampler import ddim
 
     b, t, d = noise.shape
     c = labels.shape[1]
@@ -128,26 +128,19 @@ def routed_sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.nda
         leader_on[-1] = False
     one_hot, label_on, leader_on = one_hot.reshape(-1, c), label_on.reshape(-1), leader_on.reshape(-1)
     weights = (labels[:, classes].T * guidance.label_scale).astype(np.float32)  # (K, B)
-
-    alpha_bar = cosine_alpha_bar(diffusion_steps)
-    steps = np.linspace(diffusion_steps - 1, 0, guidance.sample_steps).round().astype(int)
     m = mask[..., None].astype(np.float32)
-    x = noise.astype(np.float32)
-    for i, step in enumerate(steps):
-        terms = denoise(np.tile(x, (n_terms, 1, 1)), int(step), leader_on, one_hot, label_on).reshape(n_terms, b, t, d)
+
+    def predict(x: np.ndarray, step: int) -> np.ndarray:
+        terms = denoise(np.tile(x, (n_terms, 1, 1)), step, leader_on, one_hot, label_on).reshape(n_terms, b, t, d)
         base = terms[0]
         x0 = base
         if classes:
             x0 = compose_parts(base, terms[1:1 + len(classes)], weights, routing, power, relative, mask)
         if guidance.leader_scale != 1.0:
             x0 = terms[-1] + guidance.leader_scale * (x0 - terms[-1])
-        x0 = np.clip(x0, -guidance.clip, guidance.clip) * m
-        if i + 1 == len(steps):
-            return x0.astype(np.float32)
-        a, a_next = alpha_bar[step], alpha_bar[steps[i + 1]]
-        eps = (x - np.sqrt(a) * x0) / np.sqrt(1 - a)
-        x = ((np.sqrt(a_next) * x0 + np.sqrt(1 - a_next) * eps) * m).astype(np.float32)
-    raise AssertionError("unreachable: sample_steps >= 1")
+        return np.clip(x0, -guidance.clip, guidance.clip) * m
+
+    return ddim(predict, noise, mask, guidance, diffusion_steps, seeds)
 
 
 def routed_sampler(model, power: float, relative: bool = False):
@@ -156,7 +149,7 @@ def routed_sampler(model, power: float, relative: bool = False):
     routing = BodyRouting.of(model.skeleton, model.weights["follower_std"])
 
     def sampler(denoise, x, mask, labels, noise, guidance, steps, seeds=None, **network):
-        return routed_sample(denoise, x, mask, labels, noise, guidance, steps, routing, power, relative)
+        return routed_sample(denoise, x, mask, labels, noise, guidance, steps, routing, power, relative, seeds)
 
     return sampler
 

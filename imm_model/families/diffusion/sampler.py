@@ -239,11 +239,48 @@ def label_terms(labels: np.ndarray, pair_terms: bool = False, part_labels: bool 
     return np.stack(conditions), np.stack(weights).astype(np.float32)
 
 
+def ddim_step(x: np.ndarray, x0: np.ndarray, a: float, a_next: float, eta: float, m: np.ndarray,
+              fresh: np.ndarray | None = None) -> np.ndarray:
+    """One DDIM update: x_t (B, T, D) at signal fraction `a`, the predicted x0 -> x at `a_next` (float32, padding
+    zero through `m` (B, T, 1)). With eta > 0 part of the direction term is the fresh noise `fresh` (B, T, D)
+    (Song et al. 2021, eq. 16); eta 0 is deterministic."""
+    eps = (x - np.sqrt(a) * x0) / np.sqrt(1 - a)
+    if eta > 0:
+        sigma = eta * np.sqrt((1 - a_next) / (1 - a)) * np.sqrt(1 - a / a_next)
+        x = np.sqrt(a_next) * x0 + np.sqrt(max(1 - a_next - sigma**2, 0.0)) * eps + sigma * fresh
+    else:
+        x = np.sqrt(a_next) * x0 + np.sqrt(1 - a_next) * eps
+    return (x * m).astype(np.float32)
+
+
+def ddim(predict, noise: np.ndarray, mask: np.ndarray, guidance: Guidance, diffusion_steps: int, seeds=None) -> np.ndarray:
+    """The sampling loop, apart from what a step predicts: from `noise` (B, T, D), x_t at the start step
+    (Guidance.memory_level's), `predict(x_t, step)` -> x0 (B, T, D) at each of the guidance's `sample_steps` steps
+    and a `ddim_step` between them -> the last prediction, float32. With guidance.eta > 0 each step but the last adds
+    noise drawn from the rows' `seeds` (B ints, required then; see step_noise). `sample` predicts with the composed
+    label; another composition brings its own `predict` and reuses this loop."""
+    b, t, d = noise.shape
+    alpha_bar = cosine_alpha_bar(diffusion_steps)
+    steps = np.linspace(schedule_step(guidance.memory_level, diffusion_steps), 0, guidance.sample_steps).round().astype(int)
+    m = mask[..., None].astype(np.float32)
+    x = noise.astype(np.float32)
+    fresh = None
+    if guidance.eta > 0:
+        if seeds is None or len(seeds) != b:
+            raise ValueError(f"sampling with eta {guidance.eta} needs one seed per row ({b})")
+        fresh = step_noise(seeds, mask.sum(1), (b, t, d))
+    for i, step in enumerate(steps):
+        x0 = predict(x, int(step))
+        if i + 1 == len(steps):
+            return x0.astype(np.float32)
+        x = ddim_step(x, x0, alpha_bar[step], alpha_bar[steps[i + 1]], guidance.eta, m, None if fresh is None else next(fresh))
+    raise AssertionError("unreachable: sample_steps >= 1")
+
+
 def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, noise: np.ndarray, guidance: Guidance,
            diffusion_steps: int, seeds=None, pair_terms: bool = False, part_labels: bool = False) -> np.ndarray:
-    """DDIM from `noise` (B, T, D), x_t at the start step (Guidance.memory_level's), -> normalized followers x0 (B, T, D),
-    numpy float32. With guidance.eta > 0 each step but the last adds noise drawn from the rows' `seeds` (B ints,
-    required then; see step_noise).
+    """DDIM (`ddim`) from `noise` (B, T, D) -> normalized followers x0 (B, T, D), numpy float32, each step predicting
+    the composed label's x0.
 
     `denoise(x_t, step, leader_on, label, label_on)` is the network on a batch of the same rows repeated per term:
     x_t (N, T, D), step int, leader_on (N,) bool, label (N, L) the label input, label_on (N,) bool -> x0 (N, T, D); it
@@ -265,18 +302,11 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
     label_input, label_on, leader_on = label_input.reshape(n_terms * b, -1), label_on.reshape(-1), leader_on.reshape(-1)
     no_leader = np.zeros_like(leader_on)
     unguided = weights[..., None, None]  # (K, B, 1, 1): the label terms at s = 1
-
-    alpha_bar = cosine_alpha_bar(diffusion_steps)
-    steps = np.linspace(schedule_step(guidance.memory_level, diffusion_steps), 0, guidance.sample_steps).round().astype(int)
     m = mask[..., None].astype(np.float32)
-    x = noise.astype(np.float32)
-    if guidance.eta > 0:
-        if seeds is None or len(seeds) != b:
-            raise ValueError(f"sampling with eta {guidance.eta} needs one seed per row ({b})")
-        fresh = step_noise(seeds, mask.sum(1), (b, t, d))
-    for i, step in enumerate(steps):
+
+    def predict(x: np.ndarray, step: int) -> np.ndarray:
         with_leader = leader_on if step <= guidance.leader_below * (diffusion_steps - 1) else no_leader
-        terms = denoise(np.tile(x, (n_terms, 1, 1)), int(step), with_leader, label_input, label_on).reshape(n_terms, b, t, d)
+        terms = denoise(np.tile(x, (n_terms, 1, 1)), step, with_leader, label_input, label_on).reshape(n_terms, b, t, d)
         base = terms[0]
         x0 = base
         strength = np.float32(guidance.label_scale) if step <= guidance.guided_below * (diffusion_steps - 1) else np.float32(1)
@@ -284,15 +314,6 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
             x0 = x0 + (unguided * strength * (terms[1:1 + k] - base)).sum(0)
         if guidance.leader_scale != 1.0:
             x0 = terms[-1] + guidance.leader_scale * (x0 - terms[-1])
-        x0 = np.clip(x0, -guidance.clip, guidance.clip) * m
-        if i + 1 == len(steps):
-            return x0.astype(np.float32)
-        a, a_next = alpha_bar[step], alpha_bar[steps[i + 1]]
-        eps = (x - np.sqrt(a) * x0) / np.sqrt(1 - a)
-        if guidance.eta > 0:  # Song et al. 2021, eq. 16: part of the direction term becomes fresh noise
-            sigma = guidance.eta * np.sqrt((1 - a_next) / (1 - a)) * np.sqrt(1 - a / a_next)
-            x = np.sqrt(a_next) * x0 + np.sqrt(max(1 - a_next - sigma**2, 0.0)) * eps + sigma * next(fresh)
-            x = (x * m).astype(np.float32)
-        else:
-            x = ((np.sqrt(a_next) * x0 + np.sqrt(1 - a_next) * eps) * m).astype(np.float32)
-    raise AssertionError("unreachable: sample_steps >= 1")
+        return np.clip(x0, -guidance.clip, guidance.clip) * m
+
+    return ddim(predict, noise, mask, guidance, diffusion_steps, seeds)
