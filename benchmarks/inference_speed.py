@@ -22,7 +22,7 @@ import torch
 from imm_model.data.dataset import InteractionDataset
 from imm_model.device import add_device_argument, resolve_device
 from imm_model.inference import ReactionModel
-from imm_model.paths import SAMPLE_GAN, SAMPLE_DATA
+from imm_model.paths import SAMPLE_DATA, SAMPLE_GAN
 
 
 def peak_rss_mb() -> float:

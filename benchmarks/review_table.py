@@ -80,7 +80,7 @@ def library_tables(args) -> None:
     from imm_model.evaluation import review
     from imm_model.evaluation.review import ReviewThresholds, fold_interaction_features, real_foot_threshold, review_table
     from imm_model.inference import ReactionModel
-    from imm_model.paths import SAMPLE_GAN, SAMPLE_DATA, SAMPLE_DIFFUSION, SAMPLE_JUDGE
+    from imm_model.paths import SAMPLE_DATA, SAMPLE_DIFFUSION, SAMPLE_GAN, SAMPLE_JUDGE
     from imm_model.reads_as import ReadsAs
 
     DEFAULT_CHUNK = review.CPU_SAMPLER_CHUNK

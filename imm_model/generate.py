@@ -156,11 +156,11 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     model = ReactionModel.load(args.checkpoint, resolve_device(args.device))
     model.raw, model.average_placement = args.raw, args.average_placement
     name = model.path.name if model.path else "this model"
-    if len(seeds) > 1 and "seed" not in model.settings:
+    if len(seeds) > 1 and not model.settings.seed:
         raise ValueError(f"--samples {args.samples}: {name} ({model.title}) is deterministic: every seed gives the same "
                          "reaction")
     if args.spread is not None:
-        if "spread" not in model.settings:
+        if not model.settings.spread:
             raise ValueError(f"--spread: {name} ({model.title}) has no spread setting (it needs a diffusion model trained "
                              "with noised leaders)")
         model.spread = args.spread

@@ -12,7 +12,7 @@ os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 import pytest  # noqa: E402
 
-from imm_model.paths import SAMPLE_GAN, SAMPLE_DATA, k3hi_raw_root, sbu_raw_root
+from imm_model.paths import SAMPLE_DATA, SAMPLE_GAN, k3hi_raw_root, sbu_raw_root
 
 
 @pytest.fixture(scope="session")

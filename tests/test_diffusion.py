@@ -93,12 +93,12 @@ def test_every_frame_predicted_and_padding_ignored(frames_per_token):
 
 def test_trained_model_loads_as_the_diffusion_family(tiny_model):
     model = ReactionModel.load(tiny_model)
-    assert isinstance(model, DiffusionReactionModel) and model.stochastic and model.family == "diffusion"
+    assert isinstance(model, DiffusionReactionModel) and model.settings.seed and model.family == "diffusion"
     assert model.class_names[0] == "kicking" and model.guidance.sample_steps == 4
     meta = load_checkpoint(tiny_model)[1]
     assert meta["family"] == "diffusion" and meta["training"]["step"] == TINY.steps
     gan = ReactionModel.load(SAMPLE_GAN)
-    assert not gan.stochastic and gan.family == "gan"
+    assert not gan.settings.seed and gan.family == "gan"
 
 
 def test_seeds_give_variations_and_repeat_exactly(tiny_model, leader):

@@ -68,7 +68,7 @@ def test_seeds_pick_reactions_only_for_a_seeded_model(model, data):
     assert drawn.shape == (3, *leader.shape)
     # a seed is repeatable (drawn alone or in a batch of three: the same reaction, to float precision)
     np.testing.assert_allclose(drawn[0], model.synthesize(leader, {"kicking": 1.0}, seed=4), atol=1e-5)
-    if "seed" in model.settings:
+    if model.settings.seed:
         assert not np.allclose(drawn[0], drawn[1])
     else:
         np.testing.assert_array_equal(drawn[0], drawn[1])
@@ -127,10 +127,10 @@ def test_the_latent_embedding_is_one_finite_vector_per_leader_and_label(model, d
 
 
 def test_a_family_refuses_the_settings_it_does_not_take(model, data):
-    if "spread" not in model.settings:
+    if not model.settings.spread:
         with pytest.raises(LabelError, match="no spread setting"):
             model.spread = 0.5
-    if "memory" not in model.settings:
+    if not model.settings.memory:
         with pytest.raises(LabelError, match="no sampler"):
             model.use_memory(0.5, data)
 

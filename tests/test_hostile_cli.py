@@ -347,7 +347,7 @@ def test_weights_of_1e30_with_a_valid_digest_are_refused_at_load(tmp_path, bundl
         ReactionModel.load(path)
     assert str(info.value).startswith(f"{path}: its follower to a bundled leader stands") and "\n" not in str(info.value)
     model = ReactionModel.load(SAMPLE_DIR / bundled)  # the bundled model passes, and comes back as it was loaded
-    assert not model.raw and (not model.stochastic or model.guidance.sample_steps > 1)
+    assert not model.raw and (not model.settings.seed or model.guidance.sample_steps > 1)
 
 
 def test_the_output_check_leaves_the_models_results_unchanged(sample_data):

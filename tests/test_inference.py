@@ -13,7 +13,7 @@ from imm_model.data.splits import loso_fold
 from imm_model.errors import DataFormatError, LabelError
 from imm_model.evaluation.metrics import afd
 from imm_model.inference import ReactionModel, parse_label
-from imm_model.paths import SAMPLE_GAN, SAMPLE_DIFFUSION, SAMPLE_MODELS
+from imm_model.paths import SAMPLE_DIFFUSION, SAMPLE_GAN, SAMPLE_MODELS
 
 
 @pytest.fixture(scope="module")
@@ -134,8 +134,8 @@ def test_the_default_model_is_the_bundled_diffusion_model(model, sample_data, tm
     """ReactionModel.load(), the one-call helpers, `imm generate` and the studio's switch default to the diffusion
     model (docs/experiments/default-model.md); the GAN stays bundled and loads by its path."""
     default = ReactionModel.load()
-    assert default.family == "diffusion" and default.stochastic and default.path == SAMPLE_DIFFUSION
-    assert model.family == "gan" and not model.stochastic
+    assert default.family == "diffusion" and default.settings.seed and default.path == SAMPLE_DIFFUSION
+    assert model.family == "gan" and not model.settings.seed
     assert list(SAMPLE_MODELS) == ["diffusion", "gan", "retrieval", "parts"] and SAMPLE_MODELS["gan"] == SAMPLE_GAN
     world = sample_data.world(7)[0]
     ours = imm_model.synthesize(world, {"hugging": 1})

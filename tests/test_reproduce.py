@@ -103,7 +103,7 @@ def test_the_models_table_trains_the_gan_and_the_diffusion_recipe_and_scores_eac
     assert len({job.key("d"), TrainJob("imm-diffusion", "s04", 1, epochs=2).key("d"), TrainJob("imm-diffusion", "s04", 0).key("d")}) == 3
     info = train_run(job, tmp_path, SAMPLE_DATA, job.key("d"), threads=1)
     assert info["steps"] == 2 and json.loads((job.run_dir(tmp_path) / "done.json").read_text())["key"] == job.key("d")
-    assert ReactionModel.load(final_checkpoint(job.run_dir(tmp_path))).stochastic
+    assert ReactionModel.load(final_checkpoint(job.run_dir(tmp_path))).settings.seed
 
 
 def test_half_split_is_stratified_and_disjoint(sample_data):

@@ -10,7 +10,7 @@ from imm_model.evaluation import review
 from imm_model.inference import ReactionModel
 from imm_model.model import classifier as classifiers
 from imm_model.model import classifier_config as classifier_configs
-from imm_model.paths import SAMPLE_GAN, SAMPLE_DIFFUSION, SAMPLE_JUDGE
+from imm_model.paths import SAMPLE_DIFFUSION, SAMPLE_GAN, SAMPLE_JUDGE
 from imm_model.reads_as import ReadsAs
 
 

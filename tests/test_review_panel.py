@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from imm_model.evaluation.review import ReviewRow
+from imm_model.families.base import SamplerSettings
 
 ACTIONS = {3: 0, 7: 1, 9: 1}  # dataset index -> class
 
@@ -50,11 +51,11 @@ class Compute:
 class StandIn(str):
     """A model as the panel sees it: a name the stand-in computation knows, and the sampler settings it takes."""
 
-    settings: tuple[str, ...] = ()
+    settings: SamplerSettings = SamplerSettings()
 
 
 class SeededStandIn(StandIn):
-    settings = ("seed",)
+    settings = SamplerSettings(seed=True)
 
 
 class Inputs(SimpleNamespace):

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imm_model.paths import SAMPLE_GAN, SAMPLE_DATA
+from imm_model.paths import SAMPLE_DATA, SAMPLE_GAN
 
 pytest.importorskip("trame")
 

@@ -17,7 +17,7 @@ from imm_model.data import labels
 from imm_model.data.dataset import InteractionDataset
 from imm_model.errors import CheckpointError, DataFormatError, IMMError, LabelError
 from imm_model.evaluation.metrics import afd
-from imm_model.families.base import Leader
+from imm_model.families.base import Leader, SamplerSettings
 from imm_model.inference import check_compatible, check_seeds
 
 FPS = 15.0  # SBU's frame rate
@@ -71,7 +71,7 @@ class ReactionModelLike(Protocol):
     raw: bool  # True: the network's own follower, without the clean-up (imm_model/cleanup.py)
     title: str  # how people name the model's family ("the paper's GAN")
     part_labels: bool  # reads a label per body part ("upper:<class>", "lower:<class>"; imm_model/data/labels.py)
-    settings: tuple[str, ...]  # the sampler settings it takes: "seed" (a seed picks among reactions), "spread", "memory"
+    settings: SamplerSettings  # the sampler settings it takes (a seed that picks among reactions, a spread, a memory)
     spread: float | None  # how loosely its sampler follows the leader, 0..1, settable; None: the model has no such setting
 
     def label_vector(self, label: Any, scale: float = 1.0) -> np.ndarray: ...
@@ -330,7 +330,7 @@ class Session:
     @property
     def seeded(self) -> bool:
         """True: a seed picks one of the current model's many reactions (it draws variations)."""
-        return "seed" in self.model.settings
+        return self.model.settings.seed
 
     def model_title(self, name: str | None = None) -> str:
         """How the page names a model of the session (default: the current one): its family's title, and its name
@@ -375,7 +375,7 @@ class Session:
     def set_spread(self, level: float, synthesize: bool = True) -> None:
         """The current model's spread (LabelError, one line, for a model without one or a value outside 0..1: nothing
         changes); `synthesize` False: the caller draws the follower."""
-        if "spread" not in self.model.settings:
+        if not self.model.settings.spread:
             raise LabelError(f"{self.model_title()} has no spread setting")
         self.model.spread = level
         if synthesize:
@@ -470,7 +470,7 @@ class Session:
 
     def compared_caption(self, name: str) -> str:
         """How the view captions a model's follower: its title, and the seed it was drawn with where it takes one."""
-        return self.model_title(name) + (f"\nseed {self.seed}" if "seed" in self.models[name].settings else "")
+        return self.model_title(name) + (f"\nseed {self.seed}" if self.models[name].settings.seed else "")
 
     @property
     def cleaned_up(self) -> bool:
@@ -515,7 +515,7 @@ class Session:
         text = mix_words(self.pinned_weights, self.class_names, self.pinned_scale)
         if self.pinned_model != self.model_name:
             text += f" · {self.model_title(self.pinned_model)}"
-        if "seed" in self.models[self.pinned_model].settings and (self.pinned_model != self.model_name or self.pinned_seed != self.seed):
+        if self.models[self.pinned_model].settings.seed and (self.pinned_model != self.model_name or self.pinned_seed != self.seed):
             text += f" · seed {self.pinned_seed}"
         if self.pinned_spread is not None and (self.pinned_model != self.model_name or self.pinned_spread != self.spread):
             text += f" · spread {self.pinned_spread:.2g}"

@@ -357,7 +357,7 @@ class ReviewPanel:
         rows = f"{len(inputs.indices)} held-out sequences (subject {inputs.subject})" if inputs.split == "held" and inputs.subject \
             else f"{len(inputs.indices)} {'held-out ' if inputs.split == 'held' else ''}sequences"
         label = "each under its own class" if inputs.labels == "match" else f"all under {self.page.session.label_text()}"
-        seeded = any("seed" in m.settings for _, m in inputs.models)
+        seeded = any(m.settings.seed for _, m in inputs.models)
         return f"{rows}, {label}{f' · seed {inputs.seed}' if seeded else ''}"
 
     # ---- what the controls do -------------------------------------------------------------------------------------------

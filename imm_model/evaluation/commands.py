@@ -118,7 +118,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from imm_model.evaluation.tables import headline, metric_table, printed_distribution
     from imm_model.inference import ReactionModel
     from imm_model.outputs import check_finite
-    from imm_model.paths import SAMPLE_GAN, SAMPLE_DATA
+    from imm_model.paths import SAMPLE_DATA, SAMPLE_GAN
 
     torch.set_num_threads(2)
     cache_dir()  # an unusable cache folder is refused before any classifier or baseline is trained for it

@@ -287,13 +287,14 @@ def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptio
     predictions = model_predictions(model, data, judges.test)
     result["model"] = method_scores(data, judges, predictions)
     result |= label_control(model, data, judges)
-    if "seed" in model.settings:  # a model that draws variations: their spread and best-of-N AFD
+    if model.settings.seed:  # a model that draws variations: their spread and best-of-N AFD
         result["variations"] = variations(model, data, judges, predictions)
     all_idx = np.arange(len(data))
     result["_latent"] = {"model": _latents(model, data, all_idx)} if latents else {}  # "_": for the figures, not the JSON
     for name in opts.baselines:
         if name == "men":
-            path = opts.men_checkpoint(subject) if opts.men_checkpoint else fold_baseline_model(opts.men_config, data, subject, opts.progress)
+            path = (opts.men_checkpoint(subject) if opts.men_checkpoint
+                    else fold_baseline_model(opts.men_config, data, subject, opts.progress))
             men = ReactionModel.load(path)
             check_compatible(men, data, str(men.path))
             prepare_model(men, data, subject, opts)

@@ -210,7 +210,7 @@ def synthesize_followers(model, leaders: list[np.ndarray], labels: np.ndarray, s
     numpy on a CPU: there chunks of CPU_SAMPLER_CHUNK rows of similar length are faster than one batch
     (benchmarks/review_table.py)."""
     order = np.argsort([len(a) for a in leaders], kind="stable")
-    chunk = CPU_SAMPLER_CHUNK if "seed" in model.settings and getattr(model, "fast", None) is not None else len(order)
+    chunk = CPU_SAMPLER_CHUNK if model.settings.seed and getattr(model, "fast", None) is not None else len(order)
     out: list[np.ndarray | None] = [None] * len(leaders)
     for start in range(0, len(order), chunk):
         rows = order[start:start + chunk]

@@ -10,8 +10,8 @@ follower stands) keys, or a length-2C sequence (upper, then lower); a class name
 overrides that part of it. Its label vector is then (2C,); a whole-body label stays (C,). A world leader is checked
 and standardized with its canonical frame once (`prepare_leader`), the family's network runs in that frame
 (`_network`), the follower goes through the clean-up and is mapped back to the leader's world frame. A family
-implements `_network` and `latent_canonical_batch`, and declares in `settings` the sampler settings it takes (a seed
-that picks among reactions, a spread, a reaction memory).
+implements `_network` and `latent_canonical_batch`, and declares in `settings` (SamplerSettings) the sampler settings
+it takes (a seed that picks among reactions, a spread, a reaction memory).
 """
 
 from __future__ import annotations
@@ -37,6 +37,15 @@ MAX_LABEL_VALUE = 10.0
 MAX_BONE_M = 5.0  # a checkpoint's follower bone lengths, metres
 MAX_TRAIN_LENGTH = 100_000  # a checkpoint's max_train_length, frames
 MAX_SAMPLES = 64  # reactions drawn by one call
+@dataclass(frozen=True)
+class SamplerSettings:
+    """The sampler settings a model takes, each a control the front ends offer."""
+
+    seed: bool = False  # a seed picks one of many reactions (variations); False: every seed gives the same one
+    spread: bool = False  # how loosely it follows the leader (`ReactionModel.spread`)
+    memory: bool = False  # starts from real reactions to similar leaders (`ReactionModel.use_memory`)
+
+
 @dataclass(frozen=True)
 class Trained:
     """What a family's `train` reports of one fold's run."""
@@ -86,17 +95,9 @@ class ReactionModel:
     family: str = ""  # the registry's name of the family (a subclass sets it)
     title: str = ""  # how people name it
     weights_prefix = ""  # the checkpoint's tensors live under `prefix.` (what `save` writes)
-    # The sampler settings the model takes, each a control the front ends offer: "seed" (a seed picks one of many
-    # reactions), "spread" (how loosely it follows the leader), "memory" (start from a real reaction). None: one
-    # reaction per leader and label.
-    settings: tuple[str, ...] = ()
+    settings: SamplerSettings = SamplerSettings()  # the sampler settings it takes (none: one reaction per leader and label)
     part_labels: bool = False  # reads a label per body part ("upper:<class>", "lower:<class>"); a family may set it
 
-
-    @property
-    def stochastic(self) -> bool:
-        """True: `seed` picks among reactions; False: every seed gives the same one."""
-        return "seed" in self.settings
 
     def __init__(self, weights: dict[str, np.ndarray], meta: dict[str, Any], path: Path | None = None, device: str = "cpu"):
         from imm_model.skeleton import Skeleton
@@ -197,7 +198,7 @@ class ReactionModel:
     def provenance(self, seed: int) -> dict[str, Any]:
         """What an output file records of how this model drew a follower: its seed (None when seeds change nothing),
         spread and reaction-memory level (None when unused)."""
-        return {"seed": seed if self.stochastic else None, "spread": self.spread, "memory": None}
+        return {"seed": seed if self.settings.seed else None, "spread": self.spread, "memory": None}
 
     # ---- labels and inputs ----------------------------------------------------------------
     def label_vector(self, label: Mapping[str, float] | Sequence[float] | np.ndarray, scale: float = 1.0) -> np.ndarray:
@@ -293,7 +294,7 @@ class ReactionModel:
         leader = self.prepare_leader(leader_world)
         vec = self.label_vector(label, scale)
         seeds = check_seeds(seed, samples)
-        if not self.stochastic:
+        if not self.settings.seed:
             seeds = seeds[:1]  # every seed gives this reaction: computed once
         world = np.stack(self.synthesize_leaders([leader] * len(seeds), vec, seeds)).astype(np.float32)
         if samples is None:

@@ -106,7 +106,7 @@ def main(argv: list[str] | None = None, adapt=None, extra: dict | None = None) -
         model = ReactionModel.load(args.checkpoint)
         if adapt is not None:
             adapt(model)
-        if model.stochastic:
+        if model.settings.seed:
             changes = {k: v for k, v in (("label_scale", scale), ("leader_scale", args.leader_scale),
                                          ("sample_steps", args.sample_steps), ("eta", args.eta),
                                          ("guided_below", args.guided_below), ("leader_below", args.leader_below),
@@ -120,7 +120,7 @@ def main(argv: list[str] | None = None, adapt=None, extra: dict | None = None) -
             if model.guidance.uses_memory:
                 model.attach_memory(data)  # the fold's training pairs: the checkpoint's held-out subject is never in it
         row = {"checkpoint": str(args.checkpoint), "fold": args.fold, "raw": args.raw,
-               "guidance": model.guidance.to_dict() if model.stochastic else None}
+               "guidance": model.guidance.to_dict() if model.settings.seed else None}
         row |= headline(evaluate_fold(model, data, args.fold, opts, latents=False))
         record(row | (extra or {}), args.out)
 

@@ -40,7 +40,7 @@ def main() -> None:
     for path in args.checkpoints:
         model = ReactionModel.load(path)
         model.raw = True
-        if args.sample_steps and model.stochastic:
+        if args.sample_steps and model.settings.seed:
             model.guidance = replace(model.guidance, sample_steps=args.sample_steps)
         followers = model.synthesize_batch_canonical(leaders, labels)
         print(f"{path}: raw {stats(followers)}; smoothed {stats([smooth(f.astype(np.float64)) for f in followers])}")

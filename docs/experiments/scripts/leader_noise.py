@@ -59,7 +59,7 @@ def main() -> None:
     ap.add_argument("rest", nargs=argparse.REMAINDER, help="-- diffusion_fold.py's arguments")
     args = ap.parse_args()
     def adapt(model) -> None:
-        if "spread" in model.settings:
+        if model.settings.spread:
             model.spread = 0.0  # the annealing is the only noise on the leader
         model.sampler = annealed_leader_sampler(model, *args.tau, args.noise)
 

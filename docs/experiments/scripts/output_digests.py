@@ -33,7 +33,7 @@ def digest(array: np.ndarray) -> str:
 def model_digests(model, data: InteractionDataset) -> dict[str, str]:
     out: dict[str, str] = {}
     names = model.class_names
-    seeds = [0, 1, 5] if model.stochastic else [0]
+    seeds = [0, 1, 5] if model.settings.seed else [0]
     for i, sid in enumerate(data.sequence_ids):
         leader = data.world(i)[0]
         own = names[int(data.actions[i])]

@@ -71,7 +71,7 @@ def main() -> None:
     from imm_model.evaluation.loso import EvalOptions, evaluate_fold
     from imm_model.evaluation.report import fold_figures
     from imm_model.inference import ReactionModel
-    from imm_model.paths import SAMPLE_GAN, SAMPLE_DATA, SAMPLE_DIFFUSION
+    from imm_model.paths import SAMPLE_DATA, SAMPLE_DIFFUSION, SAMPLE_GAN
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--checkpoint", type=Path, default=SAMPLE_DIFFUSION)
@@ -86,7 +86,7 @@ def main() -> None:
     for mode in args.mode:
         model = ReactionModel.load(args.checkpoint)
         if mode != "none":
-            if "spread" in model.settings:
+            if model.settings.spread:
                 model.spread = 0.0  # the imputation reads the clean leader
             model.sampler = imputing_sampler(model, gan, mode)
         result = evaluate_fold(model, data, args.fold, EvalOptions(baselines=("nn1",), progress=False), latents=False)

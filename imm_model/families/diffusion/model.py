@@ -12,7 +12,7 @@ import numpy as np
 
 from imm_model.data.labels import whole_body
 from imm_model.errors import CheckpointError, LabelError
-from imm_model.families.base import ReactionModel, check_compatible, described_weights
+from imm_model.families.base import ReactionModel, SamplerSettings, check_compatible, described_weights
 from imm_model.families.diffusion.denoiser_numpy import NumpyDenoiser
 from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, sample
 
@@ -40,8 +40,8 @@ class DiffusionReactionModel(ReactionModel):
         self.sampler = sample
 
     @property
-    def settings(self) -> tuple[str, ...]:
-        return ("seed", "spread", "memory") if self.config.leader_noise else ("seed", "memory")
+    def settings(self) -> SamplerSettings:
+        return SamplerSettings(seed=True, spread=self.config.leader_noise, memory=True)
 
     @property
     def part_labels(self) -> bool:
