@@ -25,3 +25,9 @@ def printable(text: str) -> str:
     """`text` safe to print as one line on a terminal: control characters (a newline or an escape sequence in a file
     name) are shown escaped as Python writes them (\\n, \\x1b), never acted on."""
     return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
+
+
+def quoted(value, limit: int = 40) -> str:
+    """A user's value in a message: repr-quoted (control characters escaped), cut to about `limit` characters."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 4] + "...'"

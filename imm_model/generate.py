@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from imm_model.data.labels import label_keys, label_text
+from imm_model.data.labels import Label, label_text
 from imm_model.device import add_device_argument
 from imm_model.errors import DataFormatError, printable
 from imm_model.inputs import check_input
@@ -76,8 +76,6 @@ def leader_files(paths: list[Path]) -> list[Path]:
 
 def label_vectors(args: argparse.Namespace, model) -> list[np.ndarray]:
     """The labels asked for, each parsed and checked once."""
-    from imm_model.inference import parse_label
-
     if args.grid:
         if args.label:
             raise ValueError("--grid makes its own labels (one per class): give --label or --grid, not both")
@@ -85,16 +83,16 @@ def label_vectors(args: argparse.Namespace, model) -> list[np.ndarray]:
         return [model.label_vector({name: 1.0}, args.scale) for name in model.class_names]
     if not args.label:
         raise ValueError("give --label (repeat it for several) or --grid")
-    return [model.label_vector(parse_label(text, model.class_names), args.scale) for text in args.label]
+    return [model.label_vector(Label.parse(text, model.class_names), args.scale) for text in args.label]
 
 
 def label_slug(vec: np.ndarray, class_names) -> str:
-    return "_".join(f"{k.replace(':', '-')}{v:+g}" for k, v in label_keys(vec, class_names).items()) or "neutral"
+    return "_".join(f"{k.replace(':', '-')}{v:+g}" for k, v in Label.of(vec, class_names).keys().items()) or "neutral"
 
 
 def _leaders(args: argparse.Namespace) -> list[tuple[str, np.ndarray, str]]:
     """-> (item name, world leader (T, J, 3), where it came from: a leader file or a dataset sequence id) per leader."""
-    from imm_model.inference import read_leader_file
+    from imm_model.data.leader_file import read_leader_file
 
     if args.leader:
         return [(f.stem, read_leader_file(f, args.bvh_map), str(f)) for f in leader_files(args.leader)]

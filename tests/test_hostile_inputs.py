@@ -42,7 +42,7 @@ from imm_model.data.dataset import InteractionDataset
 from imm_model.data.k3hi import read_mat_skeleton
 from imm_model.data.sbu import parse_skeleton_file
 from imm_model.errors import IMMError
-from imm_model.inference import read_leader_file
+from imm_model.data.leader_file import read_leader_file
 
 READERS = {"bvh": read_bvh, "leader": read_leader_file, "bundle": InteractionDataset.load, "sbu": parse_skeleton_file,
            "k3hi": read_mat_skeleton}
@@ -345,7 +345,7 @@ def test_the_messages_name_the_field(outcomes, sample_data):
 
 
 def test_flattened_and_upper_case_npz_leaders_read_as_the_plain_one(outcomes, sample_data):
-    from imm_model.inference import read_leader_file
+    from imm_model.data.leader_file import read_leader_file
 
     leader = sample_data.world(0)[0]
     for name in ("npz: leader (T, 45) flattened", "npz: upper-case suffix"):
@@ -464,10 +464,10 @@ def model():
     ("kicking=1,dancing=1", "unknown class 'dancing'"),
 ])
 def test_hostile_label_is_refused_naming_the_value(model, text, expected):
-    from imm_model.inference import parse_label
+    from imm_model.inference import Label
 
     with pytest.raises(LabelError) as info:
-        model.label_vector(parse_label(text, model.class_names))
+        model.label_vector(Label.parse(text, model.class_names))
     assert expected in str(info.value)
 
 

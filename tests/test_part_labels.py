@@ -1,4 +1,4 @@
-"""A label per body part: its spelling (`label_vector`, `label_keys`), the sampler's part terms (`label_terms`), the
+"""A label per body part: its spelling (`label_vector`, `Label.keys`), the sampler's part terms (`label_terms`), the
 training rows that teach them (training/part_mix.py `part_rows`) and a part model end to end. Followers are the
 bundled SBU data's; the sampler's network in the composition tests is a synthetic stand-in and the end-to-end model is
 trained for a few steps only (their numbers are not results)."""
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import torch
 
-from imm_model.data.labels import label_keys, whole_body
+from imm_model.data.labels import Label, whole_body
 from imm_model.errors import LabelError
 from imm_model.families import load_model
 from imm_model.families.diffusion.recipes import IMM_DIFFUSION, IMM_DIFFUSION_PARTS, DiffusionTrainConfig
@@ -134,9 +134,9 @@ def test_part_keys_parse_into_a_vector_per_part_and_back(part_model):
     names = part_model.class_names
     vec = part_model.label_vector({"shaking_hands": 1, "lower:shaking_hands": 0, "lower:pushing": -1}, scale=0.5)
     assert vec.shape == (2 * C,)
-    assert label_keys(vec, names) == {"upper:shaking_hands": 0.5, "lower:pushing": -0.5}
+    assert Label.of(vec, names).keys() == {"upper:shaking_hands": 0.5, "lower:pushing": -0.5}
     assert part_model.label_vector({"kicking": 1}).shape == (C,)  # a whole-body label stays one value per class
-    assert label_keys(part_model.label_vector({"kicking": 1, "upper:hugging": 1}), names) == {"kicking": 1, "upper:hugging": 1}
+    assert Label.of(part_model.label_vector({"kicking": 1, "upper:hugging": 1}), names).keys() == {"kicking": 1, "upper:hugging": 1}
     np.testing.assert_array_equal(part_model.label_vector(list(vec)), vec)  # 2C numbers: upper's, then lower's
     np.testing.assert_array_equal(whole_body(vec[None], C)[0], 0.5 * (vec[:C] + vec[C:]))
 

@@ -13,8 +13,8 @@ from typing import Any, Protocol
 import numpy as np
 
 from explorer.rendering.palette import display_name
-from imm_model.data import labels
 from imm_model.data.dataset import InteractionDataset
+from imm_model.data.labels import Label, whole_body
 from imm_model.errors import CheckpointError, DataFormatError, IMMError, LabelError
 from imm_model.evaluation.metrics import afd
 from imm_model.families.base import Leader, SamplerSettings
@@ -47,7 +47,7 @@ def read_upload(name: str, content: bytes, model: ReactionModelLike) -> Leader:
     Every problem is a one-line IMMError naming it (size, type, content, length)."""
     import tempfile
 
-    from imm_model.inference import read_leader_file
+    from imm_model.data.leader_file import read_leader_file
 
     suffix = Path(name).suffix.lower()
     if suffix not in UPLOAD_SUFFIXES:
@@ -104,12 +104,12 @@ def label_words(weights: Sequence[float], class_names: Sequence[str], scale: flo
     return text
 
 
-def mix_words(mix: Sequence[float], class_names: Sequence[str], scale: float = 1.0) -> str:
-    """A mix, (C,) or (2C,) (upper body's, then lower body's), in words: `label_words` for a whole-body mix, the part
-    keys as `imm generate --label` spells them where the parts differ ("upper:shaking_hands=1,lower:pushing=-1  × 2")."""
-    if len(mix) == len(class_names):
-        return label_words(mix, class_names, scale)
-    return labels.label_text(np.asarray(mix), class_names) + (f"  × {scale:.2g}" if abs(scale - 1.0) > 1e-6 else "")
+def mix_words(label: Label) -> str:
+    """A mix in words: `label_words` for a whole-body mix, the part keys as `imm generate --label` spells them where the
+    parts differ ("upper:shaking_hands=1,lower:pushing=-1  × 2")."""
+    if not label.parts_differ:
+        return label_words(label.parts[0], label.class_names, label.scale)
+    return label.text() + (f"  × {label.scale:.2g}" if abs(label.scale - 1.0) > 1e-6 else "")
 
 
 def no_parts(model: ReactionModelLike) -> LabelError:
@@ -176,16 +176,14 @@ class Session:
         # reads an upload out of this process, within a time and memory budget (explorer/serving/upload_reader.py); None: here
         self.upload_reader: Callable[[str, bytes], Leader] | None = None
         self.class_names = tuple(data.class_names)
-        # the mix: one weight per class and body part, the upper body's (trunk and arms) then the lower body's (legs and
-        # where the follower stands); a class with both parts alike is labelled for the whole body
-        self.part_weights = np.zeros((2, len(self.class_names)), np.float32)
-        self.scale = 1.0
+        # the mix: one weight per class and body part, and the scale (imm_model/data/labels.py); a class with both parts
+        # alike is labelled for the whole body
+        self.label = Label.neutral(self.class_names)
         self.vector = np.zeros(len(self.class_names), np.float32)  # the mix as the models read it, checked once per change
         self.index = -1
         self.synth: np.ndarray | None = None
-        # A/B: a pinned mix (as `mix()` gives it) and its follower for the current leader (None: nothing pinned)
-        self.pinned_weights: np.ndarray | None = None
-        self.pinned_scale = 1.0
+        # A/B: a pinned mix and its follower for the current leader (None: nothing pinned)
+        self.pinned_label: Label | None = None
         self.pinned_vector = self.vector
         self.pinned_model = self.model_name  # the pinned follower keeps its model, seed and spread: A/B can compare models
         self.pinned_seed = 0
@@ -267,34 +265,51 @@ class Session:
     def reset(self) -> np.ndarray:
         return self.set_label(np.zeros(len(self.class_names), np.float32), 1.0)
 
-    def set_label(self, weights: Sequence[float], scale: float | None = None, variations: bool = True) -> np.ndarray:
-        """The mix (and scale) -> its follower: one weight per class (C,) for the whole body, or per class and part (2C,),
-        the upper body's then the lower body's. `variations` False: the side-by-side variations wait for
-        `draw_variations` (a slider's picture goes first). A part mix is refused (LabelError, one line) while a model
-        without part labels draws: nothing changes."""
-        w = np.clip(np.asarray(weights, np.float32).reshape(-1), -1.0, 1.0)
-        c = len(self.class_names)
-        if len(w) not in (c, 2 * c):
-            raise ValueError(f"{len(w)} label weights for {c} classes (or {2 * c}: the upper body's, then the lower body's)")
-        parts = np.stack([w[:c], w[-c:]])
-        scale = self.scale if scale is None else float(scale)
-        keys = labels.label_keys(parts[0] if np.array_equal(*parts) else parts.reshape(-1), self.class_names)
-        vector = self.model.label_vector(keys, scale=scale)  # the part keys; refused here: nothing changes
-        for name in self.compared_names if len(vector) > c else ():
+    def set_label(self, label: Label | Sequence[float], scale: float | None = None, variations: bool = True) -> np.ndarray:
+        """The mix -> its follower: a Label, or one weight per class (C,) for the whole body or per class and part (2C,),
+        the upper body's then the lower body's, with `scale` (default: the current one). Weights are the sliders',
+        -1..1 (beyond is clipped). `variations` False: the side-by-side variations wait for `draw_variations` (a
+        slider's picture goes first). A mix a drawing model cannot read (a part mix beside a model without part labels,
+        NaN) is refused (LabelError, one line): nothing changes."""
+        if not isinstance(label, Label):
+            w = np.asarray(label, np.float64).reshape(-1)
+            c = len(self.class_names)
+            if len(w) not in (c, 2 * c):
+                raise ValueError(f"{len(w)} label weights for {c} classes (or {2 * c}: the upper body's, then the lower body's)")
+            label = Label.of(w, self.class_names, self.scale if scale is None else scale)
+        elif scale is not None:
+            label = label.scaled(scale)
+        label = Label(self.class_names, np.clip(label.parts, -1.0, 1.0).astype(np.float32), label.scale)  # the sliders' range and precision
+        self.vector, self.label = self.check_label(label), label
+        return self.synthesize(variations)
+
+    def check_label(self, label: Label) -> np.ndarray:
+        """The label as the current model reads it (its vector), if every model drawing it can: a part mix is refused
+        (LabelError, one line) while the current model or a compared one has no part labels."""
+        vector = self.model.label_vector(label)
+        for name in self.compared_names if label.parts_differ else ():
             if not self.models[name].part_labels:
                 raise LabelError(f"compare: {one_line(no_parts(self.models[name]))}")
-        self.vector, self.part_weights, self.scale = vector, parts, scale
-        return self.synthesize(variations)
+        return vector
+
+    @property
+    def scale(self) -> float:
+        return self.label.scale
+
+    @property
+    def part_weights(self) -> np.ndarray:
+        """(2, C) the mix's weights, the upper body's then the lower body's."""
+        return self.label.parts
 
     @property
     def weights(self) -> np.ndarray:
         """(C,) the mix as one weight per class: the whole body's (where the parts differ, their mean)."""
-        return labels.whole_body(self.part_weights.reshape(-1), len(self.class_names)).astype(np.float32)
+        return self.label.whole_body().astype(np.float32)
 
     @property
     def parts_differ(self) -> bool:
         """True: a class weighs differently on the upper and the lower body (the mix is a label per part)."""
-        return not np.array_equal(*self.part_weights)
+        return self.label.parts_differ
 
     @property
     def part_labels(self) -> bool:
@@ -303,11 +318,11 @@ class Session:
 
     def mix(self) -> np.ndarray:
         """The mix unscaled, as `set_label` takes it: (C,) when both parts are alike, else (2C,) (upper's, lower's)."""
-        return self.part_weights[0].copy() if not self.parts_differ else self.part_weights.reshape(-1).copy()
+        return self.label.mix
 
     def label_keys(self) -> dict[str, float]:
         """The mix unscaled, as one spells it: {"kicking": 1, "upper:shaking_hands": 1, "lower:pushing": -1}."""
-        return labels.label_keys(self.mix(), self.class_names)
+        return self.label.keys()
 
     def label_vector(self) -> np.ndarray:
         """The mix (weights times scale) as every model drawing it reads it: (C,), or (2C,) for a part mix (only part
@@ -315,7 +330,7 @@ class Session:
         return self.vector
 
     def label_text(self) -> str:
-        return mix_words(self.mix(), self.class_names, self.scale)
+        return mix_words(self.label)
 
     def mix_latent(self) -> np.ndarray:
         """The current leader + mix in the latent space of the map's model (the star on the latent map), whichever
@@ -323,7 +338,7 @@ class Session:
         places a part mix as its whole-body mean (the star is a place on the map, not a reaction drawn)."""
         vec = self.vector
         if not self.map_model.part_labels:
-            vec = labels.whole_body(vec, len(self.class_names)).astype(np.float32)
+            vec = whole_body(vec, len(self.class_names)).astype(np.float32)
         return self.map_model.latent_canonical_batch([self.leader], vec[None, :])[0]
 
     # ---- models and variations ------------------------------------------------------------
@@ -487,16 +502,16 @@ class Session:
     # ---- A/B: a pinned mix beside the current one ---------------------------------------------
     def pin(self) -> None:
         """Keep the current mix and its follower, to compare the next mixes with."""
-        self.pinned_weights, self.pinned_scale, self.pinned = self.mix(), self.scale, self.synth.copy()
+        self.pinned_label, self.pinned = self.label, self.synth.copy()
         self.pinned_vector = self.vector.copy()
         self.pinned_model, self.pinned_seed, self.pinned_spread = self.model_name, self.seed, self.spread
 
     def clear_pin(self) -> None:
-        self.pinned_weights = self.pinned = None
+        self.pinned_label = self.pinned = None
 
     def _synthesize_pinned(self) -> None:
         """The pinned mix for a new leader (the comparison follows the sequence)."""
-        if self.pinned_weights is not None:
+        if self.pinned_label is not None:
             model = self.models[self.pinned_model]
             vec = self.pinned_vector
             spread = model.spread
@@ -510,9 +525,9 @@ class Session:
 
     def pinned_text(self) -> str:
         """The pinned mix in words, and its model (and seed) when they are not the current ones."""
-        if self.pinned_weights is None:
+        if self.pinned_label is None:
             return ""
-        text = mix_words(self.pinned_weights, self.class_names, self.pinned_scale)
+        text = mix_words(self.pinned_label)
         if self.pinned_model != self.model_name:
             text += f" · {self.model_title(self.pinned_model)}"
         if self.models[self.pinned_model].settings.seed and (self.pinned_model != self.model_name or self.pinned_seed != self.seed):

@@ -30,6 +30,8 @@ from explorer.ui.playback import PLAYBACK_SCALE, play, playback_scale
 from explorer.ui.reads_as_panel import part_rows, reads_as_rows, unread_note
 from explorer.ui.review_panel import ReviewPanel
 from explorer.ui.url_state import apply_view, current_view, view_query
+from imm_model.data.labels import Label, number
+from imm_model.errors import LabelError
 
 PICTURE_S = 0.04  # after a new mix, the time its picture takes to leave (the next mix waits for it)
 REVIEW_DELAY_S = 0.1  # ... and the time until the 'reads as' panel, distance chart, AFD and latent star follow it
@@ -271,13 +273,14 @@ class Studio:
             self.state[f"apart_{i}"] = bool(u != lo)
         self.state.scale = self.session.scale
 
-    def slider_mix(self) -> list[float]:
-        """The sliders' mix, as Session.set_label takes it: one weight per class, or per class and part (the upper
-        body's, then the lower body's) while a class has its parts apart (linked again, both take the class's slider)."""
-        s, n = self.state, len(self.session.class_names)
-        upper = [float(s[f"w_{i}"] or 0.0) for i in range(n)]
-        lower = [float(s[f"lower_{i}"] or 0.0) if s[f"apart_{i}"] and s.part_labels else upper[i] for i in range(n)]
-        return upper if lower == upper else upper + lower
+    def slider_mix(self) -> Label:
+        """The sliders' mix: each class's slider for the whole body, or its upper and lower body's while its parts are
+        apart (linked again, both take the class's slider), and the scale. A part mix stays one whatever the models
+        drawing: the session refuses it where one cannot draw it, rather than this dropping a part unasked."""
+        s, names = self.state, self.session.class_names
+        upper = [number(s[f"w_{i}"] or 0.0, name) for i, name in enumerate(names)]
+        lower = [number(s[f"lower_{i}"] or 0.0, f"lower:{name}") if s[f"apart_{i}"] else upper[i] for i, name in enumerate(names)]
+        return Label.of_parts(upper, lower, names, number(s.scale if s.scale is not None else 1.0, "scale"))
 
     def on_mix_change(self, **_):
         """Coalesce slider messages: the latest mix wins, at most one synthesis in flight, no fixed
@@ -308,16 +311,20 @@ class Studio:
     def apply_mix(self) -> bool:
         """Synthesize with the sliders' mix and push the new picture; True when the mix changed."""
         s, ses = self.state, self.session
-        weights = self.slider_mix()
-        scale = float(s.scale if s.scale is not None else 1.0)
+        try:
+            label = self.slider_mix()
+        except LabelError:
+            with s:  # a slider value that is no number: the sliders show the mix drawn
+                self._write_label_state()
+            raise
         spread = float(s.spread or 0.0) if ses.spread is not None else None
-        if (len(weights) == len(ses.mix()) and np.allclose(weights, ses.mix()) and abs(scale - ses.scale) < 1e-9
+        if (np.allclose(label.parts, ses.label.parts) and abs(label.scale - ses.scale) < 1e-9
                 and spread == ses.spread and ses.synth is not None and s.mix_count):
             return False
         if spread is not None:
             ses.set_spread(spread, synthesize=False)
         try:
-            ses.set_label(weights, scale, variations=False)  # the side-by-side variations follow with the review
+            ses.set_label(label, variations=False)  # the side-by-side variations follow with the review
         except Exception:
             with s:  # refused (a part mix beside a model without part labels): the sliders show the mix drawn
                 self._write_label_state()

@@ -26,14 +26,16 @@ class Compare:
         self.show()
 
     def swap(self) -> None:
-        """The pinned mix goes back on the sliders and the current one is pinned in its place."""
+        """The pinned mix goes back on the sliders and the current one is pinned in its place. A pinned mix the models
+        drawing now cannot read (a part mix beside a model without part labels) is refused in one line, pin kept."""
         ses = self.page.session
-        if ses.pinned_weights is None:
+        pinned = ses.pinned_label
+        if pinned is None:
             return
-        weights, scale = ses.pinned_weights.copy(), ses.pinned_scale
+        ses.check_label(pinned)
         ses.pin()
         self.show()
-        self.set_label(weights, scale)  # re-synthesizes as a slider move does
+        self.set_label(pinned.mix, pinned.scale)  # re-synthesizes as a slider move does
 
     def clear(self) -> None:
         self.page.session.clear_pin()

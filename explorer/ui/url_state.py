@@ -17,8 +17,8 @@ from typing import TYPE_CHECKING, Any, Protocol
 from urllib.parse import parse_qs, quote, urlencode
 
 from explorer.session.session import MAX_COMPARED, one_line
-from imm_model.data.labels import PARTS
-from imm_model.errors import LabelError
+from imm_model.data.labels import Label
+from imm_model.errors import LabelError, quoted
 
 if TYPE_CHECKING:
     from explorer.rendering.scene import Scene
@@ -49,26 +49,24 @@ def _number(text: str, lo: float, hi: float, what: str) -> float:
     try:
         x = float(text)
     except ValueError:
-        raise ValueError(f"{what} {text!r} is not a number") from None
+        raise ValueError(f"{what} {quoted(text)} is not a number") from None
     if not math.isfinite(x) or not lo <= x <= hi:
-        raise ValueError(f"{what} {text!r} is outside {lo:g}..{hi:g}")
+        raise ValueError(f"{what} {quoted(text)} is outside {lo:g}..{hi:g}")
     return x
 
 
-def _weights(text: str, class_names) -> dict[str, float]:
-    """"kicking:1,upper:hugging:0.5" -> {label key: weight} (a class alone is the whole body)."""
+def _mix(text: str, class_names) -> Label:
+    """"kicking:1,upper:hugging:0.5" -> the Label (a class alone is the whole body), each weight a slider's, -1..1."""
     if text == "none":
-        return {}
-    weights = {}
-    for item in text.split(","):
-        key, _, value = item.rpartition(":") if item.count(":") > 1 else item.partition(":")
-        part, _, name = key.rpartition(":")
-        if name not in class_names:
-            raise ValueError(f"mix: unknown class {name[:40]!r}")
-        if part and part not in PARTS:
-            raise ValueError(f"mix: unknown body part {part[:20]!r} in {key[:60]!r} ({' or '.join(PARTS)})")
-        weights[key] = _number(value, -1.0, 1.0, f"mix weight of {key}")
-    return weights
+        return Label.neutral(class_names)
+    try:
+        label = Label.parse(text, class_names, value_sep=":")
+    except LabelError as err:
+        raise ValueError(f"mix: {one_line(err)}") from None
+    for key, w in label.keys().items():
+        if not -1.0 <= w <= 1.0:
+            raise ValueError(f"mix weight of {key} {w:g} is outside -1..1")
+    return label
 
 
 def parse_view(query: str, class_names, sequence_ids, cameras, models=()) -> tuple[dict, list[str]]:
@@ -78,15 +76,15 @@ def parse_view(query: str, class_names, sequence_ids, cameras, models=()) -> tup
         return {}, [f"the link's view is {len(query)} characters long (at most {MAX_QUERY}): ignored"]
     fields = {k: v[-1] for k, v in parse_qs(query, keep_blank_values=True).items()}
     parsers = {
-        "seq": lambda v: v if v in sequence_ids else _fail(f"no sequence {v!r} in this dataset"),
-        "mix": lambda v: _weights(v, class_names),
+        "seq": lambda v: v if v in sequence_ids else _fail(f"no sequence {quoted(v)} in this dataset"),
+        "mix": lambda v: _mix(v, class_names),
         "scale": lambda v: _number(v, 0.0, 2.0, "scale"),
         "frame": lambda v: int(_number(v, 0, 1e6, "frame")),
-        "layout": lambda v: v if v in LAYOUTS else _fail(f"layout {v!r} is not one of {', '.join(LAYOUTS)}"),
-        "camera": lambda v: v if v in cameras else _fail(f"camera {v!r} is not one of {', '.join(cameras)}"),
-        "map": lambda v: v if v in MAPS else _fail(f"map {v!r} is not one of {', '.join(MAPS)}"),
-        "raw": lambda v: {"1": True, "0": False}[v] if v in ("0", "1") else _fail(f"raw {v!r} is not 0 or 1"),
-        "model": lambda v: v if v in models else _fail(f"model {v!r} is not one of {', '.join(models) or 'this studio'}"),
+        "layout": lambda v: v if v in LAYOUTS else _fail(f"layout {quoted(v)} is not one of {', '.join(LAYOUTS)}"),
+        "camera": lambda v: v if v in cameras else _fail(f"camera {quoted(v)} is not one of {', '.join(cameras)}"),
+        "map": lambda v: v if v in MAPS else _fail(f"map {quoted(v)} is not one of {', '.join(MAPS)}"),
+        "raw": lambda v: {"1": True, "0": False}[v] if v in ("0", "1") else _fail(f"raw {quoted(v)} is not 0 or 1"),
+        "model": lambda v: v if v in models else _fail(f"model {quoted(v)} is not one of {', '.join(models) or 'this studio'}"),
         "seed": _seed,
         "spread": lambda v: _number(v, 0.0, 1.0, "spread"),
         "compare": lambda v: _compared(v, models),
@@ -177,14 +175,14 @@ def apply_view(studio: ViewHolder, query: str) -> None:
                 s.spread = view["spread"]  # applied with the mix below (app.py's mix handler)
     if "seq" in view:
         studio.load_sequence(ses.data.index_of(view["seq"]))
-    if "mix" in view:  # as the model the link opens reads it (one without part labels refuses a part key: left out)
+    if "mix" in view:  # as every model the link draws with reads it (one without part labels refuses a part mix: left out)
         try:
-            view["mix"] = ses.model.label_vector(view["mix"])
+            ses.check_label(view["mix"])
         except LabelError as err:
             problems.append(f"mix: {one_line(err)}")
             del view["mix"]
     if "mix" in view or "scale" in view:
-        studio.set_label(view.get("mix", ses.mix()), view.get("scale", 1.0))
+        studio.set_label(view["mix"].mix if "mix" in view else ses.mix(), view.get("scale", 1.0))
     with s:
         if "frame" in view:
             s.frame = min(view["frame"], ses.num_frames - 1)

@@ -26,7 +26,7 @@ import numpy as np
 
 from imm_model.cleanup import clean_follower
 from imm_model.data.canonical import CanonicalFrame
-from imm_model.data.labels import PARTS
+from imm_model.data.labels import PARTS, Label
 from imm_model.data.sequence import check_world_positions
 from imm_model.errors import CheckpointError, DataFormatError, LabelError
 
@@ -201,57 +201,24 @@ class ReactionModel:
         return {"seed": seed if self.settings.seed else None, "spread": self.spread, "memory": None}
 
     # ---- labels and inputs ----------------------------------------------------------------
-    def label_vector(self, label: Mapping[str, float] | Sequence[float] | np.ndarray, scale: float = 1.0) -> np.ndarray:
-        """A label (name -> value mapping, or one value per class; per class and part for a part model) -> float32,
-        times `scale`: (C,) for a whole-body label, (2C,) (upper, then lower) when a part is named."""
+    def label_vector(self, label: Label | Mapping[str, float] | Sequence[float] | np.ndarray, scale: float = 1.0) -> np.ndarray:
+        """A label (data/labels.py: a Label, {class or part:class: value}, or one value per class, or per class and part)
+        times `scale` -> float32: (C,) for a whole-body label, (2C,) (upper, then lower) for a label per part, which a
+        model without part labels refuses in one line."""
+        lab = Label.of(label, self.class_names, scale)
         c = len(self.class_names)
-        if isinstance(label, Mapping):
-            vec = self._parse_label_mapping(label)
-        else:
-            if isinstance(label, str | bytes):
-                raise LabelError("a label is a mapping {class: value} or a sequence of numbers, not a string")
-            try:
-                vec = np.asarray(label, dtype=np.float64)
-            except (TypeError, ValueError):
-                raise LabelError("label values must be numbers") from None
-            widths = (c, 2 * c) if self.part_labels else (c,)
-            if vec.ndim != 1 or len(vec) not in widths:
-                per_part = f", or {2 * c} (upper body's, then lower body's)" if self.part_labels else ""
-                raise LabelError(f"label has shape {vec.shape}; expected {c} values ({', '.join(self.class_names)}){per_part}")
-        scale = as_float(scale, "scale")
-        with np.errstate(all="ignore"):
-            vec = vec * scale
-        if not (np.isfinite(vec).all() and np.isfinite(scale)):
-            raise LabelError("label values must be finite (no NaN or infinity)")
+        if not (self.part_labels or isinstance(label, Label | Mapping)) and np.size(label) != c:  # a vector per part
+            raise LabelError(f"label has shape ({np.size(label)},); expected {c} values ({', '.join(self.class_names)})")
+        if lab.parts_differ and not self.part_labels:
+            key = next((k for k in lab.keys() if ":" in k), "")
+            raise LabelError(f"{self.title} takes no label per body part ({key!r}); give the class alone, for the whole body")
+        vec = lab.vector()
         if np.abs(vec).max(initial=0.0) > MAX_LABEL_VALUE:
             k = int(np.argmax(np.abs(vec)))
             name = self.class_names[k % c] if len(vec) == c else f"{PARTS[k // c]}:{self.class_names[k % c]}"
             raise LabelError(f"label value {name}={vec[k]:g} (after the scale) is outside the range of "
                              f"label values, -{MAX_LABEL_VALUE:g}..{MAX_LABEL_VALUE:g}")
         return vec.astype(np.float32)
-
-    def _parse_label_mapping(self, label: Mapping) -> np.ndarray:
-        """{class or part:class: value} -> (C,) float64, or (2C,) when a part is named (a class alone on both parts, a
-        part key overriding its part)."""
-        c = len(self.class_names)
-        whole, parts = {}, {}
-        for key, value in label.items():
-            part, sep, name = str(key).partition(":") if isinstance(key, str) and ":" in key else ("", "", key)
-            if name not in self.class_names or (sep and part not in PARTS):
-                raise LabelError(f"unknown class {key!r}; classes: {', '.join(self.class_names)}"
-                                 + (f", each alone or after {' or '.join(p + ':' for p in PARTS)}" if self.part_labels else ""))
-            if sep and not self.part_labels:
-                raise LabelError(f"{self.title} takes no label per body part ({key!r}); give the class alone, for the whole body")
-            (parts if sep else whole)[(part, name) if sep else name] = as_float(value, str(key))
-        vec = np.zeros(c, dtype=np.float64)
-        for name, v in whole.items():
-            vec[self.class_names.index(name)] = v
-        if not parts:
-            return vec
-        vec = np.concatenate([vec, vec])
-        for (part, name), v in parts.items():
-            vec[PARTS.index(part) * c + self.class_names.index(name)] = v
-        return vec
 
     def check_leader(self, leader: np.ndarray) -> np.ndarray:
         """Validate a (T, J, 3) leader motion -> float64 array, else DataFormatError (one line)."""
@@ -465,10 +432,3 @@ def _bone_lengths(values, skeleton, path) -> np.ndarray | None:
         raise CheckpointError(f"{path}: follower_bone_lengths must be {len(skeleton.bones)} lengths in (0, {MAX_BONE_M:g}] m, "
                               "one per bone")
     return lengths
-
-
-def as_float(v, name: str) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        raise LabelError(f"value for {name!r} is not a number: {v!r}") from None
