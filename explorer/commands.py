@@ -84,8 +84,7 @@ def access(args: argparse.Namespace) -> tuple[str | None, bool]:
 def run_explore(args: argparse.Namespace) -> int:
     missing = missing_studio_modules()
     if missing:
-        print(f"imm explore: error: the studio needs its extra: pip install 'imm-studio[studio]' (missing: {', '.join(missing)})",
-              file=sys.stderr)
+        _error(f"the studio needs its extra: pip install 'imm-studio[studio]' (missing: {', '.join(missing)})")
         return 2
     from explorer.serving.launcher import LaunchConfig, LaunchError, launch
     from imm_model.paths import SAMPLE_DATA, SAMPLE_MODELS
@@ -96,29 +95,29 @@ def run_explore(args: argparse.Namespace) -> int:
     names = [name for name, _ in models]
     if len(set(names)) != len(names):
         twice = next(n for n in names if names.count(n) > 1)
-        print(f"imm explore: error: --model {twice}: given twice; give each model a name of its own", file=sys.stderr)
+        _error(f"--model {twice}: given twice; give each model a name of its own")
         return 2
     for what, path in ((("data file", data),) + tuple((f"--model {name}: checkpoint", path) for name, path in models)
                        + ((("judge", judge),) if judge else ())):
         if not Path(path).is_file():
-            print(f"imm explore: error: {what} not found: {path}", file=sys.stderr)
+            _error(f"{what} not found: {path}")
             return 2
     if args.max_clients < 1:
-        print(f"imm explore: error: --max-clients must be at least 1 (one browser tab), not {args.max_clients}", file=sys.stderr)
+        _error(f"--max-clients must be at least 1 (one browser tab), not {args.max_clients}")
         return 2
     if args.port is None:
         args.port = 0 if args.desktop else 8080
     if not 0 <= args.port <= 65535:
-        print(f"imm explore: error: --port must be 0..65535, not {args.port}", file=sys.stderr)
+        _error(f"--port must be 0..65535, not {args.port}")
         return 2
     base_url = args.base_url if args.base_url is None or args.base_url.endswith("/") else args.base_url + "/"
     if base_url is not None and not base_url.startswith(("http://", "https://")):
-        print(f"imm explore: error: --base-url must start with http:// or https://, not {args.base_url!r}", file=sys.stderr)
+        _error(f"--base-url must start with http:// or https://, not {args.base_url!r}")
         return 2
     try:
         token, no_auth = access(args)
     except ValueError as err:
-        print(f"imm explore: error: {err}", file=sys.stderr)
+        _error(f"{err}")
         return 2
     config = LaunchConfig(
         token=token, no_auth=no_auth, base_url=base_url,
@@ -135,17 +134,24 @@ def run_explore(args: argparse.Namespace) -> int:
         try:
             check()
         except DesktopError as err:
-            print(f"imm explore: error: {err}", file=sys.stderr)
+            _error(f"{err}")
             return 2
         window = Window()
         config.open_browser, config.open_url = True, window.open
     try:
         rc = launch(config)
     except LaunchError as err:
-        print(f"imm explore: error: {err}", file=sys.stderr)
+        _error(f"{err}")
         return 2
     finally:
         closed = window.close() if window else None
     if window is not None and closed not in (None, *CLOSED):
         return 2  # the window failed to open, and said why
     return rc
+
+
+def _error(message: str) -> None:
+    """One line on stderr, control characters escaped (a path may hold a newline or an escape sequence)."""
+    from imm_model.errors import printable
+
+    print(f"imm explore: error: {printable(message)}", file=sys.stderr)

@@ -91,6 +91,7 @@ def _cmd_build_judge(args: argparse.Namespace) -> int:
     from imm_model.cache import fold_classifier
     from imm_model.checkpoint import save_checkpoint, sidecar_path
     from imm_model.data.dataset import InteractionDataset
+    from imm_model.errors import DataFormatError
     from imm_model.model.classifier_config import FOLLOWER_JUDGE, LOWER_JUDGE, UPPER_JUDGE
     from imm_model.outputs import Output, plan_outputs
     from imm_model.paths import SAMPLE_DATA, SAMPLE_JUDGE, SAMPLE_LOWER_JUDGE, SAMPLE_UPPER_JUDGE
@@ -101,6 +102,9 @@ def _cmd_build_judge(args: argparse.Namespace) -> int:
     out = args.out or default_out
     plan_outputs([Output(out), Output(sidecar_path(out), "--out's sidecar")], [data_path], args.force)
     data = InteractionDataset.load(data_path)
+    if cfg.inputs == "lower" and not data.skeleton.leg_joints:  # the judge would read the body centre alone
+        raise DataFormatError(f"{data_path}: its {data.skeleton.name} skeleton names no legs (body parts ending in 'leg'), "
+                              "so a lower-body judge would read none")
     model = fold_classifier(cfg, data, args.fold)
     save_checkpoint(out, model.state_dict(), {"kind": "classifier", "config": cfg.to_dict(), "subject": args.fold,
                                               "class_names": list(data.class_names), "dataset": data.dataset}, args.force)

@@ -35,7 +35,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--format", choices=("npz", "bvh"), default="npz", help="file type of each item in a batch (default npz)")
     p.add_argument("--checkpoint", type=Path, default=None,
                    help="default: the bundled diffusion model; the GAN is sample_data/imm_sbu.safetensors")
-    p.add_argument("--data", type=Path, default=None, help="dataset for --sequence(s) (default: the bundled sample)")
+    p.add_argument("--data", type=Path, default=None,
+                   help="dataset for --sequence(s), and the one a retrieval --checkpoint retrieves from (default: the bundled sample)")
     p.add_argument("--bvh-map", type=Path, default=None, help="JSON {kinect joint: BVH joint name} for a skeleton the name table misses")
     p.add_argument("--raw", action="store_true",
                    help="the network's own follower, without the clean-up (rigid bones, planted feet)")
@@ -151,7 +152,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     if not single and args.out.suffix.lower() in (".npz", ".bvh"):
         raise ValueError(f"--out {args.out}: several items need a folder, not a file name")
     torch.set_num_threads(2)
-    model = ReactionModel.load(args.checkpoint, resolve_device(args.device))
+    model = ReactionModel.load(args.checkpoint, resolve_device(args.device), data=args.data)
     model.raw, model.average_placement = args.raw, args.average_placement
     name = model.path.name if model.path else "this model"
     if len(seeds) > 1 and not model.settings.seed:

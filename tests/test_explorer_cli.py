@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from imm_model.paths import SAMPLE_GAN, SAMPLE_JUDGE
+from imm_model.paths import SAMPLE_GAN, SAMPLE_JUDGE, SAMPLE_UPPER_JUDGE
 
 pytest.importorskip("trame")
 
@@ -385,3 +385,18 @@ def test_the_next_spare_waits_for_quiet_tabs(monkeypatch):
     assert busy_quiet >= quiet_s and busy < latest  # 0.6 s of messages, then SPARE_QUIET_S of quiet
     assert 0.2 <= asked < latest  # another tab asked: at once, in the middle of the traffic
     assert latest <= endless < 60  # never quiet: SPARE_LATEST_S after the claim
+
+
+@pytest.mark.skipif(not SAMPLE_UPPER_JUDGE.exists(), reason="bundled body-part judge missing")
+def test_a_body_part_judge_is_refused_as_the_whole_followers_judge(tmp_path):
+    """Its reading of the trunk and arms would be shown as the whole follower's."""
+    assert_one_line_error(run_explore("--judge", str(SAMPLE_UPPER_JUDGE), "--cache-dir", str(tmp_path)),
+                          "upper_judge.safetensors: a judge of the upper body alone; --judge takes one that reads the whole")
+
+
+def test_control_characters_in_a_path_are_shown_escaped_on_one_line(tmp_path):
+    """A newline or an escape sequence in a file name never splits the line nor acts on the terminal."""
+    proc = run_explore("--model", f"mine={tmp_path}/a\nb\x1b[2J.safetensors")
+    assert_one_line_error(proc, "--model mine: checkpoint not found", "a\\nb\\x1b[2J.safetensors")
+    assert "\x1b" not in proc.stderr
+    assert_one_line_error(run_explore("--data", f"{tmp_path}/x\ny.npz"), "data file not found", "x\\ny.npz")

@@ -425,3 +425,41 @@ def test_the_input_check_refuses_fifos_devices_and_links_to_them_without_opening
     with pytest.raises(DataFormatError, match=r"big: 0.0 MB; leader files up to 0 MB are read"):
         read_input(tmp_path / "big", "leader file", 1000)
     assert read_input(BVH, "leader file", 10**6) == BVH.read_bytes()
+
+
+# ---- labels, judges and files that are not what they claim ----------------------------------------------------------
+@pytest.mark.parametrize("label, words", [
+    ("kicking=1,upper:kicking=-1,lower:kicking=-1", "kicking is given for the whole body and then for both parts apart"),
+    ("upper:", "'upper:' is not a label item: write class=value, upper:class=value or lower:class=value"),
+    ("upper:kicking:1", "'upper:kicking:1' is not a label item"),
+    ("kicking=1,kicking=-1", "gives kicking twice"),
+    ("kickin", "unknown class 'kickin'"),
+])
+def test_a_label_that_contradicts_itself_or_is_misspelled_is_one_line_naming_the_spelling(tmp_path, capsys, label, words):
+    assert main(["generate", "--leader", str(BVH), "--label", label, "--out", str(tmp_path / "x.npz")]) == 2
+    one_line_error(capsys, words)
+    assert not (tmp_path / "x.npz").exists()
+
+
+def test_a_classifier_given_as_a_model_is_named_as_such(tmp_path, capsys):
+    from imm_model.paths import SAMPLE_JUDGE
+
+    assert main(["generate", "--leader", str(BVH), "--label", "kicking=1", "--checkpoint", str(SAMPLE_JUDGE),
+                 "--out", str(tmp_path / "x.npz")]) == 2
+    one_line_error(capsys, "follower_judge.safetensors: a reaction classifier (a 'reads as' judge), not a reaction model")
+
+
+def test_a_lower_body_judge_is_refused_for_a_skeleton_without_legs(tmp_path, capsys):
+    """Its view would hold the body centre alone: a 'lower-body' judge that reads no leg."""
+    from dataclasses import replace
+
+    from imm_model.data.dataset import InteractionDataset
+
+    data = InteractionDataset.load(SAMPLE_DATA)
+    legless = replace(data.skeleton, name="legless",
+                      body_parts={k: v for k, v in data.skeleton.body_parts.items() if not k.endswith("leg")})
+    replace(data, skeleton=legless).save(tmp_path / "legless.npz")
+    assert main(["data", "build-judge", "--inputs", "lower", "--data", str(tmp_path / "legless.npz"),
+                 "--out", str(tmp_path / "lower.safetensors")]) == 2
+    one_line_error(capsys, "legless.npz: its legless skeleton names no legs", "a lower-body judge would read none")
+    assert not (tmp_path / "lower.safetensors").exists()

@@ -68,8 +68,42 @@ def test_a_retrieval_checkpoint_whose_data_is_gone_or_changed_is_refused_in_one_
     meta = json.loads(SAMPLE_RETRIEVAL.with_suffix(".json").read_text())
     (tmp_path / "r.json").write_text(json.dumps(meta | {"retrieval": meta["retrieval"] | {"data_file": "elsewhere.npz",
                                                                                           "data_path": "elsewhere.npz"}}))
-    with pytest.raises(CheckpointError, match="its training data elsewhere.npz .* is neither at"):
+    with pytest.raises(CheckpointError, match="its training data elsewhere.npz .* is neither beside it nor among the bundled"):
         load_model(tmp_path / "r.safetensors")
     (tmp_path / "r.json").write_text(json.dumps(meta | {"retrieval": meta["retrieval"] | {"data_hash": "0" * 16}}))
     with pytest.raises(CheckpointError, match="content hash 0000000000000000"):
         load_model(tmp_path / "r.safetensors")
+
+
+@pytest.mark.parametrize("written", ["../../../../etc/passwd", "/etc/passwd"])
+def test_a_retrieval_sidecar_never_makes_imm_open_a_path_written_in_it(tmp_path, monkeypatch, written):
+    """The data is found beside the checkpoint, among the bundled data, or where the user names it; a path in the
+    sidecar (whoever wrote the file chose it) is never opened."""
+    from imm_model.data.dataset import InteractionDataset
+
+    opened = []
+    real_load = InteractionDataset.load
+    monkeypatch.setattr(InteractionDataset, "load", classmethod(lambda cls, p, *a, **k: opened.append(str(p)) or real_load(p, *a, **k)))
+    shutil.copy(SAMPLE_RETRIEVAL, tmp_path / "r.safetensors")
+    meta = json.loads(SAMPLE_RETRIEVAL.with_suffix(".json").read_text())
+    (tmp_path / "r.json").write_text(json.dumps(meta | {"retrieval": meta["retrieval"] | {"data_path": written,
+                                                                                          "data_file": written}}))
+    with pytest.raises(CheckpointError, match="its training data passwd .* is neither beside it nor among the bundled"):
+        load_model(tmp_path / "r.safetensors")
+    assert not any("etc" in p for p in opened), opened
+
+
+def test_a_retrieval_model_reads_the_bundle_the_user_names(tmp_path, data):
+    """Trained on a bundle kept elsewhere: found with --data (load's `data`), refused in one line without it."""
+    from imm_model.paths import SAMPLE_DATA
+
+    elsewhere = tmp_path / "bundles" / "mine.npz"
+    elsewhere.parent.mkdir()
+    shutil.copy(SAMPLE_DATA, elsewhere)
+    assert main(["train", "--config", "retrieval", "--fold", "s02", "--data", str(elsewhere), "--out", str(tmp_path / "run"),
+                 "--quiet"]) == 0
+    final = tmp_path / "run" / "fold-s02" / "final.safetensors"
+    assert "data_path" not in json.loads(final.with_suffix(".json").read_text())["retrieval"]
+    with pytest.raises(CheckpointError, match=r"mine.npz .* \(name it with --data\)"):
+        load_model(final)
+    assert load_model(final, data=elsewhere).held_out_subject == "s02"

@@ -165,6 +165,77 @@ class _State(dict):
         return False
 
 
+# ---- a part mix is never drawn as another label ------------------------------------------------------------------------
+def test_a_part_link_with_a_compared_model_without_part_labels_is_named_and_the_mix_left_out(session):
+    from types import SimpleNamespace
+
+    from explorer.ui.url_state import apply_view
+
+    moved, state = [], _State()
+    holder = SimpleNamespace(session=session, state=state, scene=None, load_sequence=lambda i: None,
+                             set_label=lambda w, scale=1.0: moved.append((list(w), scale)), set_camera=lambda p: None)
+    session.set_compared(["gan"])
+    apply_view(holder, "?mix=upper:shaking_hands:1,lower:pushing:-1")
+    assert state.error == ("link: mix: compare: the paper's GAN takes no label per body part: link each class's parts "
+                           "(or reset the mix) first")
+    assert all(len(w) == C for w, _ in moved)  # never the part mix's upper half as a whole-body label
+
+
+def test_the_sliders_keep_a_part_mix_whatever_the_models_and_a_nan_is_refused_in_one_line(session):
+    """The sliders' mix is what they show: a part mix stays one (the session refuses it where a model cannot draw it),
+    and a NaN from a hostile client is named as such, the mix drawn before kept."""
+    from types import SimpleNamespace
+
+    from explorer.ui.app import Studio
+
+    state = _State(scale=1.0, part_labels=False)
+    for i in range(C):
+        state[f"w_{i}"], state[f"lower_{i}"], state[f"apart_{i}"] = 0.0, 0.0, False
+    state[f"w_{SHAKE}"], state[f"lower_{SHAKE}"], state[f"apart_{SHAKE}"] = 1.0, -1.0, True
+    studio = SimpleNamespace(state=state, session=session)
+    label = Studio.slider_mix(studio)
+    assert label.keys() == {"upper:shaking_hands": 1.0, "lower:shaking_hands": -1.0}
+    session.set_model("gan")
+    before = session.synth.copy()
+    with pytest.raises(LabelError, match="the paper's GAN takes no label per body part"):
+        session.set_label(label)
+    state[f"w_{SHAKE}"] = float("nan")
+    with pytest.raises(LabelError, match="label values must be finite"):
+        session.set_label(Studio.slider_mix(studio))
+    state[f"w_{SHAKE}"] = "a lot"
+    with pytest.raises(LabelError, match="value for 'shaking_hands' is not a number: 'a lot'"):
+        Studio.slider_mix(studio)
+    np.testing.assert_array_equal(session.synth, before)
+
+
+def test_swapping_in_a_pinned_part_mix_under_a_model_without_part_labels_is_refused_and_the_pin_kept(session):
+    from types import SimpleNamespace
+
+    from explorer.ui.compare import Compare
+
+    session.set_label(part_mix({SHAKE: 1}, {PUSH: -1}))
+    session.pin()
+    session.set_label(np.eye(C)[0])
+    session.set_model("gan")
+    moved = []
+    page = SimpleNamespace(session=session, state=_State(), ctrl=SimpleNamespace(view_update=lambda **k: None),
+                           guarded=lambda f: f)
+    compare = Compare(page, SimpleNamespace(set_pinned=lambda p: None), set_label=lambda *a: moved.append(a),
+                      update_review=lambda: None)
+    pinned = session.pinned_label
+    with pytest.raises(LabelError, match="the paper's GAN takes no label per body part"):
+        compare.swap()
+    assert session.pinned_label is pinned and pinned.parts_differ and not moved  # nothing lost, nothing drawn
+    assert session.label_keys() == {"kicking": 1.0}
+
+
+def test_a_link_with_a_huge_value_is_named_in_a_short_line(session):
+    from explorer.ui.url_state import parse_view
+
+    _, problems = parse_view("?model=" + "x" * 1990, session.class_names, set(), (), tuple(session.models))
+    assert len(problems) == 1 and len(problems[0]) < 200 and problems[0].startswith("model 'xxxx"), problems
+
+
 # ---- the drawer in a browser ------------------------------------------------------------------------------------------
 @pytest.mark.browser
 @pytest.mark.slow

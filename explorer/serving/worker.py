@@ -92,7 +92,9 @@ def load_models(named: list[tuple[str, Path]], data) -> dict:
 
 
 def load_reader(path: Path | None):
-    """The 'reads as' classifier, or None when asked for none or when the bundled one is absent."""
+    """The 'reads as' classifier, or None when asked for none or when the bundled one is absent. A body-part judge is
+    refused (CheckpointError, one line): the panel would show its reading of one part as the whole follower's."""
+    from imm_model.errors import CheckpointError
     from imm_model.paths import SAMPLE_JUDGE
     from imm_model.reads_as import ReadsAs
 
@@ -100,7 +102,11 @@ def load_reader(path: Path | None):
         return None
     if path is None and not SAMPLE_JUDGE.exists():
         return None
-    return ReadsAs.load(path or SAMPLE_JUDGE)
+    reader = ReadsAs.load(path or SAMPLE_JUDGE)
+    if reader.part is not None:
+        raise CheckpointError(f"{path or SAMPLE_JUDGE}: a judge of the {reader.part} body alone; --judge takes one that reads "
+                              "the whole follower (imm data build-judge --inputs follower)")
+    return reader
 
 
 def load_part_readers(path: Path | None) -> dict:

@@ -90,7 +90,7 @@ def load_model(checkpoint: Path, data: InteractionDataset) -> ReactionModelLike:
     checkpoint = Path(checkpoint)
     if not checkpoint.exists():
         raise CheckpointError(f"{checkpoint}: checkpoint not found")
-    model = ReactionModel.load(checkpoint)
+    model = ReactionModel.load(checkpoint, data=data.path)
     check_compatible(model, data, str(checkpoint))
     return model
 

@@ -131,7 +131,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     results, latent = [], None
     for k, (path, subject) in enumerate(jobs, start=1):
         t0 = time.perf_counter()
-        model = ReactionModel.load(path)
+        model = ReactionModel.load(path, data=args.data)
         if model.held_out_subject != subject:
             print(f"warning: {path} held out {model.held_out_subject}, not {subject}: its training set contains the test "
                   f"subject, so these numbers are optimistic", file=sys.stderr)

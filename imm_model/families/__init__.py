@@ -22,18 +22,22 @@ FAMILIES: dict[str, Family] = {f.name: f for f in (gan.FAMILY, diffusion.FAMILY,
 LEGACY_FAMILY = "gan"  # checkpoints saved before sidecars named their family hold the paper's GAN
 
 
-def load_model(path: Path | str | None = None, device: str = "cpu") -> ReactionModel:
+def load_model(path: Path | str | None = None, device: str = "cpu", data: Path | str | None = None) -> ReactionModel:
     """Load a checkpoint of any family (default: the bundled default model, paths.SAMPLE_DEFAULT, the diffusion model)
-    as that family's ReactionModel; any problem is one CheckpointError line naming the file."""
+    as that family's ReactionModel; any problem is one CheckpointError line naming the file. `data`: the dataset bundle
+    the user names, for a model that reads its training data at load (retrieval); others ignore it."""
     from imm_model.checkpoint import load_checkpoint
     from imm_model.paths import SAMPLE_DEFAULT
 
     path = Path(path) if path is not None else SAMPLE_DEFAULT
     arrays, meta = load_checkpoint(path, framework="np")
+    if meta.get("kind") == "classifier":
+        raise CheckpointError(f"{path}: a reaction classifier (a 'reads as' judge), not a reaction model")
     name = meta.get("family", LEGACY_FAMILY)
     if name not in FAMILIES:
         raise CheckpointError(f"{path}: sidecar family {str(name)[:40]!r} is none of {', '.join(FAMILIES)}")
-    return check_model_outputs(FAMILIES[name].model_class().from_checkpoint(arrays, meta, path, device))
+    model = FAMILIES[name].model_class().from_checkpoint(arrays, meta, path, device, None if data is None else Path(data))
+    return check_model_outputs(model)
 
 
 def recipe_names() -> list[str]:

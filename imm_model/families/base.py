@@ -127,16 +127,19 @@ class ReactionModel:
 
     # ---- loading and saving ---------------------------------------------------------------
     @classmethod
-    def load(cls, path: Path | str | None = None, device: str = "cpu") -> ReactionModel:
-        """Load a checkpoint of any registered family (default: the bundled diffusion model, paths.SAMPLE_DEFAULT).
+    def load(cls, path: Path | str | None = None, device: str = "cpu", data: Path | str | None = None) -> ReactionModel:
+        """Load a checkpoint of any registered family (default: the bundled diffusion model, paths.SAMPLE_DEFAULT);
+        `data` names the bundle a retrieval model retrieves from when it is neither beside the checkpoint nor bundled.
         Any problem -> CheckpointError."""
         from imm_model.families import load_model
 
-        return load_model(path, device)
+        return load_model(path, device, data)
 
     @classmethod
-    def from_checkpoint(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], path: Path, device: str = "cpu") -> ReactionModel:
-        """The family's model from a checkpoint's arrays and sidecar, every part checked (one-line CheckpointError)."""
+    def from_checkpoint(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], path: Path, device: str = "cpu",
+                        data: Path | None = None) -> ReactionModel:
+        """The family's model from a checkpoint's arrays and sidecar, every part checked (one-line CheckpointError);
+        `data`, a bundle the user named, for a family that reads its training data at load."""
         raise NotImplementedError
 
     def save(self, path: Path | str) -> None:

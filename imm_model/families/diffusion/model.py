@@ -78,7 +78,8 @@ class DiffusionReactionModel(ReactionModel):
         return self._torch_module(ReactionDenoiser, self.config, "denoiser")
 
     @classmethod
-    def from_checkpoint(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], path: Path, device: str = "cpu"):
+    def from_checkpoint(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], path: Path, device: str = "cpu",
+                        data: Path | None = None):
         from imm_model.checkpoint import check_state
 
         cfg, weights = described_weights(arrays, meta, path, DiffusionConfig, cls.weights_prefix)

@@ -28,7 +28,8 @@ class GanReactionModel(ReactionModel):
         self.fast = NumpyGenerator(weights, config) if self.device == "cpu" and NumpyGenerator.supports(config) else None
 
     @classmethod
-    def from_checkpoint(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], path: Path, device: str = "cpu"):
+    def from_checkpoint(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], path: Path, device: str = "cpu",
+                        data: Path | None = None):
         from imm_model.checkpoint import check_state
 
         cfg, weights = described_weights(arrays, meta, path, ModelConfig, cls.weights_prefix)

@@ -76,26 +76,24 @@ class RetrievalReactionModel(ReactionModel):
         meta = {"family": cls.family, "kind": "final", "skeleton": data.skeleton.to_dict(), "class_names": list(data.class_names),
                 "canonical_mode": data.canonical_mode, "dataset": data.dataset, "held_out_subject": held_out_subject,
                 "max_train_length": int(data.lengths[train].max()),
-                "retrieval": {"data_hash": dataset_hash(data), "data_file": data.path.name, "data_path": str(data.path)},
+                "retrieval": {"data_hash": dataset_hash(data), "data_file": data.path.name},
                 "train_config": {"name": "retrieval", "mirror_prob": 0.0, "mirror_exclude_classes": []}}
         return cls(data, meta)
 
     @classmethod
-    def from_checkpoint(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], path: Path, device: str = "cpu"):
+    def from_checkpoint(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], path: Path, device: str = "cpu",
+                        data: Path | None = None):
         if arrays:
             raise CheckpointError(f"{path}: a retrieval checkpoint holds no weights, this one holds {len(arrays)} arrays")
-        return cls(_training_data(meta, path), meta, path, device)
+        return cls(_training_data(meta, path, data), meta, path, device)
 
     def save(self, path: Path | str) -> None:
-        """The checkpoint names its data by a path relative to its own folder, so a checkout moved elsewhere still
-        finds it (the content hash says it is the same data)."""
-        import os
-
+        """The checkpoint names its data by file name and content hash only (`_training_data` says where it is looked
+        for)."""
         from imm_model.checkpoint import save_checkpoint
 
         meta = {k: v for k, v in self.info.items() if k not in ("format", "weights_sha256")}
-        folder = Path(path).resolve().parent
-        meta["retrieval"] = meta["retrieval"] | {"data_path": os.path.relpath(self.data.path, folder)}
+        meta["retrieval"] = {k: v for k, v in meta["retrieval"].items() if k != "data_path"}
         save_checkpoint(path, {}, meta)
 
     def _network(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int]) -> list[np.ndarray]:
@@ -119,19 +117,23 @@ class RetrievalReactionModel(ReactionModel):
                          for a, f in zip(leaders, followers, strict=True)]).astype(np.float32)
 
 
-def _training_data(meta: dict[str, Any], path: Path):
-    """The bundle a retrieval checkpoint names, found where it was built, beside the checkpoint or among the bundled
-    data, and only if its content hash is the one recorded."""
+def _training_data(meta: dict[str, Any], path: Path, named: Path | None = None):
+    """The bundle a retrieval checkpoint names, if its content hash is the one recorded: the one the user names
+    (`named`), else the file of its name beside the checkpoint or among the bundled data. A path written in the sidecar
+    is never opened (whoever wrote the file chose it)."""
     from imm_model.cache import dataset_hash
     from imm_model.data.dataset import InteractionDataset
     from imm_model.errors import IMMError
     from imm_model.paths import SAMPLE_DIR
 
     source = meta.get("retrieval")
-    if not (isinstance(source, dict) and all(isinstance(source.get(k), str) for k in ("data_hash", "data_file", "data_path"))):
-        raise CheckpointError(f"{path}: sidecar retrieval must name the training data (data_hash, data_file, data_path)")
+    if not (isinstance(source, dict) and all(isinstance(source.get(k), str) for k in ("data_hash", "data_file"))):
+        raise CheckpointError(f"{path}: sidecar retrieval must name the training data (data_hash, data_file)")
     name = Path(source["data_file"]).name
-    for candidate in (path.parent / source["data_path"], path.parent / name, SAMPLE_DIR / name):
+    if name in ("", ".", ".."):
+        raise CheckpointError(f"{path}: sidecar retrieval data_file {source['data_file'][:40]!r} names no file")
+    candidates = [named] if named is not None else [path.parent / name, SAMPLE_DIR / name]
+    for candidate in candidates:
         if not candidate.is_file():
             continue
         try:
@@ -140,5 +142,5 @@ def _training_data(meta: dict[str, Any], path: Path):
             continue
         if dataset_hash(data) == source["data_hash"]:
             return data
-    raise CheckpointError(f"{path}: its training data {name} (content hash {source['data_hash']}) is neither at "
-                          f"{source['data_path']} (from the checkpoint's folder), beside it nor among the bundled data")
+    where = f"is not {named}" if named is not None else "is neither beside it nor among the bundled data (name it with --data)"
+    raise CheckpointError(f"{path}: its training data {name} (content hash {source['data_hash']}) {where}")
