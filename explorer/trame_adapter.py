@@ -1,8 +1,8 @@
 """Every place the studio relies on trame, trame-rca or wslink beyond their documented API, in one module.
 
 Written for trame 4.0.0 (trame-server 4.1.0, trame-client 4.1.4), trame-rca 2.11.8 and wslink 2.6.0; pyproject.toml's
-studio extra keeps trame and trame-rca in the ranges these were checked on. tests/test_trame_adapter.py checks that
-the installed packages still have each thing below, naming the package and its version when one has gone.
+studio extra admits each one's patch releases of the minor version these were checked on. tests/test_trame_adapter.py
+checks that the installed packages still have each thing below, naming the package and its version when one has gone.
 
 1. The page's index.html (trame-client). `trame_client.module.vue3.www` is trame's client folder; its index.html
    loads CLIENT_FIRST_SCRIPT first, and the studio's scripts go in before it (explorer/serving/page_shell.py).

@@ -8,7 +8,6 @@ to read them: the skeleton's joint names and parents, the frame rate, the classe
 from __future__ import annotations
 
 import io
-from pathlib import Path
 
 import numpy as np
 
@@ -61,10 +60,3 @@ def interaction_bytes(arrays: dict[str, np.ndarray]) -> bytes:
     buf = io.BytesIO()
     np.savez_compressed(buf, **arrays)
     return buf.getvalue()
-
-
-def save_interaction(path: Path, arrays: dict[str, np.ndarray]) -> None:
-    """Written to a temporary name first, so an interrupted write never leaves half a file under `path`."""
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(interaction_bytes(arrays))
-    tmp.replace(path)

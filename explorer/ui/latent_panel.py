@@ -25,7 +25,6 @@ from explorer.session.session import one_line
 if TYPE_CHECKING:
     from explorer.ui.panel_api import Page
 
-COLOR_MODES = ("class", "afd", "held")
 SORT_KEYS = ("afd", "id", "class")
 AFD_DELAY_S = 2.0  # the per-sequence AFDs wait this long after the page opens: its first picture goes first
 AFD_STEP_S = 0.01  # ... and leave the event loop this long after each sequence's synthesis

@@ -40,7 +40,6 @@ if TYPE_CHECKING:
 
 DEBOUNCE_S = 0.6  # a change recomputes an open table once the sliders have been still this long
 CHUNK_ROWS = 8  # followers per synthesis call: the table fills in this many rows at a time
-LABELS = {"match": "each under its own class", "mix": "the current mix"}
 SPLITS = {"held": "held out", "all": "all"}
 TABLE_CSS = """
 #review-table { --v-table-header-height: 24px; }
