@@ -31,7 +31,7 @@ def session(sample_data, model):
 
 
 def test_label_words():
-    from explorer.session.session import label_words
+    from explorer.session.words import label_words
 
     names = ("kicking", "pushing", "shaking_hands", "hugging")
     assert label_words([0, 0, 1, 1], names) == "shaking hands +1, hugging +1"
@@ -61,22 +61,24 @@ def test_mixing_changes_synthesis(session):
 
 
 def test_review_numbers(session, sample_data):
-    d = session.distances_m()
+    d = session.readings.distances_m()
     assert d.shape == (session.num_frames,) and (d >= 0).all()
     pairs = zip(session.synth, session.ground_truth, strict=True)
     manual = [np.mean([np.linalg.norm(a - b) for a, b in zip(s, g, strict=True)]) for s, g in pairs]
     np.testing.assert_allclose(d, manual, rtol=1e-5)  # the mean distance between corresponding joints
-    assert np.isfinite(session.afd()) and session.afd() > 0
+    assert np.isfinite(session.readings.afd()) and session.readings.afd() > 0
 
 
 def test_filters(session, sample_data):
-    held = session.filter(held_out=True)
+    from explorer.session.session import SequenceRow
+
+    held = SequenceRow.matching(session.data, held_out=True)
     assert held and all(sample_data.held_out[i] for i in held)
-    kick = session.filter(class_name="kicking")
+    kick = SequenceRow.matching(session.data, class_name="kicking")
     assert kick and all(sample_data.action_name(i) == "kicking" for i in kick)
     pair = sample_data.subject_pairs[5]
-    assert all(sample_data.subject_pairs[i] == pair for i in session.filter(subject_pair=pair))
-    assert "[held out]" in session.rows()[held[0]].title
+    assert all(sample_data.subject_pairs[i] == pair for i in SequenceRow.matching(session.data, subject_pair=pair))
+    assert "[held out]" in SequenceRow.all_of(session.data)[held[0]].title
 
 
 def test_export_npz_roundtrip(session, sample_data, tmp_path):
@@ -84,14 +86,14 @@ def test_export_npz_roundtrip(session, sample_data, tmp_path):
     `imm generate --leader` reads it back."""
     from imm_model.cli import main
 
-    raw = session.export_npz()
+    raw = session.files.npz()
     with np.load(io.BytesIO(raw)) as z:
         np.testing.assert_allclose(z["follower_canonical"], session.synth, atol=1e-5)
         np.testing.assert_allclose(z["leader"], sample_data.world(session.index)[0], atol=1e-5)
         np.testing.assert_allclose(z["ground_truth"], sample_data.world(session.index)[1], atol=1e-5)
         assert list(z["class_names"]) == list(session.class_names) and list(z["parents"]) == list(sample_data.skeleton.parents)
         assert str(z["format"]) == "imm-interaction-1" and float(z["fps"]) == 15.0
-    assert session.export_name("npz").endswith(".npz") and "/" not in session.export_name("npz")
+    assert session.files.name("npz").endswith(".npz") and "/" not in session.files.name("npz")
     (tmp_path / "s.npz").write_bytes(raw)
     assert main(["generate", "--leader", str(tmp_path / "s.npz"), "--label", "hugging=1", "--out", str(tmp_path / "o.npz")]) == 0
 
@@ -99,12 +101,12 @@ def test_export_npz_roundtrip(session, sample_data, tmp_path):
 def test_export_bvh_reimports(session, tmp_path):
     from imm_model.data.bvh import read_bvh
 
-    (tmp_path / "f.bvh").write_bytes(session.export_bvh("follower"))
+    (tmp_path / "f.bvh").write_bytes(session.files.bvh("follower"))
     np.testing.assert_allclose(read_bvh(tmp_path / "f.bvh"), session.world(session.synth), atol=1e-3)
 
 
 def test_mismatched_model_is_one_line(sample_data):
-    from explorer.session.session import check_compatible
+    from imm_model.inference import check_compatible
 
     wrong_classes = SimpleNamespace(class_names=("a", "b"), skeleton=sample_data.skeleton)
     with pytest.raises(CheckpointError, match="classes a, b do not match"):
@@ -131,15 +133,15 @@ def test_reads_as_follows_the_label(sample_data, model):
 
     reader = ReadsAs.load(SAMPLE_JUDGE)
     ses = Session(sample_data, {"gan": model}, index=0, reader=reader)
-    p = ses.reads_as()
+    p = ses.readings.reads_as()
     assert p.shape == (6,) and p.sum() == pytest.approx(1.0) and np.all(p >= 0)
     before = p.copy()
     other = (ses.own_class + 3) % 6
     ses.set_label(np.eye(6)[other])
-    assert not np.allclose(ses.reads_as(), before)  # a new label, a new reading
-    rows = reads_as_rows(ses.reads_as(), ses.weights, ses.class_names)
+    assert not np.allclose(ses.readings.reads_as(), before)  # a new label, a new reading
+    rows = reads_as_rows(ses.readings.reads_as(), ses.weights, ses.class_names)
     assert [r["asked"] for r in rows].count("+") == 1 and rows[other]["asked"] == "+"
-    assert Session(sample_data, {"gan": model}, index=0).reads_as() is None  # no classifier, no panel
+    assert Session(sample_data, {"gan": model}, index=0).readings.reads_as() is None  # no classifier, no panel
 
 
 def test_the_panel_names_asked_classes_that_do_not_read():
@@ -213,10 +215,10 @@ def test_uploaded_leader_has_no_ground_truth_and_bad_files_change_nothing(sessio
     assert session.upload.name == "l.bvh" and session.ground_truth is None and session.own_class is None
     assert session.synth.shape == session.leader.shape == sample_data.canonical(9)[0].shape
     np.testing.assert_allclose(session.leader, sample_data.canonical(9)[0], atol=2e-3)  # same canonical frame
-    assert session.afd() is None and len(session.distances_m()) == 0
-    with np.load(io.BytesIO(session.export_npz())) as z:
+    assert session.readings.afd() is None and len(session.readings.distances_m()) == 0
+    with np.load(io.BytesIO(session.files.npz())) as z:
         assert "ground_truth" not in z.files and "sequence_id" not in z.files
-    assert session.export_name("bvh").startswith("l_")
+    assert session.files.name("bvh").startswith("l_")
     from explorer.ui.exports import about_text
 
     assert about_text(session).endswith(" · l.bvh")  # exported pictures name the uploaded file
@@ -226,19 +228,19 @@ def test_uploaded_leader_has_no_ground_truth_and_bad_files_change_nothing(sessio
 
 def test_pin_a_mix_and_compare(session):
     """A/B: the pinned mix keeps its follower while the sliders move; it follows a new leader; clear drops it."""
-    assert session.pinned is None and len(session.ab_distances_m()) == 0
-    session.pin()
-    pinned, words = session.pinned.copy(), session.pinned_text()
-    assert np.allclose(session.ab_distances_m(), 0)
+    assert session.pinned.follower is None and len(session.pinned.distances_m()) == 0
+    session.pinned.pin()
+    pinned, words = session.pinned.follower.copy(), session.pinned.text()
+    assert np.allclose(session.pinned.distances_m(), 0)
     w = np.zeros(len(session.class_names), np.float32)
     w[3] = 1.0
     session.set_label(w, 1.0)
-    assert np.array_equal(session.pinned, pinned) and session.pinned_text() == words
-    assert session.ab_distances_m().mean() > 0.01 and len(session.ab_distances_m()) == session.num_frames
+    assert np.array_equal(session.pinned.follower, pinned) and session.pinned.text() == words
+    assert session.pinned.distances_m().mean() > 0.01 and len(session.pinned.distances_m()) == session.num_frames
     session.select(5)  # the pinned mix is re-synthesized for the new leader
-    assert session.pinned.shape == session.leader.shape and session.pinned_text() == words
-    session.clear_pin()
-    assert session.pinned is None and session.pinned_text() == ""
+    assert session.pinned.follower.shape == session.leader.shape and session.pinned.text() == words
+    session.pinned.clear()
+    assert session.pinned.follower is None and session.pinned.text() == ""
 
 
 def test_contact_marks_the_interpenetrating_frames_and_bones(session):
@@ -251,12 +253,12 @@ def test_contact_marks_the_interpenetrating_frames_and_bones(session):
     cleaned = session.synth.copy()
     session.set_cleanup(False)  # the network's own follower (the clean-up only makes its bones rigid, feet planted)
     assert not np.allclose(session.synth, cleaned)
-    closest, leader_bones, follower_bones = session.contact()
+    closest, leader_bones, follower_bones = session.readings.contact()
     np.testing.assert_allclose(closest, closest_distances(session.leader, session.synth, session.data.skeleton))
     inside = closest < PENETRATION_M
     assert inside.any() and np.array_equal(inside, leader_bones.any(1)) and np.array_equal(inside, follower_bones.any(1))
     assert f"in {int(inside.sum())} of {len(closest)} frames" in contact_text(closest)
-    chart = distance_chart(session.distances_m(), 15.0, closest=closest)
+    chart = distance_chart(session.readings.distances_m(), 15.0, closest=closest)
     assert chart.count('class="penetration"') == len(penetration_ranges(closest)) and chart.count("<polyline") == 2
     session.set_cleanup(True)
     np.testing.assert_allclose(session.synth, cleaned)
@@ -297,20 +299,20 @@ def test_switching_models_keeps_the_sequence_mix_and_pin(two_models):
     ses = two_models
     assert ses.model_name == "gan" and not ses.seeded and set(ses.models) == {"gan", "diffusion"}
     ses.set_label(np.eye(6)[2] * 0.5 + np.eye(6)[4] * -0.5, scale=1.5)
-    ses.pin()
+    ses.pinned.pin()
     gan, mix, index = ses.synth.copy(), ses.weights.copy(), ses.index
     ses.set_model("diffusion")
     assert ses.model_name == "diffusion" and ses.seeded and ses.model_title() == "the diffusion model"
     assert ses.index == index and np.array_equal(ses.weights, mix) and ses.scale == 1.5
     assert ses.synth.shape == gan.shape and not np.allclose(ses.synth, gan)  # another model, another reaction
-    np.testing.assert_array_equal(ses.pinned, gan)  # the pin keeps its model: A/B compares the two
-    assert "the paper's GAN" in ses.pinned_text() and ses.ab_distances_m().mean() > 0.01
-    assert ses.mix_latent().shape == ses.map_model.latent_canonical_batch([ses.leader], ses.label_vector()[None]).shape[1:]
+    np.testing.assert_array_equal(ses.pinned.follower, gan)  # the pin keeps its model: A/B compares the two
+    assert "the paper's GAN" in ses.pinned.text() and ses.pinned.distances_m().mean() > 0.01
+    assert ses.mix_latent().shape == ses.map_model.latent_canonical_batch([ses.leader], ses.vector[None]).shape[1:]
     ses.select(7)  # a new leader: the pinned mix follows it with its own model
-    np.testing.assert_allclose(ses.pinned, ses.models["gan"].synthesize_canonical(
+    np.testing.assert_allclose(ses.pinned.follower, ses.models["gan"].synthesize_canonical(
         ses.leader, ses.models["gan"].label_vector(list(mix), 1.5)), atol=1e-6)
     ses.set_model("gan")
-    assert ses.model_name == "gan" and "GAN" not in ses.pinned_text()
+    assert ses.model_name == "gan" and "GAN" not in ses.pinned.text()
     with pytest.raises(ValueError, match="no model 'x'"):
         ses.set_model("x")
     assert ses.model_name == "gan"
@@ -365,25 +367,25 @@ def test_variations_are_the_seeds_side_by_side(two_models):
     ses = two_models
     ses.set_model("diffusion")
     ses.set_seed(40)
-    followers = ses.variations(3)
+    followers = ses.side_by_side.drawn(3)
     assert len(followers) == 3 and followers[0] is ses.synth
     for k, f in enumerate(followers):  # each as drawn alone with its seed
-        np.testing.assert_allclose(f, ses.model.synthesize_canonical(ses.leader, ses.label_vector(), seed=40 + k), atol=1e-4)
+        np.testing.assert_allclose(f, ses.model.synthesize_canonical(ses.leader, ses.vector, seed=40 + k), atol=1e-4)
     assert np.abs(followers[1] - followers[2]).mean() > 0.01
-    ses.set_variation_count(4)
-    assert len(ses.variation_followers) == 4 and ses.variation_seeds() == [40, 41, 42, 43]
+    ses.side_by_side.set_count(4)
+    assert len(ses.side_by_side.variations) == 4 and ses.side_by_side.seeds() == [40, 41, 42, 43]
     ses.set_label(np.eye(6)[1])  # a new mix redraws them all
-    np.testing.assert_allclose(ses.variation_followers[3],
-                               ses.model.synthesize_canonical(ses.leader, ses.label_vector(), seed=43), atol=1e-4)
-    with np.load(io.BytesIO(ses.export_npz())) as z:  # the exported file says which variation it holds
+    np.testing.assert_allclose(ses.side_by_side.variations[3],
+                               ses.model.synthesize_canonical(ses.leader, ses.vector, seed=43), atol=1e-4)
+    with np.load(io.BytesIO(ses.files.npz())) as z:  # the exported file says which variation it holds
         assert int(z["seed"]) == 40
     ses.set_model("gan")  # a deterministic model: one reaction, whatever the seed
-    assert len(ses.variation_followers) == 1 and all(f is ses.synth for f in ses.variations(4))
-    with np.load(io.BytesIO(ses.export_npz())) as z:
+    assert len(ses.side_by_side.variations) == 1 and all(f is ses.synth for f in ses.side_by_side.drawn(4))
+    with np.load(io.BytesIO(ses.files.npz())) as z:
         assert "seed" not in z.files
     for bad in (0, 5, 2.0):
         with pytest.raises(ValueError, match="1..4"):
-            ses.set_variation_count(bad)
+            ses.side_by_side.set_count(bad)
 
 
 def test_the_clean_up_switch_holds_for_both_models(two_models):
@@ -412,16 +414,16 @@ def test_a_link_carries_the_model_and_the_seed():
 def test_a_sliders_variations_can_wait_for_its_first_picture(two_models):
     ses = two_models
     ses.set_model("diffusion")
-    ses.set_variation_count(3)
-    before = [f.copy() for f in ses.variation_followers]
+    ses.side_by_side.set_count(3)
+    before = [f.copy() for f in ses.side_by_side.variations]
     ses.set_label(np.eye(6)[4], variations=False)
-    assert ses.variations_due and ses.variation_followers[0] is ses.synth
-    np.testing.assert_array_equal(ses.variation_followers[2], before[2])  # the earlier mix's, until drawn
-    ses.draw_variations()
-    assert not ses.variations_due
-    np.testing.assert_allclose(ses.variation_followers[2],
-                               ses.model.synthesize_canonical(ses.leader, ses.label_vector(), seed=ses.seed + 2), atol=1e-4)
-    ses.set_variation_count(1)
+    assert ses.side_by_side.due and ses.side_by_side.variations[0] is ses.synth
+    np.testing.assert_array_equal(ses.side_by_side.variations[2], before[2])  # the earlier mix's, until drawn
+    ses.side_by_side.draw()
+    assert not ses.side_by_side.due
+    np.testing.assert_allclose(ses.side_by_side.variations[2],
+                               ses.model.synthesize_canonical(ses.leader, ses.vector, seed=ses.seed + 2), atol=1e-4)
+    ses.side_by_side.set_count(1)
 
 
 @pytest.fixture(scope="module")
@@ -441,34 +443,34 @@ def test_compared_models_followers_are_each_models_own_synthesis(sample_data, mo
 
     model.raw = diffusion.raw = retrieval.raw = False
     ses = Session(sample_data, {"gan": model, "diffusion": diffusion, "retrieval": retrieval}, index=3)
-    ses.set_compared(["retrieval", "diffusion", "gan"])  # the current one among them is drawn once, as `synth`
-    assert ses.compared == ("gan", "diffusion", "retrieval") and ses.compared_names == ("diffusion", "retrieval")
+    ses.side_by_side.set_compared(["retrieval", "diffusion", "gan"])  # the current one among them is drawn once, as `synth`
+    assert ses.side_by_side.compared == ("gan", "diffusion", "retrieval") and ses.side_by_side.compared_names == ("diffusion", "retrieval")
     ses.set_seed(7)
     ses.set_label(np.eye(6)[2] * 0.5 + np.eye(6)[4], scale=1.2)
     ses.select(5, match_label=False)
     ses.set_cleanup(False)
-    drawn = {name: f.copy() for name, f in ses.compared_followers.items()}
-    assert set(drawn) == {"diffusion", "retrieval"} and ses.compared_caption("diffusion") == "the diffusion model\nseed 7"
-    assert ses.compared_caption("retrieval") == "1-NN retrieval"
+    drawn = {name: f.copy() for name, f in ses.side_by_side.compared_followers.items()}
+    assert set(drawn) == {"diffusion", "retrieval"} and ses.side_by_side.caption("diffusion") == "the diffusion model\nseed 7"
+    assert ses.side_by_side.caption("retrieval") == "1-NN retrieval"
     gan = ses.synth.copy()
     for name in ("diffusion", "retrieval"):
         ses.set_model(name)
         np.testing.assert_allclose(drawn[name], ses.synth, atol=1e-5)
-        assert name not in ses.compared_names and "gan" in ses.compared_followers
-        np.testing.assert_allclose(ses.compared_followers["gan"], gan, atol=1e-5)
+        assert name not in ses.side_by_side.compared_names and "gan" in ses.side_by_side.compared_followers
+        np.testing.assert_allclose(ses.side_by_side.compared_followers["gan"], gan, atol=1e-5)
     ses.set_model("gan")
     assert np.abs(drawn["diffusion"] - drawn["retrieval"]).mean() > 0.01
     ses.set_label(np.eye(6)[1], variations=False)  # a slider: the others follow with the variations
-    assert ses.variations_due
-    np.testing.assert_array_equal(ses.compared_followers["diffusion"], drawn["diffusion"])
-    ses.draw_variations()
-    np.testing.assert_allclose(ses.compared_followers["diffusion"],
-                               diffusion.synthesize_canonical(ses.leader, ses.label_vector(), seed=7), atol=1e-5)
+    assert ses.side_by_side.due
+    np.testing.assert_array_equal(ses.side_by_side.compared_followers["diffusion"], drawn["diffusion"])
+    ses.side_by_side.draw()
+    np.testing.assert_allclose(ses.side_by_side.compared_followers["diffusion"],
+                               diffusion.synthesize_canonical(ses.leader, ses.vector, seed=7), atol=1e-5)
     with pytest.raises(ValueError, match="compare: no model 'flow'; this studio has gan, diffusion, retrieval"):
-        ses.set_compared(["diffusion", "flow"])
-    assert ses.compared == ("gan", "diffusion", "retrieval")
-    ses.set_compared([])
-    assert ses.compared_followers == {}
+        ses.side_by_side.set_compared(["diffusion", "flow"])
+    assert ses.side_by_side.compared == ("gan", "diffusion", "retrieval")
+    ses.side_by_side.set_compared([])
+    assert ses.side_by_side.compared_followers == {}
     ses.set_cleanup(True)
 
 
@@ -532,15 +534,15 @@ def test_the_spread_moves_the_reaction_and_travels_with_the_pin_link_and_export(
         with pytest.raises(LabelError, match="spread must be a number in 0..1"):
             ses.set_spread(bad)
         assert ses.spread == pytest.approx(0.2) and np.array_equal(ses.synth, loose)
-    ses.pin()
+    ses.pinned.pin()
     ses.set_spread(0.0)
-    assert ses.pinned_text().endswith("spread 0.2") and np.array_equal(ses.pinned, loose)
+    assert ses.pinned.text().endswith("spread 0.2") and np.array_equal(ses.pinned.follower, loose)
     ses.select(5)  # the pinned follower is redrawn for the new leader with its own spread, not the current one
-    pinned_at_5 = ses.pinned.copy()
+    pinned_at_5 = ses.pinned.follower.copy()
     ses.set_label(np.eye(6)[1])  # a new sequence opens on its own class: back to the pinned mix
     ses.set_spread(0.2)
     assert np.array_equal(ses.synth, pinned_at_5) and ses.spread == pytest.approx(0.2)
-    with np.load(io.BytesIO(ses.export_npz())) as f:
+    with np.load(io.BytesIO(ses.files.npz())) as f:
         assert float(f["spread"]) == pytest.approx(0.2)
     query = view_query({"seq": "s01s02/03/001", "weights": {"kicking": 1.0}, "model": "diffusion", "seed": 4, "spread": 0.35})
     assert query.endswith("&seed=4&spread=0.35")

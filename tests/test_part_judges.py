@@ -78,19 +78,19 @@ def test_the_panel_reads_each_part_of_a_part_mix_in_one_line(part_session):
     w = np.zeros(2 * C, np.float32)
     w[shake], w[C + push] = 1, -1
     ses.set_label(w)
-    readings = ses.reads_as_parts()
+    readings = ses.readings.reads_as_parts()
     assert set(readings) == {"upper", "lower"} and all(p.sum() == pytest.approx(1.0) for p in readings.values())
-    parts = part_rows(readings, ses.part_weights, ses.class_names)
+    parts = part_rows(readings, ses.label.parts, ses.class_names)
     assert [p["part"] for p in parts] == ["upper body", "lower body"]
     assert parts[0]["asked"]["name"] == "shaking hands" and parts[0]["asked"]["asked"] == "+"
     assert parts[1]["asked"]["name"] == "pushing" and parts[1]["asked"]["asked"] == "-"
     assert all(2 <= len(p["classes"]) <= 3 and p["asked"] in p["classes"] for p in parts)  # the top two, and the asked one
-    rows = reads_as_rows(ses.reads_as(), ses.weights, ses.class_names)
-    note = unread_note(rows, ses.parts_differ, parts)
+    rows = reads_as_rows(ses.readings.reads_as(), ses.weights, ses.class_names)
+    note = unread_note(rows, ses.label.parts_differ, parts)
     up, low = parts[0]["asked"]["p"] * 100, parts[1]["asked"]["p"] * 100
     assert up == pytest.approx(readings["upper"][shake] * 100, abs=0.1)
     assert note == f"upper body reads as shaking hands {up:.0f}% · lower body reads as pushing {low:.0f}% (asked -1)"
-    assert unread_note(rows, ses.parts_differ) == PART_NOTE  # no part judges: the whole body's caption
+    assert unread_note(rows, ses.label.parts_differ) == PART_NOTE  # no part judges: the whole body's caption
     w[C + push], w[C + shake] = 0, 1  # the parts alike again: no part readings
     ses.set_label(w)
-    assert not ses.parts_differ and ses.reads_as_parts() == {}
+    assert not ses.label.parts_differ and ses.readings.reads_as_parts() == {}

@@ -70,7 +70,8 @@ def _crash(name, content):
 def test_an_upload_reader_that_hangs_or_hogs_is_stopped_and_the_next_upload_is_read(budget):
     """The time budget holds even if a reader never returns; the memory budget even if it allocates without end; a
     crash is one line too; and after each the same reader reads a good file as the studio itself would."""
-    from explorer.session.session import load_model, read_upload
+    from explorer.session.session import load_model
+    from explorer.session.uploads import read_upload
     from imm_model.data.dataset import InteractionDataset
 
     data = InteractionDataset.load(SAMPLE_DATA)
@@ -687,7 +688,7 @@ def test_one_tab_may_export_only_so_often_and_save_only_so_much(tmp_path, monkey
 
     monkeypatch.setattr(exports_module, "SAVED_BYTES", 5_000)
     made = []
-    session = SimpleNamespace(export_name=lambda ext: f"take.{ext}", export_bvh=lambda character: made.append(1) or b"b" * 1000)
+    session = SimpleNamespace(files=SimpleNamespace(name=lambda ext: f"take.{ext}", bvh=lambda character: made.append(1) or b"b" * 1000))
     triggers = {}
     page = SimpleNamespace(session=session, state=SimpleNamespace(notice=""), guarded=lambda fn: fn,
                            trigger=lambda name: (lambda fn: triggers.__setitem__(name, fn)))  # fmt: skip

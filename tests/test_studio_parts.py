@@ -59,29 +59,29 @@ def part_mix(upper: dict[int, float], lower: dict[int, float]) -> np.ndarray:
 
 def test_a_part_mix_is_the_models_part_label_and_reads_back_as_its_keys(session):
     ses = session
-    assert ses.part_labels and not ses.parts_differ
+    assert ses.part_labels and not ses.label.parts_differ
     whole = ses.synth.copy()
     ses.set_label(part_mix({SHAKE: 1}, {PUSH: -1}), scale=0.5)
-    assert ses.parts_differ and ses.label_keys() == {"upper:shaking_hands": 1.0, "lower:pushing": -1.0}
+    assert ses.label.parts_differ and ses.label.keys() == {"upper:shaking_hands": 1.0, "lower:pushing": -1.0}
     np.testing.assert_array_equal(ses.vector, ses.model.label_vector({"upper:shaking_hands": 1, "lower:pushing": -1}, 0.5))
     assert ses.vector.shape == (2 * C,) and not np.allclose(ses.synth, whole)
     assert ses.label_text() == "upper:shaking_hands=1,lower:pushing=-1  × 0.5"
     np.testing.assert_array_equal(ses.weights, [0, -0.5, 0.5, 0, 0, 0])  # one weight per class: the parts' mean
-    assert "upper_shaking_hands+1" in ses.export_name("npz").replace(":", "_")
+    assert "upper_shaking_hands+1" in ses.files.name("npz").replace(":", "_")
     # a class alone with a part overriding it; both parts alike again is the whole-body label, (C,)
     ses.set_label(part_mix({0: 1, SHAKE: 1}, {0: 1}), scale=1.0)
-    assert ses.label_keys() == {"kicking": 1.0, "upper:shaking_hands": 1.0} and ses.label_text().startswith("kicking=1,")
+    assert ses.label.keys() == {"kicking": 1.0, "upper:shaking_hands": 1.0} and ses.label_text().startswith("kicking=1,")
     ses.set_label(part_mix({0: 1}, {0: 1}))
-    assert not ses.parts_differ and ses.vector.shape == (C,) and ses.label_text() == "kicking +1"
+    assert not ses.label.parts_differ and ses.vector.shape == (C,) and ses.label_text() == "kicking +1"
 
 
 def test_the_exported_interaction_and_strip_carry_the_part_keys(session):
     from explorer.ui.exports import mix_text
 
     session.set_label(part_mix({SHAKE: 1}, {PUSH: -1}))
-    with np.load(io.BytesIO(session.export_npz())) as f:
+    with np.load(io.BytesIO(session.files.npz())) as f:
         assert str(f["label_text"]) == "upper:shaking_hands=1,lower:pushing=-1" and f["label"].shape == (2 * C,)
-    assert mix_text(session.mix(), session.class_names, session.scale) == "upper:shaking_hands=1,lower:pushing=-1 · scale 1.00"
+    assert mix_text(session.label.mix, session.class_names, session.scale) == "upper:shaking_hands=1,lower:pushing=-1 · scale 1.00"
 
 
 def test_a_model_without_part_labels_is_refused_while_a_part_mix_is_set(session):
@@ -92,30 +92,30 @@ def test_a_model_without_part_labels_is_refused_while_a_part_mix_is_set(session)
         ses.set_model("gan")
     assert ses.model_name == "diffusion" and np.array_equal(ses.synth, synth) and np.array_equal(ses.vector, vector)
     with pytest.raises(LabelError, match="^compare: the paper's GAN takes no label per body part"):
-        ses.set_compared(["gan"])
-    assert ses.compared == ()
-    ses.pin()  # the pin keeps the part mix, in its keys
-    assert ses.pinned_text() == "upper:shaking_hands=1,lower:pushing=-1"
+        ses.side_by_side.set_compared(["gan"])
+    assert ses.side_by_side.compared == ()
+    ses.pinned.pin()  # the pin keeps the part mix, in its keys
+    assert ses.pinned.text() == "upper:shaking_hands=1,lower:pushing=-1"
     assert ses.mix_latent().shape == ses.map_model.latent_canonical_batch([ses.leader], ses.vector[None]).shape[1:]
     ses.set_label(part_mix({SHAKE: 1}, {SHAKE: 1}))  # linked again: the switch goes through, the mix stays
     ses.set_model("gan")
     assert ses.model_name == "gan" and not ses.part_labels and ses.label_text() == "shaking hands +1"
     with pytest.raises(LabelError, match="takes no label per body part"):  # a part mix on the GAN: nothing changes
         ses.set_label(part_mix({SHAKE: 1}, {PUSH: -1}))
-    assert not ses.parts_differ and ses.model_name == "gan"
+    assert not ses.label.parts_differ and ses.model_name == "gan"
     ses.set_model("diffusion")
-    ses.set_compared(["gan"])  # the GAN beside it: no part mix while it is drawn too
+    ses.side_by_side.set_compared(["gan"])  # the GAN beside it: no part mix while it is drawn too
     assert not ses.part_labels
     with pytest.raises(LabelError, match="^compare: the paper's GAN"):
         ses.set_label(part_mix({SHAKE: 1}, {PUSH: -1}))
-    assert not ses.parts_differ
+    assert not ses.label.parts_differ
 
 
 def test_a_link_writes_and_restores_a_part_mix_and_names_a_bad_part_key(session):
     from explorer.ui.url_state import parse_view, view_query
 
     session.set_label(part_mix({SHAKE: 1}, {PUSH: -1}))
-    query = view_query({"weights": session.label_keys()})
+    query = view_query({"weights": session.label.keys()})
     assert "mix=upper:shaking_hands:1,lower:pushing:-1" in query
     names = session.class_names
     view, problems = parse_view(query, names, set(), ())
@@ -146,7 +146,7 @@ def test_a_part_link_opened_on_a_model_without_part_labels_says_so_in_one_line(s
     apply_view(holder, "?mix=upper:shaking_hands:1&scale=0.5")
     assert state.error == ("link: mix: the paper's GAN takes no label per body part ('upper:shaking_hands'); "
                            "give the class alone, for the whole body")
-    assert moved == [(list(session.mix()), 0.5)]  # the rest of the link still applies
+    assert moved == [(list(session.label.mix), 0.5)]  # the rest of the link still applies
 
 
 class _State(dict):
@@ -174,7 +174,7 @@ def test_a_part_link_with_a_compared_model_without_part_labels_is_named_and_the_
     moved, state = [], _State()
     holder = SimpleNamespace(session=session, state=state, scene=None, load_sequence=lambda i: None,
                              set_label=lambda w, scale=1.0: moved.append((list(w), scale)), set_camera=lambda p: None)
-    session.set_compared(["gan"])
+    session.side_by_side.set_compared(["gan"])
     apply_view(holder, "?mix=upper:shaking_hands:1,lower:pushing:-1")
     assert state.error == ("link: mix: compare: the paper's GAN takes no label per body part: link each class's parts "
                            "(or reset the mix) first")
@@ -214,7 +214,7 @@ def test_swapping_in_a_pinned_part_mix_under_a_model_without_part_labels_is_refu
     from explorer.ui.compare import Compare
 
     session.set_label(part_mix({SHAKE: 1}, {PUSH: -1}))
-    session.pin()
+    session.pinned.pin()
     session.set_label(np.eye(C)[0])
     session.set_model("gan")
     moved = []
@@ -222,11 +222,11 @@ def test_swapping_in_a_pinned_part_mix_under_a_model_without_part_labels_is_refu
                            guarded=lambda f: f)
     compare = Compare(page, SimpleNamespace(set_pinned=lambda p: None), set_label=lambda *a: moved.append(a),
                       update_review=lambda: None)
-    pinned = session.pinned_label
+    pinned = session.pinned.label
     with pytest.raises(LabelError, match="the paper's GAN takes no label per body part"):
         compare.swap()
-    assert session.pinned_label is pinned and pinned.parts_differ and not moved  # nothing lost, nothing drawn
-    assert session.label_keys() == {"kicking": 1.0}
+    assert session.pinned.label is pinned and pinned.parts_differ and not moved  # nothing lost, nothing drawn
+    assert session.label.keys() == {"kicking": 1.0}
 
 
 def test_a_link_with_a_huge_value_is_named_in_a_short_line(session):

@@ -168,7 +168,7 @@ def _pack(leader: Leader) -> bytes:
 
 
 def _message(name: str, err: BaseException) -> str:
-    from explorer.session.session import one_line
+    from explorer.session.words import one_line
 
     text = one_line(err)
     if isinstance(err, IMMError):

@@ -26,7 +26,7 @@ import sys
 import time
 
 from explorer.serving import worker
-from explorer.session.session import one_line
+from explorer.session.words import one_line
 
 RETIRE_GRACE_S = 1.0
 
@@ -131,7 +131,7 @@ class ForkServer:
 
     def upload_reader(self):
         from explorer.serving.upload_reader import UploadReader
-        from explorer.session.session import read_upload
+        from explorer.session.uploads import read_upload
 
         model = next(iter(self.loaded[1].values()))  # every model of the studio reads a leader alike (one skeleton, frame)
         return UploadReader(lambda name, content: read_upload(name, content, model))

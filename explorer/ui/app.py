@@ -16,8 +16,10 @@ from trame.app import asynchronous
 from explorer.rendering import charts
 from explorer.rendering.palette import CHARACTER_TITLES, class_color, display_name
 from explorer.rendering.scene import CHARACTER_KEYS, COMPARED_KEYS, Scene, floor_height
+from explorer.session.files import FPS
 from explorer.session.latent import LatentMap
-from explorer.session.session import FPS, Session, one_line
+from explorer.session.session import SequenceRow, Session
+from explorer.session.words import one_line
 from explorer.trame_adapter import attachment
 from explorer.ui.compare import Compare
 from explorer.ui.exports import Exports
@@ -188,10 +190,10 @@ class Studio:
     def filtered_indices(self) -> list[int]:
         s = self.state
         held = {"all": None, "held": True, "seen": False}[s.held_filter or "all"]
-        return self.session.filter(s.class_filter or None, s.pair_filter or None, held)
+        return SequenceRow.matching(self.session.data, s.class_filter or None, s.pair_filter or None, held)
 
     def _sequence_items(self) -> list[dict]:
-        rows = self.session.rows()
+        rows = SequenceRow.all_of(self.session.data)
         return [{"title": rows[i].title, "value": i} for i in self.filtered_indices()]
 
     def on_filter_change(self, **_):
@@ -220,8 +222,8 @@ class Studio:
             s.sequence_index = index
             s.sequence_items = self._sequence_items()
             if index not in [it["value"] for it in s.sequence_items]:
-                s.sequence_items = [{"title": ses.rows()[index].title, "value": index}] + s.sequence_items
-            row = ses.rows()[index]
+                s.sequence_items = [{"title": SequenceRow.all_of(ses.data)[index].title, "value": index}] + s.sequence_items
+            row = SequenceRow.all_of(ses.data)[index]
             s.sequence_title = f"{row.sequence_id} · {display_name(row.class_name)}"
             s.sequence_held_out = row.held_out
             s.sequence_uploaded = False
@@ -229,7 +231,7 @@ class Studio:
             s.frame = 0
             self._write_label_state()
             self.scene.set_sequence(ses.leader, ses.ground_truth, ses.synth, 0)
-            self.scene.set_pinned(ses.pinned)
+            self.scene.set_pinned(ses.pinned.follower)
             self.model_switch.show_variations()
             self.scene.set_camera(self.scene.camera_preset)
             self._after_mix()
@@ -257,7 +259,7 @@ class Studio:
             s.num_frames, s.frame = ses.num_frames, 0
             self._write_label_state()
             self.scene.set_sequence(ses.leader, None, ses.synth, 0)
-            self.scene.set_pinned(ses.pinned)
+            self.scene.set_pinned(ses.pinned.follower)
             self.model_switch.show_variations()
             self.scene.set_camera(self.scene.camera_preset)
             self._after_mix()
@@ -267,7 +269,7 @@ class Studio:
     # ---- label mixing --------------------------------------------------------------------
     def _write_label_state(self) -> None:
         """The sliders onto the session's mix: a class whose parts differ shows them apart."""
-        upper, lower = self.session.part_weights
+        upper, lower = self.session.label.parts
         for i, (u, lo) in enumerate(zip(upper, lower, strict=True)):
             self.state[f"w_{i}"], self.state[f"lower_{i}"] = round(float(u), 3), round(float(lo), 3)
             self.state[f"apart_{i}"] = bool(u != lo)
@@ -350,16 +352,16 @@ class Studio:
         s.part_labels = ses.part_labels
         for i in range(len(ses.class_names)) if not ses.part_labels else ():  # none apart where no part mix can be drawn
             s[f"apart_{i}"] = False
-        s.reads_as = reads_as_rows(ses.reads_as(), ses.weights, ses.class_names)
-        s.reads_as_parts = part_rows(ses.reads_as_parts(), ses.part_weights, ses.class_names)
-        s.reads_as_note = unread_note(s.reads_as, ses.parts_differ, s.reads_as_parts)
-        self._distances = ses.distances_m()
-        self._ab_distances = ses.ab_distances_m()
+        s.reads_as = reads_as_rows(ses.readings.reads_as(), ses.weights, ses.class_names)
+        s.reads_as_parts = part_rows(ses.readings.reads_as_parts(), ses.label.parts, ses.class_names)
+        s.reads_as_note = unread_note(s.reads_as, ses.label.parts_differ, s.reads_as_parts)
+        self._distances = ses.readings.distances_m()
+        self._ab_distances = ses.pinned.distances_m()
         s.ab_text = f"pinned ↔ current: joints {self._ab_distances.mean():.2f} m apart" if len(self._ab_distances) else ""
-        self._closest, leader_bones, follower_bones = ses.contact()
+        self._closest, leader_bones, follower_bones = ses.readings.contact()
         self._contact_changed = self.scene.set_contact(leader_bones, follower_bones)
         s.contact_text = charts.contact_text(self._closest)
-        afd = ses.afd()
+        afd = ses.readings.afd()
         s.afd_text = ("uploaded leader: no ground truth to compare with, so no error chart" if afd is None
                       else f"AFD {afd:.3f} (SBU units) · joints {self._distances.mean():.2f} m apart on average")
         self._update_time()
@@ -430,7 +432,7 @@ class Studio:
             return
         self.session.set_cleanup(bool(clean_up))
         self.scene.set_synthesized(self.session.synth)
-        self.scene.set_pinned(self.session.pinned)
+        self.scene.set_pinned(self.session.pinned.follower)
         self.model_switch.show_variations()
         with self.state:
             self._after_mix()

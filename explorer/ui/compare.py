@@ -22,29 +22,29 @@ class Compare:
         page.ctrl.clear_pin = page.guarded(self.clear)
 
     def pin(self) -> None:
-        self.page.session.pin()
+        self.page.session.pinned.pin()
         self.show()
 
     def swap(self) -> None:
         """The pinned mix goes back on the sliders and the current one is pinned in its place. A pinned mix the models
         drawing now cannot read (a part mix beside a model without part labels) is refused in one line, pin kept."""
         ses = self.page.session
-        pinned = ses.pinned_label
+        pinned = ses.pinned.label
         if pinned is None:
             return
         ses.check_label(pinned)
-        ses.pin()
+        ses.pinned.pin()
         self.show()
         self.set_label(pinned.mix, pinned.scale)  # re-synthesizes as a slider move does
 
     def clear(self) -> None:
-        self.page.session.clear_pin()
+        self.page.session.pinned.clear()
         self.show()
 
     def show(self) -> None:
         """Scene, label text and distance line after a pin, swap, clear or a new leader."""
         page, ses = self.page, self.page.session
-        self.scene.set_pinned(ses.pinned)
-        page.state.pinned_text = ses.pinned_text()
+        self.scene.set_pinned(ses.pinned.follower)
+        page.state.pinned_text = ses.pinned.text()
         self.update_review()
         page.ctrl.view_update()

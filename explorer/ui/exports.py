@@ -22,7 +22,8 @@ import numpy as np
 
 from explorer.rendering.palette import CHARACTER_TITLES, PINNED, WARNING, display_name
 from explorer.rendering.palette import CHARACTERS as CHARACTER_COLORS
-from explorer.session.session import FPS, one_line
+from explorer.session.files import FPS
+from explorer.session.words import one_line
 from imm_model.data.labels import label_text
 
 if TYPE_CHECKING:
@@ -66,27 +67,27 @@ class Exports:
 
     def file_stem(self) -> str:
         """What the browser names a download (and the server's copy), before its extension: the sequence and the mix."""
-        return safe_file_name(self.session.export_name("x")).removesuffix(".x")
+        return safe_file_name(self.session.files.name("x")).removesuffix(".x")
 
     def _send(self, name: str, data: bytes):
         self._save_copy(name, data)
         return self.attach(data)
 
     def export_npz(self):
-        return self._send(self.session.export_name("npz"), self.session.export_npz())
+        return self._send(self.session.files.name("npz"), self.session.files.npz())
 
     def export_bvh(self, character: str = "follower"):
         if character not in CHARACTERS:
             raise ValueError(f"unknown character {character!r}: {' or '.join(CHARACTERS)}")
-        data = self.session.export_bvh(character)
-        return self._send(self.session.export_name("bvh").replace(".bvh", f".{character}.bvh"), data)
+        data = self.session.files.bvh(character)
+        return self._send(self.session.files.name("bvh").replace(".bvh", f".{character}.bvh"), data)
 
     def export_png(self):
         """The 3D view as the user sees it now (the server renders it; no browser canvas needed)."""
         import imageio.v3 as iio
 
         image = self._annotator(every_frame=False)(self.scene.screenshot(), self.scene.frame)
-        return self._send(self.session.export_name("png"), iio.imwrite("<bytes>", image, extension=".png"))
+        return self._send(self.session.files.name("png"), iio.imwrite("<bytes>", image, extension=".png"))
 
     def export_video(self, fmt: str = "gif"):
         import imageio.v3 as iio
@@ -103,7 +104,7 @@ class Exports:
             data = iio.imwrite("<bytes>", np.stack(images), extension=".mp4", fps=FPS, codec="libx264", macro_block_size=1)
         else:
             data = iio.imwrite("<bytes>", np.stack(images), extension=".gif", duration=1000.0 / FPS, loop=0)
-        return self._send(self.session.export_name(fmt), data)
+        return self._send(self.session.files.name(fmt), data)
 
     def _annotator(self, every_frame: bool) -> Callable[[np.ndarray, int], np.ndarray]:
         """The strip for this view's export: the legend of the figures shown (side by side their captions name them,
@@ -111,13 +112,13 @@ class Exports:
         from explorer.rendering.annotation import annotate
 
         ses, scene = self.session, self.scene
-        titles = {**CHARACTER_TITLES, "pinned": f"pinned: {ses.pinned_text()}", "contact": "limbs in contact"}
+        titles = {**CHARACTER_TITLES, "pinned": f"pinned: {ses.pinned.text()}", "contact": "limbs in contact"}
         colors = {**CHARACTER_COLORS, "pinned": PINNED, "contact": WARNING}
         shown = scene.shown(every_frame)
         if scene.layout == "side_by_side":
             shown = [k for k in shown if k == "pinned"]
         legend = [(titles[k], colors[k]) for k in shown]
-        mix, about = mix_text(ses.mix(), ses.class_names, ses.scale), about_text(ses)
+        mix, about = mix_text(ses.label.mix, ses.class_names, ses.scale), about_text(ses)
         n = len(scene.sequences["leader"])
         return lambda image, f: annotate(image, legend, mix, about, f"frame {f + 1} / {n}")
 

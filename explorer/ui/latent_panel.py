@@ -20,7 +20,7 @@ from trame.app import asynchronous
 
 from explorer.rendering.palette import SYNTHESIZED, class_color, display_name
 from explorer.session.latent import METHODS, LatentMap
-from explorer.session.session import one_line
+from explorer.session.words import one_line
 
 if TYPE_CHECKING:
     from explorer.ui.panel_api import Page

@@ -19,7 +19,8 @@ from typing import TYPE_CHECKING
 from trame.widgets import client, html
 from trame.widgets import vuetify3 as v3
 
-from explorer.session.session import MAX_COMPARED, MAX_VARIATIONS, Session
+from explorer.session.session import Session
+from explorer.session.side_by_side import MAX_COMPARED, MAX_VARIATIONS
 
 if TYPE_CHECKING:
     from explorer.rendering.scene import Scene
@@ -46,10 +47,10 @@ class ModelSwitch:
             "seed": ses.seed,
             "spread": ses.spread or 0.0,  # the mix's handler (app.py) applies it, as a slider of the mix
             "spread_available": ses.spread is not None,
-            "variation_count": ses.variation_count,
+            "variation_count": ses.side_by_side.count,
             "computing": False,  # a reaction is being drawn (COMPUTING_CSS)
             "variation_asked": 0,  # "new variation" presses
-            "compare_models": list(ses.compared),  # other models drawn beside the current one ("compare with")
+            "compare_models": list(ses.side_by_side.compared),  # other models drawn beside the current one ("compare with")
             "view_captions": [],  # the captions the view shows (side by side), left to right
         })  # fmt: skip
         page.state.change("model_name")(self._settled(self.on_model_picked))
@@ -121,9 +122,9 @@ class ModelSwitch:
         """N variations: drawn side by side (the overlay would put them on top of each other)."""
         ses = self.page.session
         n = int(variation_count or 1)
-        if n == ses.variation_count:
+        if n == ses.side_by_side.count:
             return
-        ses.set_variation_count(n)
+        ses.side_by_side.set_count(n)
         if n > 1 and self.state.scene_layout != "side_by_side":
             self.state.scene_layout = "side_by_side"
         self.refresh()
@@ -132,13 +133,13 @@ class ModelSwitch:
         """Other models to draw beside the current one: side by side (the overlay would put them on top of each other)."""
         ses = self.page.session
         names = [str(n) for n in compare_models or []]
-        if tuple(n for n in ses.models if n in names) == ses.compared:
+        if tuple(n for n in ses.models if n in names) == ses.side_by_side.compared:
             return
         try:
-            ses.set_compared(names)
+            ses.side_by_side.set_compared(names)
         finally:
-            self.state.compare_models = list(ses.compared)  # a refused choice leaves the buttons where the session is
-        if ses.compared_names and self.state.scene_layout != "side_by_side":
+            self.state.compare_models = list(ses.side_by_side.compared)  # a refused choice leaves the buttons where the session is
+        if ses.side_by_side.compared_names and self.state.scene_layout != "side_by_side":
             self.state.scene_layout = "side_by_side"
         self.refresh()
 
@@ -147,17 +148,17 @@ class ModelSwitch:
         """The session's followers beyond the first into the scene (after any re-synthesis): the seeded model's
         variations and the compared models' followers, each captioned."""
         ses = self.page.session
-        others = [n for n in ses.compared_names if n in ses.compared_followers]
-        self.scene.set_variations(ses.variation_followers, ses.variation_seeds() if ses.seeded else None,
+        others = [n for n in ses.side_by_side.compared_names if n in ses.side_by_side.compared_followers]
+        self.scene.set_variations(ses.side_by_side.variations, ses.side_by_side.seeds() if ses.seeded else None,
                                   ses.model_title() if others else "")
-        self.scene.set_compared([(ses.compared_caption(n), ses.compared_followers[n]) for n in others])
+        self.scene.set_compared([(ses.side_by_side.caption(n), ses.side_by_side.compared_followers[n]) for n in others])
         self.state.view_captions = self.scene.captions_shown()
 
     def draw_variations(self) -> None:
         """The side-by-side variations of a slider's mix, drawn after its first picture (they cost a reaction each)."""
         ses = self.page.session
-        if ses.variations_due:
-            ses.draw_variations()
+        if ses.side_by_side.due:
+            ses.side_by_side.draw()
             self.show_variations()
             self.page.ctrl.view_update()
 
@@ -165,17 +166,17 @@ class ModelSwitch:
         """The followers after a switch, a seed or a count: the view, the pin's words, the review panels."""
         page, ses, s = self.page, self.page.session, self.state
         self.scene.set_synthesized(ses.synth)
-        self.scene.set_pinned(ses.pinned)
+        self.scene.set_pinned(ses.pinned.follower)
         self.show_variations()
         page.ctrl.view_update()  # the picture first, as after a slider; the panels follow it
         with s:
             s.model_title = ses.model_title()
             s.seeded = ses.seeded
-            s.seed, s.variation_count = ses.seed, ses.variation_count
+            s.seed, s.variation_count = ses.seed, ses.side_by_side.count
             s.spread_available = ses.spread is not None
             if ses.spread is not None:
                 s.spread = ses.spread
-            s.pinned_text = ses.pinned_text()
+            s.pinned_text = ses.pinned.text()
             contact_changed = self.show_review()
             s.error = ""
             s.computing = False

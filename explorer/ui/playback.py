@@ -8,7 +8,7 @@ import math
 import os
 from typing import TYPE_CHECKING, Any, Protocol
 
-from explorer.session.session import FPS
+from explorer.session.files import FPS
 from explorer.ui.layout import SPEEDS
 
 if TYPE_CHECKING:

@@ -32,7 +32,7 @@ from trame.widgets import client, html
 from trame.widgets import vuetify3 as v3
 
 from explorer.rendering.palette import display_name
-from explorer.session.session import no_parts, one_line
+from explorer.session.words import no_parts, one_line
 from imm_model.evaluation.review import LOWER_IS_WORSE, SORT_KEYS, ReviewRow, next_worst, sort_rows
 
 if TYPE_CHECKING:
@@ -98,7 +98,7 @@ class ReviewInputs:
         n = len(self.data.class_names)
         if self.labels == "mix":
             if len(self.weights) > n and not model.part_labels:  # a part mix is never approximated (Session.set_model)
-                raise no_parts(model)
+                raise no_parts(model.title)
             vec = np.asarray(model.label_vector(list(self.weights), scale=self.scale), np.float32)
             return np.repeat(vec[None], len(indices), 0)
         own = {c: np.asarray(model.label_vector(list(np.eye(n)[c]), scale=1.0), np.float32) for c in range(n)}
@@ -116,8 +116,8 @@ def session_inputs(session, labels: str, split: str) -> ReviewInputs:
     data, first = session.data, models[0][1]
     subject = getattr(first, "held_out_subject", None) or data.info.get("held_out_subject") or None
     indices = default_split(first, data) if split == "held" else np.arange(len(data))
-    return ReviewInputs(models=models, data=data, judge=session.reader, labels=labels,
-                        weights=tuple(round(float(w), 6) for w in session.mix()), scale=round(float(session.scale), 6),
+    return ReviewInputs(models=models, data=data, judge=session.readings.reader, labels=labels,
+                        weights=tuple(round(float(w), 6) for w in session.label.mix), scale=round(float(session.scale), 6),
                         indices=tuple(int(i) for i in indices), split=split, subject=subject, seed=int(session.seed), raw=raw)
 
 

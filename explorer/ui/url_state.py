@@ -16,7 +16,8 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 from urllib.parse import parse_qs, quote, urlencode
 
-from explorer.session.session import MAX_COMPARED, one_line
+from explorer.session.side_by_side import MAX_COMPARED
+from explorer.session.words import one_line
 from imm_model.data.labels import Label
 from imm_model.errors import LabelError, quoted
 
@@ -140,7 +141,7 @@ def current_view(studio: ViewHolder) -> dict:
     ses, s = studio.session, studio.state
     return {
         "seq": None if ses.upload else ses.data.sequence_ids[ses.index],
-        "weights": ses.label_keys(),
+        "weights": ses.label.keys(),
         "scale": round(float(ses.scale), 3),
         "frame": None if s.playing else int(s.frame or 0),
         "layout": s.scene_layout,
@@ -150,7 +151,7 @@ def current_view(studio: ViewHolder) -> dict:
         "model": None if ses.model is ses.map_model else ses.model_name,  # left out for the model the studio opens with
         "seed": ses.seed if ses.seeded else None,
         "spread": None if ses.spread is None else round(float(ses.spread), 3),
-        "compare": ",".join(ses.compared_names) or None,
+        "compare": ",".join(ses.side_by_side.compared_names) or None,
     }
 
 
@@ -182,7 +183,7 @@ def apply_view(studio: ViewHolder, query: str) -> None:
             problems.append(f"mix: {one_line(err)}")
             del view["mix"]
     if "mix" in view or "scale" in view:
-        studio.set_label(view["mix"].mix if "mix" in view else ses.mix(), view.get("scale", 1.0))
+        studio.set_label(view["mix"].mix if "mix" in view else ses.label.mix, view.get("scale", 1.0))
     with s:
         if "frame" in view:
             s.frame = min(view["frame"], ses.num_frames - 1)
