@@ -113,7 +113,7 @@ def render_capability(frames: int = 60, size=(1052, 497)) -> float:
     leader, gt = d.canonical(i)
     sc = Scene(d.skeleton, floor_height(d.leader, d.follower, d.skeleton), size)
     sc.set_sequence(leader, gt, gt)
-    sc.set_camera("default")
+    sc.camera.set("default")
     grab = vtk.vtkWindowToImageFilter()
     grab.SetInput(sc.render_window)
     grab.ReadFrontBufferOff()

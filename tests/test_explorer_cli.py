@@ -354,18 +354,19 @@ def test_the_next_spare_waits_for_quiet_tabs(monkeypatch):
     another tab asking starts it at once, and constant traffic (playback) delays it only up to a limit."""
     import asyncio
 
-    from explorer.serving import launcher
-    from explorer.serving.launcher import LaunchConfig, Launcher
+    from explorer.serving import pool
+    from explorer.serving.launcher import LaunchConfig
+    from explorer.serving.pool import WorkerPool
     from imm_model.paths import SAMPLE_DATA
 
     delay, quiet_s, latest = 0.05, 0.3, 2.5
-    monkeypatch.setattr(launcher, "SPARE_DELAY_S", delay)
-    monkeypatch.setattr(launcher, "SPARE_QUIET_S", quiet_s)
-    monkeypatch.setattr(launcher, "SPARE_LATEST_S", latest)
+    monkeypatch.setattr(pool, "SPARE_DELAY_S", delay)
+    monkeypatch.setattr(pool, "SPARE_QUIET_S", quiet_s)
+    monkeypatch.setattr(pool, "SPARE_LATEST_S", latest)
 
     async def until_due(traffic_s: float, wanted_after_s: float | None = None) -> tuple[float, float]:
         """-> (seconds from the claim until the next spare is due, seconds since the last message then)"""
-        front = Launcher(LaunchConfig(data=SAMPLE_DATA, models=(("gan", SAMPLE_GAN),)))  # nothing is started
+        front = WorkerPool(LaunchConfig(data=SAMPLE_DATA, models=(("gan", SAMPLE_GAN),)))  # nothing is started
         t0 = time.monotonic()
         due = asyncio.ensure_future(front._spare_due())
         while time.monotonic() - t0 < traffic_s and not due.done():

@@ -7,6 +7,8 @@ import pytest
 
 pytest.importorskip("pyvista")
 
+from explorer.rendering.pictures import frames, screenshot  # noqa: E402 - after the skip: it imports VTK
+
 
 @pytest.fixture(scope="module")
 def scene(sample_data):
@@ -15,7 +17,7 @@ def scene(sample_data):
     sc = Scene(sample_data.skeleton, floor_height(sample_data.leader, sample_data.follower, sample_data.skeleton), (320, 240))
     leader, follower = sample_data.canonical(0)
     sc.set_sequence(leader, follower, follower + np.float32([0.0, 0.0, 0.3]))
-    sc.set_camera("default")
+    sc.camera.set("default")
     yield sc
     sc.close()
 
@@ -43,26 +45,26 @@ def test_frame_moves_points_in_place(scene, sample_data):
 def test_three_colors_visible_and_hideable(scene):
     from explorer.rendering.palette import GROUND_TRUTH, LEADER, SYNTHESIZED
 
-    img = scene.screenshot()
+    img = screenshot(scene)
     assert all(_count(img, c) > 50 for c in (LEADER, GROUND_TRUTH, SYNTHESIZED))
     scene.set_visible("synthesized", False)
-    assert _count(scene.screenshot(), SYNTHESIZED) < 20
+    assert _count(screenshot(scene), SYNTHESIZED) < 20
     scene.set_visible("synthesized", True)
 
 
 def test_layouts_and_cameras(scene):
-    from explorer.rendering.scene import CAMERA_PRESETS
+    from explorer.rendering.camera import CAMERA_PRESETS
 
-    overlay = scene.screenshot()
+    overlay = screenshot(scene)
     scene.set_layout("side_by_side")
     assert scene.captions["leader"].GetVisibility()
-    assert not np.array_equal(overlay, scene.screenshot())
+    assert not np.array_equal(overlay, screenshot(scene))
     scene.set_layout("overlay")
     assert not scene.captions["leader"].GetVisibility()
     shots = []
     for preset in CAMERA_PRESETS:
-        scene.set_camera(preset)
-        shots.append(scene.screenshot())
+        scene.camera.set(preset)
+        shots.append(screenshot(scene))
     assert len({s.tobytes() for s in shots}) == len(CAMERA_PRESETS)
     with pytest.raises(ValueError):
         scene.set_layout("grid")
@@ -70,8 +72,8 @@ def test_layouts_and_cameras(scene):
 
 def test_export_frames(scene):
     keep = scene.frame
-    frames = scene.frames()
-    assert len(frames) == len(scene.sequences["leader"]) and frames[0].shape[2] == 3
+    images = frames(scene)
+    assert len(images) == len(scene.sequences["leader"]) and images[0].shape[2] == 3
     assert scene.frame == keep
 
 
@@ -87,15 +89,15 @@ def test_the_scene_is_made_of_pyvista_objects(scene):
 def test_side_by_side_figures_and_captions_stay_apart_from_every_camera(scene):
     """The three figures stand left to right (leader, ground truth, synthesized) with their captions apart, also for
     the side camera, which looks along the axis they stand on in the other views."""
+    from explorer.rendering.camera import CAMERA_PRESETS
     from explorer.rendering.palette import GROUND_TRUTH, LEADER, SYNTHESIZED
-    from explorer.rendering.scene import CAMERA_PRESETS
     from tests.studio_probe import color_mask
 
     scene.set_layout("side_by_side")
     try:
         for preset in ("front", "side", "default"):
-            scene.set_camera(preset)
-            img = scene.screenshot()
+            scene.camera.set(preset)
+            img = screenshot(scene)
             centres = [np.flatnonzero(color_mask(img, c).any(0)).mean() for c in (LEADER, GROUND_TRUTH, SYNTHESIZED)]
             assert np.all(np.diff(centres) > 0.15 * img.shape[1]), (preset, centres)
             captions = []
@@ -107,7 +109,7 @@ def test_side_by_side_figures_and_captions_stay_apart_from_every_camera(scene):
         assert set(CAMERA_PRESETS) >= {"front", "side", "default"}
     finally:
         scene.set_layout("overlay")
-        scene.set_camera("default")
+        scene.camera.set("default")
 
 
 def test_variations_stand_right_of_the_synthesized_follower_with_their_seeds(scene):
@@ -138,7 +140,7 @@ def test_variations_stand_right_of_the_synthesized_follower_with_their_seeds(sce
         assert scene.captions["synthesized"].input == CHARACTER_TITLES["synthesized"] and camera.GetPosition() != turned
     finally:
         scene.set_layout("overlay")
-        scene.set_camera("default")
+        scene.camera.set("default")
 
 
 def test_other_models_followers_stand_right_of_the_variations_captioned_and_follow_the_frame(scene):
@@ -159,7 +161,7 @@ def test_other_models_followers_stand_right_of_the_variations_captioned_and_foll
                                           "the diffusion model\nseed 7", "1-NN retrieval"]
         xs = [scene.captions[k].position[0] for k in ("synthesized", "variation_1", *COMPARED_KEYS[:2])]
         assert np.all(np.diff(xs) > 1.0), xs
-        assert _count(scene.screenshot(), COMPARED) > 100
+        assert _count(screenshot(scene), COMPARED) > 100
         scene.set_frame(5)
         np.testing.assert_allclose(np.asarray(scene.figures["compared_2"].poly.points), synth[::-1][5], atol=1e-6)
         scene.render()  # the mouse over one of its joints names it (the page's hover)
@@ -170,7 +172,7 @@ def test_other_models_followers_stand_right_of_the_variations_captioned_and_foll
         scene.renderer.WorldToDisplay()
         dx, dy, _ = scene.renderer.GetDisplayPoint()
         width, height = scene.render_window.GetSize()
-        assert scene.joint_at(dx / width, 1.0 - dy / height) == ("compared_2", j)
+        assert scene.camera.joint_at(dx / width, 1.0 - dy / height) == ("compared_2", j)
         scene.set_compared(others[:1])
         assert not scene.figures["compared_2"].actors[0].GetVisibility() and scene.captions_shown()[-1] == others[0][0]
     finally:
@@ -178,7 +180,7 @@ def test_other_models_followers_stand_right_of_the_variations_captioned_and_foll
         scene.set_variations([synth], None)
         scene.set_frame(0)
         scene.set_layout("overlay")
-        scene.set_camera("default")
+        scene.camera.set("default")
 
 
 def test_exported_pictures_carry_the_legend_and_the_frame_number_and_the_view_stays_plain(scene, sample_data, tmp_path):
@@ -202,7 +204,7 @@ def test_exported_pictures_carry_the_legend_and_the_frame_number_and_the_view_st
     keep = dict(scene.sequences)
     scene.set_sequence(*(np.repeat(m[:1], 4, 0) for m in (session.leader, session.ground_truth, session.synth)))
     try:
-        plain = scene.screenshot()
+        plain = screenshot(scene)
         frames = iio.imread(exports.export_video("gif"), index=None)[..., :3]
         assert frames.shape == (4, *plain.shape)
         text_rows = np.flatnonzero(np.abs(frames[0].astype(int) - plain).max(axis=(1, 2)) > 100)  # dark text on light
@@ -212,7 +214,7 @@ def test_exported_pictures_carry_the_legend_and_the_frame_number_and_the_view_st
         assert len(strips) == len(frames)  # frame 1 / 4, 2 / 4, ...
         assert np.abs(frames[1:, top + 10:].astype(int) - frames[0, top + 10:]).max() < 40  # the scene did not move
         assert all(_count(frames[0][:top], c) > 10 for c in (LEADER, GROUND_TRUTH, SYNTHESIZED))
-        np.testing.assert_array_equal(scene.screenshot(), plain)
+        np.testing.assert_array_equal(screenshot(scene), plain)
 
         scene.set_visible("ground_truth", False)
         png = iio.imread(exports.export_png())
@@ -221,13 +223,14 @@ def test_exported_pictures_carry_the_legend_and_the_frame_number_and_the_view_st
     finally:
         scene.set_visible("ground_truth", True)
         scene.set_sequence(keep["leader"], keep["ground_truth"], keep["synthesized"])
-        scene.set_camera("default")
+        scene.camera.set("default")
 
 
 def test_captions_of_many_figures_shrink_and_from_the_top_stand_clear_of_the_figures(scene):
     """Six figures side by side (three variations more) get smaller captions, so that neighbours do not run into each
     other; seen from the top each caption stands above its figure in the picture, not on it."""
-    from explorer.rendering.scene import CAPTION_PX, VARIATION_KEYS
+    from explorer.rendering.captions import CAPTION_PX
+    from explorer.rendering.scene import VARIATION_KEYS
 
     followers = [scene.sequences["synthesized"] + np.float32([dx, 0.0, 0.0]) for dx in (0.0, 0.2, 0.4, 0.6)]
     scene.set_layout("side_by_side")
@@ -236,7 +239,7 @@ def test_captions_of_many_figures_shrink_and_from_the_top_stand_clear_of_the_fig
         scene.set_variations(followers, [1, 2, 3, 4])
         sizes = {scene.captions[k].size for k in ("leader", "ground_truth", "synthesized", *VARIATION_KEYS[:3])}
         assert sizes == {min(sizes)} and min(sizes) < CAPTION_PX
-        scene.set_camera("top")
+        scene.camera.set("top")
         scene.render()
 
         def display_y(point) -> float:
@@ -254,7 +257,7 @@ def test_captions_of_many_figures_shrink_and_from_the_top_stand_clear_of_the_fig
     finally:
         scene.set_variations([scene.sequences["synthesized"]], None)
         scene.set_layout("overlay")
-        scene.set_camera("default")
+        scene.camera.set("default")
 
 
 def test_trails_show_the_last_frames_as_ghosts_in_the_overlay_only(scene):
@@ -280,7 +283,7 @@ def test_trails_show_the_last_frames_as_ghosts_in_the_overlay_only(scene):
         scene.set_visible("leader", True)
     finally:
         scene.set_trails(False)
-        scene.set_camera("default")
+        scene.camera.set("default")
     assert not trail.actor.GetVisibility()
 
 
@@ -290,7 +293,7 @@ def test_a_following_camera_moves_with_the_pair_and_keeps_the_users_turn(scene):
     scene.set_frame(0)
     camera = scene.renderer.GetActiveCamera()
     camera.Azimuth(20)
-    scene.set_follow(True)
+    scene.camera.set_follow(True)
     try:
         before = np.array(camera.GetFocalPoint()), np.array(camera.GetPosition())
         root = scene.skeleton.root
@@ -301,9 +304,9 @@ def test_a_following_camera_moves_with_the_pair_and_keeps_the_users_turn(scene):
         np.testing.assert_allclose(np.array(camera.GetFocalPoint()) - before[0], moved, atol=1e-5)
         np.testing.assert_allclose(np.array(camera.GetPosition()) - before[1], moved, atol=1e-5)
     finally:
-        scene.set_follow(False)
+        scene.camera.set_follow(False)
         scene.set_frame(0)
-        scene.set_camera("default")
+        scene.camera.set("default")
     fixed = camera.GetPosition()
     scene.set_frame(5)
     assert camera.GetPosition() == fixed  # not following: the camera stays
@@ -318,11 +321,11 @@ def test_the_joint_under_the_mouse_is_found_by_its_picture_position(scene):
     scene.renderer.SetWorldPoint(*map(float, point), 1.0)
     scene.renderer.WorldToDisplay()
     dx, dy, _ = scene.renderer.GetDisplayPoint()
-    found = scene.joint_at(dx / width, 1.0 - dy / height)
+    found = scene.camera.joint_at(dx / width, 1.0 - dy / height)
     assert found == ("leader", 5), found
-    assert scene.joint_at(0.01, 0.01) is None
+    assert scene.camera.joint_at(0.01, 0.01) is None
     scene.set_visible("leader", False)
     try:
-        assert scene.joint_at(dx / width, 1.0 - dy / height) != ("leader", 5)  # a hidden figure is not hovered
+        assert scene.camera.joint_at(dx / width, 1.0 - dy / height) != ("leader", 5)  # a hidden figure is not hovered
     finally:
         scene.set_visible("leader", True)

@@ -149,31 +149,33 @@ def _launcher(**config):
 
 def test_the_origin_check_accepts_the_scheme_the_page_was_served_over():
     plain, behind = _launcher(), _launcher(base_url="https://lab.example.org/imm/")
-    assert plain.authorized(_request(Origin="http://localhost:8080"))
-    assert not plain.authorized(_request(Origin="https://localhost:8080"))  # nothing says the page came over TLS
-    assert plain.authorized(_request(Origin="https://localhost:8080", X_Forwarded_Proto="https"))
-    assert not plain.authorized(_request(Origin="https://evil.example.com", X_Forwarded_Proto="https"))
-    assert behind.authorized(_request(Origin="https://localhost:8080"))  # --base-url is https
-    assert behind.authorized(_request(Origin="https://lab.example.org"))  # a proxy that does not pass Host through
-    assert not behind.authorized(_request(Origin="https://evil.example.org"))
+    assert plain.access.authorized(_request(Origin="http://localhost:8080"))
+    assert not plain.access.authorized(_request(Origin="https://localhost:8080"))  # nothing says the page came over TLS
+    assert plain.access.authorized(_request(Origin="https://localhost:8080", X_Forwarded_Proto="https"))
+    assert not plain.access.authorized(_request(Origin="https://evil.example.com", X_Forwarded_Proto="https"))
+    assert behind.access.authorized(_request(Origin="https://localhost:8080"))  # --base-url is https
+    assert behind.access.authorized(_request(Origin="https://lab.example.org"))  # a proxy that does not pass Host through
+    assert not behind.access.authorized(_request(Origin="https://evil.example.org"))
 
 
 def test_static_files_need_no_token_but_the_studios_origin_and_host_names():
     """/static/ (plotly.js, trame's client files) is public: with --token it is served without the token, on any host
     name the token admits; without a token only on this studio's host names; never to another web origin."""
     plain, tokened = _launcher(), _launcher(token="a-long-token", host="0.0.0.0")
-    assert plain.public(_request(method="GET")) and not plain.public(_request(method="GET", host="rebound.example.com:8080"))
-    assert not plain.authorized(_request(method="GET", host="rebound.example.com:8080"))
-    assert tokened.public(_request(method="GET", host="lab.example.org:8080")) and not tokened.authorized(_request(method="GET"))
+    assert plain.access.public(_request(method="GET")) and not plain.access.public(_request(method="GET", host="rebound.example.com:8080"))
+    assert not plain.access.authorized(_request(method="GET", host="rebound.example.com:8080"))
+    assert tokened.access.public(_request(method="GET", host="lab.example.org:8080"))
+    assert not tokened.access.authorized(_request(method="GET"))
     for front in (plain, tokened):
-        assert not front.public(_request(method="GET", Origin="http://evil.example.com"))
+        assert not front.access.public(_request(method="GET", Origin="http://evil.example.com"))
 
 
 def test_claims_need_the_page_and_are_rate_limited(monkeypatch):
     """A bare POST (no Origin, no cookie) is refused; the page's Origin or, without one, its cookie is admitted; past
     the burst, claims are refused until the bucket refills."""
-    from explorer.serving import launcher as launcher_module
-    from explorer.serving.launcher import PAGE_COOKIE, Worker
+    from explorer.serving import access as access_module
+    from explorer.serving.access import PAGE_COOKIE
+    from explorer.serving.pool import Worker
 
     async def go():
         front = _launcher()
@@ -181,7 +183,7 @@ def test_claims_need_the_page_and_are_rate_limited(monkeypatch):
         async def take():
             return Worker("1", "secret")
 
-        front.take = take
+        front.pool.take = take
         statuses = [(await front.claim(_request())).status for _ in range(10)]
         assert statuses == [403] * 10
         page = await front.handle(_request("/", "GET"))
@@ -192,10 +194,10 @@ def test_claims_need_the_page_and_are_rate_limited(monkeypatch):
         assert (await front.claim(_request(Cookie=f"{PAGE_COOKIE}=guessed"))).status == 403
         burst = [(await front.claim(_request(Origin="http://localhost:8080"))).status for _ in range(4)]
         assert burst == [200, 200, 429, 429]  # 4 at once, then one per CLAIM_EVERY_S
-        await asyncio.sleep(launcher_module.CLAIM_EVERY_S * 1.2)
+        await asyncio.sleep(access_module.CLAIM_EVERY_S * 1.2)
         assert (await front.claim(_request(Origin="http://localhost:8080"))).status == 200
 
-    monkeypatch.setattr(launcher_module, "CLAIM_EVERY_S", 0.3)
+    monkeypatch.setattr(access_module, "CLAIM_EVERY_S", 0.3)
     asyncio.run(go())
 
 
@@ -474,7 +476,7 @@ async def _upload_all(tab: RawTab, uploads: list[tuple[str, bytes]]) -> list[str
 def test_a_reload_finds_its_own_session_and_an_ended_one_keeps_the_view(small_studio):
     """A tab whose page is asked for again after its websocket closed (a reload) keeps its process past the close's
     grace; a tab that only closed loses it, and its link then leads to a fresh studio with the link's view."""
-    from explorer.serving.launcher import RECONNECT_GRACE_S
+    from explorer.serving.pool import RECONNECT_GRACE_S
 
     async def go():
         tab, pid = await _open_tab(small_studio)

@@ -186,14 +186,14 @@ def test_the_sliders_keep_a_part_mix_whatever_the_models_and_a_nan_is_refused_in
     and a NaN from a hostile client is named as such, the mix drawn before kept."""
     from types import SimpleNamespace
 
-    from explorer.ui.app import Studio
+    from explorer.ui.label_mixer import LabelMixer
 
     state = _State(scale=1.0, part_labels=False)
     for i in range(C):
         state[f"w_{i}"], state[f"lower_{i}"], state[f"apart_{i}"] = 0.0, 0.0, False
     state[f"w_{SHAKE}"], state[f"lower_{SHAKE}"], state[f"apart_{SHAKE}"] = 1.0, -1.0, True
-    studio = SimpleNamespace(state=state, session=session)
-    label = Studio.slider_mix(studio)
+    mixer = SimpleNamespace(page=SimpleNamespace(state=state, session=session))
+    label = LabelMixer.slider_mix(mixer)
     assert label.keys() == {"upper:shaking_hands": 1.0, "lower:shaking_hands": -1.0}
     session.set_model("gan")
     before = session.synth.copy()
@@ -201,10 +201,10 @@ def test_the_sliders_keep_a_part_mix_whatever_the_models_and_a_nan_is_refused_in
         session.set_label(label)
     state[f"w_{SHAKE}"] = float("nan")
     with pytest.raises(LabelError, match="label values must be finite"):
-        session.set_label(Studio.slider_mix(studio))
+        session.set_label(LabelMixer.slider_mix(mixer))
     state[f"w_{SHAKE}"] = "a lot"
     with pytest.raises(LabelError, match="value for 'shaking_hands' is not a number: 'a lot'"):
-        Studio.slider_mix(studio)
+        LabelMixer.slider_mix(mixer)
     np.testing.assert_array_equal(session.synth, before)
 
 

@@ -20,33 +20,22 @@ os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 
 import pyvista as pv  # noqa: E402
 import pyvista.plotting  # noqa: E402, F401 - lazy in pyvista: imported with this module, so the zygote's preload pays it
-from vtkmodules.util.numpy_support import vtk_to_numpy  # noqa: E402
 from vtkmodules.vtkInteractionStyle import vtkInteractorStyleTrackballCamera  # noqa: E402
-from vtkmodules.vtkRenderingCore import vtkWindowToImageFilter  # noqa: E402
 from vtkmodules.vtkRenderingUI import vtkGenericRenderWindowInteractor  # noqa: E402
 
+from explorer.rendering.camera import PAIR_KEYS, SIDE_SPACING, TOP_CAPTION_OFFSET, SceneCamera  # noqa: E402
+from explorer.rendering.captions import Captions, caption_px  # noqa: E402
 from explorer.rendering.figures import ContactOverlay, StickFigure, Trail, add_actor, line_mesh, set_lines  # noqa: E402
 from explorer.rendering.palette import CHARACTER_TITLES, CHARACTERS, COMPARED, PINNED  # noqa: E402
 from imm_model.skeleton import Skeleton  # noqa: E402
 
 CHARACTER_KEYS = ("leader", "ground_truth", "synthesized")
-TRAIL_KEYS = ("leader", "synthesized")
+TRAIL_KEYS = PAIR_KEYS  # the figures whose last frames trail behind them
 VARIATION_KEYS = ("variation_1", "variation_2", "variation_3")  # a seeded model's further followers, side by side
 COMPARED_KEYS = ("compared_1", "compared_2", "compared_3")  # other models' followers, right of those (set_compared)
 BESIDE_KEYS = VARIATION_KEYS + COMPARED_KEYS  # followers drawn only side by side, right of the synthesized one
 LAYOUTS = ("overlay", "side_by_side")
-CAMERA_PRESETS = ("default", "front", "side", "top")
-SIDE_SPACING = 1.5  # metres between figures in the side-by-side layout
-CAPTION_PX = 18  # the captions' text size for up to CAPTION_ROOM figures side by side; smaller with more (caption_px)
-CAPTION_ROOM = 4
 BACKGROUND = "#f4f5f7"
-HOVER_REACH_PX = 14  # a joint is under the mouse within this many pixels of its centre
-TOP_CAPTION_OFFSET = 0.8  # metres towards the top of the picture, for the top camera (above each figure, not on it)
-
-
-def caption_px(slots: int) -> int:
-    """The captions' text size with `slots` figures side by side: as many captions side by side as fit the view."""
-    return max(11, round(CAPTION_PX * CAPTION_ROOM / max(slots, CAPTION_ROOM)))
 
 
 class Scene:
@@ -73,38 +62,25 @@ class Scene:
         # the last frames of the leader and the synthesized follower as ghosts (overlay layout, set_trails)
         self.trails = {k: Trail(self.plotter, skeleton, CHARACTERS[k]) for k in TRAIL_KEYS}
         self.trails_on = False
-        self.follow = False  # the camera follows the pair (set_follow): moved by the pair's centre from frame to frame
-        self._followed: np.ndarray | None = None  # the pair's centre the camera was last placed for
-        self.captions = {k: self._caption(CHARACTER_TITLES[k], CHARACTERS[k]) for k in CHARACTER_KEYS}
+        self.captions = Captions(self.plotter)
+        for k in CHARACTER_KEYS:
+            self.captions.add(k, CHARACTER_TITLES[k], CHARACTERS[k])
         for k in BESIDE_KEYS:  # shown only side by side, right of the synthesized follower (set_variations, set_compared)
             color = COMPARED if k in COMPARED_KEYS else CHARACTERS["synthesized"]
             self.figures[k] = StickFigure(self.plotter, skeleton, color)
             self.figures[k].set_visible(False)
-            self.captions[k] = self._caption("", color)
+            self.captions.add(k, "", color)
         self.floor = self._floor()
         self.layout = "overlay"
         self.visible = {k: True for k in CHARACTER_KEYS}
         self.sequences: dict[str, np.ndarray] = {}
         self.frame = 0
-        self.camera_preset = "default"
-        self.fitted_size: tuple[int, int] = (0, 0)
-        # The browser sizes the view when it likes (first load, window resize); every render at a new size refits
-        # the preset, so the same view in two tabs of the same size is the same picture.
-        self.renderer.AddObserver("StartEvent", lambda *_: self._refit_if_resized())
+        self.camera = SceneCamera(self)
 
     def close(self) -> None:
         self.plotter.close()
 
     # ---- building blocks ----------------------------------------------------------------
-    def _caption(self, text: str, color: str) -> pv.Label:
-        label = pv.Label(text, size=CAPTION_PX)
-        label.prop.bold = True
-        label.prop.color = color
-        label.prop.justification_horizontal = "center"
-        label.SetVisibility(False)
-        self.plotter.add_actor(label, reset_camera=False, render=False)
-        return label
-
     def _floor(self):
         """The floor as a grid of 2 (n + 1) lines on the background. Why no shaded plane under it: on llvmpipe that
         one quad's pixels were ~3 ms of a full-size frame and ~1 ms of a draft (docs/experiments/studio-performance.md); an
@@ -128,17 +104,17 @@ class Scene:
         for k in BESIDE_KEYS:  # until set_variations and set_compared give the new leader's
             self.figures[k].set_visible(False)
         self.contact.flags = None  # until set_contact gives the new sequence's
-        self._followed = None
-        self._apply_layout()
+        self.camera.lost_pair()
+        self.place_figures()
         self.set_frame(frame)
 
     def set_synthesized(self, synthesized: np.ndarray) -> None:
         """New label mix: only the green figure changes, at the current frame."""
         self.sequences["synthesized"] = synthesized
         if self.layout == "side_by_side":  # its spot follows its own first-frame root, which the mix moves
-            self._apply_layout()
+            self.place_figures()
         self.figures["synthesized"].set_pose(synthesized[min(self.frame, len(synthesized) - 1)])
-        self._show_trails()
+        self._show_aids(contact=False)  # the contact of the new mix follows with its review (set_contact)
 
     def set_pinned(self, pinned: np.ndarray | None) -> None:
         """A/B: the pinned mix's follower, drawn where the synthesized one is (None hides it)."""
@@ -148,7 +124,7 @@ class Scene:
             self.sequences["pinned"] = pinned
             self.figures["pinned"].set_pose(pinned[min(self.frame, len(pinned) - 1)])
         self.figures["pinned"].set_visible(pinned is not None and self.visible["synthesized"])
-        self._apply_layout()
+        self.place_figures()
 
     def set_variations(self, followers: list[np.ndarray], seeds: list[int] | None, model_title: str = "") -> None:
         """A seeded model's followers for seeds[0], seeds[1], ... (the first is the synthesized one): the others
@@ -157,47 +133,36 @@ class Scene:
         other models' followers stand beside it)."""
         second = " · ".join(filter(None, (model_title, "" if seeds is None else f"seed {seeds[0]}")))
         title = CHARACTER_TITLES["synthesized"]
-        self._caption_text("synthesized", f"{title}\n{second}" if second else title)  # one line would reach its neighbour
-        slots = self._slots()
-        if seeds is None and slots == len(CHARACTER_KEYS):
+        self.captions.set_text("synthesized", f"{title}\n{second}" if second else title)  # one line would reach its neighbour
+        if seeds is None and self.slots() == len(CHARACTER_KEYS):
             return  # a deterministic model's follower, as before: set_synthesized placed it
-        for i, k in enumerate(VARIATION_KEYS, start=1):
-            if seeds is not None and i < len(followers):
-                self.sequences[k] = followers[i]
-                self._caption_text(k, f"seed {seeds[i]}")
-                self.figures[k].set_pose(followers[i][min(self.frame, len(followers[i]) - 1)])
-            else:
-                self.sequences.pop(k, None)
-        self._apply_layout()
-        if self.layout == "side_by_side" and self._slots() != slots:
-            self.set_camera(self.camera_preset)  # room for more or fewer figures (a camera the user turned stays else)
+        self._beside(VARIATION_KEYS, [] if seeds is None else [(f"seed {d}", f) for d, f in zip(seeds[1:], followers[1:], strict=False)])
 
     def set_compared(self, followers: list[tuple[str, np.ndarray]]) -> None:
         """Other models' followers [(caption, follower), ...] (up to len(COMPARED_KEYS)): they stand right of the
         synthesized follower and its variations in the side-by-side layout, and follow the frame as it does."""
         if len(followers) > len(COMPARED_KEYS):
             raise ValueError(f"at most {len(COMPARED_KEYS)} other models' followers side by side, not {len(followers)}")
-        slots = self._slots()
-        for i, k in enumerate(COMPARED_KEYS):
+        self._beside(COMPARED_KEYS, followers)
+
+    def _beside(self, keys: tuple[str, ...], followers: list[tuple[str, np.ndarray]]) -> None:
+        """Captioned followers on the spots of `keys` (those left over are emptied), right of the synthesized one."""
+        slots = self.slots()
+        for i, k in enumerate(keys):
             if i < len(followers):
                 caption, follower = followers[i]
                 self.sequences[k] = follower
-                self._caption_text(k, caption)
+                self.captions.set_text(k, caption)
                 self.figures[k].set_pose(follower[min(self.frame, len(follower) - 1)])
             else:
                 self.sequences.pop(k, None)
-        self._apply_layout()
-        if self.layout == "side_by_side" and self._slots() != slots:
-            self.set_camera(self.camera_preset)  # room for more or fewer figures (a camera the user turned stays else)
+        self.place_figures()
+        if self.layout == "side_by_side" and self.slots() != slots:
+            self.camera.set(self.camera.preset)  # room for more or fewer figures (a camera the user turned stays else)
 
     def captions_shown(self) -> list[str]:
         """The captions the view shows now, left to right (side by side only)."""
-        keys = (*CHARACTER_KEYS, *BESIDE_KEYS)
-        return [self.captions[k].input for k in keys if k in self.sequences and self.captions[k].GetVisibility()]
-
-    def _caption_text(self, key: str, text: str) -> None:
-        if self.captions[key].input != text:  # a new text is rasterized again at the next render
-            self.captions[key].input = text
+        return self.captions.shown([k for k in (*CHARACTER_KEYS, *BESIDE_KEYS) if k in self.sequences])
 
     def set_contact(self, leader_bones: np.ndarray | None, follower_bones: np.ndarray | None) -> bool:
         """Which bones interpenetrate, per frame ((T, K) each; None: none shown) -> whether that changed."""
@@ -206,13 +171,23 @@ class Scene:
         changed = (old is None) != (new is None) or (new is not None and not all(
             a.shape == b.shape and np.array_equal(a, b) for a, b in zip(old, new, strict=True)))
         self.contact.flags = new
-        self._show_contact()
+        self._show_aids()
         return changed
 
-    def _show_contact(self) -> None:
-        self.contact.enabled = self.layout == "overlay" and self.visible["leader"] and self.visible["synthesized"]
-        if "synthesized" in self.sequences:
+    def set_trails(self, on: bool) -> None:
+        """Ghosts of the last frames of the leader and the synthesized follower (overlay layout only)."""
+        self.trails_on = bool(on)
+        self._show_aids()
+
+    def _show_aids(self, contact: bool = True) -> None:
+        """The contact overlay (`contact`) and the trails at the current frame, in the overlay layout, where their
+        figures show."""
+        overlay = self.layout == "overlay"
+        self.contact.enabled = overlay and self.visible["leader"] and self.visible["synthesized"]
+        if contact and "synthesized" in self.sequences:
             self.contact.show(self.sequences["leader"], self.sequences["synthesized"], self.frame)
+        for k, trail in self.trails.items():
+            trail.show(self.sequences.get(k), self.frame, self.trails_on and overlay and self.visible[k])
 
     def set_frame(self, frame: int) -> None:
         if not self.sequences:
@@ -221,63 +196,8 @@ class Scene:
         self.frame = int(np.clip(frame, 0, t - 1))
         for k, seq in self.sequences.items():
             self.figures[k].set_pose(seq[self.frame])
-        self._show_contact()
-        self._show_trails()
-        if self.follow:
-            self._follow_pair()
-
-    # ---- viewer aids ----------------------------------------------------------------------
-    def set_trails(self, on: bool) -> None:
-        """Ghosts of the last frames of the leader and the synthesized follower (overlay layout only)."""
-        self.trails_on = bool(on)
-        self._show_trails()
-
-    def _show_trails(self) -> None:
-        for k, trail in self.trails.items():
-            trail.show(self.sequences.get(k), self.frame, self.trails_on and self.layout == "overlay" and self.visible[k])
-
-    def set_follow(self, on: bool) -> None:
-        """The camera follows the pair: from frame to frame it moves with the centre of the leader's and the synthesized
-        follower's roots (on the floor's plane; the user's turn and zoom are kept)."""
-        self.follow = bool(on)
-        self._followed = self._pair_centre() if on else None
-
-    def _pair_centre(self) -> np.ndarray | None:
-        roots = [seq[min(self.frame, len(seq) - 1), self.skeleton.root] for k, seq in self.sequences.items() if k in TRAIL_KEYS]
-        if not roots:
-            return None
-        centre = np.mean(roots, axis=0).astype(float)
-        centre[1] = 0.0  # along the floor only: the camera does not bob with the bodies
-        return centre
-
-    def joint_at(self, x: float, y: float, reach_px: float = HOVER_REACH_PX) -> tuple[str, int] | None:
-        """The joint drawn nearest to the view's point (x, y), fractions of its width and height from the top left, within
-        `reach_px` pixels: (figure key, joint index), or None. Figures in front win ties (the nearer to the camera)."""
-        width, height = self.render_window.GetSize()
-        px, py = x * width, (1.0 - y) * height  # VTK's display y grows upwards
-        best, best_key = None, None
-        for key, seq in self.sequences.items():
-            actor = self.figures[key].actors[0]
-            if not actor.GetVisibility():
-                continue
-            matrix = actor.GetMatrix()
-            for j, point in enumerate(seq[min(self.frame, len(seq) - 1)]):
-                self.renderer.SetWorldPoint(*matrix.MultiplyPoint((*map(float, point), 1.0))[:3], 1.0)
-                self.renderer.WorldToDisplay()
-                dx, dy, depth = self.renderer.GetDisplayPoint()
-                gap = float(np.hypot(dx - px, dy - py))
-                if gap <= reach_px and (best is None or (gap, depth) < best):
-                    best, best_key = (gap, depth), (key, j)
-        return best_key
-
-    def _follow_pair(self) -> None:
-        centre = self._pair_centre()
-        if centre is not None and self._followed is not None:
-            cam = self.renderer.GetActiveCamera()
-            cam.SetFocalPoint(*(np.asarray(cam.GetFocalPoint()) + centre - self._followed))
-            cam.SetPosition(*(np.asarray(cam.GetPosition()) + centre - self._followed))
-            self.renderer.ResetCameraClippingRange()
-        self._followed = centre
+        self._show_aids()
+        self.camera.follow_pair()
 
     def set_visible(self, key: str, visible: bool) -> None:
         self.visible[key] = bool(visible)
@@ -286,33 +206,31 @@ class Scene:
         self.captions[key].SetVisibility(shown and self.layout == "side_by_side")
         if key == "synthesized":  # the pinned follower is a synthesized one too, as are its variations
             self.figures["pinned"].set_visible(shown and "pinned" in self.sequences)
-            self._apply_layout()
-        self._show_contact()
-        self._show_trails()
+            self.place_figures()
+        self._show_aids()
 
     def set_layout(self, layout: str) -> None:
         if layout not in LAYOUTS:
             raise ValueError(f"layout must be one of {LAYOUTS}")
         self.layout = layout
-        self._apply_layout()
-        self._show_contact()
-        self._show_trails()
-        self.set_camera(self.camera_preset)
+        self.place_figures()
+        self._show_aids()
+        self.camera.set(self.camera.preset)
 
-    def _apply_layout(self) -> None:
+    def place_figures(self) -> None:
         """Overlay: the canonical frame as is. Side by side: each figure on its own spot along X (along Z for the side
         camera, which looks along X and would stack them and their captions), the followers turned 180° about their
         first-frame root so that all three face the same way."""
         if not self.sequences:
             return
         top = float(max(s[..., 1].max() for s in self.sequences.values())) + 0.25
-        along_z = self.camera_preset == "side"
-        middle = (self._slots() - 1) / 2
+        along_z = self.camera.preset == "side"
+        middle = (self.slots() - 1) / 2
         beside = [k for k in BESIDE_KEYS if k in self.sequences]  # variations, then other models' followers
         beside = [(len(CHARACTER_KEYS) + i, k) for i, k in enumerate(beside)]
-        size = caption_px(self._slots())
+        size = caption_px(self.slots())
         # seen from the top a caption over the head would be on the figure: it goes towards the top of the picture
-        above = (0.0, 0.0, -TOP_CAPTION_OFFSET) if self.camera_preset == "top" else (0.0, 0.0, 0.0)
+        above = (0.0, 0.0, -TOP_CAPTION_OFFSET) if self.camera.preset == "top" else (0.0, 0.0, 0.0)
         for k in BESIDE_KEYS:
             if k not in self.sequences:
                 self.figures[k].set_visible(False)
@@ -347,94 +265,13 @@ class Scene:
             touching = bool(c.actor.GetVisibility())
         return keys + ["contact"] * touching
 
-    def _slots(self) -> int:
+    def slots(self) -> int:
         """Spots side by side: leader, ground truth, synthesized, its variations and other models' followers."""
         return len(CHARACTER_KEYS) + sum(k in self.sequences for k in BESIDE_KEYS)
-
-    # ---- camera -------------------------------------------------------------------------
-    def _refit_if_resized(self) -> None:
-        if self.sequences and tuple(self.render_window.GetSize()) != self.fitted_size:
-            self.set_camera(self.camera_preset)
-
-    def _points_of_interest(self) -> np.ndarray:
-        """Corners of the box the camera must show: all frames of the three figures as placed."""
-        if self.layout == "side_by_side" or not self.sequences:
-            half = (self._slots() - 1) / 2 * SIDE_SPACING + 0.6
-            depth = TOP_CAPTION_OFFSET + 0.2 if self.camera_preset == "top" else 0.6  # room for the captions (_apply_layout)
-            spread = [half, 0.0, depth][:: -1 if self.camera_preset == "side" else 1]  # along X, or Z (_apply_layout)
-            lo = np.array([-spread[0], self.floor_y, -spread[2]])
-            hi = np.array([spread[0], self.floor_y + 2.0, spread[2]])
-        else:
-            pts = np.concatenate([s.reshape(-1, 3) for s in self.sequences.values()])
-            lo, hi = pts.min(0), pts.max(0)
-            lo[1] = min(lo[1], self.floor_y)
-        return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-
-    def set_camera(self, preset: str = "default") -> None:
-        """Look at the figures from a preset direction, at the distance that fits all their frames."""
-        if preset not in CAMERA_PRESETS:
-            raise ValueError(f"camera preset must be one of {CAMERA_PRESETS}")
-        self.camera_preset = preset
-        if self.layout == "side_by_side":  # the side camera has the figures apart along another axis
-            self._apply_layout()
-        self.fitted_size = tuple(self.render_window.GetSize())
-        box = self._points_of_interest()
-        center = (box.min(0) + box.max(0)) / 2
-        direction = {
-            "default": (0.75, 0.38, 0.55) if self.layout == "overlay" else (0.25, 0.3, 1.0),
-            "front": (0.0, 0.12, 1.0),  # along the leader's facing direction (+Z)
-            "side": (1.0, 0.12, 0.0),  # profile of both characters: the paper's view
-            "top": (0.0, 1.0, 0.001),
-        }[preset]
-        d = np.asarray(direction, float)
-        d /= np.linalg.norm(d)
-        up = np.array([0.0, 0.0, -1.0]) if preset == "top" else np.array([0.0, 1.0, 0.0])
-        right = np.cross(up, d)
-        right /= np.linalg.norm(right)
-        up = np.cross(d, right)
-        rel = box - center
-        half_w, half_h = np.abs(rel @ right).max(), np.abs(rel @ up).max()
-        depth = np.abs(rel @ d).max()
-        w, h = self.render_window.GetSize()
-        aspect = max(w, 1) / max(h, 1)
-        view_angle = 30.0
-        t = np.tan(np.radians(view_angle / 2))
-        dist = 1.08 * max(half_h / t, half_w / (t * aspect)) + depth
-        cam = self.renderer.GetActiveCamera()
-        cam.SetFocalPoint(*center)
-        cam.SetPosition(*(center + d * dist))
-        cam.SetViewUp(*up)
-        cam.SetViewAngle(view_angle)
-        self.renderer.ResetCameraClippingRange()
-        if self.follow:  # the preset framed every frame: following moves on from here
-            self._followed = self._pair_centre()
 
     # ---- output -------------------------------------------------------------------------
     def render(self) -> None:
         self.render_window.Render()
-
-    def screenshot(self) -> np.ndarray:
-        """(H, W, 3) uint8 of the current view."""
-        self.render()
-        grab = vtkWindowToImageFilter()
-        grab.SetInput(self.render_window)
-        grab.ReadFrontBufferOff()
-        grab.ShouldRerenderOff()
-        grab.Update()
-        image = grab.GetOutput()
-        w, h, _ = image.GetDimensions()
-        pixels = vtk_to_numpy(image.GetPointData().GetScalars()).reshape(h, w, -1)
-        return np.ascontiguousarray(pixels[::-1, :, :3])  # VTK's rows go bottom to top
-
-    def frames(self, start: int = 0) -> list[np.ndarray]:
-        """Every frame of the current sequence as an image; restores the current frame afterwards."""
-        keep = self.frame
-        images = []
-        for f in range(start, len(self.sequences["leader"])):
-            self.set_frame(f)
-            images.append(self.screenshot())
-        self.set_frame(keep)
-        return images
 
 
 def warm_up() -> None:

@@ -22,6 +22,7 @@ import numpy as np
 
 from explorer.rendering.palette import CHARACTER_TITLES, PINNED, WARNING, display_name
 from explorer.rendering.palette import CHARACTERS as CHARACTER_COLORS
+from explorer.rendering.pictures import frames, screenshot
 from explorer.session.files import FPS
 from explorer.session.words import one_line
 from imm_model.data.labels import label_text
@@ -86,7 +87,7 @@ class Exports:
         """The 3D view as the user sees it now (the server renders it; no browser canvas needed)."""
         import imageio.v3 as iio
 
-        image = self._annotator(every_frame=False)(self.scene.screenshot(), self.scene.frame)
+        image = self._annotator(every_frame=False)(screenshot(self.scene), self.scene.frame)
         return self._send(self.session.files.name("png"), iio.imwrite("<bytes>", image, extension=".png"))
 
     def export_video(self, fmt: str = "gif"):
@@ -96,7 +97,7 @@ class Exports:
             raise ValueError(f"unknown video format {fmt!r}: {' or '.join(VIDEO_FORMATS)}")
 
         annotate = self._annotator(every_frame=True)
-        images = [annotate(im, f) for f, im in enumerate(self.scene.frames())]
+        images = [annotate(im, f) for f, im in enumerate(frames(self.scene))]
         self.page.ctrl.view_update()
         if fmt == "mp4":
             images = [im[: im.shape[0] // 2 * 2, : im.shape[1] // 2 * 2] for im in images]  # even sizes for yuv420p

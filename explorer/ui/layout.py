@@ -14,9 +14,10 @@ from trame.ui.vuetify3 import VAppLayout
 from trame.widgets import client, html
 from trame.widgets import vuetify3 as v3
 
+from explorer.rendering.camera import CAMERA_PRESETS
 from explorer.rendering.charts import CHART_CSS, DISTANCE_BOX
 from explorer.rendering.palette import CHARACTER_TITLES, CHARACTERS, COMPARED, PINNED, WARNING, class_color, display_name
-from explorer.rendering.scene import CAMERA_PRESETS, CHARACTER_KEYS
+from explorer.rendering.scene import CHARACTER_KEYS
 from explorer.rendering.view_stream import ViewStream
 
 if TYPE_CHECKING:

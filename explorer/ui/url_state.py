@@ -145,7 +145,7 @@ def current_view(studio: ViewHolder) -> dict:
         "scale": round(float(ses.scale), 3),
         "frame": None if s.playing else int(s.frame or 0),
         "layout": s.scene_layout,
-        "camera": studio.scene.camera_preset,
+        "camera": studio.scene.camera.preset,
         "map": s.projection,
         "raw": None if ses.cleaned_up else 1,  # left out of the link while the clean-up is on, as by default
         "model": None if ses.model is ses.map_model else ses.model_name,  # left out for the model the studio opens with
@@ -157,7 +157,7 @@ def current_view(studio: ViewHolder) -> dict:
 
 def apply_view(studio: ViewHolder, query: str) -> None:
     """Open the view a link describes; what cannot be applied is named in the page's alert."""
-    from explorer.rendering.scene import CAMERA_PRESETS
+    from explorer.rendering.camera import CAMERA_PRESETS
 
     ses, s = studio.session, studio.state
     view, problems = parse_view(query, ses.class_names, set(ses.data.sequence_ids), CAMERA_PRESETS, tuple(ses.models))
