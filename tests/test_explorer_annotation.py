@@ -82,8 +82,9 @@ def test_a_long_mix_is_cut_and_the_model_and_sequence_stay():
 
 def test_the_mix_reads_as_the_sliders_write_it():
     from explorer.ui.exports import mix_text
+    from imm_model.data.labels import Label
 
     names = ("kicking", "pushing", "shaking_hands", "hugging")
-    assert mix_text([1, 0, 0, 0.5], names, 1.0) == "kicking +1.00, hugging +0.50 · scale 1.00"
-    assert mix_text([0, -0.25, 0, 0], names, 1.5) == "pushing -0.25 · scale 1.50"
-    assert mix_text([0, 0, 0, 0], names, 1.0).startswith("neutral")
+    assert mix_text(Label.of([1, 0, 0, 0.5], names)) == "kicking +1.00, hugging +0.50 · scale 1.00"
+    assert mix_text(Label.of([0, -0.25, 0, 0], names, 1.5)) == "pushing -0.25 · scale 1.50"
+    assert mix_text(Label.of([0, 0, 0, 0], names)).startswith("neutral")

@@ -81,7 +81,7 @@ def test_the_exported_interaction_and_strip_carry_the_part_keys(session):
     session.set_label(part_mix({SHAKE: 1}, {PUSH: -1}))
     with np.load(io.BytesIO(session.files.npz())) as f:
         assert str(f["label_text"]) == "upper:shaking_hands=1,lower:pushing=-1" and f["label"].shape == (2 * C,)
-    assert mix_text(session.label.mix, session.class_names, session.scale) == "upper:shaking_hands=1,lower:pushing=-1 · scale 1.00"
+    assert mix_text(session.label) == "upper:shaking_hands=1,lower:pushing=-1 · scale 1.00"
 
 
 def test_a_model_without_part_labels_is_refused_while_a_part_mix_is_set(session):

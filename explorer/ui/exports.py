@@ -25,7 +25,7 @@ from explorer.rendering.palette import CHARACTERS as CHARACTER_COLORS
 from explorer.rendering.pictures import frames, screenshot
 from explorer.session.files import FPS
 from explorer.session.words import one_line
-from imm_model.data.labels import label_text
+from imm_model.data.labels import Label
 
 if TYPE_CHECKING:
     from explorer.rendering.scene import Scene
@@ -119,7 +119,7 @@ class Exports:
         if scene.layout == "side_by_side":
             shown = [k for k in shown if k == "pinned"]
         legend = [(titles[k], colors[k]) for k in shown]
-        mix, about = mix_text(ses.label.mix, ses.class_names, ses.scale), about_text(ses)
+        mix, about = mix_text(ses.label), about_text(ses)
         n = len(scene.sequences["leader"])
         return lambda image, f: annotate(image, legend, mix, about, f"frame {f + 1} / {n}")
 
@@ -141,13 +141,13 @@ class Exports:
             state.notice = f"download only (could not save a copy: {one_line(err)})"
 
 
-def mix_text(weights, class_names, scale: float) -> str:
-    """The mix as the page's sliders write it: 'kicking +1.00, hugging +0.50 · scale 1.00'; a mix per body part, (2C,)
-    (the upper body's weights, then the lower body's), by its part keys: 'upper:shaking_hands=1,lower:pushing=-1 · scale 1.00'."""
-    if len(weights) == 2 * len(class_names):
-        return f"{label_text(np.asarray(weights), class_names)} · scale {scale:.2f}"
-    parts = [f"{display_name(n)} {w:+.2f}" for n, w in zip(class_names, weights, strict=True) if abs(w) > 1e-6]
-    return f"{', '.join(parts) or 'neutral (all classes 0)'} · scale {scale:.2f}"
+def mix_text(label: Label) -> str:
+    """The mix as the page's sliders write it: 'kicking +1.00, hugging +0.50 · scale 1.00'; a mix per body part by its
+    part keys: 'upper:shaking_hands=1,lower:pushing=-1 · scale 1.00'."""
+    if label.parts_differ:
+        return f"{label.text()} · scale {label.scale:.2f}"
+    parts = [f"{display_name(n)} {w:+.2f}" for n, w in zip(label.class_names, label.parts[0], strict=True) if abs(w) > 1e-6]
+    return f"{', '.join(parts) or 'neutral (all classes 0)'} · scale {label.scale:.2f}"
 
 
 def about_text(session) -> str:

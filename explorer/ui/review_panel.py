@@ -33,6 +33,7 @@ from trame.widgets import vuetify3 as v3
 
 from explorer.rendering.palette import display_name
 from explorer.session.words import no_parts, one_line
+from imm_model.data.labels import Label
 from imm_model.evaluation.review import LOWER_IS_WORSE, SORT_KEYS, ReviewRow, next_worst, sort_rows
 
 if TYPE_CHECKING:
@@ -80,8 +81,7 @@ class ReviewInputs:
     data: Any
     judge: Any
     labels: str  # "match" or "mix"
-    weights: tuple[float, ...]  # the mix ("mix" only): per class, or per class and part (Session.mix)
-    scale: float
+    label: Label  # the mix ("mix" only), as the session holds it
     indices: tuple[int, ...]  # the rows' dataset indices
     split: str  # "held" or "all"
     subject: str | None  # the held-out subject of the rows' fold (the feature space's fold)
@@ -90,16 +90,16 @@ class ReviewInputs:
 
     @property
     def key(self) -> tuple:
-        mix = (self.weights, self.scale) if self.labels == "mix" else None
+        mix = (self.label.text(), self.label.scale) if self.labels == "mix" else None
         return (tuple(name for name, _ in self.models), self.labels, mix, self.split, self.seed, self.raw)
 
     def label_vectors(self, model, indices: Sequence[int]) -> np.ndarray:
         """(N, C): each row's label as `model` takes it (its own class at +1, or the mix)."""
         n = len(self.data.class_names)
         if self.labels == "mix":
-            if len(self.weights) > n and not model.part_labels:  # a part mix is never approximated (Session.set_model)
+            if self.label.parts_differ and not model.part_labels:  # a part mix is never approximated (Session.set_model)
                 raise no_parts(model.title)
-            vec = np.asarray(model.label_vector(list(self.weights), scale=self.scale), np.float32)
+            vec = np.asarray(model.label_vector(self.label), np.float32)
             return np.repeat(vec[None], len(indices), 0)
         own = {c: np.asarray(model.label_vector(list(np.eye(n)[c]), scale=1.0), np.float32) for c in range(n)}
         return np.stack([own[int(self.data.actions[i])] for i in indices])
@@ -117,7 +117,7 @@ def session_inputs(session, labels: str, split: str) -> ReviewInputs:
     subject = getattr(first, "held_out_subject", None) or data.info.get("held_out_subject") or None
     indices = default_split(first, data) if split == "held" else np.arange(len(data))
     return ReviewInputs(models=models, data=data, judge=session.readings.reader, labels=labels,
-                        weights=tuple(round(float(w), 6) for w in session.label.mix), scale=round(float(session.scale), 6),
+                        label=session.label,
                         indices=tuple(int(i) for i in indices), split=split, subject=subject, seed=int(session.seed), raw=raw)
 
 
