@@ -424,7 +424,7 @@ def test_evaluation_reports_a_stochastic_models_variations_and_mixed_readings(ti
     judges = {name: ClassifierConfig.from_dict(getattr(EvalOptions, name).to_dict() | quick)
               for name in ("interaction", "follower", "judge", "upper", "lower")}
     result = evaluate_fold(ReactionModel.load(tiny_model), sample_data, "s04",
-                           EvalOptions(baselines=("nn1",), progress=False, **judges), latents=False)
+                           EvalOptions(baselines=("nn1",), progress=False, **judges))
     v = result["variations"]
     assert v["samples"] == 5 and v["afd_best_of_n"] <= v["afd_single"] and v["multimodality"] > 0 < v["multimodality_m"]
     assert v["real_class_diversity"] > 0 < v["real_same_leader_diversity"]
@@ -432,18 +432,20 @@ def test_evaluation_reports_a_stochastic_models_variations_and_mixed_readings(ti
     assert len(rows) == 15 and all(max(r["whole"], r["parts"]) <= r["mixed"] <= r["whole"] + r["parts"] + 1e-9 for r in rows)
     assert 0 <= result["avoid_judge"]["share_lowered"] <= 1
     gan = evaluate_fold(ReactionModel.load(SAMPLE_GAN), sample_data, "s04",
-                        EvalOptions(baselines=("nn1",), progress=False, **judges), latents=False)
+                        EvalOptions(baselines=("nn1",), progress=False, **judges))
     assert "variations" not in gan and len(gan["mix_parts"]) == 15
 
-    from imm_model.evaluation.report import fold_figures  # what `imm reproduce --tables models` tabulates
+    from imm_model.evaluation.report import FoldFigures  # what `imm reproduce --tables models` tabulates
     from imm_model.reproduce.jobs import TrainJob
     from imm_model.reproduce.report import models_section
     from imm_model.reproduce.tasks import EvalJob
 
-    figures = fold_figures(result)
+    typed = FoldFigures.of(result)
+    figures = typed.flat()
+    assert typed.nn1 is not None and typed.afd_best_of_n == figures["afd_best_of_n"] and figures["afd_nn1"] == typed.nn1.afd
     assert figures["fid"] == result["model"]["fid"] and figures["afd_best_of_n"] == v["afd_best_of_n"]
     assert 0 <= figures["mixed_worst_pair"] <= figures["mixed"] <= 1 and "fid_nn1_hugging" in figures
-    assert "multimodality_ratio" not in fold_figures(gan)
+    assert "multimodality_ratio" not in FoldFigures.of(gan).flat() and FoldFigures.of(gan).multimodality_ratio is None
     assert 0 <= figures["classes_beyond_real_contact"] <= 6
     assert figures["contact_ratio_worst_class"] <= 1.25 or figures["classes_beyond_real_contact"] >= 1
     results = {EvalJob(TrainJob(r, "s04", 0), "final", baselines=("nn1",)): res
@@ -452,7 +454,7 @@ def test_evaluation_reports_a_stochastic_models_variations_and_mixed_readings(ti
     assert "imm-steer, dev folds (1 runs)" in table and "imm-diffusion, dev folds (1 runs)" in table and "test folds (" not in table
     cells = next(line for line in table.splitlines() if line.startswith("| variations")).split("|")
     assert cells[2].strip() == "-" and cells[3].strip() == f"{figures['multimodality_ratio']:.2f}"
-    hugging = [fold_figures(gan)["fid_hugging"], figures["fid_hugging"], figures["fid_nn1_hugging"]]
+    hugging = [FoldFigures.of(gan).fid_per_class["hugging"], figures["fid_hugging"], figures["fid_nn1_hugging"]]
     assert "| hugging | " + " | ".join(f"{x:.2f}" for x in hugging) + " |" in table
 
 

@@ -136,9 +136,10 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
             print(f"warning: {path} held out {model.held_out_subject}, not {subject}: its training set contains the test "
                   f"subject, so these numbers are optimistic", file=sys.stderr)
         first = latent is None  # the t-SNE figure shows the first fold's models only
-        result = evaluate_fold(model, data, subject, opts, latents=first) | {"seed": model.info.get("training", {}).get("seed")}
+        embeddings = {} if first else None
+        result = evaluate_fold(model, data, subject, opts, embeddings) | {"seed": model.info.get("training", {}).get("seed")}
         if first:
-            latent = {"subject": subject, "latents": result["_latent"]}
+            latent = {"subject": subject, "latents": embeddings}
         results.append(result)
         print(f"[{k}/{len(jobs)}] fold {subject} ({result['group']}), {path}: model AFD "
               f"{sum(v['afd'] for v in result['model']['classes'].values()) / len(result['model']['classes']):.3f} "

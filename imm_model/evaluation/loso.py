@@ -271,9 +271,11 @@ def prepare_model(model, data: InteractionDataset, subject: str, opts: EvalOptio
         model.bone_lengths = np.asarray(follower_bone_lengths([data.canonical(int(i))[1] for i in train], data.skeleton))
 
 
-def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptions | None = None, latents: bool = True) -> dict:
+def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptions | None = None,
+                  latents: dict | None = None) -> dict:
     """Everything about `model` on LOSO fold `subject`: see docs/evaluation-protocol.md for each number. With `latents`,
-    `_latent` holds every sequence's embedding under the model (and the label-free baseline) for the t-SNE figure."""
+    `latents` (a dict given) receives every sequence's embedding under the model, as "model" (and the label-free
+    baseline's, as "men") for the t-SNE figure."""
     from imm_model.inference import ReactionModel, check_compatible
 
     opts = opts or EvalOptions()
@@ -290,7 +292,8 @@ def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptio
     if model.settings.seed:  # a model that draws variations: their spread and best-of-N AFD
         result["variations"] = variations(model, data, judges, predictions)
     all_idx = np.arange(len(data))
-    result["_latent"] = {"model": _latents(model, data, all_idx)} if latents else {}  # "_": for the figures, not the JSON
+    if latents is not None:
+        latents["model"] = _latents(model, data, all_idx)
     for name in opts.baselines:
         if name == "men":
             path = (opts.men_checkpoint(subject) if opts.men_checkpoint
@@ -299,8 +302,8 @@ def evaluate_fold(model, data: InteractionDataset, subject: str, opts: EvalOptio
             check_compatible(men, data, str(men.path))
             prepare_model(men, data, subject, opts)
             preds = model_predictions(men, data, judges.test)
-            if latents:
-                result["_latent"]["men"] = _latents(men, data, all_idx)
+            if latents is not None:
+                latents["men"] = _latents(men, data, all_idx)
         else:
             preds = baseline_predictions(name, data, loso_fold(data.subject_pairs, subject))
         result["baselines"][name] = method_scores(data, judges, preds)

@@ -10,6 +10,8 @@ baseline is the one with the lowest mean AFD (for FID: the lowest mean FID), and
 
 from __future__ import annotations
 
+from dataclasses import dataclass, fields
+
 import numpy as np
 
 from imm_model.evaluation import intervals
@@ -34,7 +36,7 @@ def _ci(values: list[float], singles: list) -> list[float]:
 
 
 def _method_afd(scores: dict) -> float:
-    """A method's AFD on one result: the mean over classes of the per-class means (as fold_figures' `afd`)."""
+    """A method's AFD on one result: the mean over classes of the per-class means (as FoldFigures' `afd`)."""
     return float(np.mean([c["afd"] for c in scores["classes"].values()]))
 
 
@@ -154,62 +156,108 @@ def summarize(results: list[dict], class_names: tuple[str, ...]) -> dict:
     summary = {"folds": sorted({r["subject"] for r in results}), "seeds": seeds, "class_names": list(class_names)}
     summary["groups"] = {g: group_summary(rs, class_names) for g, rs in groups.items() if rs}
     summary |= summary["groups"]["all"]
-    summary["per_fold"] = [{k: v for k, v in r.items() if not k.startswith("_")} for r in results]
+    summary["per_fold"] = list(results)
     return summary
 
 
-def fold_figures(result: dict) -> dict[str, float]:
-    """The figures a model is compared by (the reaction diffusion model's bar, docs/model-cards/), from one fold's
-    result (evaluation/loso.py `evaluate_fold`, with the 1-NN among its baselines for the `*_nn1` entries). FID per
-    class as `fid_<class>`; for a stochastic model also its variations (multimodality and best-of-N AFD)."""
-    m, nn1 = result["model"], result["baselines"].get("nn1")
-    p = m["plausibility"]
-    mixes = result["mix_parts"]
-    nan = float("nan")  # a figure a result saved before it was measured lacks
-    out = {
-        "afd": _method_afd(m),
-        "fid": m["fid"], "kid": m.get("kid", nan), "precision": m.get("precision", nan), "recall": m.get("recall", nan),
-        "judge_real_accuracy": result["classifier"]["real_accuracy"]["follower_judge"],
-        "off_label": result["adherence_off_diagonal_judge"],
-        "true_label": float(np.nanmean(np.diag(np.array(result["adherence_matrix_judge"], dtype=float)))),
-        "mixed": float(np.mean([r["mixed"] for r in mixes])),
-        "mixed_whole_body": float(np.mean([r["whole"] for r in mixes])),
-        "mixed_worst_pair": float(min(r["mixed"] for r in mixes)),
-        "avoid_share_lowered": result["avoid_judge"]["share_lowered"],
-        "interior_limb_speed_ratio": p["interior_limb_speed_ratio"],
-        "lean_error_deg": p["lean_error_deg"],
-        "bone_error_cm": p["bone_error_cm"],
-        "foot_skate_mps": p["foot_skate_mps"],
-        "interpenetration": p["interpenetration"],
-        "real_interpenetration": p["real_interpenetration"],
-        "contact_ratio": p["interpenetration"] / p["real_interpenetration"] if p["real_interpenetration"] > 0 else float("nan"),
-        **{k: p.get(k, nan) for k in JITTER_FIGURES},
-        **{f"fid_{c}": v["fid"] for c, v in m["classes"].items()},
-    }
-    classes = [v for v in m["classes"].values() if "real_contact" in v]
-    if classes:  # contact counts against a model only beyond what real pairs of the class show
+NAN = float("nan")  # a figure a result saved before it was measured lacks
+
+
+@dataclass(frozen=True)
+class BaselineFigures:
+    """The 1-NN retrieval's figures on the same fold (flat names `<figure>_nn1`, `fid_nn1_<class>`)."""
+
+    afd: float
+    fid: float
+    kid: float
+    precision: float
+    recall: float
+    jitter_ratio: float
+    fid_per_class: dict[str, float]
+
+
+@dataclass(frozen=True)
+class FoldFigures:
+    """The figures a model is compared by on one fold (the model cards, `imm reproduce --tables models`, the experiment
+    scripts), from one fold's result (evaluation/loso.py `evaluate_fold`); docs/evaluation-protocol.md defines each."""
+
+    afd: float  # one sample's AFD, the mean over classes (the paper's normalized units)
+    fid: float
+    kid: float
+    precision: float
+    recall: float
+    judge_real_accuracy: float  # the independent judge on real followers: what the label figures can be read against
+    off_label: float  # asked for another class than the leader's, the share that reads as it
+    true_label: float  # asked for the leader's class, the share that reads as it
+    mixed: float  # two-class mixes read as both classes (the whole-body or body-part judges)
+    mixed_whole_body: float  # ... by the whole-body judge alone
+    mixed_worst_pair: float
+    avoid_share_lowered: float  # -1 lowers the class's reading
+    interior_limb_speed_ratio: float  # limb speed between the first and last frames, over real followers'
+    lean_error_deg: float
+    bone_error_cm: float
+    foot_skate_mps: float
+    interpenetration: float
+    real_interpenetration: float
+    contact_ratio: float  # frames in contact over real followers'
+    jitter_mps2: float
+    real_jitter_mps2: float
+    jitter_ratio: float
+    fid_per_class: dict[str, float]  # flat names `fid_<class>`
+    contact_ratio_worst_class: float | None = None  # None: a result saved before per-class contact
+    classes_beyond_real_contact: int | None = None
+    nn1: BaselineFigures | None = None  # None: the 1-NN was not among the result's baselines
+    multimodality_ratio: float | None = None  # a model that draws variations only
+    afd_best_of_n: float | None = None
+    multimodality_same_leader_ratio: float | None = None
+
+    @classmethod
+    def of(cls, result: dict) -> FoldFigures:
+        m, nn1, mixes = result["model"], result["baselines"].get("nn1"), result["mix_parts"]
+        p = m["plausibility"]
+        classes = [v for v in m["classes"].values() if "real_contact" in v]
         ratios = [v["contact"] / v["real_contact"] for v in classes if v["real_contact"] > 0]
-        out["contact_ratio_worst_class"] = float(max(ratios)) if ratios else float("nan")
-        # a class whose real pairs never touch counts with any contact at all
-        out["classes_beyond_real_contact"] = sum(v["contact"] > CONTACT_TOLERANCE * v["real_contact"] for v in classes)
-    if nn1:
-        out |= {"afd_nn1": _method_afd(nn1), "fid_nn1": nn1["fid"],
-                **{f"{k}_nn1": nn1.get(k, nan) for k in ("kid", "precision", "recall")},
-                "jitter_ratio_nn1": nn1["plausibility"].get("jitter_ratio", nan),
-                **{f"fid_nn1_{c}": v["fid"] for c, v in nn1["classes"].items()}}
-    if "variations" in result:
-        v = result["variations"]
-        out |= {"multimodality_ratio": v["multimodality"] / v["real_class_diversity"], "afd_best_of_n": v["afd_best_of_n"]}
-        if "real_same_leader_diversity" in v:
-            out["multimodality_same_leader_ratio"] = v["multimodality"] / v["real_same_leader_diversity"]
-    return out
+        variations = result.get("variations")
+        return cls(
+            afd=_method_afd(m), fid=m["fid"], kid=m.get("kid", NAN), precision=m.get("precision", NAN),
+            recall=m.get("recall", NAN), judge_real_accuracy=result["classifier"]["real_accuracy"]["follower_judge"],
+            off_label=result["adherence_off_diagonal_judge"],
+            true_label=float(np.nanmean(np.diag(np.array(result["adherence_matrix_judge"], dtype=float)))),
+            mixed=float(np.mean([r["mixed"] for r in mixes])), mixed_whole_body=float(np.mean([r["whole"] for r in mixes])),
+            mixed_worst_pair=float(min(r["mixed"] for r in mixes)), avoid_share_lowered=result["avoid_judge"]["share_lowered"],
+            interior_limb_speed_ratio=p["interior_limb_speed_ratio"], lean_error_deg=p["lean_error_deg"],
+            bone_error_cm=p["bone_error_cm"], foot_skate_mps=p["foot_skate_mps"], interpenetration=p["interpenetration"],
+            real_interpenetration=p["real_interpenetration"],
+            contact_ratio=p["interpenetration"] / p["real_interpenetration"] if p["real_interpenetration"] > 0 else NAN,
+            jitter_mps2=p.get("jitter_mps2", NAN), real_jitter_mps2=p.get("real_jitter_mps2", NAN),
+            jitter_ratio=p.get("jitter_ratio", NAN), fid_per_class={c: v["fid"] for c, v in m["classes"].items()},
+            # contact counts against a model only beyond what real pairs of the class show; a class whose real pairs
+            # never touch counts with any contact at all
+            contact_ratio_worst_class=(float(max(ratios)) if ratios else NAN) if classes else None,
+            classes_beyond_real_contact=sum(v["contact"] > CONTACT_TOLERANCE * v["real_contact"] for v in classes) if classes else None,
+            nn1=None if nn1 is None else BaselineFigures(
+                afd=_method_afd(nn1), fid=nn1["fid"], kid=nn1.get("kid", NAN), precision=nn1.get("precision", NAN),
+                recall=nn1.get("recall", NAN), jitter_ratio=nn1["plausibility"].get("jitter_ratio", NAN),
+                fid_per_class={c: v["fid"] for c, v in nn1["classes"].items()}),
+            multimodality_ratio=None if variations is None else variations["multimodality"] / variations["real_class_diversity"],
+            afd_best_of_n=None if variations is None else variations["afd_best_of_n"],
+            multimodality_same_leader_ratio=(variations["multimodality"] / variations["real_same_leader_diversity"]
+                                             if variations and "real_same_leader_diversity" in variations else None))
 
-
-JITTER_FIGURES = ("jitter_mps2", "real_jitter_mps2", "jitter_ratio")
+    def flat(self) -> dict[str, float]:
+        """The figures by the flat names the tables, the JSON and the experiment records use (`fid_<class>`, the
+        1-NN's as `<figure>_nn1` and `fid_nn1_<class>`); figures not measured are left out."""
+        out = {f.name: getattr(self, f.name) for f in fields(self)
+               if f.name not in ("fid_per_class", "nn1") and getattr(self, f.name) is not None}
+        out |= {f"fid_{c}": v for c, v in self.fid_per_class.items()}
+        if self.nn1 is not None:
+            out |= {f"{f.name}_nn1": getattr(self.nn1, f.name) for f in fields(self.nn1) if f.name != "fid_per_class"}
+            out |= {f"fid_nn1_{c}": v for c, v in self.nn1.fid_per_class.items()}
+        return out
 
 
 def fold_figure_intervals(result: dict) -> dict[str, tuple[float, float]]:
-    """The 95 % bootstrap interval over one fold's test sequences of each fold_figures figure that has one (AFD, FID,
+    """The 95 % bootstrap interval over one fold's test sequences of each FoldFigures figure that has one (AFD, FID,
     KID, precision, recall, jitter, the same for the 1-NN as `*_nn1`); empty for a result saved before intervals."""
     out = {k: intervals.as_interval(v) for k, v in result["model"].get("intervals", {}).items()}
     nn1 = result["baselines"].get("nn1", {})

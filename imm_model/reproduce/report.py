@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from imm_model.evaluation import intervals
-from imm_model.evaluation.report import CONTACT_TOLERANCE, fold_figure_intervals, fold_figures, group_summary
+from imm_model.evaluation.report import CONTACT_TOLERANCE, FoldFigures, fold_figure_intervals, group_summary
 from imm_model.evaluation.tables import BASELINE_TITLES, _pm
 from imm_model.outputs import write_files
 from imm_model.reproduce import paper_numbers as paper
@@ -143,7 +143,7 @@ def recognition_section(results: dict, class_names: list[str]) -> str:
             "(reproduce/recognition.py).")
 
 
-# the models table's rows: (title, evaluation/report.py fold_figures key, digits)
+# the models table's rows: (title, evaluation/report.py FoldFigures' flat name, digits)
 MODEL_FIGURES = (
     ("FID", "fid", 2), ("FID, 1-NN retrieval", "fid_nn1", 2), ("KID", "kid", 3), ("KID, 1-NN retrieval", "kid_nn1", 3),
     ("precision (k = 3)", "precision", 2), ("... 1-NN retrieval", "precision_nn1", 2),
@@ -165,13 +165,13 @@ MODEL_FIGURES = (
 
 
 def models_section(results: dict, class_names: list[str]) -> str:
-    """The bundled GAN recipe beside the diffusion model (evaluation/report.py fold_figures), each figure with its 95 %
+    """The bundled GAN recipe beside the diffusion model (evaluation/report.py FoldFigures), each figure with its 95 %
     interval (evaluation/intervals.py: t over the folds and seeds of a column, or one run's bootstrap over its test
     sequences), dev and test folds apart; then FID per class."""
     runs = {(r, g): [res for j, res in results.items() if res is not None and j.kind == "metrics"
                      and j.run.recipe == r and res["group"] == g and j.baselines == ("nn1",)]
             for g in ("dev", "test") for r in MODEL_RECIPES}
-    figures = {k: [fold_figures(res) for res in v] for k, v in runs.items()}
+    figures = {k: [FoldFigures.of(res).flat() for res in v] for k, v in runs.items()}
     bootstrap = {k: [fold_figure_intervals(res) for res in v] for k, v in runs.items()}
     columns = [k for k, v in figures.items() if v]
     if not columns:

@@ -144,8 +144,7 @@ def evaluate_run(job: EvalJob, runs: Path, data_path: Path, threads: int) -> dic
         from imm_model.evaluation.loso import evaluate_fold
 
         model, data = ReactionModel.load(job.checkpoint_path(runs)), InteractionDataset.load(data_path)
-        result = evaluate_fold(model, data, job.run.split, job.options(runs), latents=False)
-        result = {k: v for k, v in result.items() if not k.startswith("_")}
+        result = evaluate_fold(model, data, job.run.split, job.options(runs))
     result |= {"seed": job.run.seed}
     write_atomic(job.result_path(runs), json.dumps({"key": job.key(runs), "result": result}) + "\n")
     return result

@@ -121,7 +121,7 @@ def main(argv: list[str] | None = None, adapt=None, extra: dict | None = None) -
                 model.attach_memory(data)  # the fold's training pairs: the checkpoint's held-out subject is never in it
         row = {"checkpoint": str(args.checkpoint), "fold": args.fold, "raw": args.raw,
                "guidance": model.guidance.to_dict() if model.settings.seed else None}
-        row |= headline(evaluate_fold(model, data, args.fold, opts, latents=False))
+        row |= headline(evaluate_fold(model, data, args.fold, opts))
         record(row | (extra or {}), args.out)
 
 

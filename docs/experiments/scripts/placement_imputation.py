@@ -1,7 +1,7 @@
 """Does a low-variance placement with sampled limbs lower the diffusion model's AFD? The diffusion model's follower is
 placed, at every sampler step, where the deterministic GAN places it (horizontally; its body centre, the mean of the
 root's neighbours), and its limbs are sampled as before: an imputation of the placement (as MDM's and GMD's trajectory
-conditioning), with no retraining. One JSON line per mode (evaluation/report.py fold_figures) for
+conditioning), with no retraining. One JSON line per mode (evaluation/report.py FoldFigures) for
 docs/experiments/placement.md.
 
     python docs/experiments/scripts/placement_imputation.py --fold s04 --mode offset path --out results.jsonl
@@ -69,7 +69,7 @@ def main() -> None:
 
     from imm_model.data.dataset import InteractionDataset
     from imm_model.evaluation.loso import EvalOptions, evaluate_fold
-    from imm_model.evaluation.report import fold_figures
+    from imm_model.evaluation.report import FoldFigures
     from imm_model.inference import ReactionModel
     from imm_model.paths import SAMPLE_DATA, SAMPLE_DIFFUSION, SAMPLE_GAN
 
@@ -89,10 +89,10 @@ def main() -> None:
             if model.settings.spread:
                 model.spread = 0.0  # the imputation reads the clean leader
             model.sampler = imputing_sampler(model, gan, mode)
-        result = evaluate_fold(model, data, args.fold, EvalOptions(baselines=("nn1",), progress=False), latents=False)
+        result = evaluate_fold(model, data, args.fold, EvalOptions(baselines=("nn1",), progress=False))
         row = {"checkpoint": str(args.checkpoint), "gan": str(args.gan), "fold": args.fold, "mode": mode,
                "guidance": model.guidance.to_dict(), "first_frame_root_m": result["model"]["afd_parts"]["start_root_m"],
-               "limb_m": result["model"]["afd_parts"]["limb_m"]} | fold_figures(result)
+               "limb_m": result["model"]["afd_parts"]["limb_m"]} | FoldFigures.of(result).flat()
         record(row, args.out)
 
 
