@@ -8,8 +8,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from imm_model.data.labels import Label
 from imm_model.errors import CheckpointError
 from imm_model.paths import SAMPLE_GAN
+
+CLASSES = ("kicking", "pushing", "shaking_hands", "hugging", "exchanging_objects", "punching")  # SBU's, as bundled
 
 pytest.importorskip("trame")
 
@@ -400,7 +403,7 @@ def test_the_clean_up_switch_holds_for_both_models(two_models):
 def test_a_link_carries_the_model_and_the_seed():
     from explorer.ui.url_state import MAX_SEED, parse_view, view_query
 
-    query = view_query({"seq": "s01s02/03/001", "weights": {"kicking": 1.0}, "model": "diffusion", "seed": 12})
+    query = view_query({"seq": "s01s02/03/001", "label": Label.of({"kicking": 1.0}, CLASSES), "model": "diffusion", "seed": 12})
     assert query.endswith("&model=diffusion&seed=12")
     view, problems = parse_view(query, ("kicking",), {"s01s02/03/001"}, ("default",), ("gan", "diffusion"))
     assert (view["model"], view["seed"], problems) == ("diffusion", 12, [])
@@ -477,7 +480,7 @@ def test_compared_models_followers_are_each_models_own_synthesis(sample_data, mo
 def test_a_link_carries_the_compared_models():
     from explorer.ui.url_state import parse_view, view_query
 
-    query = view_query({"seq": "s01s02/03/001", "weights": {"kicking": 1.0}, "compare": "diffusion,retrieval"})
+    query = view_query({"seq": "s01s02/03/001", "label": Label.of({"kicking": 1.0}, CLASSES), "compare": "diffusion,retrieval"})
     assert query.endswith("&compare=diffusion,retrieval")
     models = ("gan", "diffusion", "retrieval")
     assert parse_view(query, ("kicking",), {"s01s02/03/001"}, (), models)[0]["compare"] == ["diffusion", "retrieval"]
@@ -544,7 +547,8 @@ def test_the_spread_moves_the_reaction_and_travels_with_the_pin_link_and_export(
     assert np.array_equal(ses.synth, pinned_at_5) and ses.spread == pytest.approx(0.2)
     with np.load(io.BytesIO(ses.files.npz())) as f:
         assert float(f["spread"]) == pytest.approx(0.2)
-    query = view_query({"seq": "s01s02/03/001", "weights": {"kicking": 1.0}, "model": "diffusion", "seed": 4, "spread": 0.35})
+    kicking = Label.of({"kicking": 1.0}, CLASSES)
+    query = view_query({"seq": "s01s02/03/001", "label": kicking, "model": "diffusion", "seed": 4, "spread": 0.35})
     assert query.endswith("&seed=4&spread=0.35")
     view, problems = parse_view(query.replace("0.35", "2"), ("kicking",), {"s01s02/03/001"}, ("default",), ("gan", "diffusion"))
     assert "spread" not in view and problems == ["spread '2' is outside 0..1"]

@@ -115,7 +115,7 @@ def test_a_link_writes_and_restores_a_part_mix_and_names_a_bad_part_key(session)
     from explorer.ui.url_state import parse_view, view_query
 
     session.set_label(part_mix({SHAKE: 1}, {PUSH: -1}))
-    query = view_query({"weights": session.label.keys()})
+    query = view_query({"label": session.label})
     assert "mix=upper:shaking_hands:1,lower:pushing:-1" in query
     names = session.class_names
     view, problems = parse_view(query, names, set(), ())

@@ -33,12 +33,12 @@ MAX_SEED = 2**31 - 5  # room for the side-by-side variations after it (explorer/
 
 
 def view_query(view: dict) -> str:
-    """{seq, weights: {label key: w} (a class, or "upper:<class>" / "lower:<class>"), scale, frame, layout, camera, map,
-    raw, model, seed, spread, compare} -> "?..." (None values are left out)."""
+    """{seq, label (a Label: its values unscaled), scale, frame, layout, camera, map, raw, model, seed, spread, compare}
+    -> "?..." (None values are left out)."""
     parts = {}
     if view.get("seq"):
         parts["seq"] = view["seq"]
-    mix = ",".join(f"{name}:{w:g}" for name, w in view.get("weights", {}).items() if w)
+    mix = view["label"].text(value_sep=":") if view.get("label") is not None else ""
     parts["mix"] = mix or "none"
     for key in ("scale", "frame", "layout", "camera", "map", "raw", "model", "seed", "spread", "compare"):
         if view.get(key) is not None:
@@ -141,7 +141,7 @@ def current_view(studio: ViewHolder) -> dict:
     ses, s = studio.session, studio.state
     return {
         "seq": None if ses.upload else ses.data.sequence_ids[ses.index],
-        "weights": ses.label.keys(),
+        "label": ses.label,
         "scale": round(float(ses.scale), 3),
         "frame": None if s.playing else int(s.frame or 0),
         "layout": s.scene_layout,
