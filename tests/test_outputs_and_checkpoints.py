@@ -393,8 +393,8 @@ def test_studio_export_copies_never_overwrite_and_use_safe_names(tmp_path):
     from explorer.ui.exports import Exports
 
     upload = SimpleNamespace(name="take.bvh")
-    session = SimpleNamespace(export_name=lambda ext: f"{Path(upload.name).stem}_neutral.{ext}",
-                              export_bvh=lambda character: f"BVH of {upload.name}".encode())
+    session = SimpleNamespace(files=SimpleNamespace(name=lambda ext: f"{Path(upload.name).stem}_neutral.{ext}",
+                                                    bvh=lambda character: f"BVH of {upload.name}".encode()))
     page = SimpleNamespace(session=session, state=SimpleNamespace(notice=""), guarded=lambda fn: fn,
                            trigger=lambda name: (lambda fn: fn))
     exports = Exports(page, None, tmp_path / "exports", attach=bytes)

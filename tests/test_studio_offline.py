@@ -102,6 +102,33 @@ def test_the_address_bar_is_the_views_link_and_another_browser_gets_its_own_stud
         first.close()
 
 
+def test_the_address_bar_follows_what_plays(browser, studio):
+    """At 1366x768, while the studio plays: a sequence opened (as a map point or a review row opens one) and a slider
+    moved are in the address bar at once, with playback going on, so a link copied mid-play shows what plays; the
+    frame joins the link once playback stops."""
+    page = probe.open_studio(browser, studio.url, width=1366, height=768)
+    try:
+        probe.set_state(page, "loop", True)
+        probe.set_state(page, "playing", True)
+        probe.wait_state(page, "s.get('playing') === true")
+        current, items = probe.state(page, "sequence_index"), probe.state(page, "sequence_items")
+        target = next(it["value"] for it in items[len(items) // 2:] + items if it["value"] != current)
+        probe.set_state(page, "sequence_index", target)
+        probe.wait_state(page, f"s.get('sequence_index') === {target} && s.get('sequence_title') !== ''")
+        sid = probe.state(page, "sequence_title").split(" · ")[0]
+        probe.wait_state(page, f"decodeURIComponent(window.location.search).includes('seq={sid}&')", timeout_ms=30000)
+        assert probe.state(page, "playing") and "frame=" not in page.url, page.url
+        names = probe.state(page, "class_names")
+        free = next(i for i in range(len(names)) if probe.state(page, f"w_{i}") == 0)
+        probe.set_state(page, f"w_{free}", -1.0)
+        probe.wait_state(page, "window.location.search.includes(':-1')", timeout_ms=30000)
+        assert probe.state(page, "playing")
+        probe.set_state(page, "playing", False)
+        probe.wait_state(page, "window.location.search.includes('frame=')", timeout_ms=30000)
+    finally:
+        page.close()
+
+
 def test_a_copied_address_in_another_tab_of_the_same_browser_opens_a_studio_of_its_own(browser, studio):
     """The same browser (one context: cookies shared), a second tab opened on the first tab's address: a studio of its
     own with the view the address names; a reload of the first tab keeps its studio."""

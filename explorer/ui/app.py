@@ -146,7 +146,8 @@ class Studio:
         s.change("clean_up")(self.guarded(self.on_cleanup_toggled))
         self.server.trigger("key_pressed")(self.guarded(lambda key: press(self, str(key)[:20])))
         self.server.trigger("open_url_view")(self.open_url_view)
-        s.change("scene_layout", "projection", "frame", "playing", "mix_count")(self.write_url)
+        s.change("scene_layout", "projection", "playing", "mix_count")(self.write_url)
+        s.change("frame")(self.write_still_frame)
 
     def guarded(self, fn):
         """`fn` with user-facing errors turned into the page's one-line alert (the page never goes blank)."""
@@ -223,6 +224,13 @@ class Studio:
             self.write_url()
 
     def write_url(self, **_):
-        """The page keeps its address bar on what it shows (not during playback: every frame would be a write)."""
-        if self._url_opened and not self.state.playing:
+        """The page keeps its address bar on what it shows, playing or not: a sequence opened from the map or the
+        review, a mix or a model changed while it plays is in the link at once (the frame only while paused)."""
+        if self._url_opened:
             self.state.url_query = view_query(current_view(self))
+
+    def write_still_frame(self, **_):
+        """A frame scrubbed or stepped while paused goes into the link; frames going by in playback do not (each would
+        be a write)."""
+        if not self.state.playing:
+            self.write_url()
