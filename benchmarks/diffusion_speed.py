@@ -6,10 +6,11 @@ part, 1-3 part terms), against the GAN in the same run.
 
 Prints the median and p90 of `ReactionModel.synthesize_canonical` (clean-up included) for each number of classes
 composed (each class is one more network term per sampler step, and so is each pair of classes for a model with pair
-terms, such as `imm-diffusion-mixed`'s; for a part model each (part, class) term is one, and a class on each part adds
-their composite term), the sampler's steps, and the GAN's median on the same leader (whole-body labels), interleaved so
-that both see the same machine load. `--memory` starts the sampler from the reaction memory (the bundled data's
-pairs of the model's training subjects), its retrieval included in the time.
+terms, such as `imm-diffusion-mixed`'s; a label per body part whose parts differ, with the sampler's join, runs each
+part's terms apart, and without it a part network's (part, class) terms), the sampler's steps, and the GAN's median
+on the same leader (whole-body labels), interleaved so that both see the same machine load. `--memory` starts the
+sampler from the reaction memory (the bundled data's pairs of the model's training subjects), its retrieval included
+in the time.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import torch
 from threadpoolctl import threadpool_limits
 
 from imm_model.data.dataset import InteractionDataset
+from imm_model.data.labels import Label
 from imm_model.device import add_device_argument, resolve_device
 from imm_model.inference import ReactionModel
 from imm_model.paths import SAMPLE_DATA, SAMPLE_GAN
@@ -66,7 +68,7 @@ def main() -> None:
     names = model.class_names
     cases = [(f"{k} classes composed", {n: 1.0 for n in names[:k]}) for k in range(4)]
     if model.part_labels:
-        cases += [(f"parts: {text}", dict((k, float(v)) for k, v in (kv.split("=") for kv in text.split(","))))
+        cases += [(f"parts: {text}", Label.parse(text, names).keys())
                   for text in (f"upper:{names[2]}=1", f"upper:{names[2]}=1,lower:{names[1]}=-1",
                                f"upper:{names[2]}=1,lower:{names[1]}=1", f"upper:{names[2]}=1,lower:{names[1]}=1,{names[3]}=-1")]
     for title, keys in cases:

@@ -25,7 +25,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     src.add_argument("--sequence", help="a sequence id of the bundled data, e.g. s01s02/03/001 (its leader is used)")
     src.add_argument("--sequences", help="'all', 'held-out' or comma-separated sequence ids of the bundled data")
     p.add_argument("--label", action="append", default=None,
-                   help="e.g. kicking=1,hugging=0.5 or one value per class; a model with a label per body part also "
+                   help="e.g. kicking=1,hugging=0.5 or one value per class; the diffusion models (the default) also "
                         "takes upper:CLASS and lower:CLASS (e.g. upper:shaking_hands=1,lower:pushing=-1); repeat it for "
                         "several labels")
     p.add_argument("--grid", action="store_true", help="every one-hot label (one output per leader and class)")

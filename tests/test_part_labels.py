@@ -76,6 +76,65 @@ def test_label_terms_of_a_whole_label_network_are_unchanged_by_the_part_code():
     assert label_terms(np.zeros((2, C), np.float32))[0].shape == (0, C)  # all zero: the label-free reaction alone
 
 
+def test_the_join_gives_each_part_its_own_labels_prediction_at_every_step():
+    """Guidance.part_join: a row whose parts differ follows, at every step, `join` of its upper part's prediction (each
+    class as the whole-body condition) and its lower part's; a row whose parts agree is the whole-body label's, to the
+    bit. With a join that keeps one side, the reaction is that side's whole-body label's, for a part network and a
+    whole-label one alike."""
+    rng = np.random.default_rng(0)
+    leaders, mask = np.zeros((3, 5, 45), np.float32), np.ones((3, 5), bool)
+    noise = rng.standard_normal((3, 5, 45)).astype(np.float32)
+    g = Guidance(label_scale=2.0, sample_steps=4, clip=100.0)
+    upper, lower = np.eye(C, dtype=np.float32)[[2, 0, 4]], np.eye(C, dtype=np.float32)[[1, 0, 3]] * -1
+    lower[1] = upper[1]  # the second row's parts agree
+    split = np.concatenate([upper, lower], 1)
+
+    def network(part_labels):
+        def whole_label(x, step, leader_on, label, label_on):  # a whole-label stand-in: the label's offsets per class
+            return stand_in(x, step, leader_on, np.concatenate([label, label], 1), label_on)
+        return (stand_in if part_labels else whole_label), (lambda v: np.concatenate([v, v], 1)) if part_labels else (lambda v: v)
+
+    for part_labels in (True, False):
+        net, whole = network(part_labels)
+        keep_upper = sample(net, leaders, mask, split, noise, g, 100, part_labels=part_labels, join=lambda u, lo: u)
+        keep_lower = sample(net, leaders, mask, split, noise, g, 100, part_labels=part_labels, join=lambda u, lo: lo)
+        np.testing.assert_array_equal(keep_upper, sample(net, leaders, mask, whole(upper), noise, g, 100, part_labels=part_labels))
+        by_lower = sample(net, leaders, mask, whole(lower), noise, g, 100, part_labels=part_labels)
+        np.testing.assert_array_equal(keep_lower[[0, 2]], by_lower[[0, 2]])
+        np.testing.assert_array_equal(keep_lower[1], keep_upper[1])  # parts alike: the whole-body label, whatever the join
+
+
+def test_the_bundled_default_takes_part_keys_through_its_samplers_join(sample_data):
+    """The bundled diffusion model reads a whole-body label only; its sampler joins the parts (Guidance.part_join), so
+    it takes a label per body part, and its whole-body reactions are those of the sampler without the join, to the bit."""
+    from dataclasses import replace
+
+    from imm_model.paths import SAMPLE_DIFFUSION
+
+    model = load_model(SAMPLE_DIFFUSION)
+    assert not model.config.part_labels and model.guidance.part_join and model.part_labels
+    leader = sample_data.world(3)[0]
+    whole = model.synthesize(leader, {"pushing": 1, "hugging": -0.5}, seed=2)
+    split = model.synthesize(leader, {"upper:shaking_hands": 1, "lower:pushing": -1}, seed=2)
+    model.guidance = replace(model.guidance, part_join=False)
+    np.testing.assert_array_equal(model.synthesize(leader, {"pushing": 1, "hugging": -0.5}, seed=2), whole)
+    with pytest.raises(LabelError, match=r"takes no label per body part \('upper:shaking_hands'\)"):
+        model.label_vector({"upper:shaking_hands": 1, "lower:pushing": -1})
+    assert split.shape == whole.shape and np.isfinite(split).all()
+    for one in ({"shaking_hands": 1}, {"pushing": -1}):
+        assert not np.allclose(split, model.synthesize(leader, one, seed=2))
+
+
+def test_the_samplers_join_composes_as_training_composes_real_followers(sample_data):
+    from imm_model.model.body_parts import compose_parts
+    from imm_model.training.part_mix import compose
+
+    upper, _, centre = part_indices(sample_data.skeleton)
+    a, b = (np.random.default_rng(k).standard_normal((2, 7, 15, 3)).astype(np.float32) for k in (1, 2))
+    np.testing.assert_allclose(compose_parts(a, b, upper, centre),
+                               compose(torch.from_numpy(a), torch.from_numpy(b), upper, centre).numpy(), atol=1e-6)
+
+
 def test_a_part_config_is_refused_beside_pair_terms_and_its_recipe_needs_it():
     with pytest.raises(ValueError, match="part_labels"):
         DiffusionConfig(part_labels=True, pair_terms=True)
@@ -185,6 +244,7 @@ def test_imm_generate_takes_part_keys_and_writes_them(part_model, sample_data, t
         assert str(f["label_text"]) == "upper:shaking_hands=1,lower:pushing=-1" and f["label"].shape == (2 * C,)
         np.testing.assert_allclose(f["follower"], part_model.synthesize(
             f["leader"], {"upper:shaking_hands": 1, "lower:pushing": -1}, seed=2), atol=1e-4)
-    assert main(["generate", "--sequence", sid, "--label", "upper:shaking_hands=1", "--out", str(tmp_path / "gan.npz")]) == 2
+    assert main(["generate", "--checkpoint", str(SAMPLE_GAN), "--sequence", sid, "--label", "upper:shaking_hands=1",
+                 "--out", str(tmp_path / "gan.npz")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "takes no label per body part ('upper:shaking_hands')" in err[0]

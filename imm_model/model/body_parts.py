@@ -1,4 +1,5 @@
-"""What a body-part judge reads of a follower (numpy only: the studio's part judges run without torch)."""
+"""What a body-part judge reads of a follower, and a follower composed of two by parts (numpy only: the studio's part
+judges and the diffusion sampler run without torch)."""
 
 from __future__ import annotations
 
@@ -23,4 +24,21 @@ def body_part_view(follower: np.ndarray, part: str, skeleton=None) -> np.ndarray
     else:
         out[:, legs] = b[:, legs] - centre
         out[:, skeleton.root] = centre[:, 0]
+    return out
+
+
+def compose_parts(upper_from: np.ndarray, lower_from: np.ndarray, upper: list[int], centre: list[int]) -> np.ndarray:
+    """(B, T, J, 3) each -> (B, T, J, 3): training/part_mix.py `compose` on numpy arrays, the same arithmetic (`lower_from`'s
+    legs and placement with `upper_from`'s trunk and arms moved onto their body centre): what the diffusion sampler
+    joins its parts' predictions with (families/diffusion/model.py `join_parts`), in processes that never import torch
+    (the studio)."""
+    relative = upper_from - upper_from[:, :, centre].mean(2, keepdims=True)
+    in_legs = [j for j in centre if j not in upper]
+    in_upper = [j for j in centre if j in upper]
+    if in_legs:
+        delta = (relative[:, :, in_upper].sum(2) + lower_from[:, :, in_legs].sum(2)) / len(in_legs)
+    else:
+        delta = lower_from[:, :, centre].mean(2)
+    out = lower_from.copy()
+    out[:, :, upper] = relative[:, :, upper] + delta[:, :, None]
     return out

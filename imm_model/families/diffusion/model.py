@@ -45,16 +45,32 @@ class DiffusionReactionModel(ReactionModel):
 
     @property
     def part_labels(self) -> bool:
-        return self.config.part_labels
+        """A part network reads a label per body part; any network takes one whose sampler joins the parts
+        (Guidance.part_join)."""
+        return self.config.part_labels or self.guidance.part_join
+
+    def join_parts(self, upper_x0: np.ndarray, lower_x0: np.ndarray) -> np.ndarray:
+        """Normalized followers (B, T, D) twice -> (B, T, D): the trunk and arms of the first on the legs and placement
+        of the second, joined around the body centre as training composes real followers (model/body_parts.py
+        `compose_parts`); the sampler's join (Guidance.part_join)."""
+        from imm_model.model.body_parts import compose_parts
+        from imm_model.training.part_mix import part_indices
+
+        mean, std = self.weights["follower_mean"], self.weights["follower_std"]
+        b, t, d = upper_x0.shape
+        upper, _, centre = part_indices(self.skeleton)
+        joined = compose_parts((upper_x0 * std + mean).reshape(b, t, -1, 3), (lower_x0 * std + mean).reshape(b, t, -1, 3),
+                               upper, centre)
+        return ((joined.reshape(b, t, d) - mean) / std).astype(np.float32)
 
     @property
     def title(self) -> str:  # what the studio's switch and the messages call it
         return "the diffusion model by parts" if self.config.part_labels else "the diffusion model"
 
     def _label_input(self, labels: np.ndarray) -> np.ndarray:
-        """(N, C) or (N, 2C) checked label vectors (`_label_array`) -> what the sampler composes: a part model's
+        """(N, C) or (N, 2C) checked label vectors (`_label_array`) -> what the sampler composes: a part network's
         whole-body label on both parts."""
-        return np.concatenate([labels, labels], 1) if self.part_labels and labels.shape[1] == len(self.class_names) else labels
+        return np.concatenate([labels, labels], 1) if self.config.part_labels and labels.shape[1] == len(self.class_names) else labels
 
     @property
     def spread(self) -> float | None:
@@ -138,6 +154,7 @@ class DiffusionReactionModel(ReactionModel):
             raise LabelError(f"leader noise {self.guidance.leader_noise:g} needs a model trained with noised leaders "
                              "(this one reads only the clean leader)")
         labels = self._label_input(labels)
+        join = self.join_parts if self.guidance.part_join and labels.shape[1] == 2 * len(self.class_names) else None
         out: list[np.ndarray] = []
         for start in range(0, len(leaders), self.BATCH):
             rows = list(range(start, min(start + self.BATCH, len(leaders))))
@@ -151,7 +168,7 @@ class DiffusionReactionModel(ReactionModel):
                 noise = forward_noised(self._memory_starts([leaders[i] for i in rows], labels[rows], [seeds[i] for i in rows]),
                                        noise, mask, schedule_step(self.guidance.memory_level, steps), steps)
             x0 = self.sampler(denoise, x, mask, labels[rows], noise, self.guidance, steps, seeds=[seeds[i] for i in rows],
-                                  pair_terms=self.config.pair_terms, part_labels=self.config.part_labels)
+                              pair_terms=self.config.pair_terms, part_labels=self.config.part_labels, join=join)
             followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
             out += [followers[k, : len(leaders[i])].reshape(len(leaders[i]), -1, 3) for k, i in enumerate(rows)]
         return out

@@ -120,6 +120,11 @@ class Guidance:
     # the noise level t / (T - 1) the sampler starts from: a real reaction to a similar leader, from the model's
     # reaction memory (reaction_memory.py), noised to this level; 1 = from pure noise, without the memory
     memory_level: float = param(1.0, Interval(float, 0, 1))
+    # a label per body part whose parts differ is composed by part at every step: the upper body's values and the lower
+    # body's each composed as a whole-body label into a guided prediction of its own, the two joined around the body
+    # centre (the model's `join_parts`: trunk and arms of the first on the second's legs and placement); off: a part
+    # network's own part conditions (`label_terms`), and a whole-label network takes no label per body part
+    part_join: bool = param(False, Flag())
 
     def __post_init__(self) -> None:
         validate(self, "guidance")
@@ -278,7 +283,7 @@ def ddim(predict, noise: np.ndarray, mask: np.ndarray, guidance: Guidance, diffu
 
 
 def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, noise: np.ndarray, guidance: Guidance,
-           diffusion_steps: int, seeds=None, pair_terms: bool = False, part_labels: bool = False) -> np.ndarray:
+           diffusion_steps: int, seeds=None, pair_terms: bool = False, part_labels: bool = False, join=None) -> np.ndarray:
     """DDIM (`ddim`) from `noise` (B, T, D) -> normalized followers x0 (B, T, D), numpy float32, each step predicting
     the composed label's x0.
 
@@ -287,8 +292,39 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
     reads `leaders` (normalized, B rows, repeated alike) and `mask` from its closure. labels (B, C), or (B, 2C) with
     `part_labels`, are signed weights (already times the scale). Each step evaluates, in one batch, the leader-only
     term, the label terms of `label_terms` (`pair_terms`, `part_labels`: what the network was trained to read) and
-    (with leader_scale != 1) the unconditioned term."""
-    b, t, d = noise.shape
+    (with leader_scale != 1) the unconditioned term.
+
+    With `join(upper_x0, lower_x0) -> x0` (normalized (B, T, D) each; Guidance.part_join) `labels` are (B, 2C), the
+    upper body's values then the lower body's, for either network: where a row's parts differ, each part's values are
+    composed as a whole-body label into a guided prediction of its own and the two are joined at every step; a row whose
+    parts agree takes the upper one's, the whole-body label's prediction."""
+    if join is None:
+        return ddim(guided_prediction(denoise, labels, guidance, diffusion_steps, mask, pair_terms, part_labels),
+                    noise, mask, guidance, diffusion_steps, seeds)
+    c = labels.shape[1] // 2
+    upper, lower = labels[:, :c], labels[:, c:]
+    if part_labels:  # each part's values as the whole-body condition (e_c, e_c) the network saw on every one-class row
+        upper, lower = np.concatenate([upper, upper], 1), np.concatenate([lower, lower], 1)
+    apart = ~np.all(labels[:, :c] == labels[:, c:], axis=1)[:, None, None]
+    by_upper = guided_prediction(denoise, upper, guidance, diffusion_steps, mask, pair_terms, part_labels)
+    by_lower = guided_prediction(denoise, lower, guidance, diffusion_steps, mask, pair_terms, part_labels)
+
+    m = mask[..., None].astype(np.float32)
+
+    def predict(x: np.ndarray, step: int) -> np.ndarray:
+        x0_upper = by_upper(x, step)
+        if not apart.any():
+            return x0_upper
+        return (np.where(apart, join(x0_upper, by_lower(x, step)), x0_upper) * m).astype(np.float32)
+
+    return ddim(predict, noise, mask, guidance, diffusion_steps, seeds)
+
+
+def guided_prediction(denoise, labels: np.ndarray, guidance: Guidance, diffusion_steps: int, mask: np.ndarray,
+                      pair_terms: bool = False, part_labels: bool = False):
+    """`predict(x_t, step)` -> x0 (B, T, D): the network's terms for `labels` (as `sample` takes them) composed by the
+    guidance at one step, clipped and masked."""
+    b = labels.shape[0]
     conditions, weights = label_terms(labels, pair_terms, part_labels)
     k = len(conditions)
     n_terms = 1 + k + (guidance.leader_scale != 1.0)
@@ -305,6 +341,7 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
     m = mask[..., None].astype(np.float32)
 
     def predict(x: np.ndarray, step: int) -> np.ndarray:
+        _, t, d = x.shape
         with_leader = leader_on if step <= guidance.leader_below * (diffusion_steps - 1) else no_leader
         terms = denoise(np.tile(x, (n_terms, 1, 1)), step, with_leader, label_input, label_on).reshape(n_terms, b, t, d)
         base = terms[0]
@@ -316,4 +353,4 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
             x0 = terms[-1] + guidance.leader_scale * (x0 - terms[-1])
         return np.clip(x0, -guidance.clip, guidance.clip) * m
 
-    return ddim(predict, noise, mask, guidance, diffusion_steps, seeds)
+    return predict
