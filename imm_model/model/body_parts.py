@@ -6,6 +6,12 @@ from __future__ import annotations
 import numpy as np
 
 
+def part_indices(skeleton) -> tuple[list[int], list[int], list[int]]:
+    """-> (the trunk's and arms' joints, the legs' joints, the body-centre joints: the root's neighbours)."""
+    legs = skeleton.leg_joints
+    return [j for j in range(skeleton.num_joints) if j not in legs], legs, list(skeleton.root_neighbours)
+
+
 def body_part_view(follower: np.ndarray, part: str, skeleton=None) -> np.ndarray:
     """(T, J, 3) follower -> (T, J, 3) what a body-part judge reads, the other joints zero:
     "upper": trunk and arms relative to the body centre (the root's neighbours: neck and hips), i.e. posture and

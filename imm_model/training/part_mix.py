@@ -21,11 +21,7 @@ from __future__ import annotations
 
 import torch
 
-
-def part_indices(skeleton) -> tuple[list[int], list[int], list[int]]:
-    """-> (the trunk's and arms' joints, the legs' joints, the body-centre joints: the root's neighbours)."""
-    legs = skeleton.leg_joints
-    return [j for j in range(skeleton.num_joints) if j not in legs], legs, list(skeleton.root_neighbours)
+from imm_model.model.body_parts import part_indices
 
 
 def compose(upper_from: torch.Tensor, lower_from: torch.Tensor, upper: list[int], centre: list[int]) -> torch.Tensor:

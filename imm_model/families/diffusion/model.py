@@ -53,8 +53,7 @@ class DiffusionReactionModel(ReactionModel):
         """Normalized followers (B, T, D) twice -> (B, T, D): the trunk and arms of the first on the legs and placement
         of the second, joined around the body centre as training composes real followers (model/body_parts.py
         `compose_parts`); the sampler's join (Guidance.part_join)."""
-        from imm_model.model.body_parts import compose_parts
-        from imm_model.training.part_mix import part_indices
+        from imm_model.model.body_parts import compose_parts, part_indices  # numpy only: the studio never imports torch
 
         mean, std = self.weights["follower_mean"], self.weights["follower_std"]
         b, t, d = upper_x0.shape
