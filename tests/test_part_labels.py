@@ -123,6 +123,9 @@ def test_the_bundled_default_takes_part_keys_through_its_samplers_join(sample_da
     assert split.shape == whole.shape and np.isfinite(split).all()
     for one in ({"shaking_hands": 1}, {"pushing": -1}):
         assert not np.allclose(split, model.synthesize(leader, one, seed=2))
+    model.guidance = replace(model.guidance, part_join=True)  # the latent map's star: the part label's whole-body mean
+    np.testing.assert_allclose(model.latent(leader, {"upper:shaking_hands": 1, "lower:pushing": -1}),
+                               model.latent(leader, {"shaking_hands": 0.5, "pushing": -0.5}), atol=1e-6)
 
 
 def test_the_samplers_join_composes_as_training_composes_real_followers(sample_data):

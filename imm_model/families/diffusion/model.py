@@ -218,9 +218,11 @@ class DiffusionReactionModel(ReactionModel):
         self.memory = ReactionMemory.from_dataset(data, indices)
 
     def latent_canonical_batch(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> np.ndarray:
-        """N canonical leaders + (N, C) labels -> (N, width): the denoiser's last hidden state, averaged over frames,
-        for the leader and label with the follower all noise (the first sampler step's view of the reaction)."""
-        labels = self._label_input(self._label_array(label_vectors, len(leaders)))
+        """N canonical leaders + (N, C) or (N, 2C) labels -> (N, width): the denoiser's last hidden state, averaged over
+        frames, for the leader and label with the follower all noise (the first sampler step's view of the reaction). A
+        whole-label network places a label per body part as its whole-body mean (a place on the map, not a reaction)."""
+        labels = self._label_array(label_vectors, len(leaders))
+        labels = self._label_input(labels) if self.config.part_labels else whole_body(labels, len(self.class_names))
         x, mask = self._normalize_leaders(leaders)
         on = np.ones(len(leaders), bool)
         step = self.config.diffusion_steps - 1
