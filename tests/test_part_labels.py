@@ -129,13 +129,14 @@ def test_the_bundled_default_takes_part_keys_through_its_samplers_join(sample_da
 
 
 def test_the_samplers_join_composes_as_training_composes_real_followers(sample_data):
+    """One composition for numpy arrays (the sampler) and torch tensors (training), the same numbers."""
     from imm_model.model.body_parts import compose_parts
-    from imm_model.training.part_mix import compose
 
     upper, _, centre = part_indices(sample_data.skeleton)
     a, b = (np.random.default_rng(k).standard_normal((2, 7, 15, 3)).astype(np.float32) for k in (1, 2))
-    np.testing.assert_allclose(compose_parts(a, b, upper, centre),
-                               compose(torch.from_numpy(a), torch.from_numpy(b), upper, centre).numpy(), atol=1e-6)
+    joined = compose_parts(a, b, upper, centre)
+    assert isinstance(joined, np.ndarray) and not np.shares_memory(joined, b)
+    np.testing.assert_allclose(joined, compose_parts(torch.from_numpy(a), torch.from_numpy(b), upper, centre).numpy(), atol=1e-6)
 
 
 def test_a_part_config_is_refused_beside_pair_terms_and_its_recipe_needs_it():

@@ -11,8 +11,9 @@ import torch
 
 from imm_model.families.diffusion.recipes import IMM_DIFFUSION, DiffusionTrainConfig
 from imm_model.families.diffusion.sampler import Guidance, sample
+from imm_model.model.body_parts import compose_parts as compose
 from imm_model.model.classifier import body_part_view
-from imm_model.training.part_mix import compose, mixed_rows, part_indices, resample_rows, upper_shares
+from imm_model.training.part_mix import mixed_rows, part_indices, resample_rows, upper_shares
 
 
 def batch(sample_data, rows):

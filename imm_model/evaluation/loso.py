@@ -190,10 +190,8 @@ def real_part_readings(data: InteractionDataset, judges: FoldJudges) -> np.ndarr
     """(C, C, N) bool: for each test leader, whether the real part composite of class a's trunk and arms and class b's
     legs and placement reads so to the body-part judges (each at PART_SHARE or more). A class's part comes from the
     real follower (of the fold's training pairs) whose leader is nearest the test leader, resampled to its length."""
-    import torch
-
     from imm_model.families.retrieval.model import nearest_follower
-    from imm_model.training.part_mix import compose, part_indices
+    from imm_model.model.body_parts import compose_parts, part_indices
 
     c = len(data.class_names)
     pools = [[data.canonical(int(i)) for i in judges.train if data.actions[i] == k] for k in range(c)]
@@ -201,8 +199,7 @@ def real_part_readings(data: InteractionDataset, judges: FoldJudges) -> np.ndarr
     upper_joints, _, centre = part_indices(data.skeleton)
     reads = np.zeros((c, c, len(judges.leaders)), bool)
     for a, b in permutations(range(c), 2):
-        composites = [compose(torch.from_numpy(row[a])[None], torch.from_numpy(row[b])[None], upper_joints, centre)[0].numpy()
-                      for row in nearest]
+        composites = [compose_parts(row[a][None], row[b][None], upper_joints, centre)[0] for row in nearest]
         pu, pl = judges.part_view("upper", composites), judges.part_view("lower", composites)
         reads[a, b] = (pu[:, a] >= control.PART_SHARE) & (pl[:, b] >= control.PART_SHARE)
     return reads

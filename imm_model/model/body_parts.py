@@ -33,18 +33,19 @@ def body_part_view(follower: np.ndarray, part: str, skeleton=None) -> np.ndarray
     return out
 
 
-def compose_parts(upper_from: np.ndarray, lower_from: np.ndarray, upper: list[int], centre: list[int]) -> np.ndarray:
-    """(B, T, J, 3) each -> (B, T, J, 3): training/part_mix.py `compose` on numpy arrays, the same arithmetic (`lower_from`'s
-    legs and placement with `upper_from`'s trunk and arms moved onto their body centre): what the diffusion sampler
-    joins its parts' predictions with (families/diffusion/model.py `join_parts`), in processes that never import torch
-    (the studio)."""
-    relative = upper_from - upper_from[:, :, centre].mean(2, keepdims=True)
+def compose_parts(upper_from, lower_from, upper: list[int], centre: list[int]):
+    """(B, T, J, 3) each, numpy arrays or torch tensors alike -> the same kind: `lower_from`'s legs and placement with
+    `upper_from`'s trunk and arms moved to a centre delta at which the result's own body centre is delta itself (the
+    hips among the centre joints are legs), so that each part reads as its source does around the body centre. Training
+    composes real followers with it (training/part_mix.py), the diffusion sampler joins its parts' predictions with it
+    (families/diffusion/model.py `join_parts`), in processes that never import torch (the studio)."""
+    relative = upper_from - upper_from[:, :, centre].mean(2)[:, :, None]
     in_legs = [j for j in centre if j not in upper]
     in_upper = [j for j in centre if j in upper]
     if in_legs:
         delta = (relative[:, :, in_upper].sum(2) + lower_from[:, :, in_legs].sum(2)) / len(in_legs)
     else:
         delta = lower_from[:, :, centre].mean(2)
-    out = lower_from.copy()
+    out = lower_from.copy() if isinstance(lower_from, np.ndarray) else lower_from.clone()
     out[:, :, upper] = relative[:, :, upper] + delta[:, :, None]
     return out

@@ -21,23 +21,7 @@ from __future__ import annotations
 
 import torch
 
-from imm_model.model.body_parts import part_indices
-
-
-def compose(upper_from: torch.Tensor, lower_from: torch.Tensor, upper: list[int], centre: list[int]) -> torch.Tensor:
-    """(B, T, J, 3) each -> (B, T, J, 3): `lower_from`'s legs and placement with `upper_from`'s trunk and arms moved to
-    a centre delta at which the result's own body centre is delta itself (the hips among the centre joints are legs),
-    so that each part reads as its source does around the body centre."""
-    relative = upper_from - upper_from[:, :, centre].mean(2, keepdim=True)
-    in_legs = [j for j in centre if j not in upper]
-    in_upper = [j for j in centre if j in upper]
-    if in_legs:
-        delta = (relative[:, :, in_upper].sum(2) + lower_from[:, :, in_legs].sum(2)) / len(in_legs)
-    else:
-        delta = lower_from[:, :, centre].mean(2)
-    out = lower_from.clone()
-    out[:, :, upper] = relative[:, :, upper] + delta[:, :, None]
-    return out
+from imm_model.model.body_parts import compose_parts, part_indices
 
 
 def upper_shares(followers: list, classes, num_classes: int, skeleton) -> torch.Tensor:
@@ -79,7 +63,7 @@ def with_composites(follower: torch.Tensor, lengths: torch.Tensor, donor: torch.
     own = follower.unflatten(-1, (-1, 3))
     first = torch.where(own_upper[:, None, None, None], own, other)
     second = torch.where(own_upper[:, None, None, None], other, own)
-    mixed = compose(first, second, upper, centre).flatten(-2)
+    mixed = compose_parts(first, second, upper, centre).flatten(-2)
     mask = (torch.arange(follower.shape[1])[None] < lengths[:, None])[..., None]
     return torch.where(composed[:, None, None], mixed * mask, follower)
 
