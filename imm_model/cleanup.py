@@ -99,3 +99,52 @@ def _unit(v: np.ndarray) -> np.ndarray:
 def follower_bone_lengths(followers: list[np.ndarray], skeleton: Skeleton) -> list[float]:
     """Median length of each bone over every frame of `followers` (the training followers): the clean-up's skeleton."""
     return np.median(np.concatenate([skeleton.bone_lengths(f) for f in followers]), axis=0).astype(float).tolist()
+
+
+class OnlineCleanup:
+    """The clean-up of a follower made frame by frame (the online reactor's): what `clean_follower` does, from the
+    frames so far only. Bones rigid per frame; the floor is the lowest foot height so far; a foot on it is held where
+    it touched down (the offline clean-up holds the contact's mean, which needs the contact's last frame) and eased back
+    to the network's path over EASE_FRAMES frames once lifted."""
+
+    def __init__(self, skeleton: Skeleton, bone_lengths: np.ndarray | None = None):
+        self.skeleton, self.bone_lengths = skeleton, bone_lengths
+        names = skeleton.joint_names
+        self.feet = [names.index(n) for n in ("left_foot", "right_foot") if n in names
+                     and skeleton.parents[names.index(n)] >= 0 and skeleton.parents[skeleton.parents[names.index(n)]] >= 0]
+        self.floor = np.inf
+        self.pins: dict[int, np.ndarray | None] = dict.fromkeys(self.feet)  # a foot on the floor: where it touched down
+        self.lifted: dict[int, tuple[np.ndarray, int]] = {}  # a foot just lifted: its last pin, frames since
+
+    def __call__(self, frames: np.ndarray) -> np.ndarray:
+        """Follower frames (n, J, 3), the next n of the take -> cleaned (n, J, 3) float64."""
+        out = rigid_bones(np.asarray(frames, np.float64), self.skeleton, self.bone_lengths)
+        up = self.skeleton.vertical_axis
+        horizontal = [a for a in range(3) if a != up]
+        for t in range(len(out)):
+            self.floor = min(self.floor, float(out[t, self.feet, up].min(initial=np.inf)))
+            for foot in self.feet:
+                knee = self.skeleton.parents[foot]
+                hip = self.skeleton.parents[knee]
+                target = out[t, foot].copy()
+                if target[up] < self.floor + CONTACT_M:
+                    if self.pins[foot] is None:
+                        self.pins[foot] = target[horizontal].copy()
+                    target[horizontal] = self.pins[foot]
+                elif self.pins[foot] is not None or foot in self.lifted:
+                    pin, since = (self.pins[foot], 0) if self.pins[foot] is not None else self.lifted[foot]
+                    self.pins[foot] = None
+                    since += 1
+                    weight = 1 - since / (EASE_FRAMES + 1)
+                    target[horizontal] = weight * pin + (1 - weight) * target[horizontal]
+                    if since < EASE_FRAMES:
+                        self.lifted[foot] = (pin, since)
+                    else:
+                        self.lifted.pop(foot, None)
+                if self.pins[foot] is not None:
+                    self.lifted.pop(foot, None)
+                thigh = np.linalg.norm(out[t, knee] - out[t, hip])
+                shin = np.linalg.norm(out[t, foot] - out[t, knee])
+                knee_at, foot_at = _two_bone_ik(out[t, hip][None], out[t, knee][None], target[None], thigh, shin)
+                out[t, knee], out[t, foot] = knee_at[0], foot_at[0]
+        return out

@@ -22,11 +22,13 @@ def interaction_arrays(leader: np.ndarray, follower: np.ndarray, frame: Canonica
                        class_names, label: np.ndarray, scale: float, checkpoint: str, fps: float,
                        ground_truth: np.ndarray | None = None, sequence_id: str | None = None,
                        seed: int | None = None, spread: float | None = None,
-                       memory: float | None = None) -> dict[str, np.ndarray]:
+                       memory: float | None = None, live: tuple[int, list[tuple[int, str]]] | None = None) -> dict[str, np.ndarray]:
     """leader, follower (and ground truth): (T, J, 3) world metres -> the file's arrays. `seed`: the sampler seed that
     drew the follower (stochastic models only), so the same reaction can be drawn again; `spread`: the sampler's
     leader noise it was drawn with (models trained with noised leaders only); `memory`: the noise level its sampler
-    started at from the reaction memory (only when it did)."""
+    started at from the reaction memory (only when it did); `live`: a follower made frame by frame as the leader played
+    (the studio's live mode): how many of its first frames were made so, and each label it was steered with from the
+    frame it took effect (the rest of the frames are the offline reaction to the last label)."""
     out = {
         "format": np.array(FORMAT),
         "leader": np.asarray(leader, np.float32),
@@ -53,6 +55,11 @@ def interaction_arrays(leader: np.ndarray, follower: np.ndarray, frame: Canonica
         out["spread"] = np.float32(spread)
     if memory is not None:
         out["memory"] = np.float32(memory)
+    if live is not None:
+        made, steered = live
+        out["live_frames"] = np.int64(made)
+        out["live_label_from"] = np.array([f for f, _ in steered], np.int64)
+        out["live_label_text"] = np.array([t for _, t in steered])
     return out
 
 

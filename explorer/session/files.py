@@ -21,7 +21,8 @@ class SessionFiles:
             ses.world(ses.leader), ses.world(ses.synth), ses.frame, ses.data.skeleton,
             class_names=ses.class_names, label=ses.vector, scale=ses.scale, checkpoint=Path(path).name if path else "",
             fps=FPS, ground_truth=None if ses.ground_truth is None else ses.world(ses.ground_truth),
-            sequence_id=None if ses.upload else ses.data.sequence_ids[ses.index], **ses.model.provenance(ses.seed)))
+            sequence_id=None if ses.upload else ses.data.sequence_ids[ses.index],
+            live=(ses.live.made, ses.live.steered) if ses.live.on else None, **ses.model.provenance(ses.seed)))
 
     def bvh(self, character: str = "follower") -> bytes:
         """The synthesized follower (or the leader) as a BVH file's bytes, world metres (imm_model/data/bvh.py)."""

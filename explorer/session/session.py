@@ -3,7 +3,7 @@ follower. The page (explorer/ui/app.py) only maps this onto widgets, so all of i
 
 The session holds its rooms, each a small object reading the session's current leader, label and models:
 `side_by_side` (variations and other models' followers), `pinned` (A/B), `readings` (what the follower reads as, its
-distances and contact) and `files` (exports).
+distances and contact), `files` (exports) and `live` (the follower made frame by frame as the leader plays).
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import numpy as np
 
 from explorer.rendering.palette import display_name
 from explorer.session.files import FPS, SessionFiles
+from explorer.session.live import LiveReaction
 from explorer.session.pinned import PinnedMix
 from explorer.session.readings import ReaderLike, Readings
 from explorer.session.side_by_side import MAX_VARIATIONS, SideBySide
@@ -51,6 +52,7 @@ class ReactionModelLike(Protocol):
     def synthesize_batch_canonical(self, leaders: list[np.ndarray], label_vectors: np.ndarray,
                                    seeds: Sequence[int] | None = None) -> list[np.ndarray]: ...
     def latent_canonical_batch(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> np.ndarray: ...
+    def online(self, label: Any, scale: float = 1.0, seed: int = 0) -> Any: ...
 
 
 def load_model(checkpoint: Path, data: InteractionDataset) -> ReactionModelLike:
@@ -126,6 +128,7 @@ class Session:
         self.pinned = PinnedMix(self)
         self.readings = Readings(self, reader, dict(part_readers or {}))
         self.files = SessionFiles(self)
+        self.live = LiveReaction(self)
         self.select(index)
 
     # ---- the leader ---------------------------------------------------------------------
@@ -303,6 +306,15 @@ class Session:
         if synthesize:
             self.synthesize()
 
+    def set_live(self, on: bool) -> None:
+        """Live mode on (the follower made frame by frame as the leader plays, from its first frame; LabelError, one
+        line, for a model that cannot react online) or off (the offline reaction again)."""
+        if on:
+            self.live.start()
+        else:
+            self.live.stop()
+            self.synthesize()
+
     @property
     def cleaned_up(self) -> bool:
         return not self.model.raw
@@ -322,6 +334,6 @@ class Session:
         out = np.asarray(self.model.synthesize_canonical(self.leader, self.vector, seed=self.seed), np.float32)
         if out.shape != self.leader.shape:
             raise ValueError(f"model returned shape {out.shape}, expected {self.leader.shape}")
-        self.synth = out
+        self.synth = self.live.follow(out) if self.live.on else out
         self.side_by_side.follow(variations)  # other models' followers wait with the variations: each costs a reaction
         return out

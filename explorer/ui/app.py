@@ -51,9 +51,9 @@ class Studio:
         self._contact_changed = False
         self._url_opened = False  # the page's own address applied (open_url_view): the address bar may follow the view
         self._init_state()
-        self.viewer = Viewer(page, self.scene, write_url=self.write_url)
-        self.model_switch = ModelSwitch(page, self.scene, show_review=self.show_review)
         self.update_review = self.guarded(self._update_review)
+        self.viewer = Viewer(page, self.scene, write_url=self.write_url, update_review=self.update_review)
+        self.model_switch = ModelSwitch(page, self.scene, show_review=self.show_review)
         self.mixer = LabelMixer(page, self.scene, self.model_switch, update_review=self.update_review)
         self.picker = SequencePicker(page, self.scene, self.model_switch, write_label_state=self.mixer.write_state,
                                      show_review=self._after_mix)
@@ -104,6 +104,9 @@ class Studio:
                 "speed": 1.0,
                 "playback_scale": PLAYBACK_SCALE,  # the view's size while playing (benchmarks/explorer_latency.py sets it)
                 "loop": True,
+                "live": False,  # live mode: the follower made frame by frame as the leader plays (explorer/session/live.py)
+                "can_go_live": False,  # the current model reacts online
+                "live_made": 0,  # live mode: the follower's frames made so far, from the first
                 "scale": 1.0,
                 "label_text": "",
                 "reads_as": [],  # explorer/ui/reads_as_panel.py
@@ -173,6 +176,7 @@ class Studio:
         """Review numbers, distance chart and latent star for the current synthesized follower."""
         s, ses = self.state, self.session
         s.label_text = ses.label_text()
+        s.can_go_live, s.live, s.live_made = ses.model.settings.online, ses.live.on, ses.live.made
         s.part_labels = ses.part_labels
         for i in range(len(ses.class_names)) if not ses.part_labels else ():  # none apart where no part mix can be drawn
             s[f"apart_{i}"] = False

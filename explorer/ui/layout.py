@@ -428,6 +428,10 @@ def playback_bar(page: LayoutParts) -> None:
             id="speed-select",
         )
         v3.VCheckbox(v_model=("loop",), label="loop", density="compact", hide_details=True, style="flex: 0 0 auto")
+        v3.VCheckbox(v_model=("live",), label="live", density="compact", hide_details=True, style="flex: 0 0 auto",
+                     disabled=("!can_go_live",), id="live-toggle",
+                     title=("can_go_live ? 'live: the follower made frame by frame as the leader plays; move a slider "
+                            "while it plays to steer it' : 'this model cannot react live, frame by frame'",))
 
 
 def review_cards(page: LayoutParts) -> None:

@@ -20,9 +20,10 @@ if TYPE_CHECKING:
 
 
 class Viewer:
-    def __init__(self, page: Page, scene: Scene, *, write_url: Callable[[], None]):
-        """`write_url()` puts the view into the page's address bar (after a camera preset)."""
-        self.page, self.scene, self.write_url = page, scene, write_url
+    def __init__(self, page: Page, scene: Scene, *, write_url: Callable[[], None], update_review: Callable[[], None]):
+        """`write_url()` puts the view into the page's address bar (after a camera preset); `update_review()` redraws
+        the review panels (after a live take: the chart and readings of the follower made as it played)."""
+        self.page, self.scene, self.write_url, self.update_review = page, scene, write_url, update_review
         self._view = None  # the 3D view widget, made by the layout (attach)
         self._play_task = None
         s, c = page.state, page.ctrl
@@ -30,6 +31,7 @@ class Viewer:
         s.change("scene_layout")(self.on_layout_change)
         s.change("show_leader", "show_ground_truth", "show_synthesized")(self.on_visibility_change)
         s.change("playing")(self.on_playing_change)
+        s.change("live")(self.on_live_toggled)
         s.change("trails", "follow_camera")(self.on_viewer_aids)
         c.set_camera = self.set_camera
         c.step_frame = self.step_frame
@@ -72,6 +74,11 @@ class Viewer:
         s.time_text = f"frame {f + 1}/{n} · {f / FPS:.2f} s / {(n - 1) / FPS:.2f} s"
 
     def on_frame_change(self, frame, **_):
+        live = self.page.session.live
+        if live.on and live.reach(int(frame or 0)):
+            self.page.state.live_made = live.made
+            if live.made == self.page.session.num_frames:
+                self.update_review()  # the take made to its end: the chart and readings of what was made
         self.scene.set_frame(int(frame or 0))
         # playback's pictures at PLAYBACK_SCALE of the view's size; the still one is full size
         self.page.ctrl.view_update(draft=bool(self.page.state.playing), scale=playback_scale(self.page.state.playback_scale))
@@ -82,10 +89,25 @@ class Viewer:
         self.page.state.frame = int(np.clip(int(self.page.state.frame or 0) + int(delta), 0, n - 1))
 
     def on_playing_change(self, playing, **_):
+        if not playing and self.page.session.live.on:
+            self.update_review()  # paused mid-take: the review reads what was made so far
         if playing and (self._play_task is None or self._play_task.done()):
             if int(self.page.state.frame or 0) >= self.page.session.num_frames - 1:
                 self.page.state.frame = 0
             self._play_task = asynchronous.create_task(play(self))
+
+    def on_live_toggled(self, live, **_):
+        """Live mode switched: the follower made frame by frame from the first frame as it plays, or the offline one."""
+        ses = self.page.session
+        if bool(live) == ses.live.on:
+            return
+        self.page.guarded(ses.set_live)(bool(live))
+        if bool(live) != ses.live.on:  # refused (the alert says why): the switch shows what holds
+            self.page.state.live = ses.live.on
+            return
+        self.page.state.live_made = ses.live.made
+        self.scene.set_synthesized(ses.synth)
+        self.update_review()
 
     # ---- what the view shows and from where ------------------------------------------------
     def on_layout_change(self, scene_layout, **_):

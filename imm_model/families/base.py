@@ -44,6 +44,7 @@ class SamplerSettings:
     seed: bool = False  # a seed picks one of many reactions (variations); False: every seed gives the same one
     spread: bool = False  # how loosely it follows the leader (`ReactionModel.spread`)
     memory: bool = False  # starts from real reactions to similar leaders (`ReactionModel.use_memory`)
+    online: bool = False  # reacts to a leader streamed frame by frame (`ReactionModel.online`)
 
 
 @dataclass(frozen=True)
@@ -184,6 +185,12 @@ class ReactionModel:
         finally:
             self.raw = raw
 
+    def online(self, label, scale: float = 1.0, seed: int = 0):
+        """A reactor for a leader streamed frame by frame: `push(frame)` -> the follower's frame `lookahead` frames
+        behind, or None; `flush()`; `label` and `scale` settable between pushes (families/diffusion/windows.py
+        OnlineReactor). A family that cannot react online refuses in one line."""
+        raise LabelError(f"{self.title} cannot react online, frame by frame (the diffusion model can)")
+
     # ---- settings a family may have -------------------------------------------------------
     @property
     def spread(self) -> float | None:
@@ -241,8 +248,7 @@ class ReactionModel:
         if len(arr) < 2:
             raise DataFormatError("leader motion has 1 frame; at least 2 are needed")
         if len(arr) > self.max_length:
-            raise DataFormatError(f"leader motion has {len(arr)} frames; at most {self.max_length} "
-                                  f"({MAX_LENGTH_FACTOR}x the longest training sequence) are supported")
+            raise DataFormatError(f"leader motion has {len(arr)} frames; {self.title} takes at most {self.max_length}")
         if not np.isfinite(arr).all():
             raise DataFormatError("leader motion contains NaN or infinite values")
         return check_world_positions(arr, "leader motion")

@@ -15,6 +15,9 @@ from imm_model.errors import CheckpointError, LabelError
 from imm_model.families.base import ReactionModel, SamplerSettings, check_compatible, described_weights
 from imm_model.families.diffusion.denoiser_numpy import NumpyDenoiser
 from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, sample
+from imm_model.families.diffusion.windows import OnlineReactor, take_windows
+
+MAX_TAKE_FRAMES = 36_000  # the longest leader taken (40 minutes at 15 fps; sampled in windows, windows.py)
 
 
 class DiffusionReactionModel(ReactionModel):
@@ -33,6 +36,8 @@ class DiffusionReactionModel(ReactionModel):
         self.config = config
         self.guidance = guidance
         self.fast = NumpyDenoiser(weights, config) if self.device == "cpu" else None
+        self.window = int(meta.get("max_train_length", 46))  # frames the sampler reads at once: longer takes go in windows
+        self.max_length = MAX_TAKE_FRAMES
         self.memory = None  # the reaction memory (reaction_memory.py) its sampler may start from
         # the sampling loop, sampler.py `sample` (an experiment may put another with its signature here: it gets the
         # network call, the normalized leaders and masks, labels, starting noise, guidance, steps, seeds, and the
@@ -41,7 +46,7 @@ class DiffusionReactionModel(ReactionModel):
 
     @property
     def settings(self) -> SamplerSettings:
-        return SamplerSettings(seed=True, spread=self.config.leader_noise, memory=True)
+        return SamplerSettings(seed=True, spread=self.config.leader_noise, memory=True, online=True)
 
     @property
     def part_labels(self) -> bool:
@@ -145,32 +150,52 @@ class DiffusionReactionModel(ReactionModel):
         return (x - mean) / std * mask[..., None], mask
 
     def _network(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int]) -> list[np.ndarray]:
-        from imm_model.families.diffusion.sampler import forward_noised, initial_noise, noised_leaders, schedule_step
+        labels = self._label_input(labels)
+        out: list[np.ndarray] = [np.empty(0)] * len(leaders)
+        clips = [i for i, a in enumerate(leaders) if len(a) <= self.window]
+        for start in range(0, len(clips), self.BATCH):
+            rows = clips[start:start + self.BATCH]
+            for i, follower in zip(rows, self._sample([leaders[i] for i in rows], labels[rows], [seeds[i] for i in rows]),
+                                   strict=True):
+                out[i] = follower
+        for i in sorted(set(range(len(leaders))) - set(clips)):
+            out[i] = take_windows(self, np.asarray(leaders[i], np.float32), labels[i], seeds[i])
+        return out
+
+    def _sample(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int],
+                noises: list[np.ndarray] | None = None, leader_noises: list[np.ndarray] | None = None,
+                known: list[tuple[np.ndarray, int]] | None = None) -> list[np.ndarray]:
+        """One sampler batch: canonical leaders (T_i, J, 3), the sampler's labels (`_label_input`), seeds -> followers
+        (T_i, J, 3) canonical. The starting noise and the leader's noise default to the seeds' draws for each length
+        (a window of a long take brings its slice of the take's); `known`, per row (canonical follower (T_i, J, 3),
+        k), gives its first k frames (the sampler inpaints the rest around them)."""
+        from imm_model.families.diffusion.sampler import forward_noised, initial_noise, leader_noise, schedule_step
 
         d, steps = self.config.pose_dim, self.config.diffusion_steps
         level = schedule_step(self.guidance.leader_noise, steps)
         if level and not self.config.leader_noise:
             raise LabelError(f"leader noise {self.guidance.leader_noise:g} needs a model trained with noised leaders "
                              "(this one reads only the clean leader)")
-        labels = self._label_input(labels)
         join = self.join_parts if self.guidance.part_join and labels.shape[1] == 2 * len(self.class_names) else None
-        out: list[np.ndarray] = []
-        for start in range(0, len(leaders), self.BATCH):
-            rows = list(range(start, min(start + self.BATCH, len(leaders))))
-            x, mask = self._normalize_leaders([leaders[i] for i in rows])
-            denoise = self._denoiser(x, mask)
-            if level:
-                noisy = self._denoiser(noised_leaders(x, mask, [seeds[i] for i in rows], level, steps), mask, level)
-                denoise = _clean_at_the_last_step(noisy, denoise)
-            noise, _ = self._padded([initial_noise(seeds[i], len(leaders[i]), d) for i in rows])
-            if self.guidance.uses_memory:
-                noise = forward_noised(self._memory_starts([leaders[i] for i in rows], labels[rows], [seeds[i] for i in rows]),
-                                       noise, mask, schedule_step(self.guidance.memory_level, steps), steps)
-            x0 = self.sampler(denoise, x, mask, labels[rows], noise, self.guidance, steps, seeds=[seeds[i] for i in rows],
-                              pair_terms=self.config.pair_terms, part_labels=self.config.part_labels, join=join)
-            followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
-            out += [followers[k, : len(leaders[i])].reshape(len(leaders[i]), -1, 3) for k, i in enumerate(rows)]
-        return out
+        x, mask = self._normalize_leaders(leaders)
+        denoise = self._denoiser(x, mask)
+        if level:
+            z, _ = self._padded(leader_noises or [leader_noise(s, len(a), d) for a, s in zip(leaders, seeds, strict=True)])
+            noisy = self._denoiser(forward_noised(x, z, mask, level, steps), mask, level)
+            denoise = _clean_at_the_last_step(noisy, denoise)
+        noise, _ = self._padded(noises or [initial_noise(s, len(a), d) for a, s in zip(leaders, seeds, strict=True)])
+        if self.guidance.uses_memory:
+            noise = forward_noised(self._memory_starts(leaders, labels, seeds), noise, mask,
+                                   schedule_step(self.guidance.memory_level, steps), steps)
+        given = {}
+        if known is not None:  # only then: an experiment's own sampler (`self.sampler`) need not take it
+            values, _ = self._padded([f for f, _ in known])
+            where = np.arange(mask.shape[1])[None] < np.array([k for _, k in known])[:, None]
+            given["known"] = ((values - self.weights["follower_mean"]) / self.weights["follower_std"] * mask[..., None], where)
+        x0 = self.sampler(denoise, x, mask, labels, noise, self.guidance, steps, seeds=seeds,
+                          pair_terms=self.config.pair_terms, part_labels=self.config.part_labels, join=join, **given)
+        followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
+        return [followers[k, : len(a)].reshape(len(a), -1, 3) for k, a in enumerate(leaders)]
 
     def _memory_starts(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int]) -> np.ndarray:
         """The reaction memory's starting reactions for these rows -> (B, T_max, D) normalized, zero-padded."""
@@ -182,6 +207,9 @@ class DiffusionReactionModel(ReactionModel):
                   for a, w, s in zip(leaders, whole, seeds, strict=True)]
         x, mask = self._padded(starts)
         return (x - self.weights["follower_mean"]) / self.weights["follower_std"] * mask[..., None]
+
+    def online(self, label, scale: float = 1.0, seed: int = 0) -> OnlineReactor:
+        return OnlineReactor(self, label, scale, seed)
 
     @contextlib.contextmanager
     def probing(self):

@@ -161,13 +161,10 @@ def forward_noised(x0: np.ndarray, noise: np.ndarray, mask: np.ndarray, step: in
     return ((np.sqrt(a) * x0 + np.sqrt(1 - a) * noise) * mask[..., None]).astype(np.float32)
 
 
-def noised_leaders(leaders: np.ndarray, mask: np.ndarray, seeds, step: int, diffusion_steps: int) -> np.ndarray:
-    """Normalized leaders (B, T, D) -> the forward process at `step` applied to them, row i's noise drawn from
-    (seeds[i], LEADER_NOISE_STREAM) for its own length, so that it depends on its seed and length only."""
-    z = np.zeros_like(leaders, dtype=np.float32)
-    for i, (s, n) in enumerate(zip(seeds, mask.sum(1), strict=True)):
-        z[i, :n] = np.random.default_rng((int(s), LEADER_NOISE_STREAM)).standard_normal((int(n), leaders.shape[2]))
-    return forward_noised(leaders, z, mask, step, diffusion_steps)
+def leader_noise(seed: int, frames: int, dim: int) -> np.ndarray:
+    """The noise the network sees its leader through (Guidance.leader_noise) for one sequence: a function of the seed
+    and the shape only, drawn from (seed, LEADER_NOISE_STREAM) (float64; forward_noised applies it)."""
+    return np.random.default_rng((int(seed), LEADER_NOISE_STREAM)).standard_normal((frames, dim))
 
 
 def step_noise(seeds, lengths, shape: tuple[int, int, int]):
@@ -283,7 +280,8 @@ def ddim(predict, noise: np.ndarray, mask: np.ndarray, guidance: Guidance, diffu
 
 
 def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, noise: np.ndarray, guidance: Guidance,
-           diffusion_steps: int, seeds=None, pair_terms: bool = False, part_labels: bool = False, join=None) -> np.ndarray:
+           diffusion_steps: int, seeds=None, pair_terms: bool = False, part_labels: bool = False, join=None,
+           known=None) -> np.ndarray:
     """DDIM (`ddim`) from `noise` (B, T, D) -> normalized followers x0 (B, T, D), numpy float32, each step predicting
     the composed label's x0.
 
@@ -297,10 +295,14 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
     With `join(upper_x0, lower_x0) -> x0` (normalized (B, T, D) each; Guidance.part_join) `labels` are (B, 2C), the
     upper body's values then the lower body's, for either network: where a row's parts differ, each part's values are
     composed as a whole-body label into a guided prediction of its own and the two are joined at every step; a row whose
-    parts agree takes the upper one's, the whole-body label's prediction."""
+    parts agree takes the upper one's, the whole-body label's prediction.
+
+    With `known` = (values (B, T, D) normalized, where (B, T) bool) the frames `where` marks are given, not sampled:
+    every step's prediction holds them at their values (inpainting by replacement, as PriorMDM continues a long
+    sequence), so the frames sampled around them continue them; a window of a long take continues the previous one."""
     if join is None:
-        return ddim(guided_prediction(denoise, labels, guidance, diffusion_steps, mask, pair_terms, part_labels),
-                    noise, mask, guidance, diffusion_steps, seeds)
+        predict = guided_prediction(denoise, labels, guidance, diffusion_steps, mask, pair_terms, part_labels)
+        return ddim(keeping(predict, known), noise, mask, guidance, diffusion_steps, seeds)
     c = labels.shape[1] // 2
     upper, lower = labels[:, :c], labels[:, c:]
     if part_labels:  # each part's values as the whole-body condition (e_c, e_c) the network saw on every one-class row
@@ -317,7 +319,16 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
             return x0_upper
         return (np.where(apart, join(x0_upper, by_lower(x, step)), x0_upper) * m).astype(np.float32)
 
-    return ddim(predict, noise, mask, guidance, diffusion_steps, seeds)
+    return ddim(keeping(predict, known), noise, mask, guidance, diffusion_steps, seeds)
+
+
+def keeping(predict, known):
+    """`predict(x_t, step)` with the frames of `known` = (values, where) held at their values (None: `predict`)."""
+    if known is None:
+        return predict
+    values, where = known
+    where = np.asarray(where, bool)[..., None]
+    return lambda x, step: np.where(where, values, predict(x, step)).astype(np.float32)
 
 
 def guided_prediction(denoise, labels: np.ndarray, guidance: Guidance, diffusion_steps: int, mask: np.ndarray,

@@ -1,0 +1,64 @@
+"""The online reactor's speed: the time of one `push` (a leader frame in, the follower's frame out) over real leaders
+streamed frame by frame, against the time a frame lasts and the offline reaction of the same leaders in the same run.
+
+    .venv/bin/python benchmarks/online_reactor.py [--checkpoint sample_data/imm_diffusion.safetensors] [--threads 1]
+        [--leaders 10] [--repeats 4]
+
+Each of the first `--leaders` sequences of the bundled data, played `--repeats` times in a row, is streamed into a fresh
+reactor for each label (one class; three signed classes; a label per body part), interleaved with the offline
+reaction of the same take, so that both meet the same load. Prints the median and p95 push, the share of pushes
+slower than a frame at 15 fps (66.7 ms), and the offline reaction's time per frame.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from imm_model.data.dataset import InteractionDataset
+from imm_model.inference import ReactionModel
+from imm_model.paths import SAMPLE_DATA, SAMPLE_DEFAULT
+
+FRAME_MS = 1000 / 15
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--checkpoint", default=str(SAMPLE_DEFAULT))
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--leaders", type=int, default=10)
+    ap.add_argument("--repeats", type=int, default=4)
+    args = ap.parse_args()
+    threadpool_limits(args.threads)
+    data = InteractionDataset.load(SAMPLE_DATA)
+    model = ReactionModel.load(args.checkpoint)
+    names = model.class_names
+    labels = {"one class": {names[1]: 1.0}, "three signed classes": {names[0]: 1.0, names[1]: -1.0, names[3]: 0.5}}
+    if model.part_labels:
+        labels[f"upper:{names[2]}, lower:-{names[1]}"] = {f"upper:{names[2]}": 1.0, f"lower:{names[1]}": -1.0}
+    takes = [np.concatenate([data.world(i)[0]] * args.repeats) for i in range(args.leaders)]
+    reactor = model.online(labels["one class"])
+    print(f"checkpoint {args.checkpoint}; threads {args.threads}; {len(takes)} takes of {sum(map(len, takes))} frames; "
+          f"{model.guidance.sample_steps} sampler steps; lookahead {reactor.lookahead} frames; window {reactor.window}")
+    for title, label in labels.items():
+        pushes, offline = [], []
+        for take in takes:
+            reactor = model.online(label)
+            for frame in take:
+                t = time.perf_counter()
+                reactor.push(frame)
+                pushes.append((time.perf_counter() - t) * 1000)
+            reactor.flush()
+            t = time.perf_counter()
+            model.synthesize(take, label)
+            offline.append((time.perf_counter() - t) * 1000 / len(take))
+        pushes = np.array(pushes)
+        print(f"{title}: push median {np.median(pushes):.1f} ms, p95 {np.percentile(pushes, 95):.1f} ms, "
+              f"{(pushes > FRAME_MS).mean():.1%} slower than a frame; offline {np.median(offline):.2f} ms a frame")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,157 @@
+"""Leaders of any length and live reactions (imm_model/families/diffusion/windows.py): the take in windows, the online
+reactor's causality, steering and bounds, and the refusals. The bundled diffusion model on real SBU leaders."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from imm_model.cleanup import OnlineCleanup
+from imm_model.errors import DataFormatError, LabelError
+from imm_model.families.diffusion.sampler import keeping
+from imm_model.families.diffusion.windows import window_starts
+from imm_model.inference import ReactionModel
+from imm_model.paths import SAMPLE_DIFFUSION, SAMPLE_GAN, SAMPLE_RETRIEVAL
+
+
+@pytest.fixture(scope="module")
+def model():
+    m = ReactionModel.load(SAMPLE_DIFFUSION)
+    yield m
+    m.raw = False
+
+
+@pytest.fixture(scope="module")
+def take(sample_data):
+    """Three real leaders played one after another (their world frames joined end to end): longer than the window."""
+    return np.concatenate([sample_data.world(i)[0] for i in (0, 40, 80)])
+
+
+def react_online(model, leader, label, seed=0, change_at=None, new_label=None):
+    reactor = model.online(label, seed=seed)
+    out = []
+    for t, frame in enumerate(leader):
+        if t == change_at:
+            reactor.label = new_label
+        f = reactor.push(frame)
+        if f is not None:
+            out.append(f)
+    return reactor, np.concatenate([np.stack(out), reactor.flush()])
+
+
+def test_window_starts_cover_the_take_with_overlap():
+    assert window_starts(30, 46) == [0]
+    starts = window_starts(200, 46, 16)
+    assert starts[0] == 0 and starts[-1] == 200 - 46
+    assert all(0 < b - a <= 30 for a, b in zip(starts, starts[1:], strict=False))
+
+
+def test_known_frames_are_held_at_every_step():
+    values = np.full((1, 5, 3), 7.0, np.float32)
+    where = np.array([[True, True, False, False, False]])
+    out = keeping(lambda x, step: np.zeros_like(x), (values, where))(np.zeros((1, 5, 3), np.float32), 3)
+    assert (out[0, :2] == 7).all() and (out[0, 2:] == 0).all()
+    predict = lambda x, step: x  # noqa: E731
+    assert keeping(predict, None) is predict
+
+
+def test_a_long_take_begins_as_its_first_window(model, take):
+    """The take's first `window` frames are the reaction to those frames alone; the rest continues them."""
+    assert len(take) > model.window
+    model.raw = True
+    try:
+        whole = model.synthesize(take, {"pushing": 1.0}, seed=2)
+        first = model.synthesize(take[: model.window], {"pushing": 1.0}, seed=2)
+    finally:
+        model.raw = False
+    assert whole.shape == take.shape and np.isfinite(whole).all()
+    np.testing.assert_allclose(whole[: model.window], first, atol=1e-4)
+    steps = np.linalg.norm(np.diff(whole, axis=0), axis=-1).mean(1)  # mean joint motion per frame
+    still = np.linalg.norm(np.diff(take, axis=0), axis=-1).mean(1) < 0.1  # not where one leader ends and the next begins
+    assert steps[still].max() < 0.25  # no window starts anew somewhere else (a jump of metres)
+
+
+def test_any_length_is_taken_up_to_the_bound(model, sample_data):
+    leader = np.concatenate([sample_data.world(3)[0]] * 20)  # 20 copies: beyond the old 10x the longest clip
+    assert len(leader) > 10 * model.window
+    assert model.synthesize(leader, {"kicking": 1.0}).shape == leader.shape
+    too_long = np.zeros((model.max_length + 1, 15, 3))
+    with pytest.raises(DataFormatError, match="at most"):
+        model.check_leader(too_long)
+
+
+def test_online_frames_never_read_beyond_the_lookahead(model, take):
+    leader = take[:40]
+    _, base = react_online(model, leader, {"hugging": 1.0})
+    assert base.shape == leader.shape and np.isfinite(base).all()
+    changed = leader.copy()
+    t = 20
+    changed[t + 1 + model.online({"hugging": 1.0}).lookahead:] += np.array([0.5, 0.0, 0.3])  # the leader steps away later
+    _, moved = react_online(model, changed, {"hugging": 1.0})
+    np.testing.assert_array_equal(moved[: t + 1], base[: t + 1])
+    assert not np.allclose(moved[t + 1:], base[t + 1:])
+
+
+def test_online_push_protocol_and_bounded_memory(model, take):
+    reactor = model.online({"kicking": 1.0})
+    assert 0 < reactor.lookahead <= 4
+    outs = [reactor.push(f) for f in take]
+    assert all(o is None for o in outs[: reactor.lookahead])
+    assert all(o is not None and o.shape == (15, 3) and o.dtype == np.float32 for o in outs[reactor.lookahead:])
+    assert len(reactor._leader) <= reactor.window and len(reactor._follower) <= reactor.window
+    assert reactor.flush().shape == (reactor.lookahead, 15, 3)
+    assert reactor.flush().shape == (0, 15, 3)
+
+
+def test_a_label_changed_live_changes_the_next_frames_only(model, sample_data):
+    leader = sample_data.world(int(np.argmax([len(sample_data.world(i)[0]) for i in range(len(sample_data))])))[0]
+    _, kept = react_online(model, leader, {"pushing": 1.0})
+    _, steered = react_online(model, leader, {"pushing": 1.0}, change_at=25, new_label={"pushing": -1.0, "hugging": 1.0})
+    behind = 25 - model.online({"pushing": 1.0}).lookahead  # frames returned before the change
+    np.testing.assert_array_equal(steered[:behind], kept[:behind])
+    assert np.abs(steered[behind:] - kept[behind:]).max() > 0.05
+    step = lambda f: np.linalg.norm(np.diff(f, axis=0), axis=-1).max(1)  # noqa: E731 - the fastest joint's step
+    assert step(steered)[behind - 1:].max() <= step(kept).max() + 0.05  # it turns, it does not jump to another pose
+
+
+def test_online_seeds_are_variations(model, take):
+    _, a = react_online(model, take[:30], {"pushing": 1.0}, seed=0)
+    _, b = react_online(model, take[:30], {"pushing": 1.0}, seed=0)
+    _, c = react_online(model, take[:30], {"pushing": 1.0}, seed=5)
+    np.testing.assert_array_equal(a, b)
+    assert np.abs(a - c).max() > 0.01
+
+
+def test_online_refusals_are_one_line(model):
+    reactor = model.online({"kicking": 1.0})
+    for bad, match in ((np.zeros((14, 3)), "shape"), (np.full((15, 3), np.nan), "NaN"), ("x", "numeric"),
+                       (np.full((15, 3), 1e9), "from the origin")):
+        with pytest.raises(DataFormatError, match=match) as err:
+            reactor.push(bad)
+        assert "\n" not in str(err.value)
+    assert reactor.frames_in == 0  # a refused frame is not taken
+    with pytest.raises(LabelError, match="unknown class"):
+        reactor.label = {"dancing": 1.0}
+    with pytest.raises(LabelError):
+        model.online({"kicking": float("nan")})
+    for path in (SAMPLE_GAN, SAMPLE_RETRIEVAL):
+        other = ReactionModel.load(path)
+        assert not other.settings.online
+        with pytest.raises(LabelError, match="cannot react online"):
+            other.online({"kicking": 1.0})
+
+
+def test_online_cleanup_holds_a_planted_foot(model, sample_data):
+    """A foot on the floor sliding in the network's frames stays where it touched down, frame by frame."""
+    pose = sample_data.world(0)[1][0].astype(np.float64)  # a real follower's first pose
+    names, up = model.skeleton.joint_names, model.skeleton.vertical_axis
+    foot = min((names.index("left_foot"), names.index("right_foot")), key=lambda j: pose[j, up])  # the one on the floor
+    frames = np.repeat(pose[None], 6, 0)
+    frames[:, foot, 0] += np.linspace(0, 0.1, 6)  # skating 2 cm a frame along the floor
+    clean = OnlineCleanup(model.skeleton, model.bone_lengths)
+    out = np.concatenate([clean(frames[t:t + 1]) for t in range(6)])
+    assert np.abs(out[:, foot, 0] - out[0, foot, 0]).max() < 1e-3
+    lifted = frames.copy()
+    lifted[3:, foot, up] += 0.3  # lifted from frame 3: it leaves its spot without a jump
+    out = np.concatenate([OnlineCleanup(model.skeleton, model.bone_lengths)(lifted[t:t + 1]) for t in range(6)])
+    assert out[5, foot, 0] > out[0, foot, 0] + 0.05
