@@ -547,3 +547,15 @@ def test_generate_takes_a_spread_and_the_file_records_it(leader_noise_model, tin
         assert main(base + ["--checkpoint", str(checkpoint), "--spread", spread, "--out", str(tmp_path / "no.npz")]) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and message in err and not (tmp_path / "no.npz").exists(), err
+
+
+def test_late_starts_join_the_training_rows_only_when_asked(sample_data, tmp_path):
+    """late_start_prob > 0: the trainer's rows include every training pair from a later frame on (never a held-out
+    pair's), and batches draw them; 0: the rows and the random stream are as before."""
+    plain = DiffusionTrainer(replace(TINY, steps=2), sample_data, "s04", tmp_path / "plain")
+    late = DiffusionTrainer(replace(TINY, steps=2, late_start_prob=1.0), sample_data, "s04", tmp_path / "late")
+    assert len(plain.padded.lengths) == len(sample_data) and len(plain.late) == 0
+    assert len(late.late) == sum(int(sample_data.lengths[i]) - 10 for i in late.train_idx)
+    assert len(late.padded.lengths) == len(sample_data) + len(late.late)
+    late.fit(progress=False)
+    assert (tmp_path / "late" / "final.safetensors").exists()

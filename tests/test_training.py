@@ -373,3 +373,22 @@ def test_role_swap_in_the_training_batches(sample_data):
         a, b = swapped.canonical(i) if actions[i] == hug else data.canonical(i)
         torch.testing.assert_close(leader[i, :t], torch.as_tensor(a.reshape(t, -1)))
         torch.testing.assert_close(follower[i, :t], torch.as_tensor(b.reshape(t, -1)))
+
+
+def test_late_starts_begin_mid_interaction_in_their_own_frame(sample_data):
+    """A take's windows begin mid-interaction: the training rows that teach them are each pair from a later frame on,
+    standardized from that frame (the leader's root at the origin there), as long as the pair goes on."""
+    from imm_model.training.data import PaddedData, late_starts
+
+    indices = np.array([0, 5])
+    late = late_starts(sample_data, indices, 10)
+    assert len(late) == sum(int(sample_data.lengths[i]) - 10 for i in indices)
+    root = sample_data.skeleton.root
+    for k in range(len(late)):
+        leader, follower = late.canonical(k)
+        assert np.abs(leader[0, root]).max() < 1e-4 and len(leader) >= 10
+    first_world = sample_data.world(0)
+    np.testing.assert_allclose(late.world(0)[1], first_world[1][1:], atol=1e-4)  # the same motion, from frame 1
+    joined = PaddedData.joined(PaddedData.from_dataset(sample_data), PaddedData.from_dataset(late))
+    assert len(joined.lengths) == len(sample_data) + len(late)
+    assert int(joined.lengths[len(sample_data)]) == int(sample_data.lengths[0]) - 1

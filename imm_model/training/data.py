@@ -37,6 +37,15 @@ class PaddedData:
         t = torch.from_numpy(arrays)
         return cls(t[0], t[1], t[2], t[3], torch.as_tensor(data.lengths), torch.as_tensor(data.actions))
 
+    @classmethod
+    def joined(cls, first: PaddedData, second: PaddedData) -> PaddedData:
+        """The rows of both, padded to the longer: `second`'s row i is row len(first) + i."""
+        t = max(first.leader.shape[1], second.leader.shape[1])
+        pad = lambda x: torch.nn.functional.pad(x, (0, 0, 0, t - x.shape[1]))  # noqa: E731
+        tensors = [torch.cat([pad(getattr(first, f)), pad(getattr(second, f))])
+                   for f in ("leader", "follower", "swapped_leader", "swapped_follower")]
+        return cls(*tensors, torch.cat([first.lengths, second.lengths]), torch.cat([first.actions, second.actions]))
+
     def batch(self, idx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         """idx (B,) -> leader, follower (B, T, 3J) trimmed to the longest, lengths, actions."""
         lengths = self.lengths[idx]
@@ -107,6 +116,23 @@ class Augmenter:
         out = (1 - w) * poses.gather(2, idx(lo)) + w * poses.gather(2, idx(hi))
         valid = (t < new[:, None])[None, :, :, None]
         return torch.where(valid, out, torch.zeros(())), new
+
+
+def late_starts(data: InteractionDataset, indices: np.ndarray, min_frames: int) -> InteractionDataset:
+    """Every pair of `indices` from each of its later frames on (frames a..T-1 for a = 1.., at least `min_frames` long),
+    each standardized from its own first frame: a take's windows begin mid-interaction, and these are what a
+    network sees there."""
+    from imm_model.data.sequence import Interaction
+
+    crops = []
+    for i in indices:
+        leader, follower = data.world(i)
+        frames = data.frame_numbers[data.frames(i)]
+        for a in range(1, len(leader) - min_frames + 1):
+            crops.append(Interaction(f"{data.sequence_ids[i]}@{a}", data.dataset, data.class_names[data.actions[i]],
+                                     data.subject_pairs[i], leader[a:], follower[a:], data.leader_sources[i],
+                                     data.leader_rules[i], frames[a:]))
+    return InteractionDataset.from_interactions(crops, data.class_names, data.skeleton, data.canonical_mode)
 
 
 def data_meta(data: InteractionDataset, subject: str | None, train_idx: np.ndarray) -> dict:

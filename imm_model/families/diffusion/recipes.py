@@ -40,6 +40,9 @@ class DiffusionTrainConfig:
     # probability a training row's label names one body part only, the other part's label left out (model.part_labels):
     # what the sampler's one-part terms read
     part_drop: float = param(0.0, FRACTION)
+    # probability a training row is its pair from a later frame on, standardized from that frame
+    # (training/data.py late_starts): the windows a long take is sampled in begin mid-interaction
+    late_start_prob: float = param(0.0, FRACTION)
     lambda_velocity: float = param(1.0, Interval(float, 0, None))  # weight of the frame-to-frame velocity error beside x0's
     # weights of the geometric terms on the x0 prediction in metres (training/geometry.py): a planted foot's drag (per
     # m^2) and the torso direction's error

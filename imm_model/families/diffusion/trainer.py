@@ -27,10 +27,11 @@ from imm_model.families.base import Trained
 from imm_model.families.diffusion.denoiser import ReactionDenoiser, q_sample
 from imm_model.families.diffusion.recipes import FAMILY, DiffusionTrainConfig
 from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, cosine_alpha_bar
-from imm_model.training.data import Augmenter, PaddedData, data_meta, derive_seed
+from imm_model.training.data import Augmenter, PaddedData, data_meta, derive_seed, late_starts
 from imm_model.training.geometry import GeometricTerms
 from imm_model.training.part_mix import mixed_rows, part_rows, upper_shares
 
+LATE_START_FRAMES = 10  # the shortest late start (training/data.py late_starts): SBU's shortest pair
 LOG_FIELDS = ("step", "loss", "x0", "velocity", "foot_contact", "torso", "lr", "seconds")
 
 
@@ -42,6 +43,11 @@ class DiffusionTrainer:
         self.out = Path(out_dir)
         self.train_idx = np.arange(len(data)) if subject is None else loso_fold(data.subject_pairs, subject).train
         self.padded = PaddedData.from_dataset(data)
+        self.late = np.zeros(0, np.int64)  # the padded rows of the training pairs' late starts (cfg.late_start_prob)
+        if cfg.late_start_prob:
+            late = late_starts(data, self.train_idx, LATE_START_FRAMES)
+            self.late = np.arange(len(data), len(data) + len(late))
+            self.padded = PaddedData.joined(self.padded, PaddedData.from_dataset(late))
         torch.manual_seed(cfg.seed)
         self.model_cfg = DiffusionConfig.from_dict(dict(cfg.model) | {"num_joints": data.skeleton.num_joints,
                                                                        "num_classes": len(data.class_names)})
@@ -80,6 +86,9 @@ class DiffusionTrainer:
         cfg, net = self.cfg, self.net
         gen = torch.Generator().manual_seed(derive_seed(cfg.seed, self.step))
         idx = torch.as_tensor(self.train_idx)[torch.randint(len(self.train_idx), (cfg.batch_size,), generator=gen)]
+        if cfg.late_start_prob:  # drawn only then, so that recipes without it keep their random stream
+            late = torch.as_tensor(self.late)[torch.randint(len(self.late), (cfg.batch_size,), generator=gen)]
+            idx = torch.where(torch.rand(cfg.batch_size, generator=gen) < cfg.late_start_prob, late, idx)
         leader, follower, lengths, actions = self.augment(self.padded, idx, gen)
         b, t, _ = follower.shape
         mask = torch.arange(t)[None] < lengths[:, None]  # (B, T)
