@@ -58,6 +58,8 @@ html { overflow: hidden; }
 .imm-alert .v-alert__content { white-space: nowrap; overflow: hidden; text-overflow: ellipsis; align-self: center; }
 .imm-alert .v-alert__close .v-btn { width: 24px !important; height: 24px !important; }
 .imm-alert .v-alert__prepend { align-self: center; }
+.imm-value { flex: 0 0 60px; width: 60px; height: 24px; padding: 0 4px; text-align: right; font-size: 13px;
+             border: 1px solid #bdbdbd; border-radius: 4px; }
 """
 
 
@@ -90,10 +92,11 @@ def build_layout(page: LayoutParts) -> VAppLayout:
         with v3.VNavigationDrawer(v_model=("main_drawer", True), permanent=True, location="left", width=330):
             with html.Div(classes="pa-3 pt-0"):
                 review_button()  # at the top of the side panel, however far it is scrolled
-                sequence_picker(page)
+                label_mix(page)  # first: the mix is the studio's main control, on screen at load on a laptop
                 v3.VDivider(classes="my-3")
                 model_panel(page.session)
-                label_mix(page)
+                v3.VDivider(classes="my-3")
+                sequence_picker(page)
                 v3.VDivider(classes="my-3")
                 character_toggles(page)
         with v3.VMain(classes="imm-main"):
@@ -250,28 +253,31 @@ def label_mix(page: LayoutParts) -> None:
         v3.VBtn("match", size="x-small", variant="tonal", click=page.ctrl.match_label, id="match-label", classes="mr-1")
         v3.VBtn("reset", size="x-small", variant="tonal", click=page.ctrl.reset_label, id="reset-label")
     for i, name in enumerate(page.session.class_names):
-        with html.Div(classes="d-flex align-center", style="height: 30px"):
+        # the class's name over a slider as wide as the drawer allows, and its value to type
+        with html.Div(classes="d-flex align-center", style="height: 22px"):
             html.Div(
                 f"{i + 1} {display_name(name)}", classes=(f"key_slider === {i} ? 'text-body-2 text-decoration-underline' : 'text-body-2'",),
-                style=f"width: 118px; flex: 0 0 118px; color: {class_color(i)}; font-weight: 600", title="keys: 1-6 select, up/down move",
+                style=f"flex: 1 1 auto; color: {class_color(i)}; font-weight: 600", title="keys: 1-6 select, up/down move",
             )
-            part_tag("upper", f"part_labels && apart_{i}")
-            class_slider(f"w_{i}", i, f"class-slider slider-{name}", f"slider-{i}")
             # the parts apart: the lower body's slider starts where the class's is; linked again, both take the class's
-            v3.VBtn(icon=(f"apart_{i} ? 'mdi-link-variant-off' : 'mdi-link-variant'",), v_if="part_labels", size="x-small",
-                    variant="text", density="comfortable", id=f"parts-{i}", classes="part-toggle", style="flex: 0 0 24px; width: 24px",
-                    color=(f"apart_{i} ? 'primary' : undefined",), click=f"lower_{i} = w_{i}; apart_{i} = !apart_{i}",
+            v3.VBtn(f"{{{{ apart_{i} ? 'one for the whole body' : 'by body part' }}}}", v_if="part_labels", size="x-small",
+                    variant=(f"apart_{i} ? 'flat' : 'text'",), height=22, id=f"parts-{i}", classes="part-toggle px-1",
+                    prepend_icon="mdi-human", color=(f"apart_{i} ? 'primary' : undefined",),
+                    click=f"lower_{i} = w_{i}; apart_{i} = !apart_{i}",
                     title=(f"apart_{i} ? 'link the parts: {display_name(name)} for the whole body' : "
                            f"'set {display_name(name)} apart for the upper body (trunk, arms) and the lower body (legs, stance)'",))
+        with html.Div(classes="d-flex align-center", style="height: 30px"):
+            part_tag("upper", f"part_labels && apart_{i}")
+            class_slider(f"w_{i}", i, f"class-slider slider-{name}", f"slider-{i}")
         with html.Div(v_if=f"part_labels && apart_{i}", classes="d-flex align-center", style="height: 30px"):
-            html.Div(style="flex: 0 0 118px")
             part_tag("lower")
             class_slider(f"lower_{i}", i, f"lower-slider lower-slider-{name}", f"lower-slider-{i}")
-            html.Div(style="flex: 0 0 24px")
     with html.Div(classes="d-flex align-center", style="height: 30px"):
-        html.Div("scale", classes="text-body-2", style="width: 118px; font-weight: 600")
+        html.Div("scale", classes="text-body-2", style="flex: 0 0 48px; font-weight: 600")
         v3.VSlider(v_model=("scale",), min=0, max=2, step=0.05, density="compact", hide_details=True, id="scale-slider")
-        html.Div("{{ Number(scale).toFixed(2) }}", classes="text-caption ml-1", style="width: 38px; text-align: right")
+        html.Input(type="number", min=0, max=2, step=0.05, value=("Number(scale).toFixed(2)",), classes="ml-2 imm-value",
+                   id="value-scale", title="type the scale, 0 .. 2: Enter or leaving the field sets it",
+                   __events=["change"], change="scale = Math.max(0, Math.min(2, Number($event.target.value) || 0))")
     html.Div("{{ label_text }}", classes="text-body-2 mt-1 pa-2 rounded bg-grey-lighten-4", id="label-text",
              style="overflow-wrap: anywhere")  # part keys are long words
     compare_row(page)
@@ -279,11 +285,13 @@ def label_mix(page: LayoutParts) -> None:
 
 
 def class_slider(key: str, i: int, classes: str, slider_id: str) -> None:
-    """A class's slider (-1 .. +1, in its colour) and its value."""
+    """A class's slider (-1 .. +1, in its colour) and its value, which the user may type (Enter or leaving the field
+    sets it, within -1 .. +1)."""
     v3.VSlider(v_model=(key,), min=-1, max=1, step=0.05, density="compact", hide_details=True, color=class_color(i),
                track_color="grey-lighten-2", classes=classes, id=slider_id)
-    html.Div(f"{{{{ ({key} >= 0 ? '+' : '') + Number({key}).toFixed(2) }}}}", classes="text-caption ml-1",
-             style="width: 38px; flex: 0 0 38px; text-align: right")
+    html.Input(type="number", min=-1, max=1, step=0.05, value=(f"Number({key}).toFixed(2)",), classes="ml-2 imm-value",
+               id=f"value-{slider_id}", title="type a value, -1 (avoid) .. +1 (perform): Enter or leaving the field sets it",
+               __events=["change"], change=f"{key} = Math.max(-1, Math.min(1, Number($event.target.value) || 0))")
 
 
 def part_tag(part: str, shown: str | None = None) -> None:
