@@ -559,3 +559,19 @@ def test_late_starts_join_the_training_rows_only_when_asked(sample_data, tmp_pat
     assert len(late.padded.lengths) == len(sample_data) + len(late.late)
     late.fit(progress=False)
     assert (tmp_path / "late" / "final.safetensors").exists()
+
+
+def test_given_frames_training_scores_only_the_frames_it_samples(sample_data, tmp_path):
+    """given_prob: some rows' first frames are given clean and left out of the loss (a network that continues a
+    window); it needs the network flag, and the sampler then gives a long take's continued frames clean."""
+    with pytest.raises(ValueError, match="given_prob"):
+        replace(TINY, given_prob=0.5)
+    cfg = replace(TINY, steps=2, given_prob=1.0, late_start_prob=0.5, model=dict(TINY.model) | {"given_frames": True})
+    trainer = DiffusionTrainer(cfg, sample_data, "s04", tmp_path / "given")
+    parts = trainer.train_step()
+    assert np.isfinite(parts["loss"]) and parts["x0"] > 0
+    path = trainer.fit(progress=False)
+    model = ReactionModel.load(path)
+    assert model.config.given_frames
+    take = np.concatenate([sample_data.world(i)[0] for i in (0, 40, 80)])
+    assert model.synthesize(take, {"kicking": 1.0}).shape == take.shape

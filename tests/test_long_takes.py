@@ -9,7 +9,7 @@ import pytest
 from imm_model.cleanup import OnlineCleanup
 from imm_model.errors import DataFormatError, LabelError
 from imm_model.families.diffusion.sampler import keeping
-from imm_model.families.diffusion.windows import window_starts
+from imm_model.families.diffusion.windows import LOOKAHEAD, STRIDE
 from imm_model.inference import ReactionModel
 from imm_model.paths import SAMPLE_DIFFUSION, SAMPLE_GAN, SAMPLE_RETRIEVAL
 
@@ -39,33 +39,45 @@ def react_online(model, leader, label, seed=0, change_at=None, new_label=None):
     return reactor, np.concatenate([np.stack(out), reactor.flush()])
 
 
-def test_window_starts_cover_the_take_with_overlap():
-    assert window_starts(30, 46) == [0]
-    starts = window_starts(200, 46, 16)
-    assert starts[0] == 0 and starts[-1] == 200 - 46
-    assert all(0 < b - a <= 30 for a, b in zip(starts, starts[1:], strict=False))
-
-
 def test_known_frames_are_held_at_every_step():
     values = np.full((1, 5, 3), 7.0, np.float32)
     where = np.array([[True, True, False, False, False]])
-    out = keeping(lambda x, step: np.zeros_like(x), (values, where))(np.zeros((1, 5, 3), np.float32), 3)
+    seen = []
+
+    def predict(x, step):
+        seen.append(x.copy())
+        return np.zeros_like(x)
+
+    out = keeping(predict, (values, where, False))(np.zeros((1, 5, 3), np.float32), 3)
     assert (out[0, :2] == 7).all() and (out[0, 2:] == 0).all()
-    predict = lambda x, step: x  # noqa: E731
+    assert (seen[-1] == 0).all()  # a network not trained on given frames reads them noised, as the sampler made them
+    keeping(predict, (values, where, True))(np.zeros((1, 5, 3), np.float32), 3)
+    assert (seen[-1][0, :2] == 7).all() and (seen[-1][0, 2:] == 0).all()  # one trained so reads them clean
     assert keeping(predict, None) is predict
 
 
-def test_a_long_take_begins_as_its_first_window(model, take):
-    """The take's first `window` frames are the reaction to those frames alone; the rest continues them."""
+def test_a_long_take_is_made_a_few_frames_at_a_time(model, take, sample_data):
+    """Longer than the trained clips: each window makes the next frames from the leader up to its lookahead, so frames
+    made before a window read a change of the leader stay as they were; a clip no longer than the training clips is
+    sampled whole, as before."""
     assert len(take) > model.window
     model.raw = True
     try:
         whole = model.synthesize(take, {"pushing": 1.0}, seed=2)
-        first = model.synthesize(take[: model.window], {"pushing": 1.0}, seed=2)
+        changed = take.copy()
+        t = 60
+        changed[t:] += np.array([0.5, 0.0, 0.3])  # the leader steps away from frame 60 on
+        moved = model.synthesize(changed, {"pushing": 1.0}, seed=2)
+        clip = sample_data.world(7)[0]
+        assert len(clip) <= model.window
+        np.testing.assert_array_equal(model.synthesize(clip, {"pushing": 1.0}, seed=2),
+                                      model.synthesize_leaders([clip], model.label_vector({"pushing": 1.0}), [2])[0].astype(np.float32))
     finally:
         model.raw = False
     assert whole.shape == take.shape and np.isfinite(whole).all()
-    np.testing.assert_allclose(whole[: model.window], first, atol=1e-4)
+    before = t - LOOKAHEAD - STRIDE
+    np.testing.assert_array_equal(moved[:before], whole[:before])
+    assert np.abs(moved[t:] - whole[t:]).max() > 0.05
     steps = np.linalg.norm(np.diff(whole, axis=0), axis=-1).mean(1)  # mean joint motion per frame
     still = np.linalg.norm(np.diff(take, axis=0), axis=-1).mean(1) < 0.1  # not where one leader ends and the next begins
     assert steps[still].max() < 0.25  # no window starts anew somewhere else (a jump of metres)

@@ -89,7 +89,20 @@ def test_the_panel_reads_each_part_of_a_part_mix_in_one_line(part_session):
     note = unread_note(rows, ses.label.parts_differ, parts)
     up, low = parts[0]["asked"]["p"] * 100, parts[1]["asked"]["p"] * 100
     assert up == pytest.approx(readings["upper"][shake] * 100, abs=0.1)
-    assert note == f"upper body reads as shaking hands {up:.0f}% · lower body reads as pushing {low:.0f}% (asked -1)"
+    upper_words = (f"upper body reads as shaking hands {up:.0f}%"
+                   + (", as asked" if up >= 25 else ": not as asked (under 25%)"))
+    lower_words = (f"lower body avoids pushing ({low:.0f}%), as asked" if low < 25
+                   else f"lower body still reads as pushing {low:.0f}%: asked to avoid it")
+    assert note == f"{upper_words} · {lower_words}"
+    from explorer.ui.reads_as_panel import part_note
+
+    row = lambda name, p, w: {"name": name, "p": p, "w": w, "asked": "+" if w > 0 else "-", "color": ""}  # noqa: E731
+    assert part_note([{"part": "lower body", "asked": row("pushing", 0.0, -1.0), "classes": []}]) == \
+        "lower body avoids pushing (0%), as asked"  # a part at -1 that reads 0 % did what was asked
+    assert part_note([{"part": "upper body", "asked": row("hugging", 0.12, 1.0), "classes": []}]) == \
+        "upper body reads as hugging 12%: not as asked (under 25%)"
+    assert part_note([{"part": "upper body", "asked": row("hugging", 0.6, 0.3), "classes": []}]) == \
+        "upper body reads as hugging 60% (a nudge of +0.3: not judged)"
     assert unread_note(rows, ses.label.parts_differ) == PART_NOTE  # no part judges: the whole body's caption
     w[C + push], w[C + shake] = 0, 1  # the parts alike again: no part readings
     ses.set_label(w)

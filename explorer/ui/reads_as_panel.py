@@ -55,13 +55,26 @@ def part_rows(readings: dict[str, np.ndarray], part_weights: np.ndarray, class_n
 
 
 def part_note(parts: Sequence[dict]) -> str:
-    """One line: how each part reads its asked class ('upper body reads as shaking hands 61% · lower body reads as
-    pushing 12% (asked -1)'), or its top class where it asks none."""
+    """One line, each part in words with whether it does what was asked, by the mix bar's share (MIX_SHARE): 'upper
+    body reads as shaking hands 61%, as asked · lower body avoids pushing (2%), as asked'; 'upper body reads as
+    hugging 12%: not as asked (under 25%)'; 'lower body still reads as pushing 40%: asked to avoid it'. A part asked
+    with less than ASKED_WEIGHT is a nudge (its reading, not judged); a part asking nothing gives its top class."""
     said = []
     for part in parts:
-        row = part["asked"] or part["classes"][0]
-        weight = "" if part["asked"] is None or row["w"] == 1 else f" (asked {row['w']:g})"
-        said.append(f"{part['part']} reads as {row['name']} {row['p'] * 100:.0f}%{weight}")
+        row, name = part["asked"], part["part"]
+        if row is None:
+            top = part["classes"][0]
+            said.append(f"{name} reads as {top['name']} {top['p'] * 100:.0f}%")
+            continue
+        share, w = f"{row['p'] * 100:.0f}%", row["w"]
+        if abs(w) < ASKED_WEIGHT:
+            said.append(f"{name} reads as {row['name']} {share} (a nudge of {w:+g}: not judged)")
+        elif w > 0:
+            said.append(f"{name} reads as {row['name']} {share}"
+                        + (", as asked" if row["p"] >= MIX_SHARE else f": not as asked (under {MIX_SHARE * 100:.0f}%)"))
+        else:
+            said.append(f"{name} avoids {row['name']} ({share}), as asked" if row["p"] < MIX_SHARE
+                        else f"{name} still reads as {row['name']} {share}: asked to avoid it")
     return " · ".join(said)
 
 

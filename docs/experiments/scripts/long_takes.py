@@ -3,10 +3,12 @@
 Each held-out leader of the model's fold is played k times in a row (k = 1, 4, 8; the copies joined end to end, the
 leader jumping back at each join) and the model reacts with the leader's true class, seed 0. Per copy: the closest
 hand-to-hand distance (over the copy's frames, the nearest of the leader's hands to the nearest of the follower's) and
-the torso distance (the two torso joints, mean over the copy's frames), each averaged over leaders. `--online` also
-reacts frame by frame (`model.online`, lookahead as shipped) and times each push.
+the torso distance (the two torso joints, mean over the copy's frames), each averaged over leaders, beside the same
+figures of the recorded followers (one clip). `--online` also reacts frame by frame (`model.online`, as shipped) and
+times each push.
 
-    python docs/experiments/scripts/long_takes.py --repeats 1 4 8 --online --out docs/experiments/data/long-takes.jsonl
+    python docs/experiments/scripts/long_takes.py --repeats 1 4 8 --online --gan sample_data/imm_sbu.safetensors \
+        --out docs/experiments/data/long-takes.jsonl
 """
 
 from __future__ import annotations
@@ -57,6 +59,7 @@ def main() -> None:
     ap.add_argument("--checkpoint", default=str(paths.SAMPLE_DEFAULT))
     ap.add_argument("--repeats", type=int, nargs="+", default=[1, 4, 8])
     ap.add_argument("--online", action="store_true", help="also react frame by frame")
+    ap.add_argument("--gan", default=None, help="also this GAN checkpoint's reaction to the same takes (a reference)")
     ap.add_argument("--limit", type=int, default=None, help="the first N held-out leaders only")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=None, help="append one JSON line per (mode, repeats) here")
@@ -65,15 +68,18 @@ def main() -> None:
     data = load_any(paths.SAMPLE_DATA)
     model = ReactionModel.load(args.checkpoint)
     held_out = loso_fold(data.subject_pairs, model.held_out_subject).test[: args.limit]
-    modes = ["offline"] + (["online"] if args.online else [])
+    modes = ["real", "offline"] + (["online"] if args.online else []) + (["gan"] if args.gan else [])
+    gan = ReactionModel.load(args.gan) if args.gan else None
     for mode in modes:
-        for k in args.repeats:
+        for k in [1] if mode == "real" else args.repeats:
             per_copy, push_times = [], []
             for i in held_out:
                 leader = np.concatenate([data.world(i)[0]] * k)
                 label = {data.class_names[data.actions[i]]: 1.0}
-                if mode == "offline":
-                    follower = model.synthesize(leader, label, seed=args.seed)
+                if mode == "real":  # the recorded follower of the single clip: where real reactions stand
+                    follower = data.world(i)[1]
+                elif mode in ("offline", "gan"):
+                    follower = (model if mode == "offline" else gan).synthesize(leader, label, seed=args.seed)
                 else:
                     follower, times = online_follower(model, leader, label, args.seed)
                     push_times += times
@@ -81,7 +87,7 @@ def main() -> None:
             hands = np.array([[c["hands"] for c in row] for row in per_copy])
             torso = np.array([[c["torso"] for c in row] for row in per_copy])
             row = {"mode": mode, "repeats": k, "leaders": len(held_out), "fold": model.held_out_subject,
-                   "checkpoint": args.checkpoint, "seed": args.seed,
+                   "checkpoint": args.gan if mode == "gan" else args.checkpoint, "seed": args.seed,
                    "hands_per_copy": hands.mean(0).round(4).tolist(), "torso_per_copy": torso.mean(0).round(4).tolist()}
             if push_times:
                 row["push_ms_median"] = round(1000 * float(np.median(push_times)), 2)

@@ -164,11 +164,13 @@ class DiffusionReactionModel(ReactionModel):
 
     def _sample(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int],
                 noises: list[np.ndarray] | None = None, leader_noises: list[np.ndarray] | None = None,
-                known: list[tuple[np.ndarray, int]] | None = None) -> list[np.ndarray]:
+                known: list[tuple[np.ndarray, int]] | None = None, continue_level: float = 1.0) -> list[np.ndarray]:
         """One sampler batch: canonical leaders (T_i, J, 3), the sampler's labels (`_label_input`), seeds -> followers
         (T_i, J, 3) canonical. The starting noise and the leader's noise default to the seeds' draws for each length
         (a window of a long take brings its slice of the take's); `known`, per row (canonical follower (T_i, J, 3),
-        k), gives its first k frames (the sampler inpaints the rest around them)."""
+        k), gives its first k frames (the sampler inpaints the rest around them); with `continue_level` < 1 and k > 0
+        in every row, the sampler starts at that noise level from the given frames, the last one held for the rest
+        (what the window continues), not from pure noise."""
         from imm_model.families.diffusion.sampler import forward_noised, initial_noise, leader_noise, schedule_step
 
         d, steps = self.config.pose_dim, self.config.diffusion_steps
@@ -187,12 +189,18 @@ class DiffusionReactionModel(ReactionModel):
         if self.guidance.uses_memory:
             noise = forward_noised(self._memory_starts(leaders, labels, seeds), noise, mask,
                                    schedule_step(self.guidance.memory_level, steps), steps)
-        given = {}
+        given, guidance = {}, self.guidance
         if known is not None:  # only then: an experiment's own sampler (`self.sampler`) need not take it
             values, _ = self._padded([f for f, _ in known])
-            where = np.arange(mask.shape[1])[None] < np.array([k for _, k in known])[:, None]
-            given["known"] = ((values - self.weights["follower_mean"]) / self.weights["follower_std"] * mask[..., None], where)
-        x0 = self.sampler(denoise, x, mask, labels, noise, self.guidance, steps, seeds=seeds,
+            values = (values - self.weights["follower_mean"]) / self.weights["follower_std"] * mask[..., None]
+            counts = np.array([k for _, k in known])
+            where = np.arange(mask.shape[1])[None] < counts[:, None]
+            given["known"] = (values, where, self.config.given_frames)
+            if continue_level < 1 and counts.min() > 0:
+                held = np.where(where[..., None], values, values[np.arange(len(counts)), counts - 1][:, None])
+                noise = forward_noised(held, noise, mask, schedule_step(continue_level, steps), steps)
+                guidance = replace(guidance, memory_level=continue_level)
+        x0 = self.sampler(denoise, x, mask, labels, noise, guidance, steps, seeds=seeds,
                           pair_terms=self.config.pair_terms, part_labels=self.config.part_labels, join=join, **given)
         followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
         return [followers[k, : len(a)].reshape(len(a), -1, 3) for k, a in enumerate(leaders)]

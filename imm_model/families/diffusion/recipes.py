@@ -43,6 +43,9 @@ class DiffusionTrainConfig:
     # probability a training row is its pair from a later frame on, standardized from that frame
     # (training/data.py late_starts): the windows a long take is sampled in begin mid-interaction
     late_start_prob: float = param(0.0, FRACTION)
+    # probability a training row's first frames (1 .. T - 1 of them) are given clean in its noised input and left out of
+    # the loss (model.given_frames): a window of a long take continues the follower frames made before it
+    given_prob: float = param(0.0, FRACTION)
     lambda_velocity: float = param(1.0, Interval(float, 0, None))  # weight of the frame-to-frame velocity error beside x0's
     # weights of the geometric terms on the x0 prediction in metres (training/geometry.py): a planted foot's drag (per
     # m^2) and the torso direction's error
@@ -64,7 +67,9 @@ class DiffusionTrainConfig:
                         "0 unless model.leader_noise is true"),
              ("mix_prob", lambda c: c.mix_prob == 0 or c.model.get("pair_terms") is True or c.model.get("part_labels") is True,
               "0 unless model.pair_terms or model.part_labels is true"),
-             ("part_drop", lambda c: c.part_drop == 0 or c.model.get("part_labels") is True, "0 unless model.part_labels is true"))
+             ("part_drop", lambda c: c.part_drop == 0 or c.model.get("part_labels") is True, "0 unless model.part_labels is true"),
+             ("given_prob", lambda c: c.given_prob == 0 or c.model.get("given_frames") is True,
+              "0 unless model.given_frames is true"))
 
     def __post_init__(self) -> None:
         validate(self, "training config")

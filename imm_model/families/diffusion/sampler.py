@@ -59,6 +59,9 @@ class DiffusionConfig:
     # the follower stands), trained on both (training's part_drop and mix_prob): the sampler composes a label per part
     # (see `label_terms`)
     part_labels: bool = param(False, Flag())
+    # the network was trained with a row's first frames given clean in its noised input (training's given_prob): the
+    # sampler gives the frames a window of a long take continues so (`sample`'s `known`), not noised
+    given_frames: bool = param(False, Flag())
 
     RULES: ClassVar = (("width", lambda c: c.width % c.heads == 0, "a multiple of heads"),
                        ("part_labels", lambda c: not (c.part_labels and c.pair_terms),
@@ -297,9 +300,11 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
     composed as a whole-body label into a guided prediction of its own and the two are joined at every step; a row whose
     parts agree takes the upper one's, the whole-body label's prediction.
 
-    With `known` = (values (B, T, D) normalized, where (B, T) bool) the frames `where` marks are given, not sampled:
-    every step's prediction holds them at their values (inpainting by replacement, as PriorMDM continues a long
-    sequence), so the frames sampled around them continue them; a window of a long take continues the previous one."""
+    With `known` = (values (B, T, D) normalized, where (B, T) bool, clean) the frames `where` marks are given, not
+    sampled: every step's prediction holds them at their values (inpainting by replacement, as PriorMDM continues a
+    long sequence), and with `clean` (a network trained so: DiffusionConfig.given_frames) the network reads them clean
+    in its noised input; the frames sampled around them continue them, as a window of a long take continues the one
+    before."""
     if join is None:
         predict = guided_prediction(denoise, labels, guidance, diffusion_steps, mask, pair_terms, part_labels)
         return ddim(keeping(predict, known), noise, mask, guidance, diffusion_steps, seeds)
@@ -323,11 +328,14 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
 
 
 def keeping(predict, known):
-    """`predict(x_t, step)` with the frames of `known` = (values, where) held at their values (None: `predict`)."""
+    """`predict(x_t, step)` with the frames of `known` = (values, where, clean) held at their values, and read clean
+    by the network with `clean` (None: `predict`)."""
     if known is None:
         return predict
-    values, where = known
+    values, where, clean = known
     where = np.asarray(where, bool)[..., None]
+    if clean:
+        return lambda x, step: np.where(where, values, predict(np.where(where, values, x).astype(np.float32), step)).astype(np.float32)
     return lambda x, step: np.where(where, values, predict(x, step)).astype(np.float32)
 
 

@@ -109,6 +109,13 @@ class DiffusionTrainer:
         m = mask[..., None].float()
         x0 = net.normalize(follower, "follower") * m
         x_t = q_sample(x0, step, noise, self.alpha_bar) * m
+        scored, given = m, None  # the frames the loss reads; those given clean
+        if cfg.given_prob:  # drawn only then, so that recipes without it keep their random stream
+            rows = (torch.rand(b, generator=gen) < cfg.given_prob).to(self.device)
+            count = (torch.rand(b, generator=gen).to(self.device) * (lengths.to(self.device) - 1)).long() + 1  # 1 .. T - 1
+            given = (rows[:, None] & (torch.arange(t, device=self.device)[None] < count[:, None]))[..., None].float()
+            x_t = given * x0 + (1 - given) * x_t
+            scored = m * (1 - given)
         leader = net.normalize(leader, "leader") * m
         leader_level = None
         if cfg.leader_noise_prob:  # drawn only then, so that recipes without it keep their random stream
@@ -118,10 +125,11 @@ class DiffusionTrainer:
             leader = torch.where(noised[:, None, None], q_sample(leader, level, leader_noise, self.alpha_bar) * m, leader)
             leader_level = noised.float() * level
         pred = net(x_t, step, leader, leader_on, label, label_on, mask, leader_level=leader_level) * m
-        n = m.sum() * x0.shape[-1]
-        x0_loss = ((pred - x0) ** 2).sum() / n
-        mv = m[:, 1:] * m[:, :-1]
-        vel_loss = (((pred[:, 1:] - pred[:, :-1]) - (x0[:, 1:] - x0[:, :-1])) ** 2 * mv).sum() / (mv.sum() * x0.shape[-1])
+        n = scored.sum() * x0.shape[-1]
+        x0_loss = ((pred - x0) ** 2 * scored).sum() / n
+        held = pred if given is None else given * x0 + (1 - given) * pred  # what the sampler keeps: the given frames
+        mv = scored[:, 1:] * m[:, :-1]  # a given frame's step to the first sampled one counts: it is the seam
+        vel_loss = (((held[:, 1:] - held[:, :-1]) - (x0[:, 1:] - x0[:, :-1])) ** 2 * mv).sum() / (mv.sum() * x0.shape[-1])
         loss = x0_loss + cfg.lambda_velocity * vel_loss
         geometric = {"foot_contact": torch.zeros(()), "torso": torch.zeros(())}
         if cfg.lambda_foot_contact or cfg.lambda_torso:

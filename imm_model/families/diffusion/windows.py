@@ -1,17 +1,18 @@
-"""Reactions to leaders of any length, offline and live: the take in windows of the trained length.
+"""Reactions to leaders of any length, offline and live: the take in short windows, each continuing the last.
 
-The denoiser sees every frame of a window at once, with frame positions and a canonical frame it learned on clips of
-at most `model.window` frames (the longest training sequence). A longer take is cut into windows of that length,
-each standardized in its own canonical frame (data/canonical.py: its first frames' facing and root), so that every
-window looks like a training clip wherever in the take it lies. Each window's follower continues the previous one:
-the frames they share are given to the sampler, which inpaints the rest around them (sampler.py `sample`'s `known`,
-as PriorMDM continues a long sequence). The starting noise (and the leader's noise) is the seed's draw for the whole
-take, sliced per window, so that the first window of a take is the reaction to its first `window` frames.
+The denoiser sees every frame of a clip at once, with frame positions and a canonical frame it learned on clips of at
+most `model.window` frames (the longest training sequence), each from the start of an interaction; sampled whole, a
+longer take drifts away from its leader. A take longer than that is made `STRIDE` frames at a time: each time, a
+window of the last `WINDOW` leader frames up to `LOOKAHEAD` frames beyond the new ones, standardized in its own
+canonical frame (data/canonical.py: its first frames' facing and root), so that it looks like a training clip
+wherever in the take it lies. The follower frames already made are given to the sampler, which inpaints the rest
+around them (sampler.py `sample`'s `known`, as PriorMDM continues a long sequence), and the window's new frames are
+kept. The starting noise (and the leader's noise) is the seed's draw for the whole take, sliced per window.
 
-Live, `OnlineReactor` samples one window per leader frame: the last frames it was given, ending `lookahead` frames
-after the follower frame it returns, the follower frames it returned before given. A follower frame therefore never
-reads a leader frame beyond its lookahead, and a label changed mid-take changes the frames from the next one on,
-continuing the past ones.
+Live, `OnlineReactor` does the same one frame at a time, as the leader's frames come: a follower frame never reads a
+leader frame beyond its lookahead, and a label changed mid-take changes the frames from the next one on, continuing
+the past ones. What the windows and the causality cost against the offline reaction of a clip:
+docs/experiments/long-takes.md.
 """
 
 from __future__ import annotations
@@ -24,45 +25,61 @@ from imm_model.data.sequence import check_world_positions
 from imm_model.errors import DataFormatError
 from imm_model.families.diffusion.sampler import LEADER_NOISE_STREAM, initial_noise, leader_noise
 
-OVERLAP = 16  # frames a window of a long take shares with the one before (given, not sampled): its context
-LOOKAHEAD = 4  # leader frames the online reactor reads beyond the follower frame it returns (0.27 s at 15 fps)
-ONLINE_WINDOW = 24  # leader frames each online step samples over (the follower's given past is the rest)
+WINDOW = 16  # leader frames each window reads (the follower's given past and its new frames)
+STRIDE = 4  # new follower frames a window of a long take makes (live: 1, a frame per leader frame)
+LOOKAHEAD = 4  # leader frames a window reads beyond the last follower frame it makes (0.27 s at 15 fps)
+# a window continuing given frames starts its sampler at this noise level from them (the last one held), not from pure
+# noise: the given frames then hold the follower's placement and pose (from pure noise the 7-step sampler drew each
+# window's placement anew, and the follower jumped up to 1 m at a window's first frame)
+CONTINUE_LEVEL = 0.6
+REANCHOR_M = 0.5  # a window keeps the canonical frame before it until the leader's root is this far from its origin
+REANCHOR_DEG = 30.0  # ... or the leader has turned this far from its facing
 LABEL_RAMP = 8  # frames over which a label changed live moves from the old values to the new (0.53 s at 15 fps)
 
 
-def window_starts(frames: int, window: int, overlap: int = OVERLAP) -> list[int]:
-    """The first frame of each window of a take of `frames` frames: a stride of window - overlap, the last window
-    ending at the take's end."""
-    if frames <= window:
-        return [0]
-    return list(range(0, frames - window, window - overlap)) + [frames - window]
+def anchored(model, leader: np.ndarray, anchor: CanonicalFrame | None) -> CanonicalFrame:
+    """The canonical frame a window is sampled in: the one before (`anchor`, None for the first window) while the
+    window's own (its first frames' root and facing) lies within REANCHOR_M and REANCHOR_DEG of it, else its own.
+    Standardized anew at every window, the 7-step sampler placed each window's follower where the new frame puts it,
+    not where the given frames had it (a jump of 0.17 m at a window's first frame, against 0.05 m in the frame
+    before), so a window keeps the frame before it until the leader has moved away from it."""
+    own = CanonicalFrame.from_leader(np.asarray(leader, np.float64), model.skeleton, model.canonical_mode)
+    if anchor is not None and model.canonical_mode == "first_frame":
+        turn = abs((own.yaw[0] - anchor.yaw[0] + np.pi) % (2 * np.pi) - np.pi)
+        if np.linalg.norm(own.origin[0] - anchor.origin[0]) <= REANCHOR_M and turn <= np.deg2rad(REANCHOR_DEG):
+            return CanonicalFrame(np.full(len(leader), anchor.yaw[0]), np.repeat(anchor.origin[:1], len(leader), 0),
+                                  anchor.mode)
+    return own
 
 
 def window_follower(model, leader: np.ndarray, follower: np.ndarray, known: int, label: np.ndarray, seed: int,
-                    noise: np.ndarray, leader_z: np.ndarray) -> np.ndarray:
+                    noise: np.ndarray, leader_z: np.ndarray, frame: CanonicalFrame) -> np.ndarray:
     """One window: leader (W, J, 3) and follower (W, J, 3) in the take's frame, the follower's first `known` frames
-    given -> the window's follower (W, J, 3) in the take's frame, sampled in the window's own canonical frame with
+    given -> the window's follower (W, J, 3) in the take's frame, sampled in canonical `frame` (`anchored`) with
     `label` (the sampler's label input), the seed and the window's slices of the take's noise."""
     skeleton = model.skeleton
-    frame = CanonicalFrame.from_leader(np.asarray(leader, np.float64), skeleton, model.canonical_mode)
     given = frame.to_canonical(np.asarray(follower, np.float64), skeleton).astype(np.float32)
     out = model._sample([frame.to_canonical(np.asarray(leader, np.float64), skeleton).astype(np.float32)], label[None],
-                        [seed], [noise], [leader_z], [(given, known)])[0]
+                        [seed], [noise], [leader_z], [(given, known)], CONTINUE_LEVEL)[0]
     return frame.to_world(out, skeleton)
 
 
 def take_windows(model, leader: np.ndarray, label: np.ndarray, seed: int) -> np.ndarray:
-    """A canonical leader (T, J, 3) longer than `model.window` + the sampler's label input (L,) + seed -> the follower
-    (T, J, 3) in the same frame, window by window."""
+    """A canonical leader (T, J, 3) + the sampler's label input (L,) + seed -> the follower (T, J, 3) in the same
+    frame, STRIDE frames at a time."""
     frames, d = len(leader), model.config.pose_dim
     noise, leader_z = initial_noise(seed, frames, d), leader_noise(seed, frames, d)
     follower = np.zeros(leader.shape, np.float64)
-    done = 0
-    for a in window_starts(frames, model.window):
-        b = a + model.window
-        follower[done:b] = window_follower(model, leader[a:b], follower[a:b], done - a, label, seed, noise[a:b],
-                                           leader_z[a:b])[done - a:]
-        done = b
+    done, frame = 0, None
+    while done < frames:
+        end = min(done + STRIDE + LOOKAHEAD, frames)
+        start = max(0, end - WINDOW)
+        keep = STRIDE if end < frames else frames - done
+        frame = anchored(model, leader[start:end], frame)
+        made = window_follower(model, leader[start:end], follower[start:end], done - start, label, seed,
+                               noise[start:end], leader_z[start:end], frame)
+        follower[done:done + keep] = made[done - start:done - start + keep]
+        done += keep
     return follower.astype(np.float32)
 
 
@@ -73,14 +90,11 @@ class OnlineReactor:
     behind it (J, 3), or None while the first `lookahead` frames come in; `flush()` returns the frames still owed
     (n, J, 3) at the end of the take. `label` (and `scale`) may change between pushes: the reaction changes from the
     next frame on. The frames it returns go through a causal clean-up (cleanup.py OnlineCleanup) unless the model is
-    `raw`. With the same seed and label, a take no longer than the window gets the reaction of an offline window that
-    ends at each frame's lookahead (not the offline clip: every frame is sampled knowing only the frames before it)."""
+    `raw`. It makes the frames a long take's windows make (`take_windows`), one at a time: every frame is sampled
+    knowing only the leader up to its lookahead and the follower frames before it."""
 
-    def __init__(self, model, label, scale: float = 1.0, seed: int = 0, lookahead: int = LOOKAHEAD,
-                 window: int = ONLINE_WINDOW):
-        if not 0 <= lookahead < window <= model.window:
-            raise ValueError(f"lookahead {lookahead} and window {window}: need 0 <= lookahead < window <= {model.window}")
-        self.model, self.seed, self.lookahead, self.window = model, int(seed), int(lookahead), int(window)
+    def __init__(self, model, label, scale: float = 1.0, seed: int = 0):
+        self.model, self.seed, self.lookahead, self.window = model, int(seed), LOOKAHEAD, min(WINDOW, model.window)
         self._scale, self._label = float(scale), label
         self._vector = self._label_input(label, scale)
         self._ramp_from, self._ramped = self._vector, LABEL_RAMP  # the values a label change moves from, frames since
@@ -94,6 +108,7 @@ class OnlineReactor:
         self._first = 0  # the take's frame the buffers start at
         self.frames_in = 0  # leader frames pushed
         self.frames_out = 0  # follower frames returned
+        self._frame = None  # the canonical frame the last window was sampled in (`anchored`)
         self._clean = None if model.raw else OnlineCleanup(model.skeleton, model.bone_lengths)
 
     def _label_input(self, label, scale: float) -> np.ndarray:
@@ -163,8 +178,9 @@ class OnlineReactor:
         known = self.frames_out - self._first
         follower = np.concatenate([self._follower, np.zeros((len(self._leader) - known, *self._leader.shape[1:]))])
         self._ramped += 1
+        self._frame = anchored(self.model, self._leader, self._frame)
         out = window_follower(self.model, self._leader, follower, known, self._current(), self.seed, self._noise,
-                              self._leader_z)[known:known + n]
+                              self._leader_z, self._frame)[known:known + n]
         self._follower = np.concatenate([self._follower, out])
         self.frames_out += n
         return (out if self._clean is None else self._clean(out)).astype(np.float32)
