@@ -102,7 +102,7 @@ def main() -> None:
         predictions = dict(zip(map(int, judges.test), model.synthesize_batch_canonical(judges.leaders, labels), strict=True))
         scores = method_scores(data, judges, predictions)
         matrix, _ = control.adherence_matrix(
-            lambda lab: judges.follower_view(judges.judge, model.synthesize_batch_canonical(judges.leaders, lab)), y, c)
+            lambda lab, m=model: judges.follower_view(judges.judge, m.synthesize_batch_canonical(judges.leaders, lab)), y, c)
         spread = variations(model, data, judges, predictions)
         p = scores["plausibility"]
         row |= {"afd": float(np.mean([v["afd"] for v in scores["classes"].values()])), "afd_best_of_5": spread["afd_best_of_n"],
