@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import io
+
 import numpy as np
 import pytest
 
@@ -205,8 +207,17 @@ def test_exported_pictures_carry_the_legend_and_the_frame_number_and_the_view_st
     scene.set_sequence(*(np.repeat(m[:1], 4, 0) for m in (session.leader, session.ground_truth, session.synth)))
     try:
         plain = screenshot(scene)
-        frames = iio.imread(exports.export_video("gif"), index=None)[..., :3]
+        gif = exports.export_video("gif")
+        frames = iio.imread(gif, index=None)[..., :3]
         assert frames.shape == (4, *plain.shape)
+        from PIL import Image
+
+        with Image.open(io.BytesIO(gif)) as im:  # plays at the data's 15 frames a second, not 16.7
+            delays = []
+            for k in range(im.n_frames):
+                im.seek(k)
+                delays.append(im.info["duration"])
+        assert delays == [70, 60, 70, 70], delays
         text_rows = np.flatnonzero(np.abs(frames[0].astype(int) - plain).max(axis=(1, 2)) > 100)  # dark text on light
         top = text_rows.max() + 1
         assert len(text_rows) > 10 and top < 0.2 * plain.shape[0]

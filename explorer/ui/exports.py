@@ -104,7 +104,7 @@ class Exports:
             # macro_block_size 1: the view's own size (imageio would otherwise stretch it to a multiple of 16)
             data = iio.imwrite("<bytes>", np.stack(images), extension=".mp4", fps=FPS, codec="libx264", macro_block_size=1)
         else:
-            data = iio.imwrite("<bytes>", np.stack(images), extension=".gif", duration=1000.0 / FPS, loop=0)
+            data = iio.imwrite("<bytes>", np.stack(images), extension=".gif", duration=gif_delays(len(images)), loop=0)
         return self._send(self.session.files.name(fmt), data)
 
     def _annotator(self, every_frame: bool) -> Callable[[np.ndarray, int], np.ndarray]:
@@ -167,3 +167,11 @@ def safe_file_name(name: str) -> str:
     stem, _, ext = name.rpartition(".")
     stem = re.sub(r"[^A-Za-z0-9._+-]", "_", stem).lstrip(".")[:100] or "export"
     return f"{stem}.{re.sub(r'[^A-Za-z0-9]', '', ext)[:5] or 'bin'}"
+
+
+def gif_delays(frames: int) -> list[int]:
+    """Per-frame delays (ms) that play a GIF at the data's rate: a GIF counts delays in hundredths of a second, so a
+    constant 1000 / FPS (66.7 ms) was cut to 60 ms (16.7 frames a second for 15 fps data); 70, 70, 60 keeps 15 a second
+    on average."""
+    step = 1000.0 / FPS
+    return [int(round(step * (k + 1), -1) - round(step * k, -1)) for k in range(frames)]
