@@ -137,3 +137,21 @@ def test_the_view_is_at_rest_once_the_still_picture_after_the_last_ask_is_shown(
 
     rest, sent = asyncio.run(run())
     assert rest == [False, False, False, True, False] and sent == ["interactive", "still"]
+
+
+def test_captions_keep_their_size_in_a_picture_drawn_smaller_while_playing(sample_data):
+    """Playback's pictures are drawn at a fraction of the view and stretched by the page: their captions are drawn at
+    that fraction too, so that they show the same size playing or paused (they grew 1.7x and piled up)."""
+    from explorer.rendering.scene import Scene
+    from explorer.rendering.view_stream import texts_scaled
+
+    scene = Scene(sample_data.skeleton, 0.0)
+    try:
+        scene.set_layout("side_by_side")
+        sizes = {k: c.GetTextProperty().GetFontSize() for k, c in scene.captions.items()}
+        with texts_scaled(scene.render_window, 0.6):
+            assert {k: c.GetTextProperty().GetFontSize() for k, c in scene.captions.items()} == \
+                {k: max(1, round(v * 0.6)) for k, v in sizes.items()}
+        assert {k: c.GetTextProperty().GetFontSize() for k, c in scene.captions.items()} == sizes
+    finally:
+        scene.close()

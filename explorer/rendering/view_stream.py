@@ -24,6 +24,7 @@ after it stops is full size).
 from __future__ import annotations
 
 import asyncio
+import contextlib
 from collections.abc import Callable
 
 from trame.widgets import rca
@@ -140,7 +141,8 @@ class ViewStream:
         width, height = self.render_window.GetSize()
         self.render_window.SetSize(max(10, round(width * scale)), max(10, round(height * scale)))
         try:
-            return render()  # renders and reads the pixels now; encoding goes on elsewhere
+            with texts_scaled(self.render_window, scale):
+                return render()  # renders and reads the pixels now; encoding goes on elsewhere
         finally:
             self.render_window.SetSize(width, height)
 
@@ -158,3 +160,30 @@ class ViewStream:
         """Return once the picture asked for last is encoded (sent, or held back until the page shows the one before)."""
         if self.handler is not None:
             await self.gate.wait_encoded()
+
+
+@contextlib.contextmanager
+def texts_scaled(render_window, scale: float):
+    """Every text drawn in the window (the figures' captions) at `scale` of its font size: a picture rendered smaller
+    and stretched by the page would otherwise show its captions 1/scale times larger than the still picture does."""
+    props = []
+    for renderer in _renderers(render_window):
+        for prop in _items(renderer.GetViewProps()):
+            text = getattr(prop, "GetTextProperty", None)
+            if text is not None and text() is not None:
+                props.append((text(), text().GetFontSize()))
+    for text, size in props:
+        text.SetFontSize(max(1, round(size * scale)))
+    try:
+        yield
+    finally:
+        for text, size in props:
+            text.SetFontSize(size)
+
+
+def _renderers(render_window) -> list:
+    return [render_window.GetRenderers().GetItemAsObject(i) for i in range(render_window.GetRenderers().GetNumberOfItems())]
+
+
+def _items(collection) -> list:
+    return [collection.GetItemAsObject(i) for i in range(collection.GetNumberOfItems())]
