@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import pytest
 
+from explorer.ui.layout import HINTS_SEEN
 from tests import studio_probe as probe
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(300)]
@@ -87,6 +88,22 @@ def test_first_use_hints_show_until_dismissed_and_the_browser_remembers(browser,
         assert again.locator("#first-use-hints").count() == 0
     finally:
         context.close()
+    fresh = browser.new_context(viewport={"width": 1366, "height": 768})  # a browser that never dismissed them
+    try:
+        page = fresh.new_page()
+        page.goto(studio.url, timeout=60000)
+        probe.wait_for_view(page)
+        hints = page.locator("#first-use-hints")
+        hints.wait_for(state="visible", timeout=10000)
+        view = page.locator(probe.VIEW_IMG).bounding_box()
+        page.mouse.move(view["x"] + view["width"] / 2, view["y"] + view["height"] / 3)
+        page.mouse.down()
+        page.mouse.move(view["x"] + view["width"] / 2 + 40, view["y"] + view["height"] / 3)
+        page.mouse.up()  # a drag: what the hint says to do
+        hints.wait_for(state="detached", timeout=10000)
+        assert page.evaluate(f"() => localStorage.getItem('{HINTS_SEEN}')") == "1"
+    finally:
+        fresh.close()
 
 
 def test_at_1280_the_charts_axis_title_keeps_off_the_contact_line(browser, studio):

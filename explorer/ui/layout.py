@@ -336,7 +336,9 @@ def compare_row(page: LayoutParts) -> None:
 
 def scene_view(page: LayoutParts) -> None:
     """The error alert and the 3D view (rendered on the server, or by vtk.js with --render local)."""
-    with html.Div(classes="rounded border imm-scene"):
+    # the first drag or wheel on the view does what the first-use hint says: the hint has done its job and goes
+    with html.Div(classes="rounded border imm-scene", __events=["pointerdown", "wheel"], pointerdown=HINTS_DONE,
+                  wheel=HINTS_DONE):
         # one line over the top of the view, the whole message on hover: the view keeps its size
         with html.Div(v_if="error", classes="imm-alert", title=("error",)):
             v3.VAlert("{{ error }}", type="error", density="compact", closable=True, click_close="error = ''", id="error-alert")
@@ -383,16 +385,18 @@ def viewer_tools() -> None:
 
 
 HINTS_SEEN = "imm-studio-hints-seen"  # the browser's localStorage key: the hints were dismissed once
+HINTS_DONE = f"if (show_hints) {{ show_hints = false; utils.get('localStorage').setItem('{HINTS_SEEN}', '1'); }}"
 
 
 def first_use_hints() -> None:
-    """What a newcomer cannot guess, over the bottom of the 3D view until dismissed (remembered by the browser)."""
+    """What a newcomer cannot guess, over the bottom of the 3D view until dismissed or the view first dragged or
+    zoomed (remembered by the browser)."""
     with html.Div(v_if="show_hints", id="first-use-hints", classes="text-caption d-flex align-center pa-1 rounded",
                   style="position: absolute; left: 8px; bottom: 8px; z-index: 2; background: rgba(38, 50, 56, .85); color: #fff; gap: 6px"):
         v3.VIcon("mdi-gesture-swipe", size="small")
         html.Span("drag: rotate · wheel: zoom · a click on a latent map point opens and plays it · ?: keys")
         v3.VBtn(icon="mdi-close", size="x-small", variant="text", title="got it", id="hints-close",
-                click=f"show_hints = false; utils.get('localStorage').setItem('{HINTS_SEEN}', '1')")
+                click=HINTS_DONE)
 
 
 def per_frame():
