@@ -138,8 +138,15 @@ def test_the_views_corner_turns_on_trails_follows_the_pair_and_goes_full_screen(
         probe.wait_state(page, "s.get('follow_camera') === true")
         width = page.evaluate("() => document.querySelector('.imm-scene img').naturalWidth")
         page.click("#fullscreen-button")
-        page.wait_for_function("() => document.fullscreenElement && document.fullscreenElement.matches('.imm-scene')", timeout=10000)
+        page.wait_for_function("() => document.fullscreenElement && document.fullscreenElement.matches('.imm-stage')", timeout=10000)
         page.wait_for_function(f"() => document.querySelector('.imm-scene img').naturalWidth > {width}", timeout=30000)
+        play = page.locator("#play-button").bounding_box()  # full screen keeps the playback controls on screen
+        screen = page.evaluate("() => [window.innerWidth, window.innerHeight]")
+        assert play and 0 <= play["y"] and play["y"] + play["height"] <= screen[1], (play, screen)
+        page.click("#play-button")
+        probe.wait_state(page, "s.get('playing') === true")
+        page.click("#play-button")
+        probe.wait_state(page, "s.get('playing') === false")
         page.click("#fullscreen-button")
         page.wait_for_function("() => !document.fullscreenElement", timeout=10000)
     finally:

@@ -45,6 +45,8 @@ html { overflow: hidden; }
 .imm-main { height: 100vh; }
 .imm-column { height: 100%; display: flex; flex-direction: column; flex-wrap: nowrap; gap: 6px; padding: 8px;
               overflow: auto; min-width: 0; }
+.imm-stage { flex: 1 1 auto; min-height: 280px; display: flex; flex-direction: column; gap: 6px; }
+.imm-stage:fullscreen { background: rgb(var(--v-theme-surface)); padding: 8px; }
 .imm-scene { flex: 1 1 auto; min-height: 240px; position: relative; width: 100%; }
 .imm-review { flex: 0 0 clamp(220px, 34vh, 440px); display: flex; gap: 8px; width: 100%; min-height: 0; position: relative; }
 .imm-review.imm-review-open { flex-basis: clamp(260px, 46vh, 560px); }
@@ -101,8 +103,9 @@ def build_layout(page: LayoutParts) -> VAppLayout:
                 character_toggles(page)
         with v3.VMain(classes="imm-main"):
             with html.Div(classes="imm-column"):
-                scene_view(page)
-                playback_bar(page)
+                with html.Div(classes="imm-stage"):  # what full screen shows: the view and its playback bar
+                    scene_view(page)
+                    playback_bar(page)
                 review_cards(page)
                 v3.VSnackbar("{{ notice }}", model_value=("!!notice",), timeout=4000, update_modelValue="notice = ''")
                 page_hooks()
@@ -368,7 +371,7 @@ def scene_view(page: LayoutParts) -> None:
 
 # Full screen for the 3D view (the button's own element, so no script of its own); again, or Esc, leaves it.
 FULL_SCREEN_JS = ("utils.get('document.fullscreenElement') ? utils.get('document').exitFullscreen()"
-                  " : $event.currentTarget.closest('.imm-scene').requestFullscreen()")
+                  " : $event.currentTarget.closest('.imm-stage').requestFullscreen()")
 
 
 def viewer_tools() -> None:
