@@ -1,13 +1,19 @@
-"""Long takes and live reactions: how engaged the default model's follower stays when the leader goes on.
+"""Long takes and live reactions: how engaged the follower stays when the leader goes on, and how smoothly it moves.
 
-Each held-out leader of the model's fold is played k times in a row (k = 1, 4, 8; the copies joined end to end, the
-leader jumping back at each join) and the model reacts with the leader's true class, seed 0. Per copy: the closest
-hand-to-hand distance (over the copy's frames, the nearest of the leader's hands to the nearest of the follower's) and
-the torso distance (the two torso joints, mean over the copy's frames), each averaged over leaders, beside the same
-figures of the recorded followers (one clip). `--online` also reacts frame by frame (`model.online`, as shipped) and
-times each push.
+Each held-out leader of the model's fold is played k times in a row (k = 1, 4, 8; "repeat": the copies joined end to
+end, the leader jumping back at each join; "pingpong": every other copy played backwards, so that the leader never
+jumps) and the model reacts with the leader's true class, seed 0. Per copy: the closest hand-to-hand distance (over
+the copy's frames, the nearest of the leader's hands to the nearest of the follower's) and the torso distance (the two
+torso joints, mean over the copy's frames), each averaged over leaders, beside the recorded followers of the single
+clip ("real"). And how the follower moves: per leader the largest mean-joint step from one frame to the next (m), at
+the frames where a window of a long take begins ("seam": its first new frame) and elsewhere, averaged over leaders,
+beside the single clip sampled whole and the recorded follower (raw network output, no clean-up, for the steps).
 
-    python docs/experiments/scripts/long_takes.py --repeats 1 4 8 --online --gan sample_data/imm_sbu.safetensors \
+`--online` also reacts frame by frame (`model.online`) and times each push; `--gan` adds a GAN's reaction to the same
+takes. `--window/--stride/--lookahead/--continue-level/--anchor` set the windows (imm_model/families/diffusion/
+windows.py) for the variants the record compares; without them, as shipped.
+
+    python docs/experiments/scripts/long_takes.py --repeats 1 4 8 --online --gan sample_data/imm_sbu.safetensors \\
         --out docs/experiments/data/long-takes.jsonl
 """
 
@@ -21,8 +27,10 @@ import numpy as np
 
 from imm_model import paths
 from imm_model.data.bundle import load_any
+from imm_model.data.canonical import CanonicalFrame
 from imm_model.data.splits import loso_fold
 from imm_model.families.base import ReactionModel
+from imm_model.families.diffusion import windows
 
 HANDS = ("left_hand", "right_hand")
 
@@ -41,6 +49,11 @@ def copy_figures(leader: np.ndarray, follower: np.ndarray, skeleton, copies: int
     return out
 
 
+def steps(motion: np.ndarray) -> np.ndarray:
+    """(T, J, 3) -> (T - 1,) the mean joint displacement from each frame to the next (m)."""
+    return np.linalg.norm(np.diff(motion, axis=0), axis=-1).mean(1)
+
+
 def online_follower(model, leader: np.ndarray, label: dict, seed: int) -> tuple[np.ndarray, list[float]]:
     reactor = model.online(label, seed=seed)
     frames, times = [], []
@@ -54,48 +67,102 @@ def online_follower(model, leader: np.ndarray, label: dict, seed: int) -> tuple[
     return np.concatenate([np.stack(frames), rest]) if frames else rest, times
 
 
+def take(clip: np.ndarray, k: int, kind: str) -> np.ndarray:
+    return np.concatenate([clip if kind == "repeat" or c % 2 == 0 else clip[::-1] for c in range(k)])
+
+
+def set_windows(args) -> None:
+    """The windows' settings for a variant (module constants, read at every call)."""
+    for name in ("window", "stride", "lookahead"):
+        if getattr(args, name) is not None:
+            setattr(windows, name.upper(), getattr(args, name))
+    if args.continue_level is not None:
+        windows.CONTINUE_LEVEL = args.continue_level
+    if args.anchor == "own":  # every window standardized on its own first frames
+        windows.anchored = lambda model, leader, anchor: CanonicalFrame.from_leader(
+            np.asarray(leader, np.float64), model.skeleton, model.canonical_mode)
+    elif args.anchor == "fixed":  # every window in the first one's frame
+        windows.REANCHOR_M, windows.REANCHOR_DEG = float("inf"), 360.0
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--checkpoint", default=str(paths.SAMPLE_DEFAULT))
     ap.add_argument("--repeats", type=int, nargs="+", default=[1, 4, 8])
+    ap.add_argument("--kind", choices=("repeat", "pingpong"), default="repeat")
     ap.add_argument("--online", action="store_true", help="also react frame by frame")
     ap.add_argument("--gan", default=None, help="also this GAN checkpoint's reaction to the same takes (a reference)")
     ap.add_argument("--limit", type=int, default=None, help="the first N held-out leaders only")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--window", type=int, default=None)
+    ap.add_argument("--stride", type=int, default=None)
+    ap.add_argument("--lookahead", type=int, default=None)
+    ap.add_argument("--continue-level", type=float, default=None)
+    ap.add_argument("--anchor", choices=("shipped", "own", "fixed"), default="shipped")
+    ap.add_argument("--variant", default="shipped", help="a name for the row")
     ap.add_argument("--out", default=None, help="append one JSON line per (mode, repeats) here")
     args = ap.parse_args()
+    set_windows(args)
 
     data = load_any(paths.SAMPLE_DATA)
     model = ReactionModel.load(args.checkpoint)
-    held_out = loso_fold(data.subject_pairs, model.held_out_subject).test[: args.limit]
-    modes = ["real", "offline"] + (["online"] if args.online else []) + (["gan"] if args.gan else [])
     gan = ReactionModel.load(args.gan) if args.gan else None
+    held_out = loso_fold(data.subject_pairs, model.held_out_subject).test[: args.limit]
+    modes = ["real", "offline"] + (["online"] if args.online else []) + (["gan"] if gan else [])
     for mode in modes:
         for k in [1] if mode == "real" else args.repeats:
-            per_copy, push_times = [], []
+            per_copy, push_times, seam, elsewhere = [], [], [], []
             for i in held_out:
-                leader = np.concatenate([data.world(i)[0]] * k)
+                clip, real = data.world(i)
+                leader = take(clip, k, args.kind)
                 label = {data.class_names[data.actions[i]]: 1.0}
                 if mode == "real":  # the recorded follower of the single clip: where real reactions stand
-                    follower = data.world(i)[1]
+                    follower = real
                 elif mode in ("offline", "gan"):
                     follower = (model if mode == "offline" else gan).synthesize(leader, label, seed=args.seed)
                 else:
                     follower, times = online_follower(model, leader, label, args.seed)
                     push_times += times
                 per_copy.append(copy_figures(leader, follower, model.skeleton, k))
+                if mode != "gan":
+                    raw = follower if mode == "real" else _raw(model, mode, leader, label, args.seed)
+                    st = steps(raw)
+                    starts = _seams(len(leader), model) if mode == "offline" and len(leader) > model.window else (
+                        np.arange(len(st)) if mode == "online" else np.zeros(0, int))
+                    seam.append(float(st[starts].max()) if len(starts) else float("nan"))
+                    rest = np.setdiff1d(np.arange(len(st)), starts)
+                    elsewhere.append(float(st[rest].max()) if len(rest) else float("nan"))
             hands = np.array([[c["hands"] for c in row] for row in per_copy])
             torso = np.array([[c["torso"] for c in row] for row in per_copy])
-            row = {"mode": mode, "repeats": k, "leaders": len(held_out), "fold": model.held_out_subject,
-                   "checkpoint": args.gan if mode == "gan" else args.checkpoint, "seed": args.seed,
+            row = {"variant": args.variant, "kind": args.kind, "mode": mode, "repeats": k, "leaders": len(held_out),
+                   "fold": model.held_out_subject, "checkpoint": args.gan if mode == "gan" else args.checkpoint,
+                   "seed": args.seed, "window": windows.WINDOW, "stride": windows.STRIDE, "lookahead": windows.LOOKAHEAD,
+                   "continue_level": windows.CONTINUE_LEVEL, "anchor": args.anchor,
                    "hands_per_copy": hands.mean(0).round(4).tolist(), "torso_per_copy": torso.mean(0).round(4).tolist()}
+            if seam:
+                row["seam_step_m"] = None if np.isnan(seam).all() else round(float(np.nanmean(seam)), 4)
+                row["other_step_m"] = None if np.isnan(elsewhere).all() else round(float(np.nanmean(elsewhere)), 4)
             if push_times:
                 row["push_ms_median"] = round(1000 * float(np.median(push_times)), 2)
                 row["push_ms_p95"] = round(1000 * float(np.percentile(push_times, 95)), 2)
-            print(json.dumps(row))
+            print(json.dumps(row), flush=True)
             if args.out:
                 with open(args.out, "a") as f:
                     f.write(json.dumps(row) + "\n")
+
+
+def _raw(model, mode: str, leader: np.ndarray, label: dict, seed: int) -> np.ndarray:
+    """The network's own follower (no clean-up) for the step figures."""
+    model.raw = True
+    try:
+        return model.synthesize(leader, label, seed=seed) if mode == "offline" else online_follower(model, leader, label, seed)[0]
+    finally:
+        model.raw = False
+
+
+def _seams(frames: int, model) -> np.ndarray:
+    """The steps (indices into `steps`) into each window's first new frame: frames STRIDE, 2 STRIDE, ... of the take."""
+    return np.arange(windows.STRIDE, frames, windows.STRIDE) - 1
 
 
 if __name__ == "__main__":
