@@ -141,13 +141,22 @@ def test_part_tables_with_known_judges():
     c, names = 3, ("a", "b", "c")
     leader_classes = np.array([0, 1, 2, 2])
     upper_reads = lambda labels: np.eye(c)[np.argmax(labels[:, :c], -1)]  # noqa: E731
-    lower_reads = lambda labels: np.eye(c)[np.argmax(labels[:, c:], -1)]  # noqa: E731
+    lower_reads = lambda labels: np.eye(c)[np.argmax(labels[:, -c:], -1)]  # noqa: E731  (the lower part, or the whole body)
     half_real = lambda a, b: np.arange(4) % 2 == 0  # noqa: E731  real composites read so for half the leaders
     rows = control.part_pair_table(upper_reads, lower_reads, half_real, 4, names)
     assert len(rows) == 6 and {(r["upper"], r["lower"]) for r in rows} == {(x, y) for x in names for y in names if x != y}
     assert all(r["read"] == 1.0 and r["real"] == 0.5 for r in rows)
     rows = control.part_pair_table(upper_reads, upper_reads, half_real, 4, names)  # the legs follow the arms: never a pair
     assert all(r["read"] == 0.0 for r in rows)
+    held_out = np.full((c, c), 0.25)  # composites of held-out followers: the reference, beside the nearest training ones
+    rows = control.part_pair_table(upper_reads, lower_reads, half_real, 4, names, held_out)
+    assert all(r["real"] == 0.25 and r["real_nearest_training"] == 0.5 for r in rows)
+    real_upper = np.eye(c)[leader_classes]  # the real followers read as their own class on both parts ...
+    real_lower = np.eye(c)[[1, 0, 2, 2]]  # ... but for the lower judge, the first two swapped
+    realism = control.part_realism(upper_reads, lower_reads, leader_classes, real_upper, real_lower, names)
+    assert len(realism) == 2 * c and all(r["own"] == 1.0 and r["all"] == 1.0 for r in realism)
+    by = {(r["class"], r["part"]): r["real"] for r in realism}
+    assert by[("a", "upper")] == 1.0 and by[("a", "lower")] == 0.0 and by[("c", "lower")] == 1.0
     lowering = lambda labels: np.full((len(labels), c), 0.5) + 0.2 * labels[:, c:]  # noqa: E731  reads the lower label
     avoid = control.part_avoid_effect({"upper": lowering, "lower": lowering}, leader_classes, c)
     assert avoid["lower"]["share_lowered"] == 1.0 and avoid["lower"]["change"] == pytest.approx(-0.2)

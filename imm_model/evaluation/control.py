@@ -79,18 +79,43 @@ def part_mix_table(whole: Judge, upper: Judge, lower: Judge, num_leaders: int, c
 
 
 def part_pair_table(upper: Judge, lower: Judge, real_reads: Callable[[int, int], np.ndarray], num_leaders: int,
-                    class_names: tuple[str, ...]) -> list[dict]:
+                    class_names: tuple[str, ...], held_out_real: np.ndarray | None = None) -> list[dict]:
     """One row per ordered pair of classes (A upper, B lower, A != B): the share of leaders whose reaction to the part
     label upper:A=1, lower:B=1 reads as A on the trunk and arms and as B on the legs and placement (each part judge at
-    PART_SHARE or more), and the same share for real part composites; `real_reads(a, b)` -> (N,) bool, whether each
-    leader's real composite reads so. The judges get (N, 2C) part label vectors (upper, then lower)."""
+    PART_SHARE or more), beside real part composites: "real", the share of composites of held-out followers (A's
+    trunk and arms on B's legs, every pair of them: motion the judges never saw) that read so, `held_out_real[a, b]`
+    (C, C); and "real_nearest_training", the share of leaders whose composite of the nearest training followers (which
+    the judges were trained on: it measures their memory too) reads so, `real_reads(a, b)` -> (N,) bool. Without
+    `held_out_real`, "real" is the nearest-training share. The judges get (N, 2C) part label vectors (upper, then
+    lower)."""
     c, rows = len(class_names), []
     for a, b in permutations(range(c), 2):
         labels = np.zeros((num_leaders, 2 * c), np.float32)
         labels[:, a], labels[:, c + b] = 1.0, 1.0
         read = (upper(labels)[:, a] >= PART_SHARE) & (lower(labels)[:, b] >= PART_SHARE)
+        nearest = float(np.mean(real_reads(a, b)))
         rows.append({"upper": class_names[a], "lower": class_names[b], "read": float(read.mean()),
-                     "real": float(np.mean(real_reads(a, b)))})
+                     "real": nearest if held_out_real is None else float(held_out_real[a, b]),
+                     "real_nearest_training": nearest})
+    return rows
+
+
+def part_realism(upper: Judge, lower: Judge, leader_classes: np.ndarray, real_upper: np.ndarray, real_lower: np.ndarray,
+                 class_names: tuple[str, ...]) -> list[dict]:
+    """Per class and body part, whether the model's reactions asked for the class read as it on that part (its judge
+    at PART_SHARE or more): the share over the leaders of that class ("own") and over all leaders ("all"), beside the
+    share of the real held-out followers of the class ("real"; `real_upper`, `real_lower`: (N, C) the part judges'
+    probabilities for each leader's real follower). The judges get (N, C) whole-body labels."""
+    c, n, rows = len(class_names), len(leader_classes), []
+    for k in range(c):
+        labels = np.zeros((n, c), np.float32)
+        labels[:, k] = 1.0
+        own = leader_classes == k
+        for part, judge, real in (("upper", upper, real_upper), ("lower", lower, real_lower)):
+            read = judge(labels)[:, k] >= PART_SHARE
+            rows.append({"class": class_names[k], "part": part, "own": float(read[own].mean()) if own.any() else float("nan"),
+                         "all": float(read.mean()),
+                         "real": float((real[own, k] >= PART_SHARE).mean()) if own.any() else float("nan")})
     return rows
 
 

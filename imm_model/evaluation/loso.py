@@ -179,9 +179,13 @@ def label_control(model, data: InteractionDataset, judges: FoldJudges) -> dict:
         return judges.part_view("lower", followers(labels))
 
     out["mix_parts"] = control.part_mix_table(whole, upper, lower, len(y), data.class_names)
+    reals = [data.canonical(int(i))[1] for i in judges.test]
+    out["part_realism"] = control.part_realism(upper, lower, y, judges.part_view("upper", reals), judges.part_view("lower", reals),
+                                               data.class_names)
     if model.part_labels:
         real = real_part_readings(data, judges)
-        out["part_pairs"] = control.part_pair_table(upper, lower, lambda a, b: real[a, b], len(y), data.class_names)
+        out["part_pairs"] = control.part_pair_table(upper, lower, lambda a, b: real[a, b], len(y), data.class_names,
+                                                    held_out_part_readings(data, judges))
         out["part_avoid"] = control.part_avoid_effect({"upper": upper, "lower": lower}, y, c)
     return out
 
@@ -203,6 +207,27 @@ def real_part_readings(data: InteractionDataset, judges: FoldJudges) -> np.ndarr
         pu, pl = judges.part_view("upper", composites), judges.part_view("lower", composites)
         reads[a, b] = (pu[:, a] >= control.PART_SHARE) & (pl[:, b] >= control.PART_SHARE)
     return reads
+
+
+def held_out_part_readings(data: InteractionDataset, judges: FoldJudges) -> np.ndarray:
+    """(C, C): for each ordered pair of classes, the share of part composites of held-out followers that read as asked
+    to the body-part judges (each at PART_SHARE or more): every test follower of class a's trunk and arms (resampled
+    to the length of the other) on every test follower of class b's legs and placement, motion no judge was trained
+    on: the reference a model's part mixes are compared with."""
+    from imm_model.data.sequence import resample
+    from imm_model.model.body_parts import compose_parts, part_indices
+
+    c = len(data.class_names)
+    followers = [[data.canonical(int(i))[1] for i in judges.test if data.actions[i] == k] for k in range(c)]
+    upper_joints, _, centre = part_indices(data.skeleton)
+    shares = np.full((c, c), np.nan)
+    for a, b in permutations(range(c), 2):
+        composites = [compose_parts(resample(fa, len(fb))[None], fb[None], upper_joints, centre)[0]
+                      for fa in followers[a] for fb in followers[b]]
+        if composites:
+            pu, pl = judges.part_view("upper", composites), judges.part_view("lower", composites)
+            shares[a, b] = float(((pu[:, a] >= control.PART_SHARE) & (pl[:, b] >= control.PART_SHARE)).mean())
+    return shares
 
 
 VARIATIONS = 5  # reactions drawn per test leader for multimodality and best-of-N AFD

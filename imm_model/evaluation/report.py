@@ -126,11 +126,16 @@ def group_summary(results: list[dict], class_names: tuple[str, ...]) -> dict:
         out["mix_parts"] = _mean_mix(results, "mix_parts")
         out["mix_mixed_mean"] = float(np.mean([row["mixed"] for row in out["mix_parts"]]))
     if all("part_pairs" in r for r in results):  # a label per body part: each ordered pair, beside real composites
+        keys = [key for key in ("read", "real", "real_nearest_training") if all(key in r["part_pairs"][0] for r in results)]
         out["part_pairs"] = [{"upper": row["upper"], "lower": row["lower"]}
-                             | {key: _stat([r["part_pairs"][k][key] for r in results])[0] for key in ("read", "real")}
+                             | {key: _stat([r["part_pairs"][k][key] for r in results])[0] for key in keys}
                              for k, row in enumerate(results[0]["part_pairs"])]
         out["part_avoid"] = {part: {key: _stat([r["part_avoid"][part][key] for r in results])[0]
                                     for key in results[0]["part_avoid"][part]} for part in results[0]["part_avoid"]}
+    if all("part_realism" in r for r in results):  # each class on each body part, beside real held-out followers
+        out["part_realism"] = [{"class": row["class"], "part": row["part"]}
+                               | {key: float(np.nanmean([r["part_realism"][k][key] for r in results])) for key in ("own", "all", "real")}
+                               for k, row in enumerate(results[0]["part_realism"])]
     if all("variations" in r for r in results):  # stochastic models: multimodality and best-of-N AFD
         keys = [k for k in results[0]["variations"] if all(k in r["variations"] for r in results)]  # older results lack some
         out["variations"] = {k: _stat([r["variations"][k] for r in results])[0] for k in keys}

@@ -89,6 +89,19 @@ def part_mix_table(group: dict) -> str:
     return "\n".join(lines)
 
 
+def part_realism_table(group: dict) -> str:
+    """Per class and body part, the share of the model's reactions asked for the class that its part judge reads as
+    it (>= 0.4), on the leaders of that class and on all leaders, beside the class's real held-out followers."""
+    if "part_realism" not in group:
+        return ""
+    lines = ["| class | part | leaders of the class | all leaders | real held-out followers | model / real |",
+             "|---|---|---:|---:|---:|---:|"]
+    for r in group["part_realism"]:
+        ratio = f"{r['own'] / r['real']:.2f}" if r["real"] > 0 else "–"
+        lines.append(f"| {r['class']} | {r['part']} | {r['own']:.2f} | {r['all']:.2f} | {r['real']:.2f} | {ratio} |")
+    return "\n".join(lines)
+
+
 def part_pair_table(group: dict) -> str:
     """A model with a label per body part: per ordered pair (A on the trunk and arms, B on the legs and placement), the
     share of leaders whose parts read so, beside real part composites' share; and the part negations. Empty for a
@@ -96,12 +109,18 @@ def part_pair_table(group: dict) -> str:
     if "part_pairs" not in group:
         return ""
     rows = group["part_pairs"]
-    lines = ["| upper body | lower body | read as asked (each part >= 0.4) | real part composites | ratio |", "|---|---|---:|---:|---:|"]
+    nearest = all("real_nearest_training" in r for r in rows)
+    lines = ["| upper body | lower body | read as asked (each part >= 0.4) | held-out composites (judges never saw them) | ratio |"
+             + (" nearest training composites (judges' memory) |" if nearest else ""),
+             "|---|---|---:|---:|---:|" + ("---:|" if nearest else "")]
     for r in rows:
         ratio = f"{r['read'] / r['real']:.2f}" if r["real"] > 0 else "–"
-        lines.append(f"| {r['upper']} | {r['lower']} | {r['read']:.2f} | {r['real']:.2f} | {ratio} |")
-    read, real = np.mean([r["read"] for r in rows]), np.mean([r["real"] for r in rows])
-    lines.append(f"| **mean** | | **{read:.2f}** | {real:.2f} | {read / real:.2f} |" if real > 0 else f"| **mean** | | {read:.2f} | 0 | |")
+        lines.append(f"| {r['upper']} | {r['lower']} | {r['read']:.2f} | {r['real']:.2f} | {ratio} |"
+                     + (f" {r['real_nearest_training']:.2f} |" if nearest else ""))
+    read, real = np.mean([r["read"] for r in rows]), np.nanmean([r["real"] for r in rows])
+    memory = f" {np.mean([r['real_nearest_training'] for r in rows]):.2f} |" if nearest else ""
+    lines.append((f"| **mean** | | **{read:.2f}** | {real:.2f} | {read / real:.2f} |" if real > 0 else f"| **mean** | | {read:.2f} | 0 | |")
+                 + memory)
     avoid = group.get("part_avoid", {})
     lines += ["\n-1 on the leader's class on one part, against an all-zero label: "
               + "; ".join(f"the {part} body's judge lowers it for {v['share_lowered']:.2f} of leaders (mean change "
@@ -241,6 +260,8 @@ def markdown_report(summary: dict) -> str:
                   "### Mix", "", mix_table(s), "",
                   *_section("Mixed, by the whole body or by body parts (share of leaders)", part_mix_table(s)),
                   *_section("A label per body part (share of leaders)", part_pair_table(s)),
+                  *_section("Part realism: each class on each body part, asked for the whole body (share read as it)",
+                            part_realism_table(s)),
                   *_section("Variations (stochastic models)", variations_table(s)),
                   "### Plausibility", "", plausibility_table(s), "",
                   *_section("Contact per class (share of frames the bodies touch)", contact_table(s))]

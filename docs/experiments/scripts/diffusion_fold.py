@@ -58,11 +58,15 @@ def headline(result: dict) -> dict:
     if "part_pairs" in result:  # a model with a label per body part: the ordered pairs and the part negations
         pairs = result["part_pairs"]
         ratios = [r["read"] / r["real"] for r in pairs if r["real"] > 0]
-        out |= {"part_read": float(np.mean([r["read"] for r in pairs])), "part_real": float(np.mean([r["real"] for r in pairs])),
+        out |= {"part_read": float(np.mean([r["read"] for r in pairs])), "part_real": float(np.nanmean([r["real"] for r in pairs])),
+                "part_real_nearest_training": float(np.mean([r.get("real_nearest_training", np.nan) for r in pairs])),
                 "part_worst_ratio": float(min(ratios)) if ratios else None,
                 "part_per_pair": {f"{r['upper']}/{r['lower']}": [round(r["read"], 4), round(r["real"], 4)] for r in pairs},
                 "part_avoid_lower_share": result["part_avoid"]["lower"]["share_lowered"],
                 "part_avoid_upper_share": result["part_avoid"]["upper"]["share_lowered"]}
+    if "part_realism" in result:  # each class on each part: [leaders of the class, all leaders, real held-out followers]
+        out["part_realism"] = {f"{r['class']}/{r['part']}": [round(r["own"], 4), round(r["all"], 4), round(r["real"], 4)]
+                               for r in result["part_realism"]}
     if "variations" in result:
         v = result["variations"]
         out |= {"multimodality": v["multimodality"], "real_class_diversity": v["real_class_diversity"],
