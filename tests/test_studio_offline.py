@@ -153,3 +153,46 @@ def test_a_copied_address_in_another_tab_of_the_same_browser_opens_a_studio_of_i
         assert urlsplit(first.url).path.removesuffix("index.html") == path.removesuffix("index.html")  # same tab, same studio
     finally:
         context.close()
+
+
+def test_a_camera_turned_by_hand_is_in_the_link_and_a_link_restores_it(browser, studio):
+    """A drag of the view, once released, puts the camera into the address bar (`camera=hand:` and its placement);
+    that link opened in another browser shows the same picture; a crafted placement is named in one line."""
+    import numpy as np
+
+    first = probe.open_studio(browser, studio.url, width=1366, height=768)
+    other = browser.new_context(viewport={"width": 1366, "height": 768})
+    try:
+        probe.wait_state(first, "s.get('url_query') !== ''")
+        probe.wait_for_view_at_rest(first)
+        preset = probe.view_pixels(first).astype(int)
+        view = first.locator(probe.VIEW_IMG).bounding_box()
+        x, y = view["x"] + view["width"] / 2, view["y"] + view["height"] / 2
+        first.mouse.move(x, y)
+        first.mouse.down()
+        for k in range(1, 11):
+            first.mouse.move(x + 8 * k, y + 3 * k)
+        first.mouse.up()
+        first.wait_for_function("() => location.search.includes('camera=hand:')", timeout=30000)
+        probe.wait_for_view_at_rest(first)
+        query = "?" + first.url.split("?", 1)[1]
+        second = other.new_page()
+        second.goto(studio.url.split("?")[0] + query, timeout=60000)
+        probe.wait_for_view(second)
+        second.wait_for_function("() => location.search.includes('camera=hand:')", timeout=30000)
+        second.locator("#first-use-hints").wait_for(state="visible", timeout=10000)
+        second.click("#hints-close")  # over the view in a browser that never dismissed it (the first page's drag did)
+        probe.wait_for_view_at_rest(second)
+        a, b = probe.view_pixels(first).astype(int), probe.view_pixels(second).astype(int)
+        assert a.shape == b.shape == preset.shape
+        differ = lambda p, q: (np.abs(p - q).sum(-1) > 60).mean()  # noqa: E731  share of pixels that differ
+        assert differ(a, preset) > 0.05  # the drag turned the view ...
+        assert differ(a, b) < 0.1 * differ(a, preset), (differ(a, b), differ(a, preset))  # ... and the link turns it alike
+        third = other.new_page()
+        third.goto(studio.url.split("?")[0] + "?camera=hand:1,2,3,1,2,3,0,1,0", timeout=60000)
+        probe.wait_for_view(third)
+        probe.wait_state(third, "s.get('error').includes('camera')", timeout_ms=30000)
+        assert "\n" not in probe.state(third, "error")
+    finally:
+        other.close()
+        first.close()

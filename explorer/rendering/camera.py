@@ -8,6 +8,8 @@ import numpy as np
 CAMERA_PRESETS = ("default", "front", "side", "top")
 SIDE_SPACING = 1.5  # metres between figures in the side-by-side layout
 TOP_CAPTION_OFFSET = 0.8  # metres towards the top of the picture, for the top camera (above each figure, not on it)
+HAND = "hand"  # the camera's name once dragged or zoomed by hand: the link carries its placement (`placement`)
+PLACEMENT_RANGE_M = 100.0  # a hand-placed camera's coordinates in a link lie within this many metres of the origin
 HOVER_REACH_PX = 14  # a joint is under the mouse within this many pixels of its centre
 PAIR_KEYS = ("leader", "synthesized")  # the figures whose centre a following camera keeps in view
 
@@ -65,8 +67,37 @@ class SceneCamera:
             self._followed = self._pair_centre()
 
     def _refit_if_resized(self) -> None:
-        if self.scene.sequences and tuple(self.scene.render_window.GetSize()) != self.fitted_size:
+        if self.preset != HAND and self.scene.sequences and tuple(self.scene.render_window.GetSize()) != self.fitted_size:
             self.set(self.preset)
+
+    # ---- a camera placed by hand ------------------------------------------------------------
+    def moved_by_hand(self) -> None:
+        """The user dragged or zoomed the view: the camera is theirs (a resize no longer refits a preset)."""
+        self.preset = HAND
+        if self.follow:
+            self._followed = self._pair_centre()
+
+    def placement(self) -> str:
+        """The camera as the link spells it: a preset's name, or a hand-placed camera as `hand:` and its position, focal
+        point and view-up, nine numbers (millimetres and thousandths)."""
+        if self.preset != HAND:
+            return self.preset
+        cam = self.scene.renderer.GetActiveCamera()
+        numbers = (*cam.GetPosition(), *cam.GetFocalPoint(), *cam.GetViewUp())
+        return HAND + ":" + ",".join(f"{round(v, 3) + 0.0:g}" for v in numbers)
+
+    def place(self, text: str) -> None:
+        """A placement (`placement`) -> the camera there; a preset's name sets the preset."""
+        if not text.startswith(HAND + ":"):
+            self.set(text)
+            return
+        position, focal, up = hand_placement(text)
+        cam = self.scene.renderer.GetActiveCamera()
+        cam.SetPosition(*position)
+        cam.SetFocalPoint(*focal)
+        cam.SetViewUp(*up)
+        self.scene.renderer.ResetCameraClippingRange()
+        self.moved_by_hand()
 
     def _points_of_interest(self) -> np.ndarray:
         """Corners of the box the camera must show: all frames of the figures as placed."""
@@ -136,3 +167,21 @@ class SceneCamera:
                 if gap <= reach_px and (best is None or (gap, depth) < best):
                     best, best_key = (gap, depth), (key, j)
         return best_key
+
+
+def hand_placement(text: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """"hand:px,py,pz,fx,fy,fz,ux,uy,uz" -> position, focal point, view-up; ValueError (one line) for anything else:
+    not nine finite numbers within PLACEMENT_RANGE_M, the position on the focal point, a view-up of zero or along
+    the view."""
+    body = text[len(HAND) + 1:] if text.startswith(HAND + ":") else ""
+    try:
+        values = np.array([float(v) for v in body.split(",")])
+    except ValueError:
+        values = np.zeros(0)
+    if values.shape != (9,) or not np.isfinite(values).all() or np.abs(values).max() > PLACEMENT_RANGE_M:
+        raise ValueError(f"a hand-placed camera is {HAND}: and nine numbers within {PLACEMENT_RANGE_M:g} m")
+    position, focal, up = values[:3], values[3:6], values[6:]
+    view = focal - position
+    if np.linalg.norm(view) < 1e-3 or np.linalg.norm(np.cross(view, up)) < 1e-6:
+        raise ValueError("a hand-placed camera needs its position off its focal point and a view-up across the view")
+    return position, focal, up

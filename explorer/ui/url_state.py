@@ -46,6 +46,19 @@ def view_query(view: dict) -> str:
     return "?" + urlencode(parts, safe=":,/", quote_via=quote)
 
 
+def _hand_camera(text: str, cameras) -> str:
+    """A hand-placed camera ("hand:" and nine numbers: explorer/rendering/camera.py hand_placement), checked."""
+    from explorer.rendering.camera import HAND, hand_placement
+
+    if not text.startswith(HAND + ":"):
+        _fail(f"camera {quoted(text)} is not one of {', '.join(cameras)} nor {HAND}:...")
+    try:
+        hand_placement(text)
+    except ValueError as err:
+        _fail(f"camera {quoted(text)}: {err}")
+    return text
+
+
 def _number(text: str, lo: float, hi: float, what: str) -> float:
     try:
         x = float(text)
@@ -82,7 +95,7 @@ def parse_view(query: str, class_names, sequence_ids, cameras, models=()) -> tup
         "scale": lambda v: _number(v, 0.0, 2.0, "scale"),
         "frame": lambda v: int(_number(v, 0, 1e6, "frame")),
         "layout": lambda v: v if v in LAYOUTS else _fail(f"layout {quoted(v)} is not one of {', '.join(LAYOUTS)}"),
-        "camera": lambda v: v if v in cameras else _fail(f"camera {quoted(v)} is not one of {', '.join(cameras)}"),
+        "camera": lambda v: v if v in cameras else _hand_camera(v, cameras),
         "map": lambda v: v if v in MAPS else _fail(f"map {quoted(v)} is not one of {', '.join(MAPS)}"),
         "raw": lambda v: {"1": True, "0": False}[v] if v in ("0", "1") else _fail(f"raw {quoted(v)} is not 0 or 1"),
         "model": lambda v: v if v in models else _fail(f"model {quoted(v)} is not one of {', '.join(models) or 'this studio'}"),
@@ -145,7 +158,7 @@ def current_view(studio: ViewHolder) -> dict:
         "scale": round(float(ses.scale), 3),
         "frame": None if s.playing else int(s.frame or 0),
         "layout": s.scene_layout,
-        "camera": studio.scene.camera.preset,
+        "camera": studio.scene.camera.placement(),
         "map": s.projection,
         "raw": None if ses.cleaned_up else 1,  # left out of the link while the clean-up is on, as by default
         "model": None if ses.model is ses.map_model else ses.model_name,  # left out for the model the studio opens with

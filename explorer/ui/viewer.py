@@ -47,9 +47,18 @@ class Viewer:
         return self.page.session
 
     def attach(self, view) -> None:
-        """The 3D view widget the layout made: every new picture goes through it (ctrl.view_update)."""
+        """The 3D view widget the layout made: every new picture goes through it (ctrl.view_update). A drag or a zoom
+        of the view, once it ends, puts the camera into the address bar (the renderer's interactor reports it)."""
         self._view = view
         self.page.ctrl.view_update = self.push
+        interactor = self.scene.render_window.GetInteractor()
+        if interactor is not None:
+            interactor.AddObserver("EndInteractionEvent", lambda *_: self.on_camera_moved())
+
+    def on_camera_moved(self) -> None:
+        self.scene.camera.moved_by_hand()
+        with self.page.state:
+            self.write_url()
 
     def push(self, draft: bool = False, **kwargs):
         """Send a new picture (moving points or toggling actors does not touch the render window, which the local
@@ -150,6 +159,7 @@ class Viewer:
         self.page.ctrl.view_update()
 
     def set_camera(self, preset: str):
-        self.scene.camera.set(preset)
+        """A preset's name, or a link's hand-placed camera (explorer/rendering/camera.py `placement`)."""
+        self.scene.camera.place(preset)
         self.page.ctrl.view_update()
         self.write_url()
