@@ -10,8 +10,9 @@ the frames where a window of a long take begins ("seam": its first new frame) an
 beside the single clip sampled whole and the recorded follower (raw network output, no clean-up, for the steps).
 
 `--online` also reacts frame by frame (`model.online`) and times each push; `--gan` adds a GAN's reaction to the same
-takes. `--window/--stride/--lookahead/--continue-level/--anchor` set the windows (imm_model/families/diffusion/
-windows.py) for the variants the record compares; without them, as shipped.
+takes; `--whole` samples each take as one clip, as the model did before windows. `--window/--stride/--lookahead/
+--continue-level/--anchor` set the windows (imm_model/families/diffusion/windows.py) for the variants the record
+compares; without them, as shipped.
 
     python docs/experiments/scripts/long_takes.py --repeats 1 4 8 --online --gan sample_data/imm_sbu.safetensors \\
         --out docs/experiments/data/long-takes.jsonl
@@ -99,6 +100,7 @@ def main() -> None:
     ap.add_argument("--lookahead", type=int, default=None)
     ap.add_argument("--continue-level", type=float, default=None)
     ap.add_argument("--anchor", choices=("shipped", "own", "fixed"), default="shipped")
+    ap.add_argument("--whole", action="store_true", help="sample every take whole, as one clip (no windows)")
     ap.add_argument("--variant", default="shipped", help="a name for the row")
     ap.add_argument("--out", default=None, help="append one JSON line per (mode, repeats) here")
     args = ap.parse_args()
@@ -106,6 +108,8 @@ def main() -> None:
 
     data = load_any(paths.SAMPLE_DATA)
     model = ReactionModel.load(args.checkpoint)
+    if args.whole:
+        model.window = model.max_length
     gan = ReactionModel.load(args.gan) if args.gan else None
     held_out = loso_fold(data.subject_pairs, model.held_out_subject).test[: args.limit]
     modes = ["real", "offline"] + (["online"] if args.online else []) + (["gan"] if gan else [])
