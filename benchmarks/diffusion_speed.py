@@ -3,6 +3,7 @@ part, 1-3 part terms), against the GAN in the same run.
 
     .venv/bin/python benchmarks/diffusion_speed.py --checkpoint sample_data/imm_diffusion.safetensors [--threads 1]
         [--repeats 30] [--device cpu|cuda] [--gan sample_data/imm_sbu.safetensors] [--spread S] [--memory LEVEL]
+        [--sample-steps N]
 
 Prints the median and p90 of `ReactionModel.synthesize_canonical` (clean-up included) for each number of classes
 composed (each class is one more network term per sampler step, and so is each pair of classes for a model with pair
@@ -49,6 +50,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=30)
     ap.add_argument("--spread", type=float, default=None, help="the sampler's spread (default: the model's own)")
     ap.add_argument("--memory", type=float, default=None, help="the sampler's memory_level (default: the model's own)")
+    ap.add_argument("--sample-steps", type=int, default=None, help="the sampler's DDIM steps (default: the model's own)")
     add_device_argument(ap, default="cpu")
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
@@ -61,6 +63,8 @@ def main() -> None:
     if args.memory is not None:
         model.guidance = replace(model.guidance, memory_level=args.memory)
         model.attach_memory(data)
+    if args.sample_steps is not None:
+        model.guidance = replace(model.guidance, sample_steps=args.sample_steps)
     leader = data.canonical(int(np.argmax(data.lengths)))[0]
     print(f"checkpoint {args.checkpoint}; {len(leader)} frames; torch and BLAS threads {args.threads}; device {device}; "
           f"{model.guidance.sample_steps} sampler steps; spread {model.spread}; memory {model.guidance.memory_level}; "
