@@ -10,8 +10,8 @@ the frames where a window of a long take begins ("seam": its first new frame) an
 beside the single clip sampled whole and the recorded follower (raw network output, no clean-up, for the steps).
 
 `--online` also reacts frame by frame (`model.online`) and times each push; `--gan` adds a GAN's reaction to the same
-takes; `--whole` samples each take as one clip, as the model did before windows. `--window/--stride/--lookahead/
---continue-level/--anchor` set the windows (imm_model/families/diffusion/windows.py) for the variants the record
+takes; `--whole` samples each take as one clip, as the model did before windows. `--window/--online-window/--blend/
+--stride/--lookahead/--continue-level/--anchor` set the windows (imm_model/families/diffusion/windows.py) for the variants the record
 compares; without them, as shipped.
 
     python docs/experiments/scripts/long_takes.py --repeats 1 4 8 --online --gan sample_data/imm_sbu.safetensors \\
@@ -74,7 +74,7 @@ def take(clip: np.ndarray, k: int, kind: str) -> np.ndarray:
 
 def set_windows(args) -> None:
     """The windows' settings for a variant (module constants, read at every call)."""
-    for name in ("window", "stride", "lookahead"):
+    for name in ("window", "online_window", "blend", "stride", "lookahead"):
         if getattr(args, name) is not None:
             setattr(windows, name.upper(), getattr(args, name))
     if args.continue_level is not None:
@@ -96,6 +96,8 @@ def main() -> None:
     ap.add_argument("--limit", type=int, default=None, help="the first N held-out leaders only")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--window", type=int, default=None)
+    ap.add_argument("--online-window", type=int, default=None)
+    ap.add_argument("--blend", type=int, default=None)
     ap.add_argument("--stride", type=int, default=None)
     ap.add_argument("--lookahead", type=int, default=None)
     ap.add_argument("--continue-level", type=float, default=None)
@@ -140,8 +142,9 @@ def main() -> None:
             torso = np.array([[c["torso"] for c in row] for row in per_copy])
             row = {"variant": args.variant, "kind": args.kind, "mode": mode, "repeats": k, "leaders": len(held_out),
                    "fold": model.held_out_subject, "checkpoint": args.gan if mode == "gan" else args.checkpoint,
-                   "seed": args.seed, "window": windows.WINDOW, "stride": windows.STRIDE, "lookahead": windows.LOOKAHEAD,
-                   "continue_level": windows.CONTINUE_LEVEL, "anchor": args.anchor,
+                   "seed": args.seed, "window": windows.WINDOW, "online_window": windows.ONLINE_WINDOW, "blend": windows.BLEND,
+                   "stride": windows.STRIDE, "lookahead": windows.LOOKAHEAD, "continue_level": windows.CONTINUE_LEVEL,
+                   "anchor": args.anchor,
                    "hands_per_copy": hands.mean(0).round(4).tolist(), "torso_per_copy": torso.mean(0).round(4).tolist()}
             if seam:
                 row["seam_step_m"] = None if np.isnan(seam).all() else round(float(np.nanmean(seam)), 4)

@@ -23,11 +23,11 @@ def online_followers(model, leaders: list[np.ndarray], label_vectors: np.ndarray
     """What `model.online(label, seed=s)` returns for each canonical leader pushed frame by frame, then flushed."""
     from imm_model.cleanup import OnlineCleanup
     from imm_model.families.diffusion.sampler import initial_noise, leader_noise
-    from imm_model.families.diffusion.windows import CONTINUE_LEVEL, LOOKAHEAD, WINDOW, anchored
+    from imm_model.families.diffusion.windows import CONTINUE_LEVEL, LOOKAHEAD, ONLINE_WINDOW, anchored
 
     labels = model._label_input(model._label_array(label_vectors, len(leaders)))
     seeds = [0] * len(leaders) if seeds is None else [int(s) for s in seeds]
-    window, d, sk = min(WINDOW, model.window), model.config.pose_dim, model.skeleton
+    window, d, sk = min(ONLINE_WINDOW, model.window), model.config.pose_dim, model.skeleton
     leaders = [np.asarray(a, np.float64) for a in leaders]
     noises = [initial_noise(s, len(a), d) for a, s in zip(leaders, seeds, strict=True)]
     zs = [leader_noise(s, len(a), d) for a, s in zip(leaders, seeds, strict=True)]

@@ -2,17 +2,18 @@
 
 The denoiser sees every frame of a clip at once, with frame positions and a canonical frame it learned on clips of at
 most `model.window` frames (the longest training sequence), each from the start of an interaction; sampled whole, a
-longer take drifts away from its leader. A take longer than that is made `STRIDE` frames at a time: each time, a
-window of the last `WINDOW` leader frames up to `LOOKAHEAD` frames beyond the new ones, standardized in its own
-canonical frame (data/canonical.py: its first frames' facing and root), so that it looks like a training clip
-wherever in the take it lies. The follower frames already made are given to the sampler, which inpaints the rest
-around them (sampler.py `sample`'s `known`, as PriorMDM continues a long sequence), and the window's new frames are
-kept. The starting noise (and the leader's noise) is the seed's draw for the whole take, sliced per window.
+longer take drifts away from its leader (docs/experiments/long-takes.md). A take longer than that is made `STRIDE`
+frames at a time: each time, a window of the last `WINDOW` leader frames up to `LOOKAHEAD` frames beyond the new ones,
+in a canonical frame of its own (`anchored`: the window before's until the leader has moved away from it), so that it
+looks like a training clip wherever in the take it lies. The follower frames already made are given to the sampler,
+which inpaints the rest around them (sampler.py `sample`'s `known`, as PriorMDM continues a long sequence), and the
+window's new frames are kept; the last `BLEND` frames made are sampled again and crossfaded into the window's, because
+a window's first frame does not continue the given ones exactly (the network never learnt to continue a given past).
+The starting noise (and the leader's noise) is the seed's draw for the whole take, sliced per window.
 
-Live, `OnlineReactor` does the same one frame at a time, as the leader's frames come: a follower frame never reads a
-leader frame beyond its lookahead, and a label changed mid-take changes the frames from the next one on, continuing
-the past ones. What the windows and the causality cost against the offline reaction of a clip:
-docs/experiments/long-takes.md.
+Live, `OnlineReactor` does the same one frame at a time, as the leader's frames come, in windows of `ONLINE_WINDOW`
+frames and without the crossfade (a frame returned is final): a follower frame never reads a leader frame beyond its
+lookahead, and a label changed mid-take changes the frames from the next one on, continuing the past ones.
 """
 
 from __future__ import annotations
@@ -25,8 +26,10 @@ from imm_model.data.sequence import check_world_positions
 from imm_model.errors import DataFormatError
 from imm_model.families.diffusion.sampler import LEADER_NOISE_STREAM, initial_noise, leader_noise
 
-WINDOW = 16  # leader frames each window reads (the follower's given past and its new frames)
+WINDOW = 22  # leader frames each window of a long take reads (the follower's given past, its blend and its new frames)
+ONLINE_WINDOW = 16  # leader frames each step of the online reactor reads (the frames before the one it makes given)
 STRIDE = 4  # new follower frames a window of a long take makes (live: 1, a frame per leader frame)
+BLEND = 6  # frames made by one window that the next samples again and crossfades into its own (offline only)
 LOOKAHEAD = 4  # leader frames a window reads beyond the last follower frame it makes (0.27 s at 15 fps)
 # a window continuing given frames starts its sampler at this noise level from them (the last one held), not from pure
 # noise: the given frames then hold the follower's placement and pose (from pure noise the 7-step sampler drew each
@@ -66,7 +69,8 @@ def window_follower(model, leader: np.ndarray, follower: np.ndarray, known: int,
 
 def take_windows(model, leader: np.ndarray, label: np.ndarray, seed: int) -> np.ndarray:
     """A canonical leader (T, J, 3) + the sampler's label input (L,) + seed -> the follower (T, J, 3) in the same
-    frame, STRIDE frames at a time."""
+    frame, STRIDE frames at a time. Each window samples the last BLEND frames made again, and those are crossfaded
+    from the frames made to the window's: the window's first frame need not continue the last one made exactly."""
     frames, d = len(leader), model.config.pose_dim
     noise, leader_z = initial_noise(seed, frames, d), leader_noise(seed, frames, d)
     follower = np.zeros(leader.shape, np.float64)
@@ -75,9 +79,13 @@ def take_windows(model, leader: np.ndarray, label: np.ndarray, seed: int) -> np.
         end = min(done + STRIDE + LOOKAHEAD, frames)
         start = max(0, end - WINDOW)
         keep = STRIDE if end < frames else frames - done
+        blend = min(BLEND, done - start)
         frame = anchored(model, leader[start:end], frame)
-        made = window_follower(model, leader[start:end], follower[start:end], done - start, label, seed,
+        made = window_follower(model, leader[start:end], follower[start:end], done - start - blend, label, seed,
                                noise[start:end], leader_z[start:end], frame)
+        if blend:
+            weight = (np.arange(1, blend + 1) / (blend + 1))[:, None, None]
+            follower[done - blend:done] = (1 - weight) * follower[done - blend:done] + weight * made[done - start - blend:done - start]
         follower[done:done + keep] = made[done - start:done - start + keep]
         done += keep
     return follower.astype(np.float32)
@@ -94,7 +102,7 @@ class OnlineReactor:
     knowing only the leader up to its lookahead and the follower frames before it."""
 
     def __init__(self, model, label, scale: float = 1.0, seed: int = 0):
-        self.model, self.seed, self.lookahead, self.window = model, int(seed), LOOKAHEAD, min(WINDOW, model.window)
+        self.model, self.seed, self.lookahead, self.window = model, int(seed), LOOKAHEAD, min(ONLINE_WINDOW, model.window)
         self._scale, self._label = float(scale), label
         self._vector = self._label_input(label, scale)
         self._ramp_from, self._ramped = self._vector, LABEL_RAMP  # the values a label change moves from, frames since
