@@ -38,6 +38,8 @@ def main() -> None:
     for group, folds in GROUPS.items():
         have = [f for f in folds if all((f, s) in by for s in counts)]
         print(f"\n{group} folds {' '.join(have)} (of {' '.join(folds)})")
+        if not have:
+            continue
         print("| figure | " + " | ".join(f"{s} steps" for s in counts) + " | "
               + " | ".join(f"{s} - {SHIPPED} [95 % t]" for s in counts if s != SHIPPED) + " |")
         print("|---|" + "---:|" * (2 * len(counts) - 1))
