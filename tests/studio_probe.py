@@ -189,6 +189,18 @@ def wait_for_view_at_rest(page, timeout_ms: int = 60000) -> None:
         page.wait_for_timeout(100)
 
 
+def drag_view(page, dx: float, dy: float, steps: int = 10, height_fraction: float = 0.5) -> None:
+    """Drag across the 3D view as a user turns it: from its centre (or `height_fraction` down it), `steps` moves of
+    (dx, dy) pixels with the button held."""
+    box = page.locator(VIEW_IMG).bounding_box()
+    x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] * height_fraction
+    page.mouse.move(x, y)
+    page.mouse.down()
+    for k in range(1, steps + 1):
+        page.mouse.move(x + dx * k, y + dy * k)
+    page.mouse.up()
+
+
 def press_slider(page, css: str, key: str) -> None:
     """Move a Vuetify slider as a user does with the keyboard (End = max, Home = min, arrows = step)."""
     page.bring_to_front()  # background tabs are throttled by Chromium

@@ -237,15 +237,9 @@ def test_dragging_the_view_turns_the_camera_and_keys_stay_out_of_vtk(page):
     """A drag on the 3D view reaches the server's interactor (a new picture from another angle); keys pressed with the
     view focused do not (VTK's default 'w' would draw wireframes, 'r' would reset the camera)."""
     probe.watch_view_images(page)
-    box = page.locator(probe.VIEW_IMG).bounding_box()
     before = probe.view_pixels(page)
     n = probe.images_seen(page)
-    x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
-    page.mouse.move(x, y)
-    page.mouse.down()
-    for step in range(1, 9):
-        page.mouse.move(x + 25 * step, y + 4 * step)
-    page.mouse.up()
+    probe.drag_view(page, 25, 4, steps=8)
     probe.wait_for_new_image(page, n)
     probe.wait_for_view_at_rest(page)  # the sharper still picture that follows an interaction
     turned = probe.view_pixels(page)

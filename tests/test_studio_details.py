@@ -68,13 +68,17 @@ def test_downloads_are_named_for_the_sequence_and_mix_and_the_mp4_keeps_the_view
 
 
 def test_first_use_hints_show_until_dismissed_and_the_browser_remembers(browser, studio):
+    def with_hints(context):
+        page = context.new_page()
+        page.goto(studio.url, timeout=60000)
+        probe.wait_for_view(page)
+        hints = page.locator("#first-use-hints")
+        hints.wait_for(state="visible", timeout=10000)
+        return page, hints
+
     context = browser.new_context(viewport={"width": 1366, "height": 768})
     try:
-        first = context.new_page()
-        first.goto(studio.url, timeout=60000)
-        probe.wait_for_view(first)
-        hints = first.locator("#first-use-hints")
-        hints.wait_for(state="visible", timeout=10000)
+        first, hints = with_hints(context)
         assert "rotate" in hints.inner_text() and "latent map" in hints.inner_text()
         box = hints.bounding_box()
         assert box["height"] <= 40, box  # one line
@@ -90,16 +94,8 @@ def test_first_use_hints_show_until_dismissed_and_the_browser_remembers(browser,
         context.close()
     fresh = browser.new_context(viewport={"width": 1366, "height": 768})  # a browser that never dismissed them
     try:
-        page = fresh.new_page()
-        page.goto(studio.url, timeout=60000)
-        probe.wait_for_view(page)
-        hints = page.locator("#first-use-hints")
-        hints.wait_for(state="visible", timeout=10000)
-        view = page.locator(probe.VIEW_IMG).bounding_box()
-        page.mouse.move(view["x"] + view["width"] / 2, view["y"] + view["height"] / 3)
-        page.mouse.down()
-        page.mouse.move(view["x"] + view["width"] / 2 + 40, view["y"] + view["height"] / 3)
-        page.mouse.up()  # a drag: what the hint says to do
+        page, hints = with_hints(fresh)
+        probe.drag_view(page, 4, 0, height_fraction=1 / 3)  # a drag: what the hint says to do
         hints.wait_for(state="detached", timeout=10000)
         assert page.evaluate(f"() => localStorage.getItem('{HINTS_SEEN}')") == "1"
     finally:

@@ -166,13 +166,7 @@ def test_a_camera_turned_by_hand_is_in_the_link_and_a_link_restores_it(browser, 
         probe.wait_state(first, "s.get('url_query') !== ''")
         probe.wait_for_view_at_rest(first)
         preset = probe.view_pixels(first).astype(int)
-        view = first.locator(probe.VIEW_IMG).bounding_box()
-        x, y = view["x"] + view["width"] / 2, view["y"] + view["height"] / 2
-        first.mouse.move(x, y)
-        first.mouse.down()
-        for k in range(1, 11):
-            first.mouse.move(x + 8 * k, y + 3 * k)
-        first.mouse.up()
+        probe.drag_view(first, 8, 3)
         first.wait_for_function("() => location.search.includes('camera=hand:')", timeout=30000)
         probe.wait_for_view_at_rest(first)
         query = "?" + first.url.split("?", 1)[1]
