@@ -167,3 +167,18 @@ def test_online_cleanup_holds_a_planted_foot(model, sample_data):
     lifted[3:, foot, up] += 0.3  # lifted from frame 3: it leaves its spot without a jump
     out = np.concatenate([OnlineCleanup(model.skeleton, model.bone_lengths)(lifted[t:t + 1]) for t in range(6)])
     assert out[5, foot, 0] > out[0, foot, 0] + 0.05
+
+
+def test_the_command_line_reacts_to_a_long_take(sample_data, tmp_path, capsys):
+    """`imm generate --leader` with a BVH take longer than any training clip: a follower for every frame."""
+    from imm_model.cli import main
+    from imm_model.data.bvh import read_bvh, write_bvh
+
+    take = np.concatenate([sample_data.world(i)[0] for i in (0, 40, 80, 120)])
+    leader = tmp_path / "take.bvh"
+    write_bvh(leader, take, sample_data.skeleton, 15.0)
+    out = tmp_path / "reaction.bvh"
+    assert main(["generate", "--leader", str(leader), "--label", "hugging=1", "--out", str(out)]) in (0, None)
+    follower = read_bvh(out)
+    assert len(follower) == len(take) > 2 * 46 and np.isfinite(follower).all()
+    assert f"follower {len(take)} frames" in capsys.readouterr().out
