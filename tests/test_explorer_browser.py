@@ -181,6 +181,8 @@ def test_box_selection_lists_the_sequences_and_a_row_opens_one(page):
     pick = rows[1]["i"] if rows[0]["i"] == probe.state(page, "sequence_index") else rows[0]["i"]
     page.locator("#latent-selection .latent-row").nth([r["i"] for r in rows].index(pick)).click()
     probe.wait_state(page, f"s.get('sequence_index') === {pick}")
+    probe.wait_state(page, "s.get('playing') === true")  # a row plays its sequence, as a point click does
+    probe.set_state(page, "playing", False)
     page.locator('#latent-plotly .modebar-btn[data-val="zoom"]').click()
     probe.set_state(page, "latent_selection", [])
     probe.wait_state(page, "s.get('latent_rows').length === 0")

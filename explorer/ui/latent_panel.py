@@ -161,8 +161,9 @@ class LatentPanel:
         self.page.state.playing = True
 
     def open_listed(self, index) -> None:
-        """A row of the selection list: open that sequence (paused, at its first frame)."""
+        """A row of the selection list: open that sequence and play it, as a click on its point does."""
         self.open(int(index))
+        self.page.state.playing = True
 
     def open(self, index: int) -> None:
         state = self.page.state
