@@ -332,6 +332,7 @@ def test_upload_a_bvh_leader_then_a_broken_file(page, tmp_path, sample_data):
     page.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=20000)
     page.wait_for_selector("#uploaded-chip", timeout=10000)
     assert "my_leader.bvh" in probe.state(page, "sequence_title") and "no ground truth" in probe.state(page, "afd_text")
+    assert "my_leader.bvh: reacting with the mix on the sliders" in probe.state(page, "notice")
     # neither the sequence menu nor the view's legend still names what was on screen before
     page.wait_for_selector(".legend-ground_truth", state="detached", timeout=5000)
     assert probe.state(page, "sequence_index") is None and shown not in page.locator(".v-input:has(#sequence-picker)").inner_text()

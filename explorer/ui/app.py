@@ -190,7 +190,7 @@ class Studio:
         self._contact_changed = self.scene.set_contact(leader_bones, follower_bones)
         s.contact_text = charts.contact_text(self._closest)
         afd = ses.readings.afd()
-        s.afd_text = ("uploaded leader: no ground truth to compare with, so no error chart" if afd is None
+        s.afd_text = ("uploaded leader: no ground truth to compare with, so no error line (the chart shows contact only)" if afd is None
                       else f"AFD {afd:.3f} (SBU units) · joints {self._distances.mean():.2f} m apart on average")
         self.viewer.update_time()
         s.distance_chart = charts.distance_chart(self._distances, FPS, self._ab_distances, self._closest)

@@ -89,6 +89,8 @@ class SequencePicker:
             s.sequence_uploaded, s.sequence_held_out = True, False
             s.sequence_index = None  # the picker shows no bundled sequence: none is on screen
             self._show_leader()
+            # an uploaded leader has no class to match: the mix on the sliders carries over, and the page says so
+            s.notice = f"{ses.upload.name}: reacting with the mix on the sliders ({ses.label_text() or 'neutral'})"
         self.page.ctrl.view_update()
 
     def _show_leader(self) -> None:
