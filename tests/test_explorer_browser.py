@@ -78,6 +78,8 @@ def test_class_slider_changes_follower(page):
     reads = probe.state(page, "reads_as")  # the 'reads as' panel follows the mix
     assert len(reads) == len(names) and reads[other]["asked"] == "+" and sum(r["p"] for r in reads) == pytest.approx(1, abs=0.01)
     assert page.locator("#reads-as .reads-as-row").count() == len(names)
+    row = page.locator("#reads-as .reads-as-row").nth(other).inner_text()  # the ask marks the name, not the share
+    assert row.startswith(f"+ {names[other]}") and row.rstrip().endswith("%") and "+ " not in row.split("\n")[-1], row
     after_px = color_mask(probe.view_pixels(page), SYNTHESIZED)
     changed = int((before_px ^ after_px).sum())
     probe.shot(page, "studio-mixed")

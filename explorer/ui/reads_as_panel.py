@@ -99,12 +99,13 @@ def reads_as_panel() -> None:
             html.Div("classifier of real reactions · + asked", classes="text-caption text-medium-emphasis ml-2",
                      style="white-space: nowrap")
         with html.Div(v_for="(row, i) in reads_as", key=("i",), classes="d-flex align-center reads-as-row", style="height: 20px"):
-            html.Div("{{ row.name }}", classes="text-caption",
+            # the ask marks the class's name (+ perform, − avoid), never the share: "− 1%" read as minus one percent
+            html.Div("{{ (row.asked === '+' ? '+ ' : row.asked === '-' ? '− ' : '') + row.name }}", classes="text-caption",
                      style=("'width: 118px; white-space: nowrap; overflow: hidden; text-overflow: ellipsis; flex: 0 0 118px;'"
                             " + (row.asked ? 'font-weight: 700' : '')",))
             v3.VProgressLinear(model_value=("row.p * 100",), color=("row.color",), height=8, rounded=True,
                                bg_color="grey-lighten-2", classes="reads-as-bar", style="flex: 1 1 auto")
-            html.Div("{{ (row.asked ? row.asked + ' ' : '') + (row.p * 100).toFixed(0) + '%' }}", classes="text-caption ml-1",
+            html.Div("{{ (row.p * 100).toFixed(0) + '%' }}", classes="text-caption ml-1",
                      style="flex: 0 0 48px; text-align: right; white-space: nowrap")
         with html.Div(v_if="reads_as_parts.length", id="reads-as-parts", classes="mt-1"):
             with html.Div(v_for="part in reads_as_parts", key=("part.part",), classes="text-caption reads-as-part"):
