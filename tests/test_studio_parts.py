@@ -264,6 +264,9 @@ def test_the_drawer_sets_a_class_apart_for_one_part_and_the_link_and_picture_fol
             probe.press_slider(page, ".lower-slider-shaking_hands", "Home")  # the legs avoid it
             probe.wait_state(page, "s.get('label_text') === 'upper:shaking_hands=1,lower:shaking_hands=-1'")
             probe.wait_state(page, "s.get('url_query').includes('mix=upper:shaking_hands:1,lower:shaking_hands:-1')")
+            probe.wait_state(page, "s.get('parts_apart') === true")  # a model that would refuse the part mix is marked
+            gan = page.locator("#model-gan")
+            assert gan.is_disabled() and "takes no label per body part" in (gan.get_attribute("title") or "")
             page.wait_for_function("() => location.search.includes('mix=upper:shaking_hands:1,lower:shaking_hands:-1')")
             # the bundled part judges read each part: two compact readings, the asked class of each marked, one note
             probe.wait_state(page, "s.get('reads_as_parts').length === 2")
@@ -281,7 +284,7 @@ def test_the_drawer_sets_a_class_apart_for_one_part_and_the_link_and_picture_fol
             page.locator("#label-text").scroll_into_view_if_needed()
             probe.shot(page, "studio-parts-drawer")
             page.locator(".v-navigation-drawer").screenshot(path=str(probe.ARTIFACTS / "studio-parts-drawer-only.png"))
-            page.click("#model-gan")  # refused while the parts differ: the part mix stays
+            probe.set_state(page, "model_name", "gan")  # a switch the page would not send (its button is off): refused
             probe.wait_state(page, "s.get('error').includes('takes no label per body part')")
             probe.wait_state(page, "s.get('model_name') === 'diffusion' && s.get('computing') === false")
             assert probe.state(page, "apart_2") is True

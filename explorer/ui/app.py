@@ -113,6 +113,7 @@ class Studio:
                 "reads_as_note": "",
                 "reads_as_parts": [],  # the body-part judges' readings while the mix's parts differ
                 "part_labels": False,  # the models drawing read a label per body part: the drawer offers part mixes
+                "parts_apart": False,  # the mix sets a class apart by body part: models without part labels are marked
                 "scene_layout": "overlay",
                 "show_leader": True,
                 "show_ground_truth": True,
@@ -177,7 +178,7 @@ class Studio:
         s, ses = self.state, self.session
         s.label_text = ses.label_text()
         s.can_go_live, s.live, s.live_made = ses.model.settings.online, ses.live.on, ses.live.made
-        s.part_labels = ses.part_labels
+        s.part_labels, s.parts_apart = ses.part_labels, ses.label.parts_differ
         for i in range(len(ses.class_names)) if not ses.part_labels else ():  # none apart where no part mix can be drawn
             s[f"apart_{i}"] = False
         s.reads_as = reads_as_rows(ses.readings.reads_as(), ses.weights, ses.class_names)

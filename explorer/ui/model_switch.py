@@ -216,7 +216,13 @@ def model_panel(session: Session) -> None:
                            classes="mb-2", id="model-switch"):
             # each by the name `imm explore --model` gave it (short enough for three in the drawer), its title on hover
             for name in session.models:
-                v3.VBtn(name, value=name, size="x-small", id=f"model-{name}", title=session.model_title(name),
+                # a model without part labels is marked before the click while the mix sets parts apart (it would refuse)
+                parts = session.models[name].part_labels
+                v3.VBtn(name, value=name, size="x-small", id=f"model-{name}",
+                        disabled=False if parts else ("parts_apart",),
+                        title=session.model_title(name) if parts else
+                        (f"parts_apart ? {_js(session.model_title(name) + ' takes no label per body part: link the parts first')}"
+                         f" : {_js(session.model_title(name))}",),
                         click=f"if (model_name !== '{name}') {{ computing = true; model_name = '{name}'; }}")
         # other models' followers beside the current one's (the current model's chip is off: it is drawn already); chips
         # wrap in the drawer's width, where a button row would scroll its ends out of sight
@@ -227,8 +233,10 @@ def model_panel(session: Session) -> None:
                                selected_class="text-teal-darken-2", id="compare-models",
                                update_modelValue="computing = true; compare_models = $event"):
                 for name in session.models:
+                    parts = session.models[name].part_labels
                     v3.VChip(session.model_title(name), value=name, size="small", filter=True, variant="outlined",
-                             id=f"compare-{name}", disabled=(f"model_name === '{name}'",))
+                             id=f"compare-{name}",
+                             disabled=(f"model_name === '{name}'" + ("" if parts else " || parts_apart"),))
     with html.Div(v_if="seeded", classes="mb-2", id="variation-controls"):
         with html.Div(classes="d-flex align-center mb-1", style="gap: 6px"):
             v3.VTextField(v_model=("seed",), label="seed", type="number", min=0, density="compact", hide_details=True,
@@ -250,3 +258,8 @@ def model_panel(session: Session) -> None:
                 for n in range(1, MAX_VARIATIONS + 1):
                     v3.VBtn(str(n), value=(str(n),), size="x-small",  # a number, as variation_count is: it shows selected
                             click=f"if (variation_count !== {n}) {{ computing = true; variation_count = {n}; }}")
+
+
+def _js(text: str) -> str:
+    """`text` as a single-quoted JavaScript string inside a template attribute (a model's title may hold an apostrophe)."""
+    return "'" + text.replace("\\", "\\\\").replace("'", "\\'") + "'"
