@@ -182,3 +182,30 @@ def test_the_command_line_reacts_to_a_long_take(sample_data, tmp_path, capsys):
     follower = read_bvh(out)
     assert len(follower) == len(take) > 2 * 46 and np.isfinite(follower).all()
     assert f"follower {len(take)} frames" in capsys.readouterr().out
+
+
+def test_the_studio_session_live_keeps_what_was_made_and_refuses_a_model_that_cannot(sample_data):
+    """Live mode in the session (explorer/session/live.py): frames made as the leader plays; a new mix keeps them and
+    steers the rest; a model without an online reactor is refused in one line, on and while live, nothing changed."""
+    from explorer.session.session import Session, load_model
+
+    ses = Session(sample_data, {"diffusion": load_model(SAMPLE_DIFFUSION, sample_data),
+                                "gan": load_model(SAMPLE_GAN, sample_data)}, index=5)
+    ses.set_live(True)
+    for frame in range(10):
+        ses.live.reach(frame)
+    made, past = ses.live.made, ses.synth[: ses.live.made].copy()
+    assert 10 <= made < ses.num_frames
+    w = np.zeros(len(ses.class_names), np.float32)
+    w[3] = 1.0
+    ses.set_label(w)
+    np.testing.assert_array_equal(ses.synth[:made], past)
+    assert [f for f, _ in ses.live.steered] == [0, made]
+    with pytest.raises(LabelError, match="cannot react live") as err:
+        ses.set_model("gan")
+    assert "\n" not in str(err.value) and ses.model_name == "diffusion" and ses.live.on
+    ses.set_live(False)
+    ses.set_model("gan")
+    with pytest.raises(LabelError, match="cannot react live"):
+        ses.set_live(True)
+    assert not ses.live.on

@@ -158,7 +158,7 @@ class DiffusionReactionModel(ReactionModel):
             for i, follower in zip(rows, self._sample([leaders[i] for i in rows], labels[rows], [seeds[i] for i in rows]),
                                    strict=True):
                 out[i] = follower
-        for i in sorted(set(range(len(leaders))) - set(clips)):
+        for i in (i for i, a in enumerate(leaders) if len(a) > self.window):  # a long take: in windows (windows.py)
             out[i] = take_windows(self, np.asarray(leaders[i], np.float32), labels[i], seeds[i])
         return out
 
