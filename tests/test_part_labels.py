@@ -104,6 +104,38 @@ def test_the_join_gives_each_part_its_own_labels_prediction_at_every_step():
         np.testing.assert_array_equal(keep_lower[1], keep_upper[1])  # parts alike: the whole-body label, whatever the join
 
 
+def test_with_join_outputs_each_part_is_sampled_on_its_own_and_the_reactions_joined():
+    """Guidance.join_outputs: a row whose parts differ is `join` of the upper part's whole reaction and the lower
+    part's, each sampled from the same start as if asked alone; not the reaction joined at every step, which the
+    network reads and pulls towards the other part's. A row whose parts agree is the whole-body label's, to the bit."""
+    from dataclasses import replace
+
+    from imm_model.families.diffusion.sampler import ddim, guided_prediction
+
+    offsets = np.arange(1, C + 1, dtype=np.float32)
+
+    def net(x, step, leader_on, label, label_on):  # reads x_t, not linearly, so that the trajectories matter
+        return (np.tanh(2 * x) + ((label * offsets).sum(1) * label_on)[:, None, None]).astype(np.float32)
+
+    def average(u, lo):
+        return (u + lo) / 2
+
+    rng = np.random.default_rng(1)
+    leaders, mask = np.zeros((3, 5, 45), np.float32), np.ones((3, 5), bool)
+    noise = rng.standard_normal((3, 5, 45)).astype(np.float32)
+    upper, lower = np.eye(C, dtype=np.float32)[[2, 4, 0]], -np.eye(C, dtype=np.float32)[[1, 3, 0]]
+    lower[2] = upper[2]  # the last row's parts agree
+    g = Guidance(label_scale=2.0, sample_steps=4, clip=100.0, join_outputs=True)
+    apart = sample(net, leaders, mask, np.concatenate([upper, lower], 1), noise, g, 100, join=average)
+    alone = [ddim(guided_prediction(net, v, g, 100, mask), noise, mask, g, 100) for v in (upper, lower)]
+    np.testing.assert_allclose(apart[:2], average(*alone)[:2], atol=1e-6)
+    np.testing.assert_array_equal(apart[2], sample(net, leaders, mask, upper, noise, g, 100)[2])
+    every_step = sample(net, leaders, mask, np.concatenate([upper, lower], 1), noise, replace(g, join_outputs=False), 100,
+                        join=average)
+    assert not np.allclose(every_step[:2], apart[:2], atol=1e-3)
+    np.testing.assert_array_equal(every_step[2], apart[2])
+
+
 def test_the_bundled_default_takes_part_keys_through_its_samplers_join(sample_data):
     """The bundled diffusion model reads a whole-body label only; its sampler joins the parts (Guidance.part_join), so
     it takes a label per body part, and its whole-body reactions are those of the sampler without the join, to the bit."""

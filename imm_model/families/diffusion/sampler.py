@@ -128,6 +128,10 @@ class Guidance:
     # centre (the model's `join_parts`: trunk and arms of the first on the second's legs and placement); off: a part
     # network's own part conditions (`label_terms`), and a whole-label network takes no label per body part
     part_join: bool = param(False, Flag())
+    # with part_join, each part's reaction is sampled on its own from the same start and the two reactions are joined,
+    # rather than the two predictions at every step: the network never reads a joined state, which pulls each part
+    # towards the other's reaction
+    join_outputs: bool = param(False, Flag())
 
     def __post_init__(self) -> None:
         validate(self, "guidance")
@@ -297,8 +301,9 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
 
     With `join(upper_x0, lower_x0) -> x0` (normalized (B, T, D) each; Guidance.part_join) `labels` are (B, 2C), the
     upper body's values then the lower body's, for either network: where a row's parts differ, each part's values are
-    composed as a whole-body label into a guided prediction of its own and the two are joined at every step; a row whose
-    parts agree takes the upper one's, the whole-body label's prediction.
+    composed as a whole-body label into a guided prediction of its own and the two are joined at every step, or, with
+    Guidance.join_outputs, each part's reaction is sampled on its own from the same start and the two reactions are
+    joined; a row whose parts agree takes the upper one's, the whole-body label's reaction.
 
     With `known` = (values (B, T, D) normalized, where (B, T) bool, clean) the frames `where` marks are given, not
     sampled: every step's prediction holds them at their values (inpainting by replacement, as PriorMDM continues a
@@ -314,17 +319,19 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
         upper, lower = np.concatenate([upper, upper], 1), np.concatenate([lower, lower], 1)
     apart = ~np.all(labels[:, :c] == labels[:, c:], axis=1)[:, None, None]
     by_upper = guided_prediction(denoise, upper, guidance, diffusion_steps, mask, pair_terms, part_labels)
+    if not apart.any():
+        return ddim(keeping(by_upper, known), noise, mask, guidance, diffusion_steps, seeds)
     by_lower = guided_prediction(denoise, lower, guidance, diffusion_steps, mask, pair_terms, part_labels)
-
     m = mask[..., None].astype(np.float32)
 
-    def predict(x: np.ndarray, step: int) -> np.ndarray:
-        x0_upper = by_upper(x, step)
-        if not apart.any():
-            return x0_upper
-        return (np.where(apart, join(x0_upper, by_lower(x, step)), x0_upper) * m).astype(np.float32)
+    def joined(x_upper: np.ndarray, x_lower: np.ndarray) -> np.ndarray:
+        return (np.where(apart, join(x_upper, x_lower), x_upper) * m).astype(np.float32)
 
-    return ddim(keeping(predict, known), noise, mask, guidance, diffusion_steps, seeds)
+    if guidance.join_outputs:
+        return joined(ddim(keeping(by_upper, known), noise, mask, guidance, diffusion_steps, seeds),
+                      ddim(keeping(by_lower, known), noise, mask, guidance, diffusion_steps, seeds))
+    return ddim(keeping(lambda x, step: joined(by_upper(x, step), by_lower(x, step)), known), noise, mask, guidance,
+                diffusion_steps, seeds)
 
 
 def keeping(predict, known):
