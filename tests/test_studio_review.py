@@ -1,7 +1,9 @@
 """The review in the studio, at laptop sizes: ground truth against every model, each row under its own class, the
 table filling in while it is computed, a row that opens and plays its sequence; with the review open at 1366x768 and
 1280x720 the frame slider, the chart and the latent map keep their width and the toolbar is not clipped; a one-line
-alert does not shrink the 3D view. Needs /usr/bin/chromium (fixtures in tests/conftest.py)."""
+alert does not shrink the 3D view; at those sizes the review shows as many models' column groups as fit (chips pick
+which), keeps the 3D view 400 px high and the chart and map one click away, and pins "all classes" first. Needs
+/usr/bin/chromium (fixtures in tests/conftest.py)."""
 
 from __future__ import annotations
 
@@ -33,6 +35,15 @@ WIDTHS_JS = """() => { const w = (sel) => { const e = document.querySelector(sel
 CLIPPED_JS = """(width) => [...document.querySelectorAll('.v-app-bar .v-chip, .v-app-bar .v-btn')].filter((e) => {
     const b = e.getBoundingClientRect(); return b.width > 0 && (e.scrollWidth > e.clientWidth + 1 || b.right > width || b.left < 0); })
     .map((e) => e.textContent.trim() || e.id || e.title)"""
+# The review table's sideways fit, the model column groups its header shows, and the 3D view's height.
+FIT_JS = """() => { const w = document.querySelector('#review-table .v-table__wrapper');
+    const groups = [...document.querySelectorAll('#review-table thead tr:first-child th')].filter((t) => t.colSpan > 1);
+    return {scrollWidth: w.scrollWidth, clientWidth: w.clientWidth, groups: groups.map((t) => t.colSpan),
+            sceneHeight: document.querySelector('.imm-scene').getBoundingClientRect().height}; }"""
+# Whether an element is wholly inside the window (a card of the column scrolled into sight).
+ON_SCREEN_JS = """(sel) => { const b = document.querySelector(sel).getBoundingClientRect();
+    return b.height > 150 && b.top >= -1 && b.bottom <= window.innerHeight + 1 && b.left >= -1 && b.right <= window.innerWidth + 1; }"""
+FIRST_CLASS_JS = "() => document.querySelector('#review-table tbody tr:first-child td.review-class').textContent.trim()"
 
 
 def open_review(page) -> None:
@@ -134,5 +145,56 @@ def test_a_one_line_alert_leaves_the_3d_view_its_size(browser, studio):
         after = page.locator(".imm-scene").bounding_box()
         assert after == before, (before, after)
         assert alert.bounding_box()["height"] <= 44, alert.bounding_box()
+    finally:
+        page.close()
+
+
+@pytest.mark.parametrize("width,height", [(1366, 768), (1280, 720)])
+def test_at_laptop_sizes_the_review_fits_its_pane_under_a_400px_view(browser, studio, width, height):
+    """The review's table shows whole model column groups, as many as fit its pane, with nothing hidden sideways; a chip
+    per model says which show, and a model picked beyond that replaces one rather than overflowing. The 3D view keeps
+    400 px of height, the chart and the map are one click away ("chart & map"), and per class the "all classes" row
+    stays first whichever way the table is sorted."""
+    page = probe.open_studio(browser, studio.url, width, height)
+    try:
+        open_review(page)
+        n_models = len([h for h in probe.state(page, "review_headers") if h.get("children")])
+        # the page measured the pane and the table shows the model columns the server chose for it
+        page.wait_for_function(f"""() => {{ const s = window.trame.state, shown = s.get('review_shown');
+            return !shown || (s.get('review_fit') != null && ({FIT_JS})().groups.length === shown.length); }}""")
+        fit = page.evaluate(FIT_JS)
+        probe.shot(page, f"studio-review-fit-{width}x{height}")
+        assert fit["scrollWidth"] <= fit["clientWidth"] + 1, fit
+        assert fit["sceneHeight"] >= 400, fit
+        shown = probe.state(page, "review_shown")
+        assert 1 <= len(shown) < n_models and fit["groups"] == [4] * len(shown), (shown, fit)
+        chips = page.locator("#review-columns .review-column-chip")
+        assert chips.count() == n_models and page.locator("#review-columns .v-chip--selected").count() == len(shown)
+
+        hidden = next(k for k in range(n_models) if k not in shown)
+        chips.nth(hidden).click()  # one more model than fits: it replaces one
+        probe.wait_state(page, f"s.get('review_shown').includes({hidden})")
+        page.wait_for_function(f"() => ({FIT_JS})().groups.length === {len(shown)}")
+        assert len(probe.state(page, "review_shown")) == len(shown)
+        fit = page.evaluate(FIT_JS)
+        assert fit["scrollWidth"] <= fit["clientWidth"] + 1, fit
+
+        page.click("#review-to-cards")  # the chart and the map, below the review
+        page.wait_for_function(ON_SCREEN_JS, arg="#chart-card", timeout=10000)
+        page.wait_for_function(ON_SCREEN_JS, arg="#latent-card", timeout=10000)
+
+        page.click("#review-per button:nth-child(2)")  # one summary row per class
+        probe.wait_state(page, "s.get('review_rows').some((r) => r.class_name === 'all classes')")
+        page.wait_for_function(f"() => ({FIRST_CLASS_JS})() === 'all classes'")
+        for _ in range(2):  # both ways of the first shown model's AFD: the pinned row stays first
+            before = probe.state(page, "review_sort_by")[0]["order"]
+            page.locator("#review-table thead th", has_text="AFD").first.click()
+            probe.wait_state(page, f"s.get('review_sort_by')[0].order !== {before!r}")
+            key = probe.state(page, "review_sort_by")[0]["key"]
+            assert page.evaluate(FIRST_CLASS_JS) == "all classes"
+            cells = page.evaluate(f"() => [...document.querySelectorAll('#review-table tbody tr.review-summary:not(.review-pinned) "
+                                  f"td.review-{key.replace('.', '-')}')].map((c) => Number(c.textContent))")
+            order = probe.state(page, "review_sort_by")[0]["order"]
+            assert len(cells) >= 2 and cells == sorted(cells, reverse=order == "desc"), (key, order, cells)
     finally:
         page.close()

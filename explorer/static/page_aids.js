@@ -44,3 +44,17 @@ window.immScrollIntoView = (selector) => requestAnimationFrame(() => {
   const el = document.querySelector(selector);
   if (el) el.scrollIntoView({block: 'nearest'});
 });
+
+// How many of the review's model column groups fit its table (explorer/ui/review_panel.py: `fixed` px of sequence and
+// class columns, `per` px a model): window.immWatchFit(selector, fixed, per, key) keeps the count in the state key
+// `key` as the table's pane is resized, so the server shows no more models than fit and the table never scrolls
+// sideways unseen.
+window.immWatchFit = (selector, fixed, per, key) => requestAnimationFrame(() => {
+  const el = document.querySelector(selector);
+  if (!el || el.immFit) return;
+  el.immFit = new ResizeObserver(() => {
+    const count = Math.max(1, Math.floor((el.clientWidth - fixed) / per));
+    if (window.trame.state.get(key) !== count) window.trame.state.set(key, count);
+  });
+  el.immFit.observe(el);
+});

@@ -40,19 +40,25 @@ STILL_CONTROLS_CSS = """
 # The page fits the window, from 1280x720 up: the main area is exactly the window below the app bar, and its column
 # (3D view, playback bar, chart and map) never wraps; the 3D view takes what the chart row leaves, down to a floor,
 # and below that floor the column scrolls inside the main area (the page body never scrolls).
+# The review, open, shares the window's height with the 3D view (the fold: the view keeps 400 px, the review the rest)
+# and the chart and map row goes just below it, a scroll or the review's "chart & map" button away.
+# A map with a selection listed beside it widens into the chart's half rather than squeezing its plot.
 WINDOW_CSS = """
 html { overflow: hidden; }
 .imm-main { height: 100vh; }
 .imm-column { height: 100%; display: flex; flex-direction: column; flex-wrap: nowrap; gap: 6px; padding: 8px;
               overflow: auto; min-width: 0; }
+.imm-fold { flex: 1 1 auto; display: flex; flex-direction: column; gap: 6px; }
 .imm-stage { flex: 1 1 auto; min-height: 280px; display: flex; flex-direction: column; gap: 6px; }
 .imm-stage:fullscreen { background: rgb(var(--v-theme-surface)); padding: 8px; }
 .imm-scene { flex: 1 1 auto; min-height: 240px; position: relative; width: 100%; }
+.imm-fold.imm-fold-review { flex: 0 0 100%; min-height: 0; }
+.imm-fold-review .imm-stage { min-height: auto; }
+.imm-fold-review .imm-scene { min-height: 400px; }
+.imm-review-panel { flex: 1 1 46vh; min-height: 160px; display: flex; flex-direction: column; }
 .imm-review { flex: 0 0 clamp(220px, 34vh, 440px); display: flex; gap: 8px; width: 100%; min-height: 0; position: relative; }
-.imm-review.imm-review-open { flex-basis: clamp(260px, 46vh, 560px); }
-.imm-review-overlay { position: absolute; inset: 0; z-index: 4; display: flex; flex-direction: column;
-                      background: rgb(var(--v-theme-surface)); }
 .imm-review > .v-card { flex: 1 1 50%; min-width: 0; display: flex; flex-direction: column; }
+.imm-review > #latent-card.imm-selecting { flex: 0 0 calc(50% + 150px); }
 .imm-fill { flex: 1 1 auto; min-height: 120px; position: relative; }
 .imm-toolbar-row { overflow-x: auto; overflow-y: hidden; flex-wrap: nowrap; }
 .imm-alert { position: absolute; left: 4px; right: 4px; top: 4px; z-index: 3; }
@@ -103,9 +109,11 @@ def build_layout(page: LayoutParts) -> VAppLayout:
                 character_toggles(page)
         with v3.VMain(classes="imm-main"):
             with html.Div(classes="imm-column"):
-                with html.Div(classes="imm-stage"):  # what full screen shows: the view and its playback bar
-                    scene_view(page)
-                    playback_bar(page)
+                with html.Div(classes=("review_open ? 'imm-fold imm-fold-review' : 'imm-fold'",)):
+                    with html.Div(classes="imm-stage"):  # what full screen shows: the view and its playback bar
+                        scene_view(page)
+                        playback_bar(page)
+                    review_overlay(len(page.session.models))  # under the view while open
                 review_cards(page)
                 v3.VSnackbar("{{ notice }}", model_value=("!!notice",), timeout=4000, update_modelValue="notice = ''")
                 page_hooks()
@@ -451,8 +459,7 @@ def playback_bar(page: LayoutParts) -> None:
 
 def review_cards(page: LayoutParts) -> None:
     """The per-frame error chart and the latent map."""
-    with html.Div(classes=("review_open ? 'imm-review imm-review-open' : 'imm-review'",)):
-        review_overlay(len(page.session.models))  # over the chart and the map (their row grows while it is open)
+    with html.Div(classes="imm-review"):
         with v3.VCard(variant="outlined", classes="pa-1", id="chart-card"):
             with html.Div(classes="d-flex align-center px-2"):
                 html.Div("Per frame: error and contact", classes="text-caption font-weight-bold")
@@ -460,7 +467,7 @@ def review_cards(page: LayoutParts) -> None:
                 html.Div("{{ afd_text }}", classes="text-caption", id="afd-text")
             html.Div("{{ contact_text }}", classes="text-caption px-2", style=f"color: {WARNING}", id="contact-text")
             distance_chart()
-        with v3.VCard(variant="outlined", classes="pa-1", id="latent-card"):
+        with v3.VCard(variant="outlined", classes=("latent_rows.length ? 'pa-1 imm-selecting' : 'pa-1'",), id="latent-card"):
             with html.Div(classes="d-flex align-center px-2", style="gap: 6px"):
                 html.Div("Latent map", classes="text-caption font-weight-bold", style="white-space: nowrap")
                 v3.VProgressCircular(v_if="projection_busy", indeterminate=True, size=14, width=2)
@@ -496,9 +503,18 @@ def distance_chart() -> None:
                 html.Div(classes="imm-cursor", style=("{left: (100 * frame / Math.max(1, num_frames - 1)) + '%'}",))
 
 
+# The map's tool bar upright in the figure's left margin (static/latent_map.js sets the margin and the orientation):
+# Plotly has no setting for where it goes, and at its top-right place it covered the legend.
+LATENT_CSS = """
+#latent-plotly .modebar-container { right: auto !important; left: 0; }
+#latent-plotly .modebar { right: auto; left: 2px; }
+"""
+
+
 def latent_map() -> None:
     """The Plotly figure (static/latent_map.js draws it from the state latent_panel.py writes): hover a point for its
     readout, click it to open and play it, zoom, pan, box or lasso select from the figure's own tool bar."""
+    client.Style(LATENT_CSS)
     with html.Div(style="flex: 1 1 auto; min-width: 0; position: relative", id="latent-plot"):
         html.Div(id="latent-plotly", style="position: absolute; inset: 0")
         html.Div("fitting the {{ projection === 'umap' ? 'UMAP' : 't-SNE' }} map (a few seconds; UMAP's first fit up to a minute)...",

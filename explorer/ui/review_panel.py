@@ -10,6 +10,9 @@ model's numbers in columns of their own, side by side.
   the feature distances, which need the fold's feature classifier (torch; trained once on a fresh clone), come last.
 - "Next worst" steps down the sorted column; a click on a row opens that sequence and plays it, as a click on the
   latent map does (under its own class, or under the mix when the table is of the mix).
+- Columns: as many models' column groups as fit the pane (the page measures it), chosen with chips; a model picked
+  beyond that replaces the longest-shown one, so the table never scrolls sideways unseen. Per class, the "all classes"
+  row stays first whatever the sort.
 
 The table is computed off the event loop (one worker thread, made on the first open) and only once the user opens the
 review. While it is open, a change of what it is computed from (models, labels, rows, seed, clean-up; the mix in
@@ -42,12 +45,20 @@ if TYPE_CHECKING:
 DEBOUNCE_S = 0.6  # a change recomputes an open table once the sliders have been still this long
 CHUNK_ROWS = 8  # followers per synthesis call: the table fills in this many rows at a time
 SPLITS = {"held": "held out", "all": "all"}
+# Each column's width in px (a cell's text is cut to it, whole on hover): the page fits as many model groups as these
+# widths allow (page_aids.js immWatchFit), so they must hold the headers ("reads as" and its sort arrow) too.
+CELL_PAD = 8  # a cell's padding, both sides
+FIXED_WIDTHS = {"sequence": 90, "class": 92}
+METRIC_WIDTHS = {"afd": 44, "feature_distance": 44, "asked_p": 84, "flags": 60}
+FIXED_PX = sum(FIXED_WIDTHS.values()) + CELL_PAD * len(FIXED_WIDTHS)
+MODEL_PX = sum(METRIC_WIDTHS.values()) + CELL_PAD * len(METRIC_WIDTHS)
 TABLE_CSS = """
 #review-table { --v-table-header-height: 24px; }
 #review-table th, #review-table td { padding: 0 4px !important; white-space: nowrap; font-size: 11.5px; height: 24px !important; }
 #review-table th { line-height: 1.1; }
+#review-table td > span { display: inline-block; overflow: hidden; text-overflow: ellipsis; vertical-align: bottom; }
 #review-table tr.review-summary td { font-weight: 600; }
-"""
+""" + "".join(f"#review-table .review-{key} > span {{ width: {px}px; }}\n" for key, px in {**FIXED_WIDTHS, **METRIC_WIDTHS}.items())
 
 # One model's columns: (metric, header, what the cell shows; None: the number with 3 decimals). Sorting is by the
 # metric (review.SORT_KEYS): for "reads as" the probability of the asked classes (lowest worst), for flags their count.
@@ -198,7 +209,8 @@ class ReviewPanel:
         self.rows: dict[int, dict[int, ReviewRow]] = {}  # model position -> dataset index -> row
         self.prefix = p = prefix
         self.names = {k: f"{p}_{k}" for k in ("rows", "sort_by", "current", "busy", "note", "error", "headers", "open",
-                                               "stale", "under", "progress", "labels", "split", "per")}
+                                               "stale", "under", "progress", "labels", "split", "per", "models", "shown", "fit")}
+        self._picks: list[int] = []  # the models whose columns the user picked, oldest pick first (none: as many as fit)
         self._shown: tuple | None = None  # the inputs' key of the table on the page (None: never computed)
         self._order: list[int] = []  # the rows' dataset indices, in the table's order of computation
         self._task = None
@@ -220,9 +232,14 @@ class ReviewPanel:
             n["labels"]: "match",
             n["split"]: "held",
             n["per"]: "sequence",  # or "class": one summary row per class
+            n["models"]: self.model_chips(),
+            n["shown"]: list(range(len(self.names_of_models))),  # the models whose columns the table shows
+            n["fit"]: None,  # how many model column groups the pane fits (the page measures it; None: not yet)
         })  # fmt: skip
         state.change(n["open"], n["labels"], n["split"])(self.on_choice_change)
         state.change(n["per"])(lambda **_: self.publish())
+        state.change(n["fit"])(lambda **_: self.show_columns())
+        page.trigger(f"{p}_columns_picked")(self.pick_columns)
         page.trigger(f"{p}_refresh_pressed")(lambda: self.schedule(0.0))
         page.trigger(f"{p}_next_worst_pressed")(page.guarded(self.next_worst))
         page.trigger(f"{p}_open_row")(page.guarded(self.open))
@@ -232,11 +249,15 @@ class ReviewPanel:
         return self.page.state
 
     def headers(self) -> list[dict]:
-        models = [{"title": self.page.session.model_title(name), "align": "center",
+        models = [{"title": self.page.session.model_title(name), "align": "center", "model": k,
                    "children": [{"title": title, "key": column_key(k, metric), "sortable": True} for metric, title in MODEL_COLUMNS]}
                   for k, name in enumerate(self.names_of_models)]
         return [{"title": "sequence", "key": "sequence_id", "sortable": True},
                 {"title": "class", "key": "class_name", "sortable": True}, *models]
+
+    def model_chips(self) -> list[dict]:
+        """The column chips: each model by the name `imm explore --model` gave it (short), its title on hover."""
+        return [{"value": k, "name": name, "title": self.page.session.model_title(name)} for k, name in enumerate(self.names_of_models)]
 
     def current_inputs(self) -> ReviewInputs:
         return self.inputs(self.state[self.names["labels"]] or "match", self.state[self.names["split"]] or "held")
@@ -293,6 +314,8 @@ class ReviewPanel:
             state[n["busy"]] = True
             state[n["error"]] = ""
             state[n["headers"]] = self.headers()
+            state[n["models"]] = self.model_chips()
+            self.show_columns()
             state[n["under"]] = self.under_text(inputs)
         followers: dict[int, dict[int, np.ndarray]] = {k: {} for k in self.rows}
         total, done, error = len(inputs.indices) * len(inputs.models), 0, ""
@@ -339,6 +362,7 @@ class ReviewPanel:
             groups = [(-1 - c, f"{display_name(data.class_names[c])}", [i for i in done if int(data.actions[i]) == c]) for c in classes]
             groups.append((-1 - len(data.class_names), "all classes", done))
             table = [{"index": key, "sequence_id": f"{len(members)} rows", "class_name": title, "summary": True,
+                      "pinned": title == "all classes",  # first in the table, whatever the sort
                       **{f"m{k}": summary_cells([rows[i] for i in members]) for k, rows in self.rows.items()}}
                      for key, title, members in groups]
         else:
@@ -358,6 +382,28 @@ class ReviewPanel:
         label = "each under its own class" if inputs.labels == "match" else f"all under {self.page.session.label_text()}"
         seeded = any(m.settings.seed for _, m in inputs.models)
         return f"{rows}, {label}{f' · seed {inputs.seed}' if seeded else ''}"
+
+    # ---- which models' columns show ---------------------------------------------------------------------------------------
+    def pick_columns(self, picked) -> None:
+        """The user picked models' column chips: the newest picks that fit the pane show."""
+        picked = [int(k) for k in picked or []]
+        self._picks = [k for k in self._picks if k in picked] + [k for k in picked if k not in self._picks]
+        self.show_columns()
+
+    def show_columns(self) -> None:
+        """The models whose columns show: the user's newest picks, or the first models, as many as fit the pane (all
+        while it is not measured); the sort moves to a shown model when its own is hidden."""
+        state, n = self.state, self.names
+        count = len(self.names_of_models)
+        fit = max(1, min(count, state[n["fit"]] or count))
+        picks = [k for k in self._picks if k < count]
+        shown = sorted(picks[-fit:]) if picks else list(range(fit))
+        if shown != state[n["shown"]]:
+            state[n["shown"]] = shown
+        model, metric = parse_sort_key((state[n["sort_by"]] or [{}])[0].get("key"), max(1, count))
+        if shown and model not in shown:
+            order = (state[n["sort_by"]] or [{}])[0].get("order", "desc")
+            state[n["sort_by"]] = [{"key": column_key(shown[0], metric), "order": order}]
 
     # ---- what the controls do -------------------------------------------------------------------------------------------
     def sort_key(self) -> tuple[int, str]:
@@ -407,31 +453,16 @@ def review_button() -> None:
 
 
 def review_overlay(n_models: int, panel_prefix: str = "review") -> None:
-    """The review, over the chart and the latent map (the 3D view, the playback bar and the side panel stay as they are)."""
+    """The review, under the 3D view (the layout's fold gives the view 400 px and the review the rest of the window; the
+    chart and the latent map follow below it)."""
     n = {k: f"{panel_prefix}_{k}" for k in ("rows", "sort_by", "current", "busy", "note", "error", "headers", "open",
-                                             "stale", "under", "progress", "labels", "split", "per")}
+                                             "stale", "under", "progress", "labels", "split", "per", "models", "shown", "fit")}
     p = panel_prefix
-    with v3.VCard(v_if=n["open"], id=f"{p}-panel", variant="outlined", classes="pa-1 imm-review-overlay"):
-        with html.Div(classes="d-flex align-center flex-wrap", style="gap: 6px; row-gap: 2px"):
-            html.Div("Review: ground truth vs synthesized", classes="text-caption font-weight-bold", style="white-space: nowrap")
-            v3.VProgressCircular(v_if=n["busy"], indeterminate=True, size=14, width=2, id=f"{p}-busy")
-            for key, items, ident in (("labels", (("own class", "match"), ("current mix", "mix")), "labels"),
-                                      ("split", (("held out", "held"), ("all", "all")), "split"),
-                                      ("per", (("per sequence", "sequence"), ("per class", "class")), "per")):
-                with v3.VBtnToggle(v_model=(n[key],), density="compact", mandatory=True, variant="outlined", divided=True,
-                                   id=f"{p}-{ident}"):
-                    for title, value in items:
-                        v3.VBtn(title, value=value, size="x-small")
-            v3.VSpacer()
-            v3.VBtn("Next worst", id=f"{p}-next-worst", size="x-small", variant="tonal", prepend_icon="mdi-arrow-down",
-                    disabled=(f"!{n['rows']}.length",), click=f"trigger('{p}_next_worst_pressed')")
-            v3.VBtn(icon="mdi-refresh", id=f"{p}-refresh", size="x-small", variant="text", title="compute again",
-                    disabled=(n["busy"],), click=f"trigger('{p}_refresh_pressed')")
-            v3.VBtn(icon="mdi-close", size="x-small", variant="text", title="close the review", click=f"{n['open']} = false",
-                    id=f"{p}-close")
-        with html.Div(classes="text-caption d-flex", style="gap: 8px; white-space: nowrap; overflow: hidden"):
+    with v3.VCard(v_if=n["open"], id=f"{p}-panel", variant="outlined", classes="pa-1 imm-review-panel"):
+        review_controls(n, p)
+        with html.Div(classes="text-caption d-flex align-center", style="gap: 8px; white-space: nowrap; overflow: hidden"):
             html.Span(f"{{{{ {n['under']} }}}}", classes="text-medium-emphasis", id=f"{p}-under",
-                      style="overflow: hidden; text-overflow: ellipsis")
+                      style="overflow: hidden; text-overflow: ellipsis; flex: 0 1 auto; min-width: 40px")
             html.Span(f"{{{{ {n['progress']} }}}}", v_if=f"{n['busy']} && {n['progress']}", id=f"{p}-progress")
             html.Span("computing...", v_if=f"{n['busy']} && !{n['progress']}")
             html.Span("what it is of changed: this table is of the previous choice", v_if=f"{n['stale']} && !{n['busy']}",
@@ -439,35 +470,92 @@ def review_overlay(n_models: int, panel_prefix: str = "review") -> None:
             html.Span(f"{{{{ {n['error']} }}}}", v_if=n["error"], id=f"{p}-error", classes="text-error",
                       style="overflow: hidden; text-overflow: ellipsis")
             html.Span(f"{{{{ {n['note']} }}}}", v_if=n["note"], id=f"{p}-note", classes="text-warning")
+            v3.VSpacer()
+            column_chips(n, p)
         with html.Div(style="flex: 1 1 auto; min-height: 0; position: relative"):
             review_table(n, p, n_models)
         client.Style(TABLE_CSS)
         # the current row in sight (static/page_aids.js), whichever way it became current
         client.ClientStateChange(value=n["current"], change=f"utils.get('immScrollIntoView')('#{p}-table tr.review-current')")
+        # how many model column groups the table's pane fits, measured again as it is resized (static/page_aids.js)
+        client.ClientTriggers(mounted=f"utils.get('immWatchFit')('#{p}-table .v-table__wrapper', {FIXED_PX}, {MODEL_PX}, '{n['fit']}')")
+
+
+def review_controls(n: dict[str, str], p: str) -> None:
+    """The review's first line: its title, what the rows are of, and its buttons."""
+    with html.Div(classes="d-flex align-center flex-wrap", style="gap: 6px; row-gap: 2px"):
+        html.Div("Review: ground truth vs synthesized", classes="text-caption font-weight-bold", style="white-space: nowrap")
+        v3.VProgressCircular(v_if=n["busy"], indeterminate=True, size=14, width=2, id=f"{p}-busy")
+        for key, items, ident in (("labels", (("own class", "match"), ("current mix", "mix")), "labels"),
+                                  ("split", (("held out", "held"), ("all", "all")), "split"),
+                                  ("per", (("per sequence", "sequence"), ("per class", "class")), "per")):
+            with v3.VBtnToggle(v_model=(n[key],), density="compact", mandatory=True, variant="outlined", divided=True,
+                               id=f"{p}-{ident}"):
+                for title, value in items:
+                    v3.VBtn(title, value=value, size="x-small")
+        v3.VSpacer()
+        # the chart and the map are below the review while it is open: one click brings them in
+        v3.VBtn("chart & map", id=f"{p}-to-cards", size="x-small", variant="text", prepend_icon="mdi-arrow-down",
+                click="utils.get('immScrollIntoView')('#chart-card')", title="the error chart and the latent map, below the review")
+        v3.VBtn("Next worst", id=f"{p}-next-worst", size="x-small", variant="tonal", prepend_icon="mdi-arrow-down",
+                disabled=(f"!{n['rows']}.length",), click=f"trigger('{p}_next_worst_pressed')")
+        v3.VBtn(icon="mdi-refresh", id=f"{p}-refresh", size="x-small", variant="text", title="compute again",
+                disabled=(n["busy"],), click=f"trigger('{p}_refresh_pressed')")
+        v3.VBtn(icon="mdi-close", size="x-small", variant="text", title="close the review", click=f"{n['open']} = false",
+                id=f"{p}-close")
+
+
+def column_chips(n: dict[str, str], p: str) -> None:
+    """Which models' columns the table shows, one chip a model (the server keeps as many as fit: pick_columns)."""
+    with html.Div(classes="d-flex align-center", style="gap: 4px; flex: 0 0 auto", id=f"{p}-columns"):
+        html.Span("columns:", classes="text-medium-emphasis")
+        with v3.VChipGroup(model_value=(n["shown"],), multiple=True, mandatory=True, color="primary",
+                           update_modelValue=f"trigger('{p}_columns_picked', [$event])", classes="py-0"):
+            v3.VChip("{{ m.name }}", v_for=f"m in {n['models']}", key=("m.value",), value=("m.value",), size="x-small",
+                     filter=True, variant="outlined", title=("m.title + ' · as many as fit show; a new pick replaces the oldest'",),
+                     classes="ma-0 mr-1 review-column-chip")
 
 
 def review_table(n: dict[str, str], p: str, n_models: int) -> None:
-    with v3.VDataTable(id=f"{p}-table", headers=(n["headers"],), items=(n["rows"],), item_value="index",
+    """The rows, in the shown models' columns; per class the "all classes" row is pinned first (body.prepend), out of
+    the sort."""
+    headers = f"{n['headers']}.filter((h) => h.model == null || {n['shown']}.includes(h.model))"
+    with v3.VDataTable(id=f"{p}-table", headers=(headers,), items=(f"{n['rows']}.filter((r) => !r.pinned)",), item_value="index",
                        sort_by=(n["sort_by"],), update_sortBy=f"{n['sort_by']} = $event", multi_sort=False,
                        must_sort=True, density="compact", items_per_page=("-1",), hover=True, fixed_header=True,
                        height="100%", hide_default_footer=True, style="position: absolute; inset: 0",
                        no_data_text=(f"{n['busy']} ? 'the first rows are on their way...' : 'no rows'",)):
         with v3.Template(raw_attrs=['v-slot:item="{ item }"']):
-            with html.Tr(click=f"trigger('{p}_open_row', [item.index])", raw_attrs=[':data-index="item.index"'],
-                         classes=(f"(item.summary ? 'review-summary' : 'review-row') + "
-                                  f"(item.index === {n['current']} ? ' bg-blue-lighten-4 review-current' : '')",),
-                         style="cursor: pointer", title=("item.summary ? 'open its worst sequence' : 'open and play'",)):
-                html.Td("{{ item.sequence_id }}", classes="text-caption")
-                html.Td("{{ item.class_name }}", classes="text-caption")
-                for k in range(n_models):
-                    m = f"item.m{k}"
-                    html.Td(f"{{{{ {m}.afd == null ? '–' : {m}.afd.toFixed(3) }}}}", classes=f"text-caption text-right review-m{k}-afd")
-                    html.Td(f"{{{{ {m}.feature_distance == null ? '–' : {m}.feature_distance.toFixed(2) }}}}",
-                            classes="text-caption text-right", title="distance to the real reaction in FID's feature space "
-                            "(1.0: as far as another real interaction of the class)")
-                    html.Td(f"{{{{ {m}.reads_as ? {m}.reads_as + ' ' + ({m}.reads_as_p * 100).toFixed(0) + '%' : "
-                            f"({m}.asked_p == null ? '' : 'asked ' + ({m}.asked_p * 100).toFixed(0) + '%') }}}}",
-                            classes="text-caption",
-                            title=(f"{m}.asked_p == null ? '' : 'P(asked) ' + ({m}.asked_p * 100).toFixed(0) + '%'",))
-                    html.Td(f"{{{{ {m}.flag_text }}}}", classes="text-caption text-error",
-                            title=(f"{m}.foot_skate_mps == null ? '' : 'foot skate ' + {m}.foot_skate_mps.toFixed(2) + ' m/s'",))
+            review_row(n, p, n_models)
+        with v3.Template(raw_attrs=["v-slot:body.prepend"]):
+            review_row(n, p, n_models, v_for=f"item in {n['rows']}.filter((r) => r.pinned)")
+
+
+def review_row(n: dict[str, str], p: str, n_models: int, v_for: str | None = None) -> None:
+    """One row of `item`: its sequence and class, then each shown model's numbers (cut to their column, whole on hover)."""
+    with html.Tr(v_for=v_for, key=("item.index",) if v_for else None, click=f"trigger('{p}_open_row', [item.index])",
+                 raw_attrs=[':data-index="item.index"'],
+                 classes=(f"(item.summary ? 'review-summary' : 'review-row') + (item.pinned ? ' review-pinned' : '') + "
+                          f"(item.index === {n['current']} ? ' bg-blue-lighten-4 review-current' : '')",),
+                 style="cursor: pointer", title=("item.summary ? 'open its worst sequence' : 'open and play'",)):
+        cell("{{ item.sequence_id }}", "review-sequence", title=("item.sequence_id",))
+        cell("{{ item.class_name }}", "review-class", title=("item.class_name",))
+        for k in range(n_models):
+            m, shown = f"item.m{k}", f"{n['shown']}.includes({k})"
+            cell(f"{{{{ {m}.afd == null ? '–' : {m}.afd.toFixed(3) }}}}", f"text-right review-afd review-m{k}-afd", v_if=shown)
+            cell(f"{{{{ {m}.feature_distance == null ? '–' : {m}.feature_distance.toFixed(2) }}}}",
+                 "text-right review-feature_distance", v_if=shown,
+                 title="distance to the real reaction in FID's feature space (1.0: as far as another real interaction of the class)")
+            reads = (f"{m}.reads_as ? {m}.reads_as + ' ' + ({m}.reads_as_p * 100).toFixed(0) + '%' : "
+                     f"({m}.asked_p == null ? '' : 'asked ' + ({m}.asked_p * 100).toFixed(0) + '%')")
+            cell(f"{{{{ {reads} }}}}", "review-asked_p", v_if=shown,
+                 title=(f"({reads}) + ({m}.asked_p == null ? '' : ' · P(asked) ' + ({m}.asked_p * 100).toFixed(0) + '%')",))
+            cell(f"{{{{ {m}.flag_text }}}}", "text-error review-flags", v_if=shown,
+                 title=(f"{m}.flag_text + ({m}.foot_skate_mps == null ? '' : (({m}.flag_text ? ' · ' : '') + "
+                        f"'foot skate ' + {m}.foot_skate_mps.toFixed(2) + ' m/s'))",))
+
+
+def cell(text: str, classes: str, **attrs) -> None:
+    """A table cell whose text is cut to its column's width (TABLE_CSS), the whole of it in the cell's title."""
+    with html.Td(classes=f"text-caption {classes}", **attrs):
+        html.Span(text)
