@@ -68,7 +68,7 @@
     if (mode === 'afd' && p.afd) {
       points = [group(p, 'AFD', all, {color: all.map((i) => p.afd[i]), colorscale: 'Viridis', showscale: true,
                                       symbol: symbols(all), line: {width: 2},
-                                      colorbar: {title: {text: 'AFD'}, thickness: 10, len: 0.9}})];
+                                      colorbar: COLORBAR})];
       points[0].showlegend = false;
     } else if (mode === 'held') {
       points = [group(p, 'seen in training', all.filter((i) => !p.held[i]), {color: '#78909c'}),
@@ -85,10 +85,17 @@
     ]);
   }
 
+  // The AFD colour bar shares the right-hand column with the legend (its two marks): the legend at the top, the bar
+  // under it, its title beside it rather than on top, where it sat on the "current mix" entry.
+  const COLORBAR = {title: {text: 'AFD', side: 'right'}, thickness: 10, len: 0.62, lenmode: 'fraction', y: 0, yanchor: 'bottom'};
+
+  // The tool bar stands upright in a left margin of its own (CSS in explorer/ui/layout.py moves it there): at the top
+  // right, Plotly's place for it, it covered the legend's first entries whenever the mouse was over the map.
   function layout(p) {
     const axis = {showticklabels: false, zeroline: false, showgrid: true, gridcolor: '#eee'};
-    return {uirevision: p.method, margin: {l: 8, r: 4, t: 4, b: 8}, hovermode: 'closest', dragmode: 'zoom', font: {size: 10},
-            xaxis: axis, yaxis: {...axis}, legend: {font: {size: 10}, itemsizing: 'constant'}, autosize: true};
+    return {uirevision: p.method, margin: {l: 30, r: 4, t: 4, b: 8}, hovermode: 'closest', dragmode: 'zoom', font: {size: 10},
+            xaxis: axis, yaxis: {...axis}, legend: {font: {size: 10}, itemsizing: 'constant', y: 1, yanchor: 'top'},
+            modebar: {orientation: 'v'}, autosize: true};
   }
 
   // Nothing on the map sends the figure anywhere: plotly.js v4 shows a "Share chart..." button (sendChartToCloud, an
@@ -96,7 +103,7 @@
   const CONFIG = {displaylogo: false, responsive: true, scrollZoom: true, showSendToCloud: false, showEditInChartStudio: false,
                   showLink: false, plotlyServerURL: '',
                   modeBarButtonsToRemove: ['toImage', 'sendChartToCloud', 'sendDataToCloud', 'editInChartStudio', 'autoScale2d',
-                                           'hoverClosestCartesian', 'hoverCompareCartesian']};
+                                           'hoverClosestCartesian', 'hoverCompareCartesian', 'zoomIn2d', 'zoomOut2d']};  // the wheel zooms
 
   function listen(el) {
     el.on('plotly_click', (e) => {
