@@ -430,6 +430,9 @@ def test_evaluation_reports_a_stochastic_models_variations_and_mixed_readings(ti
     assert v["real_class_diversity"] > 0 < v["real_same_leader_diversity"]
     rows = result["mix_parts"]
     assert len(rows) == 15 and all(max(r["whole"], r["parts"]) <= r["mixed"] <= r["whole"] + r["parts"] + 1e-9 for r in rows)
+    # the whole-body judge's reading of real mixed motion, held-out part composites: a share, on every pair (s04 holds
+    # followers of every class)
+    assert all(0 <= r["real_whole"] <= 1 for r in rows)
     assert 0 <= result["avoid_judge"]["share_lowered"] <= 1
     gan = evaluate_fold(ReactionModel.load(SAMPLE_GAN), sample_data, "s04",
                         EvalOptions(baselines=("nn1",), progress=False, **judges))

@@ -62,10 +62,13 @@ def mix_table(judge: Judge, num_leaders: int, class_names: tuple[str, ...]) -> l
 PART_SHARE = 0.4  # a body-part judge's probability at which that part reads as a class
 
 
-def part_mix_table(whole: Judge, upper: Judge, lower: Judge, num_leaders: int, class_names: tuple[str, ...]) -> list[dict]:
+def part_mix_table(whole: Judge, upper: Judge, lower: Judge, num_leaders: int, class_names: tuple[str, ...],
+                   held_out_real: np.ndarray | None = None) -> list[dict]:
     """One row per pair of classes at +1 each: the share of leaders whose reaction reads as mixed, by the whole-body
     judge (each member at MIX_SHARE or more), by the body-part judges (one member on the trunk and arms, the other on the
-    legs and placement, each at PART_SHARE or more), and by either."""
+    legs and placement, each at PART_SHARE or more), and by either; with `held_out_real` (C, C), "real_whole": the
+    share of part composites of held-out followers (each member on the trunk and arms in turn) that the whole-body
+    judge reads so, the only real mixed motion there is."""
     rows = []
     for i, j in combinations(range(len(class_names)), 2):
         labels = np.zeros((num_leaders, len(class_names)), np.float32)
@@ -74,7 +77,8 @@ def part_mix_table(whole: Judge, upper: Judge, lower: Judge, num_leaders: int, c
         by_whole = (p[:, i] >= MIX_SHARE) & (p[:, j] >= MIX_SHARE)
         by_parts = ((pu[:, i] >= PART_SHARE) & (pl[:, j] >= PART_SHARE)) | ((pu[:, j] >= PART_SHARE) & (pl[:, i] >= PART_SHARE))
         rows.append({"pair": [class_names[i], class_names[j]], "whole": float(by_whole.mean()), "parts": float(by_parts.mean()),
-                     "mixed": float((by_whole | by_parts).mean())})
+                     "mixed": float((by_whole | by_parts).mean())}
+                    | ({} if held_out_real is None else {"real_whole": float(np.nanmean([held_out_real[i, j], held_out_real[j, i]]))}))
     return rows
 
 

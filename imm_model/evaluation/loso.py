@@ -178,7 +178,7 @@ def label_control(model, data: InteractionDataset, judges: FoldJudges) -> dict:
     def lower(labels: np.ndarray) -> np.ndarray:
         return judges.part_view("lower", followers(labels))
 
-    out["mix_parts"] = control.part_mix_table(whole, upper, lower, len(y), data.class_names)
+    out["mix_parts"] = control.part_mix_table(whole, upper, lower, len(y), data.class_names, held_out_mix_readings(data, judges))
     reals = [data.canonical(int(i))[1] for i in judges.test]
     out["part_realism"] = control.part_realism(upper, lower, y, judges.part_view("upper", reals), judges.part_view("lower", reals),
                                                data.class_names)
@@ -209,24 +209,47 @@ def real_part_readings(data: InteractionDataset, judges: FoldJudges) -> np.ndarr
     return reads
 
 
-def held_out_part_readings(data: InteractionDataset, judges: FoldJudges) -> np.ndarray:
-    """(C, C): for each ordered pair of classes, the share of part composites of held-out followers that read as asked
-    to the body-part judges (each at PART_SHARE or more): every test follower of class a's trunk and arms (resampled
-    to the length of the other) on every test follower of class b's legs and placement, motion no judge was trained
-    on: the reference a model's part mixes are compared with."""
+def held_out_composites(data: InteractionDataset, judges: FoldJudges):
+    """For each ordered pair of classes (a, b): (a, b, leaders, composites), every test follower of class a's trunk
+    and arms (resampled to the length of the other) on every test follower of class b's legs and placement, beside the
+    leader the second answered: motion no judge was trained on."""
     from imm_model.data.sequence import resample
     from imm_model.model.body_parts import compose_parts, part_indices
 
     c = len(data.class_names)
-    followers = [[data.canonical(int(i))[1] for i in judges.test if data.actions[i] == k] for k in range(c)]
+    pairs = [[data.canonical(int(i)) for i in judges.test if data.actions[i] == k] for k in range(c)]
     upper_joints, _, centre = part_indices(data.skeleton)
-    shares = np.full((c, c), np.nan)
     for a, b in permutations(range(c), 2):
-        composites = [compose_parts(resample(fa, len(fb))[None], fb[None], upper_joints, centre)[0]
-                      for fa in followers[a] for fb in followers[b]]
+        combos = [(lb, compose_parts(resample(fa, len(fb))[None], fb[None], upper_joints, centre)[0])
+                  for _, fa in pairs[a] for lb, fb in pairs[b]]
+        yield a, b, [lb for lb, _ in combos], [f for _, f in combos]
+
+
+def held_out_part_readings(data: InteractionDataset, judges: FoldJudges) -> np.ndarray:
+    """(C, C): for each ordered pair of classes, the share of part composites of held-out followers
+    (`held_out_composites`) that read as asked to the body-part judges (each at PART_SHARE or more): the reference a
+    model's part mixes are compared with."""
+    c = len(data.class_names)
+    shares = np.full((c, c), np.nan)
+    for a, b, _, composites in held_out_composites(data, judges):
         if composites:
             pu, pl = judges.part_view("upper", composites), judges.part_view("lower", composites)
             shares[a, b] = float(((pu[:, a] >= control.PART_SHARE) & (pl[:, b] >= control.PART_SHARE)).mean())
+    return shares
+
+
+def held_out_mix_readings(data: InteractionDataset, judges: FoldJudges) -> np.ndarray:
+    """(C, C): for each ordered pair of classes, the share of part composites of held-out followers
+    (`held_out_composites`) that the whole-body judge reads as both classes (each at MIX_SHARE or more), beside the
+    leader the legs answered: the reference a model's whole-body mixes are compared with."""
+    from imm_model.reads_as import MIX_SHARE
+
+    c = len(data.class_names)
+    shares = np.full((c, c), np.nan)
+    for a, b, leaders, composites in held_out_composites(data, judges):
+        if composites:
+            p = classifiers.classify(judges.judge, classifiers.motion_inputs(leaders, composites, "follower"))[0]
+            shares[a, b] = float(((p[:, a] >= MIX_SHARE) & (p[:, b] >= MIX_SHARE)).mean())
     return shares
 
 

@@ -81,11 +81,15 @@ def part_mix_table(group: dict) -> str:
     by either (evaluation/control.py); empty for results recorded without them."""
     if "mix_parts" not in group:
         return ""
-    lines = ["| mix (+1 each) | whole body (each >= 0.25) | body parts (one each, >= 0.4) | mixed (either) |", "|---|---:|---:|---:|"]
-    for r in group["mix_parts"]:
-        lines.append(f"| {r['pair'][0]} + {r['pair'][1]} | {r['whole']:.2f} | {r['parts']:.2f} | {r['mixed']:.2f} |")
-    lines.append(f"| **mean** | {np.mean([r['whole'] for r in group['mix_parts']]):.2f} | "
-                 f"{np.mean([r['parts'] for r in group['mix_parts']]):.2f} | **{group['mix_mixed_mean']:.2f}** |")
+    rows = group["mix_parts"]
+    real = all("real_whole" in r for r in rows)
+    lines = ["| mix (+1 each) | whole body (each >= 0.25) | body parts (one each, >= 0.4) | mixed (either) |"
+             + (" held-out part composites, whole body |" if real else ""), "|---|---:|---:|---:|" + ("---:|" if real else "")]
+    for r in rows:
+        lines.append(f"| {r['pair'][0]} + {r['pair'][1]} | {r['whole']:.2f} | {r['parts']:.2f} | {r['mixed']:.2f} |"
+                     + (f" {r['real_whole']:.2f} |" if real else ""))
+    lines.append(f"| **mean** | {np.mean([r['whole'] for r in rows]):.2f} | {np.mean([r['parts'] for r in rows]):.2f} | "
+                 f"**{group['mix_mixed_mean']:.2f}** |" + (f" {np.nanmean([r['real_whole'] for r in rows]):.2f} |" if real else ""))
     return "\n".join(lines)
 
 
