@@ -1,5 +1,7 @@
 """What the studio's Export menu and screenshot button hand to the browser: the reaction as .npz or .bvh, the
-animation as .gif or .mp4, the current 3D view as .png. Each is also saved into --export-dir.
+animation as .gif or .mp4, the current 3D view as .png. Each is also saved into --export-dir. Pictures and videos
+come at the view's size or at a size picked in the menu (EXPORT_SIZES), whatever the window: a slide wants 1920x1080
+from a laptop's 1000 px wide view.
 
 Pictures and video frames carry a strip naming the figures, the mix, the model, the sequence and the frame
 (explorer/rendering/annotation.py), which the page shows around the view and a picture on its own would lose.
@@ -19,6 +21,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from trame.widgets import html
+from trame.widgets import vuetify3 as v3
 
 from explorer.rendering.palette import CHARACTER_TITLES, PINNED, WARNING, display_name
 from explorer.rendering.palette import CHARACTERS as CHARACTER_COLORS
@@ -35,6 +39,7 @@ CHARACTERS = ("follower", "leader")
 VIDEO_FORMATS = ("gif", "mp4")
 EXPORTS_PER_MINUTE = 20  # a user clicking Export is far below it
 SAVED_BYTES = 500 * 1024 * 1024  # past it, a tab's exports are downloads only (a long sequence's video is ~30 MB)
+EXPORT_SIZES = {"view size": None, "1280x720": (1280, 720), "1920x1080": (1920, 1080)}  # (width, height) of pictures
 
 
 class Exports:
@@ -43,6 +48,7 @@ class Exports:
         self.page, self.scene, self.export_dir, self.attach = page, scene, Path(export_dir), attach
         self.recent: deque[float] = deque()  # time.monotonic() of this tab's exports in the last minute
         self.saved = 0  # bytes this tab saved into export_dir
+        page.state.export_size = next(iter(EXPORT_SIZES))  # the menu's choice; the page sends it with each export
         for name in ("export_npz", "export_bvh", "export_video", "export_png"):
             page.trigger(name)(page.guarded(self._rate_limited(getattr(self, name))))
 
@@ -83,21 +89,22 @@ class Exports:
         data = self.session.files.bvh(character)
         return self._send(self.session.files.name("bvh").replace(".bvh", f".{character}.bvh"), data)
 
-    def export_png(self):
-        """The 3D view as the user sees it now (the server renders it; no browser canvas needed)."""
+    def export_png(self, size: str = "view size"):
+        """The 3D view as the user sees it now, at `size` (an EXPORT_SIZES key; the server renders it, no browser canvas
+        needed)."""
         import imageio.v3 as iio
 
-        image = self._annotator(every_frame=False)(screenshot(self.scene), self.scene.frame)
+        image = self._annotator(every_frame=False)(screenshot(self.scene, picture_size(size)), self.scene.frame)
         return self._send(self.session.files.name("png"), iio.imwrite("<bytes>", image, extension=".png"))
 
-    def export_video(self, fmt: str = "gif"):
+    def export_video(self, fmt: str = "gif", size: str = "view size"):
         import imageio.v3 as iio
 
         if fmt not in VIDEO_FORMATS:
             raise ValueError(f"unknown video format {fmt!r}: {' or '.join(VIDEO_FORMATS)}")
 
         annotate = self._annotator(every_frame=True)
-        images = [annotate(im, f) for f, im in enumerate(frames(self.scene))]
+        images = [annotate(im, f) for f, im in enumerate(frames(self.scene, size=picture_size(size)))]
         self.page.ctrl.view_update()
         if fmt == "mp4":
             images = [im[: im.shape[0] // 2 * 2, : im.shape[1] // 2 * 2] for im in images]  # even sizes for yuv420p
@@ -141,6 +148,13 @@ class Exports:
             state.notice = f"download only (could not save a copy: {one_line(err)})"
 
 
+def picture_size(name: str) -> tuple[int, int] | None:
+    """An EXPORT_SIZES key -> (width, height), None for the view's size; ValueError, one line, for another name."""
+    if name not in EXPORT_SIZES:
+        raise ValueError(f"unknown export size {str(name)[:20]!r}: {', '.join(EXPORT_SIZES)}")
+    return EXPORT_SIZES[name]
+
+
 def mix_text(label: Label) -> str:
     """The mix as the page's sliders write it: 'kicking +1.00, hugging +0.50 · scale 1.00'; a mix per body part by its
     part keys: 'upper:shaking_hands=1,lower:pushing=-1 · scale 1.00'."""
@@ -175,3 +189,43 @@ def gif_delays(frames: int) -> list[int]:
     on average."""
     step = 1000.0 / FPS
     return [int(round(step * (k + 1), -1) - round(step * k, -1)) for k in range(frames)]
+
+
+# ---- the page's controls ----------------------------------------------------------------------
+def download(ext: str, trigger: str, mime: str) -> str:
+    """A click that downloads what `trigger` (with its arguments, a JavaScript list) returns, named as the server's copy
+    (the sequence and the mix: Exports.file_stem)."""
+    return f"utils.download(export_stem + '{ext}', trigger({trigger}), '{mime}')"
+
+
+def export_menu() -> None:
+    """The Export menu: the pictures' size, then the files."""
+    with v3.VMenu():
+        with v3.Template(v_slot_activator="{ props }"):
+            v3.VBtn("Export", v_bind="props", size="small", variant="tonal", prepend_icon="mdi-download", classes="ml-2",
+                    id="export-menu")
+        with v3.VList(density="compact"):
+            # a click on a size keeps the menu open (the export to make follows); one on a file closes it
+            with html.Div(classes="d-flex align-center px-4 pb-1", style="gap: 8px", raw_attrs=["@click.stop"],
+                          title="pictures and animations at this size, whatever the window"):
+                html.Div("size", classes="text-body-2")
+                with v3.VBtnToggle(v_model=("export_size",), density="compact", mandatory=True, variant="outlined",
+                                   divided=True, id="export-size"):
+                    for name in EXPORT_SIZES:
+                        v3.VBtn(name, value=name, size="x-small")
+            v3.VListItem(title="Interaction: leader, follower, label (.npz)", id="export-npz",
+                         click=download(".npz", "'export_npz'", "application/octet-stream"))
+            for character in CHARACTERS:
+                v3.VListItem(title=f"{'Synthesized follower' if character == 'follower' else 'Leader'} (.bvh)",
+                             classes=f"export-bvh-{character}",
+                             click=download(f".{character}.bvh", f"'export_bvh', ['{character}']", "text/plain"))
+            v3.VListItem(title="Picture (.png)", id="export-png", click=download(".png", "'export_png', [export_size]", "image/png"))
+            v3.VListItem(title="Animation (.gif)", id="export-gif",
+                         click=download(".gif", "'export_video', ['gif', export_size]", "image/gif"))
+            v3.VListItem(title="Animation (.mp4)", id="export-mp4",
+                         click=download(".mp4", "'export_video', ['mp4', export_size]", "video/mp4"))
+
+
+def screenshot_button() -> None:
+    v3.VBtn(icon="mdi-camera", size="small", variant="text", title="Save the 3D view as a picture (.png), at the size the menu picks",
+            id="screenshot", click=download(".png", "'export_png', [export_size]", "image/png"))

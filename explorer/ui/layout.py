@@ -23,6 +23,7 @@ from explorer.rendering.view_stream import ViewStream
 if TYPE_CHECKING:
     from explorer.rendering.scene import Scene
     from explorer.session.session import Session
+from explorer.ui.exports import export_menu, screenshot_button
 from explorer.ui.keys import KEY_HELP, LISTENER_JS
 from explorer.ui.model_switch import model_chip, model_panel
 from explorer.ui.reads_as_panel import reads_as_panel
@@ -176,29 +177,8 @@ def toolbar(page: LayoutParts) -> None:
             click=(page.ctrl.set_camera, f"['{preset}']"),
             id=f"camera-{preset}",
         )
-    with v3.VMenu():
-        with v3.Template(v_slot_activator="{ props }"):
-            v3.VBtn("Export", v_bind="props", size="small", variant="tonal", prepend_icon="mdi-download", classes="ml-2",
-                    id="export-menu")
-        with v3.VList(density="compact"):
-            # downloads are named as the server's copies: the sequence and the mix (explorer/ui/exports.py file_stem)
-            v3.VListItem(
-                title="Interaction: leader, follower, label (.npz)",
-                click="utils.download(export_stem + '.npz', trigger('export_npz'), 'application/octet-stream')",
-                id="export-npz",
-            )
-            for character in ("follower", "leader"):
-                v3.VListItem(
-                    title=f"{'Synthesized follower' if character == 'follower' else 'Leader'} (.bvh)",
-                    click=f"utils.download(export_stem + '.{character}.bvh', trigger('export_bvh', ['{character}']), 'text/plain')",
-                    classes=f"export-bvh-{character}",
-                )
-            v3.VListItem(title="Animation (.gif)", id="export-gif",
-                         click="utils.download(export_stem + '.gif', trigger('export_video', ['gif']), 'image/gif')")
-            v3.VListItem(title="Animation (.mp4)", id="export-mp4",
-                         click="utils.download(export_stem + '.mp4', trigger('export_video', ['mp4']), 'video/mp4')")
-    v3.VBtn(icon="mdi-camera", size="small", variant="text", title="Save the 3D view as a picture (.png)", id="screenshot",
-            click="utils.download(export_stem + '.png', trigger('export_png'), 'image/png')")
+    export_menu()
+    screenshot_button()
     share_link()
     v3.VBtn(icon="mdi-keyboard-outline", size="small", variant="text", title="Keyboard shortcuts (?)", click="show_keys = true")
 
@@ -417,8 +397,58 @@ def per_frame():
     return v3.VDefaultsProvider()
 
 
+# The loop range and the contact frames drawn over the frame slider's track, which Vuetify insets 8 px from each side.
+TIMELINE_CSS = f"""
+.imm-timeline {{ flex: 1 1 auto; position: relative; min-width: 0; align-self: stretch; display: flex; align-items: center; }}
+.imm-timeline-marks {{ position: absolute; left: 8px; right: 8px; top: 0; bottom: 0; pointer-events: none; }}
+.imm-loop-span {{ position: absolute; top: calc(50% - 8px); height: 16px; background: rgba(var(--v-theme-primary), .18);
+                  border: solid rgb(var(--v-theme-primary)); border-width: 0 2px; }}
+.imm-loop-span > span {{ position: absolute; top: 15px; font-size: 10px; line-height: 11px; color: rgb(var(--v-theme-primary)); }}
+.imm-loop-span > .imm-loop-in {{ right: calc(100% - 2px); }}
+.imm-loop-span > .imm-loop-out {{ left: calc(100% - 2px); }}
+.imm-contact-tick {{ position: absolute; top: calc(50% - 18px); width: 10px; height: 8px; margin-left: -5px; cursor: pointer;
+                     background: {WARNING}; clip-path: polygon(0 0, 100% 0, 50% 100%); pointer-events: auto; }}
+"""
+AT_FRAME = "(100 * ({}) / Math.max(1, num_frames - 1)) + '%'"  # a frame's place along the track
+
+
+def timeline() -> None:
+    """The frame slider, with the loop range on its track (a span, its first and last frame numbered as the time
+    is) and the frames of contact as ticks above it (a click seeks there)."""
+    client.Style(TIMELINE_CSS)
+    with html.Div(classes="imm-timeline", id="timeline"):
+        with per_frame():
+            v3.VSlider(
+                v_model=("frame",),
+                min=0,
+                max=("num_frames - 1",),
+                step=1,
+                hide_details=True,
+                density="compact",
+                id="frame-slider",
+            )
+        with html.Div(classes="imm-timeline-marks"):
+            with html.Div(v_if="loop_range.length === 2", classes="imm-loop-span", id="loop-span",
+                          style=(f"{{left: {AT_FRAME.format('loop_range[0]')}, "
+                                 f"width: {AT_FRAME.format('loop_range[1] - loop_range[0]')}}}",)):
+                html.Span("{{ loop_range[0] + 1 }}", classes="imm-loop-in")
+                html.Span("{{ loop_range[1] + 1 }}", classes="imm-loop-out")
+            html.Div(v_for="m in contact_marks", key=("m",), classes="imm-contact-tick", click="frame = m",
+                     style=(f"{{left: {AT_FRAME.format('m')}}}",), title=("'contact: the bodies closest at frame ' + (m + 1)",))
+
+
+def loop_range_buttons(page: LayoutParts) -> None:
+    """The loop range's in and out at the frame shown (keys [ and ]), and a clear back to the whole take."""
+    for end, icon, what in (("in", "mdi-contain-start", "loop from this frame ([)"),
+                            ("out", "mdi-contain-end", "loop up to this frame (])")):
+        v3.VBtn(icon=icon, size="small", density="comfortable", variant="text", title=what, id=f"loop-{end}",
+                click=page.ctrl.set_loop_in if end == "in" else page.ctrl.set_loop_out)
+    v3.VBtn(icon="mdi-close", v_if="loop_range.length", size="x-small", density="comfortable", variant="text",
+            title="clear the loop range: the whole take", id="loop-clear", click=page.ctrl.clear_loop)
+
+
 def playback_bar(page: LayoutParts) -> None:
-    """Play/pause, step, the frame slider, time, speed and loop."""
+    """Play/pause, step, the frame slider and its loop range, time, speed and loop."""
     with html.Div(classes="d-flex align-center", style="width: 100%; gap: 8px; flex: 0 0 auto"):
         v3.VBtn(icon="mdi-skip-previous", size="small", variant="text", click=(page.ctrl.step_frame, "[-1]"))
         v3.VBtn(
@@ -429,17 +459,8 @@ def playback_bar(page: LayoutParts) -> None:
             id="play-button",
         )
         v3.VBtn(icon="mdi-skip-next", size="small", variant="text", click=(page.ctrl.step_frame, "[1]"))
+        timeline()
         with per_frame():
-            v3.VSlider(
-                v_model=("frame",),
-                min=0,
-                max=("num_frames - 1",),
-                step=1,
-                hide_details=True,
-                density="compact",
-                id="frame-slider",
-                style="flex: 1 1 auto",
-            )
             html.Div("{{ time_text }}", classes="text-caption", style="width: 190px", id="time-text")
         v3.VSelect(
             v_model=("speed",),
@@ -450,6 +471,7 @@ def playback_bar(page: LayoutParts) -> None:
             variant="outlined",
             id="speed-select",
         )
+        loop_range_buttons(page)
         v3.VCheckbox(v_model=("loop",), label="loop", density="compact", hide_details=True, style="flex: 0 0 auto")
         v3.VCheckbox(v_model=("live",), label="live", density="compact", hide_details=True, style="flex: 0 0 auto",
                      disabled=("!can_go_live",), id="live-toggle",
