@@ -227,3 +227,16 @@ def shot(page, name: str) -> Path:
     path = ARTIFACTS / f"{name}.png"
     page.screenshot(path=str(path))
     return path
+
+
+def watch_frames(page) -> None:
+    """Record every frame the page's state shows from now on (window.__immFrames, sampled each 5 ms: a frame is shown
+    for 33 ms or more), so a test can judge the frames playback went through."""
+    page.evaluate("""() => { clearInterval(window.__immFrameWatch); window.__immFrames = [];
+        window.__immFrameWatch = setInterval(() => { const f = window.trame.state.get('frame'), seen = window.__immFrames;
+            if (seen[seen.length - 1] !== f) seen.push(f); }, 5); }""")
+
+
+def frames_seen(page, stop: bool = False) -> list[int]:
+    """The frames recorded since watch_frames, in order, each change once; `stop`: and stop recording."""
+    return page.evaluate("(stop) => { if (stop) clearInterval(window.__immFrameWatch); return window.__immFrames; }", stop)

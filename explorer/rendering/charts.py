@@ -16,7 +16,7 @@ from html import escape
 
 import numpy as np
 
-from explorer.rendering.palette import PINNED, SYNTHESIZED, WARNING
+from explorer.rendering.palette import GROUND_TRUTH, LEADER, PINNED, SYNTHESIZED, WARNING
 from imm_model.evaluation.plausibility import PENETRATION_M
 
 DISTANCE_BOX = "left: 52px; right: 12px; top: 24px; bottom: 34px"  # plot area of the distance chart
@@ -72,11 +72,31 @@ def distance_chart(distances: np.ndarray, fps: float, ab: np.ndarray | None = No
                    closest: np.ndarray | None = None) -> str:
     """Ground truth vs synthesized per frame; with `ab` (a pinned mix), pinned vs current; with `closest`, the
     closest limb distance between leader and follower, and the interpenetrating frames shaded."""
-    series = [(np.asarray(v), color, key, name, dash) for v, color, key, name, dash in (
+    series = [(v, color, key, name, dash) for v, color, key, name, dash in (
         (distances, SYNTHESIZED, "truth", "ground truth ↔ current", ""),
         (ab, PINNED, "pinned", "pinned ↔ current", "6 4"),
         (closest, WARNING, "closest", "closest limbs, leader ↔ follower", "2 3"),
     ) if v is not None and len(v)]  # fmt: skip
+    return line_chart(series, fps, "metres", penetration_ranges(closest if closest is not None else []))
+
+
+# a picked joint quantity's lines (explorer/session/joint_plot.py series): colour, name and dash by whose it is
+JOINT_LINES = {
+    "follower": (SYNTHESIZED, "synthesized follower", ""),
+    "truth": (GROUND_TRUTH, "ground truth", "6 4"),
+    "leader": (LEADER, "leader", ""),
+}
+
+
+def joint_chart(series: dict[str, np.ndarray], fps: float, unit: str) -> str:
+    """A picked quantity of joints per frame: the synthesized follower's line, and the ground truth's dashed."""
+    return line_chart([(v, JOINT_LINES[k][0], k, *JOINT_LINES[k][1:]) for k, v in series.items()], fps, unit)
+
+
+def line_chart(series: list, fps: float, unit: str, shaded: list[tuple[int, int]] = ()) -> str:
+    """Lines per frame, each (values, color, key, name, dash), on one y axis in `unit` from 0, and the `shaded`
+    runs of frames [(first, last)]; a legend when there is more than one line."""
+    series = [(np.asarray(v), *rest) for v, *rest in series]
     n = max([len(v) for v, *_ in series], default=1)
     top = max([float(np.max(v)) for v, *_ in series] + [1e-3]) * 1.05
     y_ticks = nice_ticks(top)
@@ -84,7 +104,7 @@ def distance_chart(distances: np.ndarray, fps: float, ab: np.ndarray | None = No
     width = 1000 / max(1, n - 1)  # one frame in viewBox units
 
     svg = [f'<rect class="penetration" x="{(a - 0.5) * width:.1f}" width="{(b - a + 1) * width:.1f}" y="0" height="1000"'
-           f' fill="{WARNING}" opacity="0.18"/>' for a, b in penetration_ranges(closest if closest is not None else [])]
+           f' fill="{WARNING}" opacity="0.18"/>' for a, b in shaded]
     svg += [f'<line x1="0" x2="1000" y1="{1000 - 1000 * t / top:.1f}" y2="{1000 - 1000 * t / top:.1f}" stroke="#e6e6e6"'
             ' vector-effect="non-scaling-stroke"/>' for t in y_ticks]
     svg += [_polyline(v, lambda i: i * width, top, color, key, dash) for v, color, key, _, dash in series]
@@ -95,4 +115,14 @@ def distance_chart(distances: np.ndarray, fps: float, ab: np.ndarray | None = No
     return (f'<div class="imm-chart"><div class="imm-legend" style="left: 52px; top: 2px">{legend}</div>'
             f'<div class="imm-plot" style="{DISTANCE_BOX}">'
             f'<svg viewBox="0 0 1000 1000" preserveAspectRatio="none">{"".join(svg)}</svg>{"".join(labels)}</div>'
-            f'<div class="imm-axis-x">frame ({fps:g} fps)</div><div class="imm-axis-y">metres</div></div>')
+            f'<div class="imm-axis-x">frame ({fps:g} fps)</div><div class="imm-axis-y">{escape(unit)}</div></div>')
+
+
+def contact_frames(closest: np.ndarray) -> list[int]:
+    """The frames where the bodies come closest, marked on the timeline: in each run of interpenetrating frames the
+    closest one, or the one closest frame of a take where they never interpenetrate."""
+    closest = np.asarray(closest)
+    if not len(closest):
+        return []
+    runs = penetration_ranges(closest) or [(0, len(closest) - 1)]
+    return [a + int(np.argmin(closest[a : b + 1])) for a, b in runs]

@@ -14,11 +14,11 @@ import numpy as np
 from explorer.rendering import charts
 from explorer.rendering.palette import class_color, display_name
 from explorer.rendering.scene import Scene, floor_height
-from explorer.session.files import FPS
 from explorer.session.latent import LatentMap
 from explorer.session.session import Session
 from explorer.session.words import one_line
 from explorer.trame_adapter import attachment
+from explorer.ui.chart_panel import ChartPanel
 from explorer.ui.compare import Compare
 from explorer.ui.exports import Exports
 from explorer.ui.keys import press
@@ -27,7 +27,7 @@ from explorer.ui.latent_panel import LatentPanel
 from explorer.ui.layout import LayoutParts, build_layout
 from explorer.ui.model_switch import ModelSwitch
 from explorer.ui.panel_api import Page
-from explorer.ui.playback import PLAYBACK_SCALE
+from explorer.ui.playback import PLAYBACK_SCALE, LoopRange
 from explorer.ui.reads_as_panel import part_rows, reads_as_rows, unread_note
 from explorer.ui.review_panel import ReviewPanel
 from explorer.ui.sequence_picker import SequencePicker
@@ -53,6 +53,7 @@ class Studio:
         self._init_state()
         self.update_review = self.guarded(self._update_review)
         self.viewer = Viewer(page, self.scene, write_url=self.write_url, update_review=self.update_review)
+        self.chart, self.loop_range = ChartPanel(page, write_url=self.write_url), LoopRange(page)
         self.model_switch = ModelSwitch(page, self.scene, show_review=self.show_review)
         self.mixer = LabelMixer(page, self.scene, self.model_switch, update_review=self.update_review)
         self.picker = SequencePicker(page, self.scene, self.model_switch, write_label_state=self.mixer.write_state,
@@ -194,7 +195,7 @@ class Studio:
         s.afd_text = ("uploaded leader: no ground truth to compare with, so no error line (the chart shows contact only)" if afd is None
                       else f"AFD {afd:.3f} (SBU units) · joints {self._distances.mean():.2f} m apart on average")
         self.viewer.update_time()
-        s.distance_chart = charts.distance_chart(self._distances, FPS, self._ab_distances, self._closest)
+        self.chart.draw(self._distances, self._ab_distances, self._closest)
         self.latent_panel.redraw()
         self.review.follow()
         s.export_stem = self.exports.file_stem()

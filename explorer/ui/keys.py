@@ -10,6 +10,8 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
+from explorer.session.loop_range import with_end
+
 if TYPE_CHECKING:
     from explorer.session.session import Session
 
@@ -20,13 +22,14 @@ KEY_HELP = (
     ("space", "play / pause"),
     ("← →", "previous / next frame"),
     ("Home End", "first / last frame"),
+    ("[ ]", "loop range: in / out at this frame"),
     ("M", "match: the sequence's own class at +1"),
     ("R", "reset every slider to 0"),
     ("1 … 6", "select a class slider"),
     ("↑ ↓", f"move the selected slider by {SLIDER_STEP}"),
     ("?", "show or hide these keys"),
 )
-KEYS = (" ", "ArrowLeft", "ArrowRight", "Home", "End", "m", "M", "r", "R", "ArrowUp", "ArrowDown", "?", *map(str, range(1, 10)))
+KEYS = (" ", "ArrowLeft", "ArrowRight", "Home", "End", "[", "]", "m", "M", "r", "R", "ArrowUp", "ArrowDown", "?", *map(str, range(1, 10)))
 
 # One JS expression (trame templates take expressions, inside a double-quoted HTML attribute: single quotes only):
 # ignore keys typed into text fields, sliders and open menus, keep the browser's own use of the handled keys out of
@@ -66,6 +69,8 @@ def press(studio: KeyTarget, key: str) -> None:
     elif key in frames:
         s.playing = False
         s.frame = int(np.clip(frames[key], 0, n - 1))
+    elif key in ("[", "]"):
+        s.loop_range = with_end(s.loop_range, "in" if key == "[" else "out", int(s.frame or 0), n)
     elif key in ("m", "M"):
         studio.match_label()
     elif key in ("r", "R"):

@@ -426,6 +426,7 @@ def timeline() -> None:
                 hide_details=True,
                 density="compact",
                 id="frame-slider",
+                style="flex: 1 1 auto",
             )
         with html.Div(classes="imm-timeline-marks"):
             with html.Div(v_if="loop_range.length === 2", classes="imm-loop-span", id="loop-span",
@@ -483,11 +484,12 @@ def review_cards(page: LayoutParts) -> None:
     """The per-frame error chart and the latent map."""
     with html.Div(classes="imm-review"):
         with v3.VCard(variant="outlined", classes="pa-1", id="chart-card"):
-            with html.Div(classes="d-flex align-center px-2"):
-                html.Div("Per frame: error and contact", classes="text-caption font-weight-bold")
+            with html.Div(classes="d-flex align-center px-2", style="gap: 4px"):
+                chart_picker(page)
                 v3.VSpacer()
-                html.Div("{{ afd_text }}", classes="text-caption", id="afd-text")
-            html.Div("{{ contact_text }}", classes="text-caption px-2", style=f"color: {WARNING}", id="contact-text")
+                html.Div("{{ afd_text }}", v_if="!plot_kind", classes="text-caption", id="afd-text")
+            html.Div("{{ contact_text }}", v_if="!plot_kind", classes="text-caption px-2", style=f"color: {WARNING}",
+                     id="contact-text")
             distance_chart()
         with v3.VCard(variant="outlined", classes=("latent_rows.length ? 'pa-1 imm-selecting' : 'pa-1'",), id="latent-card"):
             with html.Div(classes="d-flex align-center px-2", style="gap: 6px"):
@@ -508,6 +510,34 @@ def review_cards(page: LayoutParts) -> None:
             with html.Div(classes="d-flex imm-fill", style="gap: 6px"):
                 latent_map()
                 selection_list(page)
+
+
+PLOTS = (("", "error and contact"), ("distance", "joint distance"), ("speed", "joint speed"))  # explorer/session/joint_plot.py
+PICK_CSS = ".imm-pick { font-size: 12px; height: 22px; max-width: 132px; padding: 0 2px; border: 1px solid #bdbdbd; " \
+           "border-radius: 4px; appearance: auto; }"
+
+
+def chart_picker(page: LayoutParts) -> None:
+    """What the chart plots per frame: the error and contact (by default), the distance between two joints, each of
+    the leader (A) or the follower (B), or the speed of one of the follower's joints. Native selects: one line high,
+    and the keys (explorer/ui/keys.py) leave them alone."""
+    client.Style(PICK_CSS)
+    html.Div("Per frame:", classes="text-caption font-weight-bold", style="white-space: nowrap")
+    with html.Select(v_model=("plot_kind",), classes="imm-pick", id="plot-kind", title="what the chart plots"):
+        for value, title in PLOTS:
+            html.Option(title, value=value)
+    distance = "plot_kind === 'distance'"
+    joint_select(page, "plot_a", "AB", distance)
+    html.Span("↔", v_if=distance)
+    joint_select(page, "plot_b", "AB", distance)
+    joint_select(page, "plot_joint", "B", "plot_kind === 'speed'")
+
+
+def joint_select(page: LayoutParts, key: str, characters: str, shown: str) -> None:
+    with html.Select(v_model=(key,), v_if=shown, classes="imm-pick", id=key.replace("_", "-")):
+        for who in characters:
+            for name in page.session.data.skeleton.joint_names:
+                html.Option(f"{who} · {name.replace('_', ' ')}", value=f"{who}.{name}")
 
 
 # A click on the chart moves to the frame under the mouse.

@@ -9,10 +9,12 @@ import os
 from typing import TYPE_CHECKING, Any, Protocol
 
 from explorer.session.files import FPS
+from explorer.session.loop_range import loop_bounds, with_end, wrap
 from explorer.ui.layout import SPEEDS
 
 if TYPE_CHECKING:
     from explorer.session.session import Session
+    from explorer.ui.panel_api import Page
 
 MIN_YIELD_S = 0.005  # even when late, give the image delivery and incoming messages a turn
 # Each frame waits until its picture is encoded (explorer/rendering/view_stream.py: the view holds a picture back
@@ -48,7 +50,8 @@ def playback_scale(value) -> float:
 
 
 class Player(Protocol):
-    """What playback reads and moves: the page's frame, playing, speed and loop, and the session's frame count; and
+    """What playback reads and moves: the page's frame, playing, speed, loop and loop range, and the session's frame
+    count; and
     what it waits for: the picture of the frame it set, encoded."""
 
     state: Any
@@ -57,11 +60,20 @@ class Player(Protocol):
     async def picture_encoded(self) -> bool: ...  # False: the view cannot tell (no wait)
 
 
+def loop_range_of(studio: Player) -> tuple[int, int]:
+    """The first and last frame playback keeps to: the loop range's, or the whole take's (a player with none)."""
+    return loop_bounds(getattr(studio.state, "loop_range", None), studio.session.num_frames)
+
+
 async def play(studio: Player) -> None:
     """Play in real time: the position advances with the wall clock (frames are skipped, not
     slowed down, when a picture takes longer than a frame), and the loop sleeps until the next
     frame is due (a loop that never yields starves the image delivery)."""
     loop = asyncio.get_running_loop()
+    first, end = loop_range_of(studio)
+    if not first <= int(studio.state.frame or 0) < end:  # from outside the loop range, or at its end: from its start
+        with studio.state:
+            studio.state.frame = first
     pos, last = float(studio.state.frame or 0), loop.time()
     shown, earliest = int(pos), last
     while studio.state.playing:
@@ -76,13 +88,14 @@ async def play(studio: Player) -> None:
         pos, last = pos + (now - last) * rate, now
         if not studio.state.playing:
             break
-        n = studio.session.num_frames
+        # the range read at every frame: set, moved or cleared while playing, it applies at once
+        first, end = loop_range_of(studio)
         with studio.state:
-            if pos >= n:
+            if pos >= end + 1:
                 if studio.state.loop:
-                    pos %= n
+                    pos = wrap(pos, first, end)
                 else:
-                    pos = n - 1
+                    pos = end
                     studio.state.playing = False
             shown = int(pos)
             studio.state.frame = shown
@@ -90,3 +103,31 @@ async def play(studio: Player) -> None:
         with contextlib.suppress(TimeoutError):
             if not await asyncio.wait_for(studio.picture_encoded(), ENCODED_TIMEOUT_S):
                 earliest += 1 / UNPACED_PER_S
+
+
+class LoopRange:
+    """The timeline's loop range: its in and out set at the frame shown (buttons, or the keys [ and ]: keys.py), or
+    cleared back to the whole take. One per take: it stays while the mix, model or clean-up change the follower, and
+    a take opened (a sequence, an upload) starts with the whole take."""
+
+    def __init__(self, page: Page):
+        self.page = page
+        self._take = page.session.current  # the leader the range is of
+        page.state.loop_range = []
+        page.ctrl.set_loop_in = lambda: self.on_loop_end_set("in")
+        page.ctrl.set_loop_out = lambda: self.on_loop_end_set("out")
+        page.ctrl.clear_loop = self.on_loop_cleared
+        # every take opened is drawn, and mix_count counts each drawing (app.py): the first after a new take resets
+        page.state.change("mix_count")(self.on_follower_drawn)
+
+    def on_loop_end_set(self, end: str) -> None:
+        s = self.page.state
+        s.loop_range = with_end(s.loop_range, end, int(s.frame or 0), self.page.session.num_frames)
+
+    def on_loop_cleared(self) -> None:
+        self.page.state.loop_range = []
+
+    def on_follower_drawn(self, **_) -> None:
+        if self.page.session.current is not self._take:
+            self._take = self.page.session.current
+            self.page.state.loop_range = []

@@ -2,8 +2,9 @@
 `?seq=s01s02/03/001&mix=kicking:1,hugging:0.5&scale=1&frame=12&layout=overlay&camera=front&map=tsne` (a class by
 part: `mix=upper:shaking_hands:1,lower:pushing:-1`, the label keys of imm_model/data/labels.py), `&raw=1`
 when the clean-up is off, `&model=diffusion` when another model than the studio's first draws, `&seed=12` for a
-seeded model, `&spread=0.3` for one with a spread setting and `&compare=diffusion,retrieval` for other models'
-followers drawn beside the current one's.
+seeded model, `&spread=0.3` for one with a spread setting, `&compare=diffusion,retrieval` for other models'
+followers drawn beside the current one's and `&plot=distance:A.right_hand:B.right_hand` (or `speed:B.head`) for the
+quantity the chart under the view plots instead of its error and contact (explorer/session/joint_plot.py).
 
 Everything read from a URL is validated here (it comes from whoever wrote the link): unknown keys are ignored,
 bad values are named in one line and left out, the rest still applies.
@@ -16,8 +17,10 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 from urllib.parse import parse_qs, quote, urlencode
 
+from explorer.session.joint_plot import JointPlot
 from explorer.session.side_by_side import MAX_COMPARED
 from explorer.session.words import one_line
+from explorer.ui.chart_panel import pick_state, picked_plot
 from imm_model.data.labels import Label
 from imm_model.errors import LabelError, quoted
 
@@ -33,14 +36,14 @@ MAX_SEED = 2**31 - 5  # room for the side-by-side variations after it (explorer/
 
 
 def view_query(view: dict) -> str:
-    """{seq, label (a Label: its values unscaled), scale, frame, layout, camera, map, raw, model, seed, spread, compare}
-    -> "?..." (None values are left out)."""
+    """{seq, label (a Label: its values unscaled), scale, frame, layout, camera, map, raw, model, seed, spread, compare,
+    plot} -> "?..." (None values are left out)."""
     parts = {}
     if view.get("seq"):
         parts["seq"] = view["seq"]
     mix = view["label"].text(value_sep=":") if view.get("label") is not None else ""
     parts["mix"] = mix or "none"
-    for key in ("scale", "frame", "layout", "camera", "map", "raw", "model", "seed", "spread", "compare"):
+    for key in ("scale", "frame", "layout", "camera", "map", "raw", "model", "seed", "spread", "compare", "plot"):
         if view.get(key) is not None:
             parts[key] = f"{view[key]:g}" if isinstance(view[key], float) else str(view[key])
     return "?" + urlencode(parts, safe=":,/", quote_via=quote)
@@ -83,7 +86,7 @@ def _mix(text: str, class_names) -> Label:
     return label
 
 
-def parse_view(query: str, class_names, sequence_ids, cameras, models=()) -> tuple[dict, list[str]]:
+def parse_view(query: str, class_names, sequence_ids, cameras, models=(), joints=()) -> tuple[dict, list[str]]:
     """"?seq=...&mix=..." -> (the valid parts, one-line reasons for the others)."""
     query = query.lstrip("?")
     if len(query) > MAX_QUERY:
@@ -102,6 +105,7 @@ def parse_view(query: str, class_names, sequence_ids, cameras, models=()) -> tup
         "seed": _seed,
         "spread": lambda v: _number(v, 0.0, 1.0, "spread"),
         "compare": lambda v: _compared(v, models),
+        "plot": lambda v: JointPlot.parse(v, joints),
     }
     view, problems = {}, []
     for key, parse in parsers.items():
@@ -165,6 +169,7 @@ def current_view(studio: ViewHolder) -> dict:
         "seed": ses.seed if ses.seeded else None,
         "spread": None if ses.spread is None else round(float(ses.spread), 3),
         "compare": ",".join(ses.side_by_side.compared_names) or None,
+        "plot": plot.text() if (plot := picked_plot(s, ses.data.skeleton.joint_names)) else None,  # None: the default chart
     }
 
 
@@ -173,7 +178,8 @@ def apply_view(studio: ViewHolder, query: str) -> None:
     from explorer.rendering.camera import CAMERA_PRESETS
 
     ses, s = studio.session, studio.state
-    view, problems = parse_view(query, ses.class_names, set(ses.data.sequence_ids), CAMERA_PRESETS, tuple(ses.models))
+    view, problems = parse_view(query, ses.class_names, set(ses.data.sequence_ids), CAMERA_PRESETS, tuple(ses.models),
+                                ses.data.skeleton.joint_names)
     with s:  # the model and seed first: the sequence and the mix are then drawn by them once
         if "model" in view:
             s.model_name = view["model"]
@@ -206,6 +212,8 @@ def apply_view(studio: ViewHolder, query: str) -> None:
             s.projection = view["map"]
         if "raw" in view:
             s.clean_up = not view["raw"]
+        if "plot" in view:
+            s.update(pick_state(view["plot"]))
         if problems:
             s.error = "link: " + "; ".join(problems)
     if "camera" in view:
