@@ -76,6 +76,8 @@ class Scene:
         self.sequences: dict[str, np.ndarray] = {}
         self.frame = 0
         self.camera = SceneCamera(self)
+        # at every render, after the camera's refit (priority 0): the captions fit the picture it frames
+        self.renderer.AddObserver("StartEvent", lambda *_: self._fit_captions(), -1.0)
 
     def close(self) -> None:
         self.plotter.close()
@@ -160,6 +162,14 @@ class Scene:
         if self.layout == "side_by_side" and self.slots() != slots:
             self.camera.set(self.camera.preset)  # room for more or fewer figures (a camera the user turned stays else)
 
+    def _fit_captions(self) -> None:
+        if self.layout == "side_by_side":
+            self.captions.fit(self.renderer)
+
+    def caption_boxes(self) -> dict[str, tuple[float, float, float, float]]:
+        """{figure key: (left, right, bottom, top)} of each caption in the last picture, in its pixels."""
+        return self.captions.boxes(self.renderer)
+
     def captions_shown(self) -> list[str]:
         """The captions the view shows now, left to right (side by side only)."""
         return self.captions.shown([k for k in (*CHARACTER_KEYS, *BESIDE_KEYS) if k in self.sequences])
@@ -228,7 +238,7 @@ class Scene:
         middle = (self.slots() - 1) / 2
         beside = [k for k in BESIDE_KEYS if k in self.sequences]  # variations, then other models' followers
         beside = [(len(CHARACTER_KEYS) + i, k) for i, k in enumerate(beside)]
-        size = caption_px(self.slots())
+        self.captions.set_base(caption_px(self.slots()))
         # seen from the top a caption over the head would be on the figure: it goes towards the top of the picture
         above = (0.0, 0.0, -TOP_CAPTION_OFFSET) if self.camera.preset == "top" else (0.0, 0.0, 0.0)
         for k in BESIDE_KEYS:
@@ -250,8 +260,6 @@ class Scene:
             fig.place((float(root[0]), 0.0, float(root[2])), (spot[0] - float(root[0]), 0.0, spot[2] - float(root[2])), yaw)
             if cap is not None:
                 cap.position = (spot[0] + above[0], top, spot[2] + above[2])
-                if cap.size != size:
-                    cap.size = size
                 cap.SetVisibility(self.visible["synthesized" if k in BESIDE_KEYS else k])
 
     def shown(self, every_frame: bool = False) -> list[str]:
