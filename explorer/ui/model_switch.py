@@ -1,8 +1,10 @@
 """The model switch (the paper's GAN / the diffusion model) and, for a model that takes a seed, its variations: the seed, a
 "new variation" button, N followers drawn at once (seeds seed .. seed + N - 1) side by side, each captioned with
 its seed, and, for a model trained with noised leaders, the spread (how loosely the reaction follows the leader);
-and "compare with": other models' followers drawn beside the current one's, each captioned with its model.
-The session (explorer/session/session.py) holds the models and draws the followers; this maps them onto the page.
+and "compare with": other models' followers drawn beside the current one's, each captioned with its model; and the
+variations gallery (VariationGallery), a dialog of GALLERY_SEEDS seeds' reactions as still pictures, one click from
+opening one. The session (explorer/session/session.py) holds the models and draws the followers; this maps them onto
+the page.
 
 A diffusion reaction costs ~10x the GAN's (benchmarks/explorer_latency.py): slider moves are coalesced as for any
 model (app.py, the latest mix wins), a slider's further variations are drawn after its first picture, with the
@@ -13,14 +15,19 @@ around a slider's synthesis).
 from __future__ import annotations
 
 import asyncio
+import base64
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from trame.app import asynchronous
 from trame.widgets import client, html
 from trame.widgets import vuetify3 as v3
 
+from explorer.rendering.pictures import THUMBNAIL_SIZE, Thumbnails
+from explorer.session.gallery import GALLERY_SEEDS, gallery_seeds, variation
 from explorer.session.session import Session
 from explorer.session.side_by_side import MAX_COMPARED, MAX_VARIATIONS
+from explorer.session.words import one_line
 
 if TYPE_CHECKING:
     from explorer.rendering.scene import Scene
@@ -60,6 +67,7 @@ class ModelSwitch:
         page.state.change("variation_asked")(self._settled(self.on_variation_asked))
         page.state.change("compare_models")(self._settled(self.on_compare_picked))
         self._asked = 0
+        self.gallery = VariationGallery(page, scene)
 
     @property
     def state(self):
@@ -196,6 +204,84 @@ class ModelSwitch:
                 self.state.computing = False
 
 
+class VariationGallery:
+    """The gallery of a seeded model's variations: GALLERY_SEEDS seeds from the seed drawn when it opened, each the
+    leader and its follower at the frame where they come closest, captioned with its seed and what the judge reads it
+    as. Drawn while open, again after each new follower (`mix_count`), one seed at a time after the view's picture:
+    a reaction costs the diffusion model ~20 ms, and a slider's message and picture go between two."""
+
+    def __init__(self, page: Page, scene: Scene):
+        self.page, self.scene = page, scene
+        self.first = 0  # the gallery's first seed
+        self._task: asyncio.Task | None = None
+        self._thumbnails: Thumbnails | None = None  # a plotter of its own, made at the first opening
+        page.state.update({"gallery_open": False, "gallery_items": [], "gallery_note": ""})
+        page.state.change("gallery_open")(page.guarded(self.on_gallery_toggled))
+        page.state.change("mix_count")(page.guarded(self.on_follower_changed))
+
+    def on_gallery_toggled(self, gallery_open, **_):
+        if gallery_open:
+            self.first = self.page.session.seed
+            self.redraw()
+        elif self._task is not None:
+            self._task.cancel()
+
+    def on_follower_changed(self, **_):
+        if self.page.state.gallery_open:
+            self.redraw()
+
+    def redraw(self) -> None:
+        """Empty frames captioned with their seeds at once, their pictures as they are drawn."""
+        if self._task is not None:
+            self._task.cancel()
+        ses, s = self.page.session, self.page.state
+        if not ses.seeded:  # the dialog opens from the variation controls, which such a model has not
+            s.gallery_items, s.gallery_note = [], f"{ses.model_title()} draws one reaction per mix: no seeds to show"
+            return
+        seeds = gallery_seeds(self.first)
+        s.gallery_items = [{"seed": seed, "src": "", "caption": f"seed {seed}"} for seed in seeds]
+        s.gallery_note = f"{ses.model_title()}, seeds {seeds[0]} to {seeds[-1]}: a click opens one"
+        self._task = asynchronous.create_task(self._draw(seeds))
+
+    async def _draw(self, seeds: list[int]) -> None:
+        ses, s = self.page.session, self.page.state
+        if self._thumbnails is None:
+            self._thumbnails = Thumbnails(self.scene.skeleton)
+        for i, seed in enumerate(seeds):
+            await asyncio.sleep(0)  # the view's picture, and what the page sent meanwhile, go first
+            try:
+                drawn = variation(ses, seed)
+                jpeg = self._thumbnails.jpeg(ses.leader[drawn.frame], drawn.follower[drawn.frame])
+            except Exception as err:  # the gallery stops where it failed; the page goes on
+                with s:
+                    s.gallery_note = f"seed {seed}: {one_line(err)}"
+                return
+            items = list(s.gallery_items)
+            items[i] = {"seed": seed, "caption": drawn.caption,
+                        "src": "data:image/jpeg;base64," + base64.b64encode(jpeg).decode("ascii")}
+            with s:
+                s.gallery_items = items
+
+
+def gallery_dialog() -> None:
+    """The variations gallery over the page: two rows of pictures at 1366x768; a click opens that seed in the view."""
+    width, height = THUMBNAIL_SIZE
+    with v3.VDialog(v_model=("gallery_open",), max_width=4 * (width + 16) + 48, scrollable=True):
+        with v3.VCard(title="Variations", subtitle=("gallery_note",), id="gallery"):
+            with v3.VCardText(classes="d-flex flex-wrap", style="gap: 12px"):
+                with html.Div(v_for="(item, i) in gallery_items", key=("item.seed",), classes="gallery-item rounded border",
+                              style=f"width: {width + 4}px; cursor: pointer", title="open this seed in the view",
+                              click="if (String(item.seed) !== String(seed)) { computing = true; seed = item.seed; } "
+                                    "gallery_open = false"):
+                    html.Img(v_if="item.src", src=("item.src",), width=width, height=height, classes="d-block")
+                    with html.Div(v_else=True, classes="d-flex align-center justify-center", style=f"height: {height}px"):
+                        v3.VProgressCircular(indeterminate=True, size=20, width=2)
+                    html.Div("{{ item.caption }}", classes="text-caption px-1", style="line-height: 16px")
+            with v3.VCardActions():
+                v3.VSpacer()
+                v3.VBtn("close", variant="text", click="gallery_open = false", id="gallery-close")
+
+
 def model_chip() -> None:
     """The status chip: which model draws the follower (and, for a seeded one, with which seed)."""
     with v3.VChip(size="small", variant="flat", color="indigo-lighten-4", classes="mr-2", id="model-chip"):
@@ -244,6 +330,9 @@ def model_panel(session: Session) -> None:
                           title="the same seed with a moved slider moves the reaction smoothly")
             v3.VBtn("new variation", size="x-small", variant="tonal", prepend_icon="mdi-dice-multiple", id="new-variation",
                     click="computing = true; variation_asked += 1")
+            v3.VBtn("gallery", size="x-small", variant="tonal", prepend_icon="mdi-view-grid-outline", id="open-gallery",
+                    click="gallery_open = true", title=f"{GALLERY_SEEDS} seeds' reactions as pictures, from this seed on")
+        gallery_dialog()
         with html.Div(v_if="spread_available", classes="d-flex align-center mb-1", style="gap: 6px", id="spread-row",
                       title="how loosely the reaction follows the leader's motion: 0 follows it closely, higher "
                             "draws wider variations"):
