@@ -1,4 +1,5 @@
-"""The timeline and the chart under the view, in a real browser at laptop sizes: a loop range set with the buttons and
+"""The timeline and the chart under the view. Without a browser: a loop range's ends and wraps, a link's joint plot,
+the contact ticks' frames. In a real browser at laptop sizes: a loop range set with the buttons and
 the keys [ ], drawn on the timeline, that playback keeps to over its wraps, kept through a mix and reset by another
 sequence; the contact frames as ticks that seek; and the chart's plot of a picked joint pair's distance or a joint's
 speed, matching the exported interaction's numbers, in the page's link. Needs /usr/bin/chromium (fixtures in
@@ -11,11 +12,12 @@ import io
 import numpy as np
 import pytest
 
+from explorer.rendering.charts import contact_frames
 from explorer.session.files import FPS
+from explorer.session.joint_plot import JointPlot
+from explorer.session.loop_range import loop_bounds, with_end, wrap
 from imm_model.skeleton import KINECT15
 from tests import studio_probe as probe
-
-pytestmark = [pytest.mark.browser, pytest.mark.timeout(400)]
 
 # a line's heights over the plot's floor, frame by frame, in viewBox units (proportional to its values)
 LINE_JS = """(series) => { const l = document.querySelector(`#distance-chart polyline[data-series=${series}]`);
@@ -46,6 +48,31 @@ def assert_line_is(page, series: str, values: np.ndarray) -> None:
     np.testing.assert_allclose(heights / heights.max(), values / values.max(), atol=2e-3)
 
 
+def test_a_loop_range_is_set_at_either_end_and_wraps_playback_into_it():
+    assert loop_bounds([], 24) == (0, 23) and loop_bounds([9, 3], 24) == (0, 23) and loop_bounds(["x", None], 24) == (0, 23)
+    assert loop_bounds([-5, 99], 24) == (0, 23) and loop_bounds([3, 9], 24) == (3, 9)
+    assert with_end([], "in", 5, 24) == [5, 23] and with_end([], "out", 5, 24) == [0, 5]
+    assert with_end([3, 9], "in", 12, 24) == [12, 23]  # an in past the out runs to the end of the take
+    assert with_end([3, 9], "out", 2, 24) == [0, 2] and with_end([3, 9], "out", 30, 24) == [3, 23]
+    assert wrap(10.5, 3, 9) == pytest.approx(3.5) and wrap(16.25, 3, 9) == pytest.approx(9.25)  # once or more round
+
+
+def test_a_joint_plot_is_read_from_a_link_only_as_the_picker_offers_it():
+    names = KINECT15.joint_names
+    assert JointPlot.parse("distance:A.right_hand:B.head", names).joints == ("A.right_hand", "B.head")
+    assert JointPlot.parse("speed:B.head", names).text() == "speed:B.head"
+    for bad in ("speed:A.head", "speed:B.nose", "distance:A.head", "height:B.head", "distance:A.head:B.head:B.neck"):
+        with pytest.raises(ValueError):
+            JointPlot.parse(bad, names)
+
+
+@pytest.mark.parametrize("closest, marks", [([0.3, 0.04, 0.02, 0.03, 0.5, 0.01, 0.6], [2, 5]), ([0.3, 0.2, 0.4], [1]), ([], [])])
+def test_the_contact_ticks_are_the_closest_frame_of_each_contact(closest, marks):
+    assert contact_frames(np.asarray(closest)) == marks
+
+
+@pytest.mark.browser
+@pytest.mark.timeout(400)
 def test_a_loop_range_keeps_playback_inside_it_and_lasts_as_long_as_its_sequence(browser, studio):
     page = probe.open_studio(browser, studio.url, width=1366, height=768)
     try:
@@ -80,6 +107,7 @@ def test_a_loop_range_keeps_playback_inside_it_and_lasts_as_long_as_its_sequence
         probe.set_state(page, f"w_{free}", 0.5)  # another mix: the same take, the same range
         probe.wait_state(page, f"s.get('mix_count') > {count}", timeout_ms=30000)
         assert probe.state(page, "loop_range") == [3, 9]
+        probe.shot(page, "studio-timeline-1366x768")
 
         marks = probe.state(page, "contact_marks")
         assert marks and all(0 <= m < n for m in marks)
@@ -99,11 +127,12 @@ def test_a_loop_range_keeps_playback_inside_it_and_lasts_as_long_as_its_sequence
         probe.press_key(page, "?")
         probe.wait_state(page, "s.get('show_keys')")
         assert "loop range" in page.locator("#keys-card").inner_text()
-        probe.shot(page, "studio-timeline-1366x768")
     finally:
         page.close()
 
 
+@pytest.mark.browser
+@pytest.mark.timeout(400)
 @pytest.mark.parametrize("size", [(1366, 768), (1280, 720)])
 def test_the_chart_plots_a_picked_joint_pair_or_speed_and_a_link_restores_it(browser, studio, size):
     width, height = size
