@@ -66,6 +66,20 @@ def test_a_joint_plot_is_read_from_a_link_only_as_the_picker_offers_it():
             JointPlot.parse(bad, names)
 
 
+def test_a_joint_plot_draws_the_follower_and_the_ground_truth_or_the_leader_alone():
+    from types import SimpleNamespace
+
+    t = np.arange(5.0)[:, None, None] * np.ones((5, 15, 3))  # every joint moves 1 m a frame on each axis
+    session = SimpleNamespace(leader=np.zeros((5, 15, 3)), synth=t, ground_truth=None, world=lambda x: x,
+                              data=SimpleNamespace(skeleton=KINECT15))
+    assert JointPlot("speed", ("B.head",)).series(session)["follower"] == pytest.approx(np.full(5, np.sqrt(3) * FPS))
+    assert list(JointPlot("distance", ("A.head", "B.neck")).series(session)) == ["follower"]  # no ground truth: no line
+    session.ground_truth = 2 * t
+    lines = JointPlot("distance", ("A.head", "B.neck")).series(session)
+    assert lines["truth"] == pytest.approx(2 * lines["follower"]) and lines["follower"][-1] == pytest.approx(4 * np.sqrt(3))
+    assert list(JointPlot("distance", ("A.head", "A.left_hand")).series(session)) == ["leader"]
+
+
 @pytest.mark.parametrize("closest, marks", [([0.3, 0.04, 0.02, 0.03, 0.5, 0.01, 0.6], [2, 5]), ([0.3, 0.2, 0.4], [1]), ([], [])])
 def test_the_contact_ticks_are_the_closest_frame_of_each_contact(closest, marks):
     assert contact_frames(np.asarray(closest)) == marks

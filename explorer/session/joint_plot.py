@@ -47,19 +47,17 @@ class JointPlot:
     def series(self, session) -> dict[str, np.ndarray]:
         """(T,) per frame: {"follower": the synthesized follower's, "truth": the ground truth's} (no "truth" without
         one), or {"leader": ...} for a distance between two of the leader's joints (one line: no follower in it)."""
-        skeleton = session.data.skeleton
         leader = session.world(session.leader)
-        followers = {"follower": session.synth, "truth": session.ground_truth}
         if all(j.startswith("A.") for j in self.joints):
-            followers = {"leader": session.synth}
-        out = {}
-        for key, follower in followers.items():
-            if follower is None:
-                continue
-            bodies = {"A": leader, "B": session.world(follower)}
-            points = [bodies[j[0]][:, skeleton.joint_names.index(j[2:])] for j in self.joints]
-            out[key] = np.linalg.norm(points[0] - points[1], axis=-1) if self.kind == "distance" else speed(points[0])
-        return out
+            return {"leader": self._values({"A": leader}, session.data.skeleton.joint_names)}
+        followers = {"follower": session.synth, "truth": session.ground_truth}
+        return {key: self._values({"A": leader, "B": session.world(follower)}, session.data.skeleton.joint_names)
+                for key, follower in followers.items() if follower is not None}
+
+    def _values(self, bodies: dict[str, np.ndarray], joint_names) -> np.ndarray:
+        """(T,) the quantity over `bodies` ({"A": (T, J, 3), "B": ...} world metres)."""
+        points = [bodies[j[0]][:, list(joint_names).index(j[2:])] for j in self.joints]
+        return np.linalg.norm(points[0] - points[1], axis=-1) if self.kind == "distance" else speed(points[0])
 
 
 def speed(points: np.ndarray) -> np.ndarray:

@@ -54,7 +54,7 @@ class ChartPanel:
         self.write_url()
 
     def _draw(self) -> None:
-        ses = self.page.session
+        ses, (distances, ab_distances, closest) = self.page.session, self._default
         plot = picked_plot(self.page.state, ses.data.skeleton.joint_names)
-        self.page.state.distance_chart = (charts.distance_chart(self._default[0], FPS, *self._default[1:]) if plot is None
+        self.page.state.distance_chart = (charts.distance_chart(distances, FPS, ab_distances, closest) if plot is None
                                           else charts.joint_chart(plot.series(ses), FPS, plot.unit))
