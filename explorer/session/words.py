@@ -24,12 +24,22 @@ def label_words(weights: Sequence[float], class_names: Sequence[str], scale: flo
     return text
 
 
+PART_WORDS = {"upper": "trunk and arms", "lower": "legs"}  # the body parts as the drawer names them
+
+
 def mix_words(label: Label) -> str:
-    """A mix in words: `label_words` for a whole-body mix, the part keys as `imm generate --label` spells them where the
-    parts differ ("upper:shaking_hands=1,lower:pushing=-1  × 2")."""
+    """A mix in words: `label_words` for a whole-body mix; where the parts differ, the classes both parts share, then
+    each part's own ("kicking +1 · trunk and arms: shaking hands +1 · legs: pushing -1  × 2")."""
     if not label.parts_differ:
         return label_words(label.parts[0], label.class_names, label.scale)
-    return label.text() + (f"  × {label.scale:.2g}" if abs(label.scale - 1.0) > 1e-6 else "")
+    upper, lower = label.parts
+    shared = [u if u == lo else 0.0 for u, lo in zip(upper, lower, strict=True)]
+    pieces = [label_words(shared, label.class_names)] if any(shared) else []
+    for part, values in zip(PART_WORDS.values(), label.parts, strict=True):
+        own = [v if u != lo else 0.0 for v, u, lo in zip(values, upper, lower, strict=True)]
+        if any(own):
+            pieces.append(f"{part}: {label_words(own, label.class_names)}")
+    return " · ".join(pieces) + (f"  × {label.scale:.2g}" if abs(label.scale - 1.0) > 1e-6 else "")
 
 
 def no_parts(title: str) -> LabelError:
