@@ -1,5 +1,6 @@
 """Dev and test tables of part_folds.py's JSON lines: per sampler (checkpoint kind x join), the mean over folds of each
-fold's seed mean with its 95 % t-interval over the folds, and the per-fold rows.
+fold's seed mean with its 95 % t-interval over the folds (over the seeds where a group has one fold), and the
+per-fold rows.
 
     python docs/experiments/scripts/part_folds_table.py docs/experiments/data/part-folds.jsonl
 """
@@ -13,7 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
+from imm_model.data.dataset import InteractionDataset
+from imm_model.data.splits import loso_fold
 from imm_model.evaluation.intervals import t_interval
+from imm_model.paths import SAMPLE_DATA
 
 GROUPS = {"dev": ("s01", "s03", "s04"), "test": ("s02", "s05", "s06", "s07")}
 
@@ -43,6 +47,10 @@ def main() -> None:
         for line in path.read_text().splitlines():
             row = json.loads(line)
             runs[sampler_of(row)][row["fold"]].append(figures(row))
+    data = InteractionDataset.load(SAMPLE_DATA)
+    counts = {f: np.bincount(data.actions[loso_fold(data.subject_pairs, f).test], minlength=len(data.class_names))
+              for g in GROUPS.values() for f in g}
+    hug, punch = data.class_names.index("hugging"), data.class_names.index("punching")
     for sampler, folds in sorted(runs.items()):
         print(f"\n## {sampler}")
         for group, members in GROUPS.items():
@@ -53,10 +61,18 @@ def main() -> None:
             print(f"{group} ({', '.join(f'{f} x{len(folds[f])}' for f in present)}):")
             for key in per_fold[present[0]]:
                 values = [per_fold[f][key] for f in present]
-                lo, hi = t_interval(values) if len(values) > 1 else (float("nan"), float("nan"))
+                spread = values if len(values) > 1 else [r[key] for r in folds[present[0]]]  # one fold: over its seeds
+                lo, hi = t_interval(spread) if len(spread) > 1 else (float("nan"), float("nan"))
                 seeds = ", ".join(f"{f} {per_fold[f][key]:.3f}" for f in present)
                 worst = f" (most in a run: {max(r[key] for f in present for r in folds[f]):.0f})" if key == "pairs < 0.10" else ""
                 print(f"  {key}: {np.mean(values):.3f} [{lo:.3f}, {hi:.3f}]{worst}   {seeds}")
+            # part realism pooled over the group's leaders of the class (a fold holds 2-10 of them)
+            for key, k in (("hug upper", hug), ("punch lower", punch)):
+                weights = np.array([counts[f][k] for f in present], float)
+                model = np.array([per_fold[f][f"{key} (own)"] for f in present]) @ weights / weights.sum()
+                real = np.array([per_fold[f][f"real {key}"] for f in present]) @ weights / weights.sum()
+                print(f"  {key}, pooled over {weights.sum():.0f} leaders: model {model:.3f}, real held-out {real:.3f}, "
+                      f"ratio {model / real:.2f}")
 
 
 if __name__ == "__main__":

@@ -92,13 +92,14 @@ class DiffusionTrainConfig:
 # The reaction diffusion model as shipped: 128 wide, 4 blocks, one frame a token, 6000 steps of batch 32, a planted
 # foot's drag and the torso's direction weighed beside the x0 error, half the leaders noised at a random level that the
 # network is told; guidance 3 on each class term over the last 30 % of the noise levels, 7 DDIM steps, the leader read
-# through noise at 0.3 of the schedule (the spread) but at the last step, a label per body part joined by part at every
-# step (docs/experiments/reaction-diffusion.md, diffusion-geometric-terms.md, diffusion-leader-noise.md and
-# part-join.md have the variants measured).
+# through noise at 0.3 of the schedule (the spread) but at the last step, a label per body part sampled part by part
+# and the two reactions joined (docs/experiments/reaction-diffusion.md, diffusion-geometric-terms.md,
+# diffusion-leader-noise.md, part-join.md and part-folds.md have the variants measured).
 IMM_DIFFUSION = DiffusionTrainConfig(
     name="imm-diffusion",
     model=dict(width=128, layers=4, heads=4, ff_mult=2, dropout=0.1, leader_noise=True),
-    guidance=dict(label_scale=3.0, leader_scale=1.0, sample_steps=7, guided_below=0.3, leader_noise=0.3, part_join=True),
+    guidance=dict(label_scale=3.0, leader_scale=1.0, sample_steps=7, guided_below=0.3, leader_noise=0.3, part_join=True,
+                  join_outputs=True),
     lambda_foot_contact=20.0,
     lambda_torso=1.0,
     leader_noise_prob=0.5,
