@@ -5,6 +5,7 @@ package.
 
 from __future__ import annotations
 
+import io
 import os
 import re
 import signal
@@ -240,3 +241,12 @@ def watch_frames(page) -> None:
 def frames_seen(page, stop: bool = False) -> list[int]:
     """The frames recorded since watch_frames, in order, each change once; `stop`: and stop recording."""
     return page.evaluate("(stop) => { if (stop) clearInterval(window.__immFrameWatch); return window.__immFrames; }", stop)
+
+
+def export_npz(page) -> dict:
+    """The view's reaction as the Export menu's .npz gives it: {field: array}."""
+    page.click("#export-menu")
+    with page.expect_download(timeout=60000) as download:
+        page.click("#export-npz")
+    with np.load(io.BytesIO(download.value.path().read_bytes())) as z:
+        return {k: z[k] for k in z.files}

@@ -4,22 +4,12 @@ steering the frames to come and leaving the ones made alone, the export recordin
 
 from __future__ import annotations
 
-import io
-
 import numpy as np
 import pytest
 
 from tests import studio_probe as probe
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(400)]
-
-
-def export_npz(page) -> dict:
-    page.click("#export-menu")
-    with page.expect_download(timeout=60000) as download:
-        page.click("#export-npz")
-    with np.load(io.BytesIO(download.value.path().read_bytes())) as z:
-        return {k: z[k] for k in z.files}
 
 
 def test_live_mode_plays_and_a_slider_moved_mid_play_steers_the_next_frames(browser, studio):
@@ -41,7 +31,7 @@ def test_live_mode_plays_and_a_slider_moved_mid_play_steers_the_next_frames(brow
         count = probe.state(page, "mix_count")
         probe.set_state(page, "playing", False)
         probe.wait_state(page, f"s.get('mix_count') > {count}", timeout_ms=30000)  # paused: the review reads what was made
-        first = export_npz(page)
+        first = probe.export_npz(page)
         made = int(first["live_frames"])
         assert 6 <= made < frames and list(first["live_label_from"]) == [0]
 
@@ -55,7 +45,7 @@ def test_live_mode_plays_and_a_slider_moved_mid_play_steers_the_next_frames(brow
         assert probe.state(page, "playing")
         probe.wait_state(page, f"s.get('playing') === false && s.get('live_made') === {frames}", timeout_ms=120000)
 
-        second = export_npz(page)
+        second = probe.export_npz(page)
         assert int(second["live_frames"]) == frames
         steered_from = [int(f) for f in second["live_label_from"]]
         assert len(steered_from) == 2 and made + 2 <= steered_from[1] < frames, steered_from

@@ -7,8 +7,6 @@ tests/conftest.py)."""
 
 from __future__ import annotations
 
-import io
-
 import numpy as np
 import pytest
 
@@ -25,14 +23,6 @@ LINE_JS = """(series) => { const l = document.querySelector(`#distance-chart pol
 TRACK_JS = "() => { const r = document.querySelector('#timeline .v-slider-track').getBoundingClientRect(); return [r.left, r.width]; }"
 ON_SCREEN_JS = """([sel, w, h]) => { const b = document.querySelector(sel).getBoundingClientRect();
     return b.width > 0 && b.left >= 0 && b.top >= 0 && b.right <= w && b.bottom <= h; }"""
-
-
-def export_npz(page) -> dict:
-    page.click("#export-menu")
-    with page.expect_download(timeout=60000) as download:
-        page.click("#export-npz")
-    with np.load(io.BytesIO(download.value.path().read_bytes())) as z:
-        return {k: z[k] for k in z.files}
 
 
 def joint(arrays: dict, who_joint: str, follower: str = "follower") -> np.ndarray:
@@ -160,7 +150,7 @@ def test_the_chart_plots_a_picked_joint_pair_or_speed_and_a_link_restores_it(bro
         for sel in ("#plot-kind", "#plot-a", "#plot-b"):  # the picker fits its card
             box = page.locator(sel).bounding_box()
             assert box["x"] >= card["x"] and box["x"] + box["width"] <= card["x"] + card["width"], (sel, box, card)
-        arrays = export_npz(page)
+        arrays = probe.export_npz(page)
         hands = {key: np.linalg.norm(joint(arrays, "A.right_hand") - joint(arrays, "B.right_hand", key), axis=-1)
                  for key in ("follower", "ground_truth")}
         assert_line_is(page, "follower", hands["follower"])
