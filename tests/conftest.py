@@ -69,7 +69,9 @@ def studio(browser, tmp_path_factory):
 def page(studio, browser):
     from tests import studio_probe as probe
 
-    pg = probe.open_studio(browser, studio.url)
+    # a module's first page meets its fresh studio's start-up work (the latent map's fit in the background): on a busy
+    # two-core machine its first picture has come after more than a minute
+    pg = probe.open_studio(browser, studio.url, timeout_ms=180000)
     probe.watch_view_images(pg)
     yield pg
     pg.close()
