@@ -111,6 +111,19 @@ class Name:
 
 
 @dataclass(frozen=True)
+class PathText:
+    """A one-line string of at most `max_length` characters, empty allowed: a file path."""
+
+    max_length: int = 1000
+
+    def accepts(self, value: Any) -> bool:
+        return isinstance(value, str) and len(value) <= self.max_length and not any(c in value for c in "\n\r\0")
+
+    def __str__(self) -> str:
+        return f"a path (at most {self.max_length} characters, no line break)"
+
+
+@dataclass(frozen=True)
 class ListOf:
     """A list (or tuple) of `min_length`..`max_length` items, each accepted by `item`, with no item twice when
     `unique`."""

@@ -189,8 +189,10 @@ class DiffusionReactionModel(ReactionModel):
         if self.guidance.uses_memory:
             noise = forward_noised(self._memory_starts(leaders, labels, seeds), noise, mask,
                                    schedule_step(self.guidance.memory_level, steps), steps)
-        given, guidance = {}, self.guidance
-        if known is not None:  # only then: an experiment's own sampler (`self.sampler`) need not take it
+        given, guidance = {}, self.guidance  # keywords only some samplers take: an experiment's sampler need not
+        if self.config.composed_label:
+            given["composed_label"] = True
+        if known is not None:
             values, _ = self._padded([f for f, _ in known])
             values = (values - self.weights["follower_mean"]) / self.weights["follower_std"] * mask[..., None]
             counts = np.array([k for _, k in known])

@@ -1,5 +1,6 @@
 """The diffusion family's recipes: a typed config (each field's accepted values declared beside it,
-imm_model/typed_config.py) and the named recipes `imm-diffusion` (the bundled model's), `imm-diffusion-mixed` and `imm-diffusion-parts`."""
+imm_model/typed_config.py) and the named recipes `imm-diffusion` (the bundled model's), `imm-diffusion-mixed`,
+`imm-diffusion-parts` and `imm-diffusion-student` (a few-step student distilled from a teacher's sampler)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from dataclasses import asdict, dataclass, replace
 from typing import Any, ClassVar
 
 from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance
-from imm_model.typed_config import FieldsOf, Interval, ListOf, Name, OneOf, checked_kwargs, param, validate
+from imm_model.typed_config import FieldsOf, Interval, ListOf, Name, OneOf, PathText, checked_kwargs, param, validate
 
 FAMILY = "diffusion"
 
@@ -60,6 +61,10 @@ class DiffusionTrainConfig:
     time_warp: float = param(0.0, BELOW_1)  # resample each sequence to length * U(1 - w, 1 + w)
     role_swap_prob: float = param(0.0, FRACTION)  # B becomes the leader (re-canonicalized), for role_swap_classes only
     role_swap_classes: tuple[str, ...] = param((), ListOf(Name(), unique=True))  # the classes whose roles may swap
+    # a teacher checkpoint whose sampler the network is distilled from, "{fold}" standing for the held-out subject
+    # (distill.py; model.composed_label); empty: trained from the data
+    teacher: str = param("", PathText())
+    pool_rows: int = param(8192, Interval(int, 1, 1_000_000))  # the teacher's reactions a student learns from
     checkpoint_every: int = param(1000, Interval(int, 1, None))  # steps between resumable checkpoints
     seed: int = param(0, Interval(int, 0, 2**31 - 1))  # initial weights, batches, noise and augmentation
 
@@ -69,7 +74,9 @@ class DiffusionTrainConfig:
               "0 unless model.pair_terms or model.part_labels is true"),
              ("part_drop", lambda c: c.part_drop == 0 or c.model.get("part_labels") is True, "0 unless model.part_labels is true"),
              ("given_prob", lambda c: c.given_prob == 0 or c.model.get("given_frames") is True,
-              "0 unless model.given_frames is true"))
+              "0 unless model.given_frames is true"),
+             ("teacher", lambda c: bool(c.teacher) == (c.model.get("composed_label") is True),
+              "a checkpoint path exactly when model.composed_label is true (a student is distilled from a teacher)"))
 
     def __post_init__(self) -> None:
         validate(self, "training config")
@@ -116,5 +123,21 @@ IMM_DIFFUSION_MIXED = replace(IMM_DIFFUSION, name="imm-diffusion-mixed", model=I
 IMM_DIFFUSION_PARTS = replace(IMM_DIFFUSION, name="imm-diffusion-parts", model=IMM_DIFFUSION.model | {"part_labels": True},
                               mix_prob=0.3, part_drop=0.3)
 
+# A 2-step student of `imm-diffusion` (distill.py): the network reads the signed label and is asked once per step, 2
+# steps, trained for 2000 steps of batch 32 from 8192 of the teacher's reactions to the fold's training leaders; the
+# teacher's run folder is runs/imm-diffusion (`imm train --config imm-diffusion`), its sampler settings kept
+# (docs/experiments/sampler-student.md).
+IMM_DIFFUSION_STUDENT = DiffusionTrainConfig(
+    name="imm-diffusion-student",
+    model=dict(composed_label=True),
+    guidance=dict(sample_steps=2),
+    teacher="runs/imm-diffusion/fold-{fold}/final.safetensors",
+    steps=2000,
+    lr=1e-4,
+    warmup_steps=100,
+    ema_decay=0.995,
+)
+
 NAMED: dict[str, DiffusionTrainConfig] = {"imm-diffusion": IMM_DIFFUSION, "imm-diffusion-mixed": IMM_DIFFUSION_MIXED,
-                                          "imm-diffusion-parts": IMM_DIFFUSION_PARTS}
+                                          "imm-diffusion-parts": IMM_DIFFUSION_PARTS,
+                                          "imm-diffusion-student": IMM_DIFFUSION_STUDENT}

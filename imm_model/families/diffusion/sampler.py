@@ -62,10 +62,16 @@ class DiffusionConfig:
     # the network was trained with a row's first frames given clean in its noised input (training's given_prob): the
     # sampler gives the frames a window of a long take continues so (`sample`'s `known`), not noised
     given_frames: bool = param(False, Flag())
+    # the network reads the signed label, already times the scale, as one input and predicts the guided composition's
+    # x0 at its steps (a student distilled from a teacher's sampler, distill.py): the sampler asks it once per step,
+    # whatever the label, instead of once per term
+    composed_label: bool = param(False, Flag())
 
     RULES: ClassVar = (("width", lambda c: c.width % c.heads == 0, "a multiple of heads"),
                        ("part_labels", lambda c: not (c.part_labels and c.pair_terms),
-                        "false with pair_terms (a part model composes its own pair terms)"))
+                        "false with pair_terms (a part model composes its own pair terms)"),
+                       ("composed_label", lambda c: not (c.composed_label and (c.part_labels or c.pair_terms)),
+                        "false with part_labels or pair_terms (a student reads whole-body labels; parts are joined)"))
 
     def __post_init__(self) -> None:
         validate(self, "diffusion config")
@@ -288,7 +294,7 @@ def ddim(predict, noise: np.ndarray, mask: np.ndarray, guidance: Guidance, diffu
 
 def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, noise: np.ndarray, guidance: Guidance,
            diffusion_steps: int, seeds=None, pair_terms: bool = False, part_labels: bool = False, join=None,
-           known=None) -> np.ndarray:
+           known=None, composed_label: bool = False) -> np.ndarray:
     """DDIM (`ddim`) from `noise` (B, T, D) -> normalized followers x0 (B, T, D), numpy float32, each step predicting
     the composed label's x0.
 
@@ -297,7 +303,7 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
     reads `leaders` (normalized, B rows, repeated alike) and `mask` from its closure. labels (B, C), or (B, 2C) with
     `part_labels`, are signed weights (already times the scale). Each step evaluates, in one batch, the leader-only
     term, the label terms of `label_terms` (`pair_terms`, `part_labels`: what the network was trained to read) and
-    (with leader_scale != 1) the unconditioned term.
+    (with leader_scale != 1) the unconditioned term; a student (`composed_label`) reads the label itself, one term.
 
     With `join(upper_x0, lower_x0) -> x0` (normalized (B, T, D) each; Guidance.part_join) `labels` are (B, 2C), the
     upper body's values then the lower body's, for either network: where a row's parts differ, each part's values are
@@ -310,18 +316,19 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
     long sequence), and with `clean` (a network trained so: DiffusionConfig.given_frames) the network reads them clean
     in its noised input; the frames sampled around them continue them, as a window of a long take continues the one
     before."""
+    flags = (pair_terms, part_labels, composed_label)
     if join is None:
-        predict = guided_prediction(denoise, labels, guidance, diffusion_steps, mask, pair_terms, part_labels)
+        predict = guided_prediction(denoise, labels, guidance, diffusion_steps, mask, *flags)
         return ddim(keeping(predict, known), noise, mask, guidance, diffusion_steps, seeds)
     c = labels.shape[1] // 2
     upper, lower = labels[:, :c], labels[:, c:]
     if part_labels:  # each part's values as the whole-body condition (e_c, e_c) the network saw on every one-class row
         upper, lower = np.concatenate([upper, upper], 1), np.concatenate([lower, lower], 1)
     apart = ~np.all(labels[:, :c] == labels[:, c:], axis=1)[:, None, None]
-    by_upper = guided_prediction(denoise, upper, guidance, diffusion_steps, mask, pair_terms, part_labels)
+    by_upper = guided_prediction(denoise, upper, guidance, diffusion_steps, mask, *flags)
     if not apart.any():
         return ddim(keeping(by_upper, known), noise, mask, guidance, diffusion_steps, seeds)
-    by_lower = guided_prediction(denoise, lower, guidance, diffusion_steps, mask, pair_terms, part_labels)
+    by_lower = guided_prediction(denoise, lower, guidance, diffusion_steps, mask, *flags)
     m = mask[..., None].astype(np.float32)
 
     def joined(x_upper: np.ndarray, x_lower: np.ndarray) -> np.ndarray:
@@ -347,10 +354,20 @@ def keeping(predict, known):
 
 
 def guided_prediction(denoise, labels: np.ndarray, guidance: Guidance, diffusion_steps: int, mask: np.ndarray,
-                      pair_terms: bool = False, part_labels: bool = False):
+                      pair_terms: bool = False, part_labels: bool = False, composed_label: bool = False):
     """`predict(x_t, step)` -> x0 (B, T, D): the network's terms for `labels` (as `sample` takes them) composed by the
-    guidance at one step, clipped and masked."""
+    guidance at one step, clipped and masked; a student's (`composed_label`) one call with the label itself."""
     b = labels.shape[0]
+    m = mask[..., None].astype(np.float32)
+    if composed_label:
+        label_input, on = labels.astype(np.float32), np.ones(b, bool)
+        off = np.zeros(b, bool)
+
+        def predict_composed(x: np.ndarray, step: int) -> np.ndarray:
+            with_leader = on if step <= guidance.leader_below * (diffusion_steps - 1) else off
+            return np.clip(denoise(x, step, with_leader, label_input, on), -guidance.clip, guidance.clip) * m
+
+        return predict_composed
     conditions, weights = label_terms(labels, pair_terms, part_labels)
     k = len(conditions)
     n_terms = 1 + k + (guidance.leader_scale != 1.0)
@@ -364,7 +381,6 @@ def guided_prediction(denoise, labels: np.ndarray, guidance: Guidance, diffusion
     label_input, label_on, leader_on = label_input.reshape(n_terms * b, -1), label_on.reshape(-1), leader_on.reshape(-1)
     no_leader = np.zeros_like(leader_on)
     unguided = weights[..., None, None]  # (K, B, 1, 1): the label terms at s = 1
-    m = mask[..., None].astype(np.float32)
 
     def predict(x: np.ndarray, step: int) -> np.ndarray:
         _, t, d = x.shape

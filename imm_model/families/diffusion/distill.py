@@ -1,0 +1,272 @@
+"""A few-step student distilled from the diffusion model's sampler: the same network, started from the teacher's
+weights, that reads the signed label (times the scale) as one input and lands in a few DDIM steps where the teacher's
+composing sampler lands in its many.
+
+The teacher composes the label term by term (sampler.py): 1 + classes network calls at each of its steps. The student
+(DiffusionConfig.composed_label) is asked once per step whatever the label, the guidance distilled into the network as
+Meng et al. (CVPR 2023) distil classifier-free guidance, and the steps cut by regressing the teacher's reaction from
+the same starting noise and the same noised leader (Luhman & Luhman 2021), through the student's own DDIM steps.
+Composition survives as far as the teacher's pool teaches it: reactions to the training leaders for labels drawn as
+the front ends ask for them (`pool_labels`), at spread levels and seeds drawn alike. A label per body part needs no
+teaching: the sampler samples each part as a whole-body label and joins the reactions (Guidance.join_outputs).
+
+Run directory: log.csv and final.safetensors/.json (the EMA student), like the trainer's.
+"""
+
+from __future__ import annotations
+
+import copy
+import csv
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import torch
+
+import imm_model
+from imm_model.checkpoint import save_checkpoint, weights_digest
+from imm_model.data.dataset import InteractionDataset
+from imm_model.data.splits import loso_fold
+from imm_model.errors import CheckpointError, TrainingError
+from imm_model.families.base import Trained
+from imm_model.families.diffusion.denoiser import ReactionDenoiser
+from imm_model.families.diffusion.recipes import FAMILY, DiffusionTrainConfig
+from imm_model.families.diffusion.sampler import Guidance, cosine_alpha_bar, initial_noise, leader_noise, schedule_step
+from imm_model.training.data import Augmenter, PaddedData, data_meta, derive_seed
+
+LOG_FIELDS = ("step", "loss", "x0", "velocity", "lr", "seconds")
+POOL_BATCH = 64  # teacher reactions drawn per sampler call
+DEFAULT_SPREAD_SHARE = 0.5  # pool batches at the teacher's own spread; the rest at a uniform spread in 0..1
+
+# The labels a pool row asks for, with their shares: what the front ends ask for (the studio's sliders reach 2)
+LABEL_KINDS = (
+    ("one class at +1", 0.35),
+    ("one class at a value in -1..2", 0.15),
+    ("two classes performed, each 0.3..1.5", 0.2),
+    ("one class performed, another avoided", 0.1),
+    ("three classes at values in -1..1.5", 0.15),
+    ("no label", 0.05),
+)
+
+
+def pool_labels(rng: np.random.Generator, n: int, classes: int) -> np.ndarray:
+    """(n, classes) float32 signed labels, each row of a kind of LABEL_KINDS drawn by its share."""
+    kinds = rng.choice(len(LABEL_KINDS), n, p=[share for _, share in LABEL_KINDS])
+    labels = np.zeros((n, classes), np.float32)
+    for row, kind in enumerate(kinds):
+        picked = rng.permutation(classes)
+        if kind == 0:
+            labels[row, picked[0]] = 1.0
+        elif kind == 1:
+            labels[row, picked[0]] = rng.uniform(-1, 2)
+        elif kind == 2:
+            labels[row, picked[:2]] = rng.uniform(0.3, 1.5, 2)
+        elif kind == 3:
+            labels[row, picked[:2]] = (1.0, -1.0)
+        elif kind == 4:
+            labels[row, picked[:3]] = rng.uniform(-1, 1.5, 3)
+    return labels
+
+
+class StudentTrainer:
+    def __init__(self, cfg: DiffusionTrainConfig, data: InteractionDataset, subject: str | None, out_dir: Path | str,
+                 device: torch.device | str = "cpu"):
+        from imm_model.families import load_model
+
+        self.cfg, self.data, self.subject = cfg, data, subject
+        self.device = torch.device(device)
+        self.out = Path(out_dir)
+        self.teacher_path = Path(cfg.teacher.format(fold=subject or "all"))
+        teacher = load_model(self.teacher_path)
+        if teacher.family != FAMILY or teacher.config.composed_label or teacher.config.part_labels:
+            raise CheckpointError(f"{self.teacher_path}: a teacher is a whole-label diffusion model, not {teacher.title}")
+        if teacher.held_out_subject != subject:
+            raise CheckpointError(f"{self.teacher_path}: the teacher held out {teacher.held_out_subject}, the student "
+                                  f"{subject}: it would teach what the fold keeps back")
+        self.teacher = teacher
+        self.train_idx = np.arange(len(data)) if subject is None else loso_fold(data.subject_pairs, subject).train
+        self.model_cfg = replace(teacher.config, composed_label=True)
+        self.guidance = Guidance.from_dict(teacher.guidance.to_dict() | dict(cfg.guidance))
+        self.net = ReactionDenoiser(self.model_cfg)
+        self.net.load_state_dict({k: torch.as_tensor(v) for k, v in teacher.weights.items()})
+        self.net = self.net.to(self.device)
+        self.ema = copy.deepcopy(self.net).requires_grad_(False).eval()
+        self.opt = torch.optim.AdamW(self.net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+        teacher_cfg = DiffusionTrainConfig.from_dict(teacher.info["train_config"])  # the leaders its own training saw
+        swap = torch.tensor([c in teacher_cfg.role_swap_classes for c in data.class_names])
+        mirror = torch.tensor([c not in teacher_cfg.mirror_exclude_classes for c in data.class_names])
+        self.augment = Augmenter(data.skeleton, teacher_cfg.mirror_prob, teacher_cfg.rotate_deg, teacher_cfg.role_swap_prob,
+                                 swap, teacher_cfg.time_warp, teacher_cfg.scale_jitter, mirror)
+        self.padded = PaddedData.from_dataset(data)
+        self.alpha_bar = torch.as_tensor(cosine_alpha_bar(self.model_cfg.diffusion_steps), dtype=torch.float32)
+        self.step = 0
+        self.pool: dict[str, torch.Tensor] = {}  # the teacher's reactions (`draw_pool`), normalized
+        self.seeds = np.zeros(0, np.int64)  # the pool rows' sampler seeds
+
+    # ---- the teacher's reactions ----------------------------------------------------------------
+    def draw_pool(self, progress: bool = True) -> None:
+        """cfg.pool_rows teacher reactions: augmented training leaders, labels (`pool_labels`), seeds and spreads,
+        each row's starting noise and leader noise as the sampler draws them from its seed, all normalized."""
+        from tqdm import tqdm
+
+        cfg, teacher, d = self.cfg, self.teacher, self.model_cfg.pose_dim
+        rng = np.random.default_rng((cfg.seed, 1))
+        gen = torch.Generator().manual_seed(derive_seed(cfg.seed, 10**9))
+        t_max = int(self.padded.lengths.max())
+        n = cfg.pool_rows
+        leaders, targets, noises, leader_noises = (np.zeros((n, t_max, d), np.float32) for _ in range(4))
+        lengths, levels = np.zeros(n, np.int64), np.zeros(n, np.int64)
+        labels = pool_labels(rng, n, len(self.data.class_names))
+        # rows asking for the same classes side by side: the teacher composes one term per class any row of a batch weighs
+        labels = labels[np.argsort((labels != 0) @ (1 << np.arange(labels.shape[1])), kind="stable")]
+        seeds = rng.integers(0, 2**31 - 1, n)
+        spread_trained = teacher.config.leader_noise
+        base = teacher.guidance
+        for start in tqdm(range(0, n, POOL_BATCH), disable=not progress, desc="teacher reactions", unit="batch"):
+            rows = np.arange(start, min(n, start + POOL_BATCH))
+            idx = torch.as_tensor(self.train_idx)[torch.randint(len(self.train_idx), (len(rows),), generator=gen)]
+            leader, _, length, _ = self.augment(self.padded, idx, gen)
+            spread = 0.0
+            if spread_trained:
+                spread = base.leader_noise if rng.random() < DEFAULT_SPREAD_SHARE else float(rng.uniform(0, 1))
+            teacher.guidance = replace(base, leader_noise=spread)
+            canon = [leader[k, : int(length[k])].numpy().reshape(int(length[k]), -1, 3) for k in range(len(rows))]
+            followers = teacher._sample(canon, labels[rows], seeds[rows].tolist())
+            for k, row in enumerate(rows):
+                t = int(length[k])
+                lengths[row] = t
+                leaders[row, :t] = canon[k].reshape(t, d)
+                targets[row, :t] = followers[k].reshape(t, d)
+                noises[row, :t] = initial_noise(int(seeds[row]), t, d)
+                leader_noises[row, :t] = leader_noise(int(seeds[row]), t, d)
+                levels[row] = schedule_step(spread, self.model_cfg.diffusion_steps)
+        teacher.guidance = base
+        self.seeds = seeds
+        if not np.isfinite(targets).all():
+            raise TrainingError(f"{self.teacher_path}: the teacher's reactions are not finite")
+        w = teacher.weights
+        self.pool = {"leader": torch.as_tensor((leaders - w["leader_mean"]) / w["leader_std"]),
+                     "target": torch.as_tensor((targets - w["follower_mean"]) / w["follower_std"]),
+                     "noise": torch.as_tensor(noises), "leader_noise": torch.as_tensor(leader_noises),
+                     "length": torch.as_tensor(lengths), "level": torch.as_tensor(levels), "label": torch.as_tensor(labels)}
+
+    # ---- one step -------------------------------------------------------------------------
+    def lr_at(self, step: int) -> float:
+        cfg = self.cfg
+        if step < cfg.warmup_steps:
+            return cfg.lr * (step + 1) / cfg.warmup_steps
+        progress = (step - cfg.warmup_steps) / max(1, cfg.steps - cfg.warmup_steps)
+        return cfg.lr * (0.1 + 0.9 * 0.5 * (1 + np.cos(np.pi * min(progress, 1.0))))
+
+    def student_sample(self, net: ReactionDenoiser, rows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The student's own DDIM steps on pool rows, as the sampler takes them (sampler.py `ddim`, eta 0) ->
+        (x0 (B, T, D) normalized, mask (B, T))."""
+        p, g = self.pool, self.guidance
+        length = p["length"][rows]
+        t = int(length.max())
+        mask = torch.arange(t)[None] < length[:, None]
+        m = mask[..., None].float()
+        leader = p["leader"][rows, :t] * m
+        level = p["level"][rows]
+        a_level = self.alpha_bar[level][:, None, None]
+        noisy = (a_level.sqrt() * leader + (1 - a_level).sqrt() * p["leader_noise"][rows, :t]) * m
+        noisy = torch.where((level > 0)[:, None, None], noisy, leader)  # spread 0: the clean leader (model.py)
+        label = p["label"][rows]
+        on = torch.ones(len(rows), dtype=torch.bool)
+        steps_total = self.model_cfg.diffusion_steps
+        steps = np.linspace(schedule_step(g.memory_level, steps_total), 0, g.sample_steps).round().astype(int)
+        x = p["noise"][rows, :t] * m
+        for i, step in enumerate(steps):
+            read = noisy if step > 0 else leader  # the last step reads the clean leader (model.py)
+            leader_on = on if step <= g.leader_below * (steps_total - 1) else ~on
+            x0 = net(x, torch.full((len(rows),), int(step)), read, leader_on, label, on, mask,
+                     leader_level=level.float() * (step > 0)).clamp(-g.clip, g.clip) * m
+            if i + 1 == len(steps):
+                return x0, mask
+            a, a_next = self.alpha_bar[step], self.alpha_bar[steps[i + 1]]
+            eps = (x - a.sqrt() * x0) / (1 - a).sqrt()
+            x = (a_next.sqrt() * x0 + (1 - a_next).sqrt() * eps) * m
+        raise AssertionError("unreachable: sample_steps >= 1")
+
+    def train_step(self) -> dict[str, float]:
+        cfg, net = self.cfg, self.net
+        gen = torch.Generator().manual_seed(derive_seed(cfg.seed, self.step))
+        rows = torch.randint(len(self.pool["length"]), (cfg.batch_size,), generator=gen)
+        x0, mask = self.student_sample(net, rows)
+        target = self.pool["target"][rows, : x0.shape[1]]
+        m = mask[..., None].float()
+        x0_loss = ((x0 - target) ** 2 * m).sum() / (m.sum() * x0.shape[-1])
+        mv = m[:, 1:] * m[:, :-1]
+        vel_loss = (((x0[:, 1:] - x0[:, :-1]) - (target[:, 1:] - target[:, :-1])) ** 2 * mv).sum() / (mv.sum() * x0.shape[-1])
+        loss = x0_loss + cfg.lambda_velocity * vel_loss
+        if not torch.isfinite(loss):
+            raise TrainingError(f"training stopped: the loss is not finite at step {self.step}")
+        lr = self.lr_at(self.step)
+        for group in self.opt.param_groups:
+            group["lr"] = lr
+        self.opt.zero_grad(set_to_none=True)
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
+        self.opt.step()
+        decay = min(cfg.ema_decay, (1 + self.step) / (10 + self.step))
+        with torch.no_grad():
+            for e, p in zip(self.ema.parameters(), net.parameters(), strict=True):
+                e.lerp_(p, 1 - decay)
+        self.step += 1
+        return {"loss": loss.item(), "x0": x0_loss.item(), "velocity": vel_loss.item(), "lr": lr}
+
+    # ---- the run --------------------------------------------------------------------------
+    def fit(self, progress: bool = True) -> Path:
+        from tqdm import tqdm
+
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.draw_pool(progress)
+        t0 = time.time()
+        totals: dict[str, float] = {}
+        count = 0
+        with open(self.out / "log.csv", "w", newline="") as fh:
+            writer = csv.DictWriter(fh, fieldnames=LOG_FIELDS)
+            writer.writeheader()
+            bar = tqdm(total=self.cfg.steps, disable=not progress, desc=f"student {self.subject or 'none'}", unit="step",
+                       mininterval=2.0)
+            while self.step < self.cfg.steps:
+                self.net.train()
+                parts = self.train_step()
+                for k in ("loss", "x0", "velocity"):
+                    totals[k] = totals.get(k, 0.0) + parts[k]
+                count += 1
+                bar.update(1)
+                if self.step % 100 == 0 or self.step == self.cfg.steps:
+                    row = {k: v / count for k, v in totals.items()} | {"lr": parts["lr"]}
+                    writer.writerow({"step": self.step, **{k: f"{v:.5g}" for k, v in row.items()},
+                                     "seconds": f"{time.time() - t0:.1f}"})
+                    fh.flush()
+                    bar.set_postfix(loss=f"{row['loss']:.4f}")
+                    totals, count = {}, 0
+            bar.close()
+        final = self.out / "final.safetensors"
+        save_checkpoint(final, {f"denoiser.{k}": v.detach().cpu() for k, v in self.ema.state_dict().items()}, self.meta())
+        return final
+
+    def meta(self) -> dict:
+        return {
+            "kind": "final",
+            "family": FAMILY,
+            "code_version": imm_model.__version__,
+            "model_config": self.model_cfg.to_dict(),
+            "guidance": self.guidance.to_dict(),
+            "train_config": self.cfg.to_dict(),
+            **data_meta(self.data, self.subject, self.train_idx),
+            "follower_bone_lengths": self.teacher.info["follower_bone_lengths"],
+            "teacher": {"path": str(self.teacher_path), "weights_digest": weights_digest(self.teacher.weights)},
+            "training": {"fold": f"loso-{self.subject}" if self.subject else "all", "step": self.step,
+                         "train_sequences": len(self.train_idx), "seed": self.cfg.seed, "pool_rows": self.cfg.pool_rows},
+        }
+
+
+def distill(cfg: DiffusionTrainConfig, data: InteractionDataset, subject: str | None, out_dir: Path, device="cpu",
+            progress: bool = True) -> Trained:
+    """One fold's student, from its teacher's reactions to the end (a student is short: it is not resumed)."""
+    final = StudentTrainer(cfg, data, subject, out_dir, device).fit(progress=progress)
+    return Trained(f"{cfg.steps} steps from {cfg.pool_rows} teacher reactions -> {final}", {"steps": cfg.steps})

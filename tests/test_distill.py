@@ -1,0 +1,139 @@
+"""The few-step student distilled from the diffusion sampler (families/diffusion/distill.py): its label pool, one
+network call per step whatever the label, training that reproduces the sampler it ships with, and the checks on its
+teacher. Tiny networks trained for a few steps on the bundled SBU data (real data; the numbers are behaviour, not
+results)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+
+from imm_model.errors import CheckpointError
+from imm_model.families import load_model
+from imm_model.families.diffusion.distill import LABEL_KINDS, StudentTrainer, pool_labels
+from imm_model.families.diffusion.recipes import IMM_DIFFUSION, IMM_DIFFUSION_STUDENT
+from imm_model.families.diffusion.sampler import Guidance, sample, schedule_step
+from imm_model.families.diffusion.trainer import DiffusionTrainer
+
+TEACHER = replace(IMM_DIFFUSION, name="tiny-teacher",
+                  model=dict(width=16, layers=1, heads=2, ff_mult=1, dropout=0.0, leader_noise=True),
+                  guidance=dict(label_scale=2.5, sample_steps=3, guided_below=0.3, leader_noise=0.3, part_join=True,
+                                join_outputs=True),
+                  steps=6, batch_size=8, warmup_steps=2, checkpoint_every=6)
+
+
+@pytest.fixture(scope="module")
+def teacher_runs(tmp_path_factory, sample_data):
+    torch.set_num_threads(1)
+    out = tmp_path_factory.mktemp("teacher")
+    DiffusionTrainer(TEACHER, sample_data, "s04", out / "fold-s04").fit(progress=False)
+    return str(out / "fold-{fold}" / "final.safetensors")
+
+
+def student_config(teacher: str, **changes):
+    return replace(IMM_DIFFUSION_STUDENT, teacher=teacher, pool_rows=48, steps=30, batch_size=16, lr=3e-3, warmup_steps=0,
+                   **changes)
+
+
+@pytest.fixture(scope="module")
+def student(teacher_runs, sample_data, tmp_path_factory):
+    trainer = StudentTrainer(student_config(teacher_runs), sample_data, "s04", tmp_path_factory.mktemp("student"))
+    trainer.draw_pool(progress=False)
+    rows = torch.arange(len(trainer.pool["length"]))
+
+    def pool_error() -> float:
+        with torch.no_grad():
+            x0, mask = trainer.student_sample(trainer.net.eval(), rows)
+        m = mask[..., None].float()
+        return float((((x0 - trainer.pool["target"][:, : x0.shape[1]]) ** 2) * m).sum() / (m.sum() * x0.shape[-1]))
+
+    before = pool_error()
+    path = trainer.fit(progress=False)  # draws the same pool again (its seed) and trains on it
+    return trainer, path, before, pool_error()
+
+
+def test_the_pool_asks_for_labels_as_the_front_ends_do():
+    labels = pool_labels(np.random.default_rng(0), 6000, 6)
+    assert labels.shape == (6000, 6) and labels.dtype == np.float32
+    counts = (labels != 0).sum(1)
+    shares = {k: float(np.mean(counts == k)) for k in range(4)}
+    kinds = dict(LABEL_KINDS)
+    assert abs(shares[0] - kinds["no label"]) < 0.02
+    assert abs(shares[1] - kinds["one class at +1"] - kinds["one class at a value in -1..2"]) < 0.03
+    assert abs(shares[3] - kinds["three classes at values in -1..1.5"]) < 0.03
+    assert ((labels == -1).sum(1) == 1).mean() > 0.05  # one performed, another avoided
+    assert labels.min() >= -1 and labels.max() <= 2
+
+
+def test_a_student_is_asked_once_per_step_whatever_the_label():
+    b, t, d = 3, 5, 6
+    calls = []
+
+    def denoise(x_t, step, leader_on, label, label_on):
+        calls.append((len(x_t), label.copy(), label_on.copy()))
+        return np.zeros_like(x_t)
+
+    labels = np.array([[1, 0, 0], [0.5, -1, 0], [1, 1, 1.5]], np.float32)
+    noise = np.random.default_rng(0).standard_normal((b, t, d)).astype(np.float32)
+    mask = np.ones((b, t), bool)
+    guidance = Guidance(sample_steps=2)
+    sample(denoise, np.zeros((b, t, d), np.float32), mask, labels, noise, guidance, 100, composed_label=True)
+    assert len(calls) == 2 and all(n == b for n, _, _ in calls)
+    assert all(np.array_equal(label, labels) and on.all() for _, label, on in calls)
+    calls.clear()
+    sample(denoise, np.zeros((b, t, d), np.float32), mask, labels, noise, guidance, 100)
+    assert len(calls) == 2 and all(n == 4 * b for n, _, _ in calls)  # the teacher: the leader term and three classes
+
+
+def test_training_brings_the_student_to_its_teacher(student):
+    _, _, before, after = student
+    assert after < 0.8 * before
+
+
+def test_the_student_ships_the_sampler_it_was_trained_through(student, sample_data):
+    trainer, path, _, _ = student
+    model = load_model(path)
+    assert model.config.composed_label and model.guidance.sample_steps == 2
+    assert model.info["teacher"]["path"] == trainer.cfg.teacher.format(fold="s04")
+    pool = trainer.pool
+    level = schedule_step(model.guidance.leader_noise, model.config.diffusion_steps)
+    rows = np.flatnonzero(pool["level"].numpy() == level)[:4]
+    assert len(rows)
+    w = model.weights
+    leaders = [(pool["leader"][r, : pool["length"][r]].numpy() * w["leader_std"] + w["leader_mean"]).reshape(-1, 15, 3)
+               for r in rows]
+    seeds = trainer.seeds[rows].tolist()
+    made = model._sample(leaders, pool["label"][rows].numpy(), seeds)
+    with torch.no_grad():
+        x0, _ = trainer.student_sample(trainer.ema, torch.as_tensor(rows))
+    for k, follower in enumerate(made):
+        t = len(follower)
+        trained = (x0[k, :t].numpy() * w["follower_std"] + w["follower_mean"]).reshape(t, -1, 3)
+        assert np.abs(trained - follower).max() < 1e-3
+
+
+def test_the_student_answers_the_api_with_seeds_mixes_and_parts(student, sample_data):
+    model = load_model(student[1])
+    leader = sample_data.world(0)[0]
+    one = model.synthesize(leader, {"kicking": 1}, seed=0)
+    assert np.array_equal(one, model.synthesize(leader, {"kicking": 1}, seed=0))
+    assert not np.allclose(one, model.synthesize(leader, {"kicking": 1}, seed=1))
+    assert not np.allclose(one, model.synthesize(leader, {"kicking": 1, "punching": -1}, seed=0))
+    parts = model.synthesize(leader, {"upper:kicking": 1, "lower:punching": 1}, seed=0)
+    assert parts.shape == one.shape and np.isfinite(parts).all()
+
+
+def test_a_teacher_that_saw_the_fold_is_refused_in_one_line(teacher_runs, sample_data, tmp_path):
+    with pytest.raises(CheckpointError, match="held out s04, the student s01") as err:
+        StudentTrainer(student_config(teacher_runs.format(fold="s04")), sample_data, "s01", tmp_path)
+    assert "\n" not in str(err.value)
+
+
+def test_a_student_needs_a_teacher_and_a_teacher_a_student():
+    with pytest.raises(ValueError, match="teacher"):
+        replace(IMM_DIFFUSION_STUDENT, teacher="")
+    with pytest.raises(ValueError, match="teacher"):
+        replace(IMM_DIFFUSION, teacher="runs/x/fold-{fold}/final.safetensors")
