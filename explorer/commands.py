@@ -21,7 +21,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--data", type=Path, default=None, help="interaction bundle .npz (default: the bundled SBU sample)")
     p.add_argument("--model", action="append", default=None, metavar="NAME=CHECKPOINT", type=model_argument,
                    help="a model the studio offers, by name (repeat it for several; the first opens the studio and its "
-                        "latent map is the one shown). Default: the bundled ones, diffusion, gan, retrieval and parts")
+                        "latent map is the one shown). Default: the bundled ones, diffusion, gan and retrieval")
     p.add_argument("--port", type=int, default=None,
                    help="port to listen on; 0 picks a free one (printed). Default 8080 (with --desktop: a free one)")
     p.add_argument(

@@ -43,7 +43,8 @@ SAMPLE_DIFFUSION = SAMPLE_DIR / "imm_diffusion.safetensors"  # the reaction diff
 # the model ReactionModel.load(), `imm generate` and the studio use when none is given
 # (docs/experiments/default-model.md: its FID over 7 folds x 3 seeds is not worse than the GAN's)
 SAMPLE_DEFAULT = SAMPLE_DIFFUSION
-# the diffusion model that reads a label per body part (`imm-diffusion-parts`), the studio's fourth model
+# the diffusion model trained with a label per body part (`imm-diffusion-parts`): experimental, not opened by the studio
+# by default (the default model takes a label per body part too, and measured the same on part labels: its model card)
 SAMPLE_PARTS = SAMPLE_DIR / "imm_diffusion_parts.safetensors"
 SAMPLE_RETRIEVAL = SAMPLE_DIR / "imm_retrieval.safetensors"  # 1-NN retrieval from the bundled data, s04 held out
 SAMPLE_JUDGE = SAMPLE_DIR / "follower_judge.safetensors"  # the studio's "reads as" classifier (imm_model/reads_as.py)
@@ -51,7 +52,7 @@ SAMPLE_JUDGE = SAMPLE_DIR / "follower_judge.safetensors"  # the studio's "reads 
 SAMPLE_UPPER_JUDGE = SAMPLE_DIR / "upper_judge.safetensors"
 SAMPLE_LOWER_JUDGE = SAMPLE_DIR / "lower_judge.safetensors"
 # the bundled models by the names the studio gives them, in its switch's order (the first, the default, opens it)
-SAMPLE_MODELS = {"diffusion": SAMPLE_DEFAULT, "gan": SAMPLE_GAN, "retrieval": SAMPLE_RETRIEVAL, "parts": SAMPLE_PARTS}
+SAMPLE_MODELS = {"diffusion": SAMPLE_DEFAULT, "gan": SAMPLE_GAN, "retrieval": SAMPLE_RETRIEVAL}
 
 
 def shared_datasets() -> Path:

@@ -136,7 +136,7 @@ def test_the_default_model_is_the_bundled_diffusion_model(model, sample_data, tm
     default = ReactionModel.load()
     assert default.family == "diffusion" and default.settings.seed and default.path == SAMPLE_DIFFUSION
     assert model.family == "gan" and not model.settings.seed
-    assert list(SAMPLE_MODELS) == ["diffusion", "gan", "retrieval", "parts"] and SAMPLE_MODELS["gan"] == SAMPLE_GAN
+    assert list(SAMPLE_MODELS) == ["diffusion", "gan", "retrieval"] and SAMPLE_MODELS["gan"] == SAMPLE_GAN
     world = sample_data.world(7)[0]
     ours = imm_model.synthesize(world, {"hugging": 1})
     np.testing.assert_allclose(ours, default.synthesize(world, {"hugging": 1}), atol=1e-5)

@@ -1,6 +1,8 @@
 """Mixing by body part in the studio: the session's part mix (its label vector, words, link, export) beside a model
-without part labels, and the Label mix drawer's part control in a browser. The part model is trained for 60 steps
-at a small width (its motion is meaningless: only the plumbing is tested)."""
+without part labels, over a network trained with a label per body part for 60 steps at a small width (its motion is
+meaningless: only the plumbing is tested); and the Label mix drawer's part control in a browser, on the studio as it
+opens by default: the bundled diffusion model, whose sampler joins the parts (Guidance.part_join), beside the GAN and
+1-NN retrieval (no part labels)."""
 
 from __future__ import annotations
 
@@ -10,7 +12,7 @@ import numpy as np
 import pytest
 
 from imm_model.errors import LabelError
-from imm_model.paths import SAMPLE_GAN
+from imm_model.paths import SAMPLE_DIFFUSION, SAMPLE_GAN
 
 pytest.importorskip("trame")
 
@@ -241,18 +243,22 @@ def test_a_link_with_a_huge_value_is_named_in_a_short_line(session):
 @pytest.mark.browser
 @pytest.mark.slow
 @pytest.mark.timeout(300)
-def test_the_drawer_sets_a_class_apart_for_one_part_and_the_link_and_picture_follow(browser, part_checkpoint, tmp_path):
-    """At 1366x768: a class's parts set apart in the Label mix drawer, its lower body's slider moved: the label text,
-    the link, the picture and the part judges' readings follow; the GAN (no part labels) is refused in one line while
-    the parts differ."""
+def test_the_drawer_sets_a_class_apart_for_one_part_and_the_link_and_picture_follow(browser, tmp_path):
+    """At 1366x768, the studio as it opens by default (the bundled diffusion model, its sampler joining the parts): a
+    class's parts set apart in the Label mix drawer, its lower body's slider moved: the label text, the link, the
+    picture and the part judges' readings follow; the GAN and retrieval (no part labels) are marked, and a switch to
+    the GAN is refused in one line, while the parts differ."""
     from tests import studio_probe as probe
 
-    with probe.StudioProcess("--model", f"diffusion={part_checkpoint}", "--model", f"gan={SAMPLE_GAN}",
-                             cache_dir=tmp_path) as studio:
-        page = probe.open_studio(browser, studio.url, 1366, 768)
+    if not SAMPLE_DIFFUSION.exists():
+        pytest.skip(f"bundled checkpoint missing: {SAMPLE_DIFFUSION}")
+    with probe.StudioProcess(cache_dir=tmp_path) as studio:  # no --model: the bundled models, the default first
+        page = probe.open_studio(browser, studio.url, 1366, 768, timeout_ms=180000)
         try:
             probe.watch_view_images(page)
             probe.wait_state(page, "s.get('part_labels') === true && s.get('mix_count') > 0 && s.get('url_query') !== ''")
+            assert [m["value"] for m in probe.state(page, "model_items")] == ["diffusion", "gan", "retrieval"]
+            assert probe.state(page, "model_name") == "diffusion" and probe.state(page, "model_title") == "the diffusion model"
             page.click("#reset-label")
             probe.wait_state(page, "s.get('label_text').startsWith('neutral')")
             probe.press_slider(page, ".slider-shaking_hands", "End")  # shaking hands +1, the whole body
@@ -266,8 +272,10 @@ def test_the_drawer_sets_a_class_apart_for_one_part_and_the_link_and_picture_fol
             probe.wait_state(page, "s.get('label_text') === 'trunk and arms: shaking hands +1 · legs: shaking hands -1'")
             probe.wait_state(page, "s.get('url_query').includes('mix=upper:shaking_hands:1,lower:shaking_hands:-1')")
             probe.wait_state(page, "s.get('parts_apart') === true")  # a model that would refuse the part mix is marked
-            gan = page.locator("#model-gan")
-            assert gan.is_disabled() and "takes no label per body part" in (gan.get_attribute("title") or "")
+            for name in ("gan", "retrieval"):
+                other = page.locator(f"#model-{name}")
+                assert other.is_disabled() and "takes no label per body part" in (other.get_attribute("title") or ""), name
+            assert not page.locator("#model-diffusion").is_disabled()
             page.wait_for_function("() => location.search.includes('mix=upper:shaking_hands:1,lower:shaking_hands:-1')")
             # the bundled part judges read each part: two compact readings, the asked class of each marked, one note
             probe.wait_state(page, "s.get('reads_as_parts').length === 2")

@@ -152,9 +152,11 @@ def test_a_one_line_alert_leaves_the_3d_view_its_size(browser, studio):
 @pytest.mark.parametrize("width,height", [(1366, 768), (1280, 720)])
 def test_at_laptop_sizes_the_review_fits_its_pane_under_a_400px_view(browser, studio, width, height):
     """The review's table shows whole model column groups, as many as fit its pane, with nothing hidden sideways; a chip
-    per model says which show, and a model picked beyond that replaces one rather than overflowing. The 3D view keeps
-    400 px of height, the chart and the map are one click away ("chart & map"), and per class the "all classes" row
-    stays first whichever way the table is sorted."""
+    per model says which show, and where not all fit, a model picked beyond that replaces one rather than overflowing.
+    The 3D view keeps 400 px of height, the chart and the map are one click away ("chart & map"), and per class the
+    "all classes" row stays first whichever way the table is sorted."""
+    from explorer.ui.review_panel import FIXED_PX, MODEL_PX  # the column widths the page fits the pane with
+
     page = probe.open_studio(browser, studio.url, width, height)
     try:
         open_review(page)
@@ -167,17 +169,21 @@ def test_at_laptop_sizes_the_review_fits_its_pane_under_a_400px_view(browser, st
         assert fit["scrollWidth"] <= fit["clientWidth"] + 1, fit
         assert fit["sceneHeight"] >= 400, fit
         shown = probe.state(page, "review_shown")
-        assert 1 <= len(shown) < n_models and fit["groups"] == [4] * len(shown), (shown, fit)
+        room = max(1, (fit["clientWidth"] - FIXED_PX) // MODEL_PX)  # the model column groups the pane has room for
+        assert shown == list(range(min(n_models, room))) and fit["groups"] == [4] * len(shown), (shown, room, fit)
+        # the bundled three side by side fit the pane at 1366x768, not at 1280x720: there a pick replaces one
+        assert len(shown) < n_models or width > 1280, (shown, fit)
         chips = page.locator("#review-columns .review-column-chip")
         assert chips.count() == n_models and page.locator("#review-columns .v-chip--selected").count() == len(shown)
 
-        hidden = next(k for k in range(n_models) if k not in shown)
-        chips.nth(hidden).click()  # one more model than fits: it replaces one
-        probe.wait_state(page, f"s.get('review_shown').includes({hidden})")
-        page.wait_for_function(f"() => ({FIT_JS})().groups.length === {len(shown)}")
-        assert len(probe.state(page, "review_shown")) == len(shown)
-        fit = page.evaluate(FIT_JS)
-        assert fit["scrollWidth"] <= fit["clientWidth"] + 1, fit
+        if len(shown) < n_models:
+            hidden = next(k for k in range(n_models) if k not in shown)
+            chips.nth(hidden).click()  # one more model than fits: it replaces one
+            probe.wait_state(page, f"s.get('review_shown').includes({hidden})")
+            page.wait_for_function(f"() => ({FIT_JS})().groups.length === {len(shown)}")
+            assert len(probe.state(page, "review_shown")) == len(shown)
+            fit = page.evaluate(FIT_JS)
+            assert fit["scrollWidth"] <= fit["clientWidth"] + 1, fit
 
         page.click("#review-to-cards")  # the chart and the map, below the review
         page.wait_for_function(ON_SCREEN_JS, arg="#chart-card", timeout=10000)
