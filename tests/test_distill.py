@@ -132,6 +132,13 @@ def test_a_teacher_that_saw_the_fold_is_refused_in_one_line(teacher_runs, sample
     assert "\n" not in str(err.value)
 
 
+def test_a_teacher_of_another_family_is_refused_in_one_line(sample_data, tmp_path):
+    from imm_model.paths import SAMPLE_GAN
+
+    with pytest.raises(CheckpointError, match="imm_sbu.safetensors: not a diffusion model"):
+        StudentTrainer(student_config(str(SAMPLE_GAN)), sample_data, "s04", tmp_path)
+
+
 def test_a_student_needs_a_teacher_and_a_teacher_a_student():
     with pytest.raises(ValueError, match="teacher"):
         replace(IMM_DIFFUSION_STUDENT, teacher="")

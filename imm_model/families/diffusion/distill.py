@@ -25,12 +25,13 @@ import numpy as np
 import torch
 
 import imm_model
-from imm_model.checkpoint import save_checkpoint, weights_digest
+from imm_model.checkpoint import load_checkpoint, save_checkpoint, weights_digest
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold
 from imm_model.errors import CheckpointError, TrainingError
 from imm_model.families.base import Trained
 from imm_model.families.diffusion.denoiser import ReactionDenoiser
+from imm_model.families.diffusion.model import DiffusionReactionModel
 from imm_model.families.diffusion.recipes import FAMILY, DiffusionTrainConfig
 from imm_model.families.diffusion.sampler import Guidance, cosine_alpha_bar, initial_noise, leader_noise, schedule_step
 from imm_model.training.data import Augmenter, PaddedData, data_meta, derive_seed
@@ -72,15 +73,16 @@ def pool_labels(rng: np.random.Generator, n: int, classes: int) -> np.ndarray:
 class StudentTrainer:
     def __init__(self, cfg: DiffusionTrainConfig, data: InteractionDataset, subject: str | None, out_dir: Path | str,
                  device: torch.device | str = "cpu"):
-        from imm_model.families import load_model
-
         self.cfg, self.data, self.subject = cfg, data, subject
         self.device = torch.device(device)
         self.out = Path(out_dir)
         self.teacher_path = Path(cfg.teacher.format(fold=subject or "all"))
-        teacher = load_model(self.teacher_path)
-        if teacher.family != FAMILY or teacher.config.composed_label or teacher.config.part_labels:
-            raise CheckpointError(f"{self.teacher_path}: a teacher is a whole-label diffusion model, not {teacher.title}")
+        arrays, meta = load_checkpoint(self.teacher_path, framework="np")
+        if meta.get("family") != FAMILY:
+            raise CheckpointError(f"{self.teacher_path}: not a diffusion model, which a teacher must be")
+        teacher = DiffusionReactionModel.from_checkpoint(arrays, meta, self.teacher_path)
+        if teacher.config.composed_label or teacher.config.part_labels:
+            raise CheckpointError(f"{self.teacher_path}: a teacher reads a label per class, not {teacher.title}'s")
         if teacher.held_out_subject != subject:
             raise CheckpointError(f"{self.teacher_path}: the teacher held out {teacher.held_out_subject}, the student "
                                   f"{subject}: it would teach what the fold keeps back")
