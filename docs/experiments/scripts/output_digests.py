@@ -4,7 +4,8 @@ outputs bit-identical.
     python docs/experiments/scripts/output_digests.py --out digests.json        # before the change
     python docs/experiments/scripts/output_digests.py --compare digests.json    # after: prints how many differ
 
-Covers each bundled checkpoint (paths.SAMPLE_MODELS) on every sequence of the bundled data (its world leader under its own class, seed 0),
+Covers each bundled checkpoint (paths.SAMPLE_MODELS and the part-trained SAMPLE_PARTS) on every sequence of the
+bundled data (its world leader under its own class, seed 0),
 a two-class mix and an avoid on every tenth sequence, three seeds of the diffusion model on every tenth sequence,
 the canonical batch path on all sequences at once, the latent embedding of every tenth sequence, and the BVH leaders
 in tests/fixtures/bvh.
@@ -23,7 +24,7 @@ import numpy as np
 from imm_model.data.bvh import read_bvh
 from imm_model.data.dataset import InteractionDataset
 from imm_model.inference import ReactionModel
-from imm_model.paths import REPO_ROOT, SAMPLE_DATA, SAMPLE_MODELS
+from imm_model.paths import REPO_ROOT, SAMPLE_DATA, SAMPLE_MODELS, SAMPLE_PARTS
 
 
 def digest(array: np.ndarray) -> str:
@@ -68,7 +69,7 @@ def main() -> int:
     g.add_argument("--compare", type=Path)
     args = p.parse_args()
     data = InteractionDataset.load(SAMPLE_DATA)
-    found = {path.name: model_digests(ReactionModel.load(path), data) for path in SAMPLE_MODELS.values()}
+    found = {path.name: model_digests(ReactionModel.load(path), data) for path in [*SAMPLE_MODELS.values(), SAMPLE_PARTS]}
     if args.out:
         args.out.write_text(json.dumps(found, indent=0, sort_keys=True))
         print(f"wrote {sum(map(len, found.values()))} digests to {args.out}")
