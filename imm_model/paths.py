@@ -46,6 +46,9 @@ SAMPLE_DEFAULT = SAMPLE_DIFFUSION
 # the diffusion model trained with a label per body part (`imm-diffusion-parts`): experimental, not opened by the studio
 # by default (the default model takes a label per body part too, and measured the same on part labels: its model card)
 SAMPLE_PARTS = SAMPLE_DIR / "imm_diffusion_parts.safetensors"
+# a 2-step student of the bundled diffusion model (`imm-diffusion-student`): the studio's draft of its reaction while a
+# slider moves (ReactionModel.attach_draft; docs/experiments/sampler-student.md)
+SAMPLE_STUDENT = SAMPLE_DIR / "imm_diffusion_student.safetensors"
 SAMPLE_RETRIEVAL = SAMPLE_DIR / "imm_retrieval.safetensors"  # 1-NN retrieval from the bundled data, s04 held out
 SAMPLE_JUDGE = SAMPLE_DIR / "follower_judge.safetensors"  # the studio's "reads as" classifier (imm_model/reads_as.py)
 # the body-part judges: the follower's upper and lower body read alone, the studio's reading per part of a mix

@@ -16,6 +16,7 @@ class SessionFiles:
         from imm_model.interaction_file import interaction_arrays, interaction_bytes
 
         ses = self.session
+        ses.settle()  # a file holds the model's own reaction, never a slider's draft
         path = getattr(ses.model, "path", None)
         return interaction_bytes(interaction_arrays(
             ses.world(ses.leader), ses.world(ses.synth), ses.frame, ses.data.skeleton,
@@ -31,6 +32,7 @@ class SessionFiles:
         from imm_model.data.bvh import write_bvh
 
         ses = self.session
+        ses.settle()
         motion = ses.world(ses.synth if character == "follower" else ses.leader)
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "x.bvh"

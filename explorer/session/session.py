@@ -44,6 +44,7 @@ class ReactionModelLike(Protocol):
     part_labels: bool  # reads a label per body part ("upper:<class>", "lower:<class>"; imm_model/data/labels.py)
     settings: SamplerSettings  # the sampler settings it takes (a seed that picks among reactions, a spread, a memory)
     spread: float | None  # how loosely its sampler follows the leader, 0..1, settable; None: the model has no such setting
+    draft: ReactionModelLike | None  # a faster model distilled from it, drawn while a slider moves; None: itself
 
     def label_vector(self, label: Any, scale: float = 1.0) -> np.ndarray: ...
     def prepare_leader(self, leader_world: np.ndarray) -> Leader: ...
@@ -56,14 +57,18 @@ class ReactionModelLike(Protocol):
 
 
 def load_model(checkpoint: Path, data: InteractionDataset) -> ReactionModelLike:
-    """Load the checkpoint and refuse one that does not fit the data (one-line CheckpointError)."""
+    """Load the checkpoint and refuse one that does not fit the data (one-line CheckpointError); a bundled student
+    distilled from it becomes its draft (what a moving slider draws)."""
+    from imm_model.families import attach_draft
     from imm_model.inference import ReactionModel
+    from imm_model.paths import SAMPLE_STUDENT
 
     checkpoint = Path(checkpoint)
     if not checkpoint.exists():
         raise CheckpointError(f"{checkpoint}: checkpoint not found")
     model = ReactionModel.load(checkpoint, data=data.path)
     check_compatible(model, data, str(checkpoint))
+    attach_draft(model, [SAMPLE_STUDENT])
     return model
 
 
@@ -124,6 +129,7 @@ class Session:
         self.vector = np.zeros(len(self.class_names), np.float32)  # the mix as the models read it, checked once per change
         self.index = -1
         self.synth: np.ndarray | None = None
+        self.drafted = False  # `synth` is the model's draft's, until `settle` draws the model's own
         self.side_by_side = SideBySide(self)
         self.pinned = PinnedMix(self)
         self.readings = Readings(self, reader, dict(part_readers or {}))
@@ -191,12 +197,14 @@ class Session:
     def reset(self) -> np.ndarray:
         return self.set_label(np.zeros(len(self.class_names), np.float32), 1.0)
 
-    def set_label(self, label: Label | Sequence[float], scale: float | None = None, variations: bool = True) -> np.ndarray:
+    def set_label(self, label: Label | Sequence[float], scale: float | None = None, variations: bool = True,
+                  draft: bool = False) -> np.ndarray:
         """The mix -> its follower: a Label, or one weight per class (C,) for the whole body or per class and part (2C,),
         the upper body's then the lower body's, with `scale` (default: the current one). Weights are the sliders',
         -1..1 (beyond is clipped). `variations` False: the side-by-side followers wait for `side_by_side.draw` (a
-        slider's picture goes first). A mix a drawing model cannot read (a part mix beside a model without part labels,
-        NaN) is refused (LabelError, one line): nothing changes."""
+        slider's picture goes first). `draft`: the model's draft draws it, if it has one (a slider on the move), until
+        `settle`. A mix a drawing model cannot read (a part mix beside a model without part labels, NaN) is refused
+        (LabelError, one line): nothing changes."""
         if not isinstance(label, Label):
             w = np.asarray(label, np.float64).reshape(-1)
             c = len(self.class_names)
@@ -207,7 +215,7 @@ class Session:
             label = label.scaled(scale)
         label = Label(self.class_names, np.clip(label.parts, -1.0, 1.0).astype(np.float32), label.scale)  # the sliders' range and precision
         self.vector, self.label = self.check_label(label), label
-        return self.synthesize(variations)
+        return self.synthesize(variations, draft)
 
     def check_label(self, label: Label) -> np.ndarray:
         """The label as the current model reads it (its vector), if every model drawing it can: a part mix is refused
@@ -328,12 +336,22 @@ class Session:
         self.pinned.redraw()
 
     # ---- synthesis ----------------------------------------------------------------------
-    def synthesize(self, variations: bool = True) -> np.ndarray:
+    def synthesize(self, variations: bool = True, draft: bool = False) -> np.ndarray:
         """The follower for the current leader, mix, model and seed, and the followers beside it (`variations` False:
-        those of the previous mix stay until `side_by_side.draw`)."""
-        out = np.asarray(self.model.synthesize_canonical(self.leader, self.vector, seed=self.seed), np.float32)
+        those of the previous mix stay until `side_by_side.draw`). `draft`: drawn by the model's draft if it has one
+        (not in live mode, whose frames are final), until `settle`."""
+        model = self.model.draft if draft and self.model.draft is not None and not self.live.on else self.model
+        out = np.asarray(model.synthesize_canonical(self.leader, self.vector, seed=self.seed), np.float32)
         if out.shape != self.leader.shape:
             raise ValueError(f"model returned shape {out.shape}, expected {self.leader.shape}")
         self.synth = self.live.follow(out) if self.live.on else out
+        self.drafted = model is not self.model
         self.side_by_side.follow(variations)  # other models' followers wait with the variations: each costs a reaction
         return out
+
+    def settle(self) -> bool:
+        """The model's own follower in place of its draft's (the sliders rest); False: there was no draft to replace."""
+        if not self.drafted:
+            return False
+        self.synthesize(variations=False)
+        return True

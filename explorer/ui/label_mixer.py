@@ -37,6 +37,7 @@ class LabelMixer:
         page.ctrl.match_label = self.match
         page.ctrl.reset_label = self.reset
         self.apply_mix = page.guarded(self._apply_mix)
+        self.settle_draft = page.guarded(self._settle_draft)
 
     def write_state(self) -> None:
         """The sliders onto the session's mix: a class whose parts differ shows them apart."""
@@ -73,6 +74,8 @@ class LabelMixer:
                 review_due = bool(self.apply_mix()) or review_due
                 self.model_switch.settle()
                 await asyncio.sleep(PICTURE_S)  # the picture is rendered, encoded and sent before anything else
+                if not self._pending:  # the sliders rest: the model's own follower replaces its draft's
+                    self.settle_draft()
                 continue
             # The panels change once the page has shown the picture: their state messages, processed by the page
             # while it decodes the picture, delayed it by ~30 ms at p95 (docs/experiments/studio-performance.md).
@@ -97,7 +100,8 @@ class LabelMixer:
         if spread is not None:
             ses.set_spread(spread, synthesize=False)
         try:
-            ses.set_label(label, variations=False)  # the side-by-side variations follow with the review
+            ses.set_label(label, variations=False, draft=True)  # the variations follow with the review; the model's
+            # draft, if it has one, draws the picture while the sliders move (`_mix_loop` settles it)
         except Exception:
             with s:  # refused (a part mix beside a model without part labels): the sliders show the mix drawn
                 self.write_state()
@@ -106,6 +110,13 @@ class LabelMixer:
         self.model_switch.show_variations()
         self.page.ctrl.view_update(draft=True)  # the picture first: it is what the user is watching; the panels follow it
         return True
+
+    def _settle_draft(self) -> None:
+        """Before the view's still picture (0.17 s after the last change): what rests on screen and in the panels is
+        the model's own reaction, the draft only what moved."""
+        if self.page.session.settle():
+            self.scene.set_synthesized(self.page.session.synth)
+            self.page.ctrl.view_update(draft=True)
 
     def match(self):
         if self.page.session.own_class is not None:  # an uploaded leader has no class to match

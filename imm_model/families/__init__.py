@@ -12,7 +12,7 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
-from imm_model.errors import CheckpointError
+from imm_model.errors import CheckpointError, IMMError
 from imm_model.families import diffusion, gan, retrieval
 from imm_model.families.base import Family, ReactionModel
 from imm_model.families.output_check import check_model_outputs
@@ -38,6 +38,22 @@ def load_model(path: Path | str | None = None, device: str = "cpu", data: Path |
         raise CheckpointError(f"{path}: sidecar family {str(name)[:40]!r} is none of {', '.join(FAMILIES)}")
     model = FAMILIES[name].model_class().from_checkpoint(arrays, meta, path, device, None if data is None else Path(data))
     return check_model_outputs(model)
+
+
+def attach_draft(model: ReactionModel, candidates) -> None:
+    """Give `model` as its draft (ReactionModel.attach_draft) the first of `candidates` (checkpoint paths) distilled from
+    it; one missing, unreadable or distilled from another model is passed over, its weights never loaded."""
+    from imm_model.checkpoint import DIGEST, sidecar_path
+
+    for path in map(Path, candidates):
+        try:
+            meta = json.loads(read_input_text(sidecar_path(path), "draft sidecar", MAX_SETTINGS_BYTES))
+            if not isinstance(meta, dict) or (meta.get("teacher") or {}).get(DIGEST) != model.info.get(DIGEST):
+                continue
+            model.attach_draft(load_model(path))
+            return
+        except (OSError, ValueError, AttributeError, IMMError):
+            continue
 
 
 def recipe_names() -> list[str]:

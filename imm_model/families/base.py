@@ -122,6 +122,9 @@ class ReactionModel:
         # name a class the training never mirrored (SBU's right-handed handshakes; every class if it mirrored nothing)
         # keep their own placement: their mirror image is a reaction the model never saw.
         self.average_placement = False
+        # a faster model distilled from this one (a student whose sidecar names these weights as its teacher's):
+        # what the studio draws while a slider moves, this model's own reaction once it rests (`attach_draft`)
+        self.draft: ReactionModel | None = None
         training = meta.get("train_config") or {}
         unmirrored = training.get("mirror_exclude_classes", []) if training.get("mirror_prob", 0) > 0 else self.class_names
         self.handed = np.array([c in unmirrored for c in self.class_names])  # (C,) classes the training never mirrored
@@ -209,6 +212,19 @@ class ReactionModel:
         """What an output file records of how this model drew a follower: its seed (None when seeds change nothing),
         spread and reaction-memory level (None when unused)."""
         return {"seed": seed if self.settings.seed else None, "spread": self.spread, "memory": None}
+
+    def attach_draft(self, student: ReactionModel) -> None:
+        """Draw `student` while a slider moves (`draft`): a model distilled from this very one, its sidecar naming these
+        weights' digest as its teacher's, for the same classes and skeleton; another is one CheckpointError line."""
+        from imm_model.checkpoint import DIGEST
+
+        teacher = (student.info.get("teacher") or {}).get(DIGEST)
+        if teacher is None or teacher != self.info.get(DIGEST):
+            raise CheckpointError(f"{student.path}: not distilled from {self.path} (its teacher's weights differ), so it "
+                                  "cannot draft its reactions")
+        if student.class_names != self.class_names or student.skeleton != self.skeleton:
+            raise CheckpointError(f"{student.path}: other classes or skeleton than {self.path}")
+        self.draft = student
 
     # ---- labels and inputs ----------------------------------------------------------------
     def label_vector(self, label: Label | Mapping[str, float] | Sequence[float] | np.ndarray, scale: float = 1.0) -> np.ndarray:

@@ -25,7 +25,7 @@ import numpy as np
 import torch
 
 import imm_model
-from imm_model.checkpoint import load_checkpoint, save_checkpoint, weights_digest
+from imm_model.checkpoint import DIGEST, load_checkpoint, save_checkpoint
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.splits import loso_fold
 from imm_model.errors import CheckpointError, TrainingError
@@ -261,7 +261,8 @@ class StudentTrainer:
             "train_config": self.cfg.to_dict(),
             **data_meta(self.data, self.subject, self.train_idx),
             "follower_bone_lengths": self.teacher.info["follower_bone_lengths"],
-            "teacher": {"path": str(self.teacher_path), "weights_digest": weights_digest(self.teacher.weights)},
+            # which model it drafts for: ReactionModel.attach_draft matches this digest against the model's own
+            "teacher": {"path": str(self.teacher_path), DIGEST: self.teacher.info.get(DIGEST)},
             "training": {"fold": f"loso-{self.subject}" if self.subject else "all", "step": self.step,
                          "train_sequences": len(self.train_idx), "seed": self.cfg.seed, "pool_rows": self.cfg.pool_rows},
         }

@@ -1,0 +1,67 @@
+"""A model's draft: the bundled 2-step student drawn while a slider moves, the model's own reaction once it rests
+(ReactionModel.attach_draft, Session.set_label(draft=True) and settle), on the bundled checkpoints and data."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+
+from explorer.session.session import Session, load_model
+from imm_model.errors import CheckpointError
+from imm_model.families import attach_draft
+from imm_model.inference import ReactionModel
+from imm_model.paths import SAMPLE_DIFFUSION, SAMPLE_GAN, SAMPLE_PARTS, SAMPLE_STUDENT
+
+
+@pytest.fixture(scope="module")
+def models(sample_data):
+    return {"diffusion": load_model(SAMPLE_DIFFUSION, sample_data), "gan": load_model(SAMPLE_GAN, sample_data)}
+
+
+def test_the_studio_drafts_the_default_with_its_student_and_nothing_else(models):
+    draft = models["diffusion"].draft
+    assert draft is not None and draft.path == SAMPLE_STUDENT and draft.config.composed_label
+    assert models["gan"].draft is None
+
+
+def test_a_student_drafts_only_for_its_own_teacher(sample_data):
+    student = ReactionModel.load(SAMPLE_STUDENT)
+    for other in (SAMPLE_GAN, SAMPLE_PARTS):
+        model = ReactionModel.load(other)
+        with pytest.raises(CheckpointError, match="not distilled from") as err:
+            model.attach_draft(student)
+        assert "\n" not in str(err.value) and model.draft is None
+        attach_draft(model, [SAMPLE_STUDENT, SAMPLE_DIFFUSION])  # passed over, never an error
+        assert model.draft is None
+
+
+def test_a_moving_slider_draws_the_draft_and_the_rest_the_models_own(models, sample_data):
+    ses = Session(sample_data, models, index=0)
+    model, draft = models["diffusion"], models["diffusion"].draft
+    label = np.eye(len(ses.class_names), dtype=np.float32)[3]
+    ses.set_label(label, variations=False, draft=True)
+    assert ses.drafted
+    assert np.array_equal(ses.synth, draft.synthesize_canonical(ses.leader, ses.vector, seed=ses.seed))
+    assert ses.settle() and not ses.drafted
+    own = model.synthesize_canonical(ses.leader, ses.vector, seed=ses.seed)
+    assert np.array_equal(ses.synth, own) and not ses.settle()
+    gap = np.linalg.norm(draft.synthesize_canonical(ses.leader, ses.vector, seed=ses.seed) - own, axis=-1).mean()
+    assert 0 < gap < 0.15  # a draft of the same reaction: centimetres apart, not another reaction
+
+
+def test_a_file_holds_the_models_own_reaction_never_the_draft(models, sample_data):
+    ses = Session(sample_data, models, index=0)
+    ses.set_label(np.eye(len(ses.class_names), dtype=np.float32)[1], variations=False, draft=True)
+    arrays = np.load(io.BytesIO(ses.files.npz()))
+    assert not ses.drafted
+    own = ses.world(models["diffusion"].synthesize_canonical(ses.leader, ses.vector, seed=ses.seed))
+    assert np.allclose(arrays["follower"], own, atol=1e-5)
+
+
+def test_another_model_draws_itself_when_asked_for_a_draft(models, sample_data):
+    ses = Session(sample_data, models, index=0)
+    ses.set_model("gan")
+    ses.set_label(np.eye(len(ses.class_names), dtype=np.float32)[0], variations=False, draft=True)
+    assert not ses.drafted
