@@ -116,7 +116,7 @@ class LabelMixer:
         the model's own reaction, the draft only what moved."""
         if self.page.session.settle():
             self.scene.set_synthesized(self.page.session.synth)
-            self.page.ctrl.view_update(draft=True)
+            self.page.ctrl.view_update()  # full size: the sliders rest
 
     def match(self):
         if self.page.session.own_class is not None:  # an uploaded leader has no class to match
