@@ -10,6 +10,8 @@ Each move sets one class slider of the held-out sequence the studio opens with t
 one to three classes, signed; one move in five a label per body part, for a model that reads one), as the label mixer
 does (`Session.set_label`), then draws the picture as the view stream does for a slider (at DRAFT_SCALE of the view,
 INTERACTIVE_QUALITY). Prints per model and stage the median and p95 in ms, and the median total's ratio to the GAN's.
+The default draws the picture with its draft (the bundled 2-step student) as the studio's sliders do, its own reaction
+following once the sliders rest ("settle", off the picture's path); "diffusion, no draft" is the same model without.
 """
 
 from __future__ import annotations
@@ -32,7 +34,8 @@ from imm_model.data.labels import Label
 from imm_model.paths import SAMPLE_DATA, SAMPLE_DEFAULT, SAMPLE_GAN, SAMPLE_JUDGE, SAMPLE_LOWER_JUDGE, SAMPLE_UPPER_JUDGE
 from imm_model.reads_as import ReadsAs
 
-STAGES = ("label", "network", "clean-up", "beside", "reads as", "scene", "render", "encode")
+STAGES = ("label", "network", "clean-up", "beside", "reads as", "scene", "render", "encode")  # the picture's path
+SETTLE = "settle"  # after the picture: the model's own reaction in place of its draft's (once the sliders rest)
 
 
 def moves(names, count: int, part_labels: bool, rng) -> list[Label]:
@@ -51,8 +54,8 @@ def moves(names, count: int, part_labels: bool, rng) -> list[Label]:
     return out
 
 
-def one_move(session: Session, scene: Scene, label: Label, times: dict[str, list[float]]) -> None:
-    model = session.model
+def one_move(session: Session, scene: Scene, label: Label, times: dict[str, list[float]], draft: bool) -> None:
+    model = session.model.draft if draft and session.model.draft is not None else session.model  # what draws the picture
     clock = time.perf_counter
     t0 = clock()
     vector = session.check_label(label)
@@ -61,7 +64,7 @@ def one_move(session: Session, scene: Scene, label: Label, times: dict[str, list
     t2 = clock()
     model._clean(raw)
     t3 = clock()
-    session.set_label(label)  # the network and clean-up again, and the followers drawn beside (none by default)
+    session.set_label(label, draft=draft)  # the network and clean-up again, and the followers drawn beside (none by default)
     t4 = clock()
     session.readings.reads_as()
     session.readings.reads_as_parts()
@@ -73,6 +76,8 @@ def one_move(session: Session, scene: Scene, label: Label, times: dict[str, list
     t7 = clock()
     Image.fromarray(pixels).save(io.BytesIO(), format="JPEG", quality=INTERACTIVE_QUALITY)
     t8 = clock()
+    session.settle()
+    times[SETTLE].append(1000 * (clock() - t8))
     network, cleanup = t2 - t1, t3 - t2
     for stage, seconds in zip(STAGES, (t1 - t0, network, cleanup, max(0.0, t4 - t3 - network - cleanup), t5 - t4, t6 - t5,
                                        t7 - t6, t8 - t7), strict=True):
@@ -90,28 +95,30 @@ def main() -> None:
     parts = {part: ReadsAs.load(p) for part, p in (("upper", SAMPLE_UPPER_JUDGE), ("lower", SAMPLE_LOWER_JUDGE)) if p.exists()}
     sessions = {name: Session(data, {name: load_model(path, data)}, index=index, reader=ReadsAs.load(SAMPLE_JUDGE),
                               part_readers=parts)
-                for name, path in (("diffusion", SAMPLE_DEFAULT), ("gan", SAMPLE_GAN))}
+                for name, path in (("diffusion", SAMPLE_DEFAULT), ("diffusion, no draft", SAMPLE_DEFAULT), ("gan", SAMPLE_GAN))}
+    drafts = {name: name == "diffusion" for name in sessions}  # as the studio's sliders: the default's draft draws
     scene = Scene(data.skeleton, floor_height(data.leader, data.follower, data.skeleton))
     width, height = scene.render_window.GetSize()
     scene.render_window.SetSize(round(width * DRAFT_SCALE), round(height * DRAFT_SCALE))
     ses0 = next(iter(sessions.values()))
     scene.set_sequence(ses0.leader, ses0.ground_truth, ses0.synth)
-    rng = np.random.default_rng(0)
-    plans = {name: moves(data.class_names, args.moves, ses.part_labels, np.random.default_rng(rng.integers(1 << 31)))
+    plans = {name: moves(data.class_names, args.moves, ses.part_labels, np.random.default_rng(1))  # the same moves each
              for name, ses in sessions.items()}
     times = {name: defaultdict(list) for name in sessions}
     for name, ses in sessions.items():  # a first move each, not timed: caches and the first render
-        one_move(ses, scene, plans[name][0], defaultdict(list))
-    for k in range(args.moves):  # interleaved: both models meet the same load
+        one_move(ses, scene, plans[name][0], defaultdict(list), drafts[name])
+    for k in range(args.moves):  # interleaved: every model meets the same load
         for name, ses in sessions.items():
-            one_move(ses, scene, plans[name][k], times[name])
+            one_move(ses, scene, plans[name][k], times[name], drafts[name])
     print(f"{args.moves} slider moves per model on sequence {data.sequence_ids[index]}, torch and BLAS threads "
           f"{args.threads}, picture {scene.render_window.GetSize()} px at JPEG quality {INTERACTIVE_QUALITY}")
     totals = {name: np.sum([times[name][s] for s in STAGES], axis=0) for name in sessions}
     for name in sessions:
         cells = ", ".join(f"{s} {np.median(times[name][s]):.1f}/{np.percentile(times[name][s], 95):.1f}" for s in STAGES)
+        after = times[name][SETTLE]
+        settle = f"; then {SETTLE} {np.median(after):.1f}/{np.percentile(after, 95):.1f}" if drafts[name] else ""
         print(f"{name}: median/p95 ms: {cells}; total {np.median(totals[name]):.1f}/{np.percentile(totals[name], 95):.1f} "
-              f"({np.median(totals[name]) / np.median(totals['gan']):.2f}x the GAN's median)")
+              f"({np.median(totals[name]) / np.median(totals['gan']):.2f}x the GAN's median){settle}")
     scene.close()
 
 
