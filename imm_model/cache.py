@@ -20,7 +20,7 @@ import numpy as np
 
 import imm_model
 from imm_model.checkpoint import load_checkpoint, load_module_state, save_checkpoint
-from imm_model.data.dataset import InteractionDataset
+from imm_model.data.dataset import InteractionDataset, dataset_hash
 from imm_model.data.splits import loso_fold
 from imm_model.errors import CheckpointError, IMMError
 from imm_model.model.classifier import VERSION as CLASSIFIER_VERSION
@@ -38,15 +38,6 @@ def cache_dir() -> Path:
         raise IMMError(f"{'IMM_CACHE_DIR' if env else 'the cache folder'} {path}: {existing} is not a folder; "
                        f"set IMM_CACHE_DIR to a folder")
     return path
-
-
-def dataset_hash(data: InteractionDataset) -> str:
-    """sha256 over the poses, labels, lengths and sequence identities (16 hex digits)."""
-    h = hashlib.sha256()
-    for arr in (data.leader, data.follower, data.actions, data.lengths):
-        h.update(np.ascontiguousarray(arr).tobytes())
-    h.update(json.dumps([data.sequence_ids, data.subject_pairs, list(data.class_names)]).encode())
-    return h.hexdigest()[:16]
 
 
 def entry_key(kind: str, data: InteractionDataset, subject: str, config: dict) -> str:

@@ -65,3 +65,21 @@ def test_another_model_draws_itself_when_asked_for_a_draft(models, sample_data):
     ses.set_model("gan")
     ses.set_label(np.eye(len(ses.class_names), dtype=np.float32)[0], variations=False, draft=True)
     assert not ses.drafted
+
+
+def test_the_studio_loads_its_models_data_and_judges_without_torch(tmp_path):
+    """The zygote's start (explorer/serving/worker.py load_everything): torch's import alone took a second of it."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from explorer.serving import worker; "
+            f"args = worker.parse_args(['--data', 'sample_data/sbu_interactions.npz', '--cache-dir', {str(tmp_path)!r}, "
+            "'--model', 'diffusion=sample_data/imm_diffusion.safetensors', '--model', 'gan=sample_data/imm_sbu.safetensors', "
+            "'--model', 'retrieval=sample_data/imm_retrieval.safetensors']); "
+            "data, models, *_ = worker.load_everything(args); "
+            "assert models['diffusion'].draft is not None; print('torch' in sys.modules)")
+    from imm_model.paths import REPO_ROOT
+
+    out = subprocess.run([sys.executable, "-c", code], cwd=REPO_ROOT, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() == "False"

@@ -87,7 +87,8 @@ def load_models(named: list[tuple[str, Path]], data) -> dict:
         if name in models:
             raise ValueError(f"--model {name}: given twice; give each model a name of its own")
         model = models[name] = load_model(path, data)
-        model.synthesize_canonical(data.canonical(0)[0], model.label_vector([0.0] * len(model.class_names)))
+        for drawing in (model, model.draft) if model.draft is not None else (model,):  # a slider's first draft too
+            drawing.synthesize_canonical(data.canonical(0)[0], drawing.label_vector([0.0] * len(model.class_names)))
     return models
 
 

@@ -7,6 +7,7 @@ sequence i, which keeps the bundle small and loading a single `np.load`.
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 import zipfile
@@ -287,6 +288,16 @@ class InteractionDataset:
     def _sequence_at(self, frame: int) -> str:
         """The id of the sequence that holds `frame` of the concatenated pose arrays."""
         return str(self.sequence_ids[int(np.searchsorted(np.cumsum(self.lengths), frame, side="right"))])
+
+
+def dataset_hash(data: InteractionDataset) -> str:
+    """sha256 over the poses, labels, lengths and sequence identities (16 hex digits): what cached classifiers and a
+    retrieval checkpoint name their data by."""
+    h = hashlib.sha256()
+    for arr in (data.leader, data.follower, data.actions, data.lengths):
+        h.update(np.ascontiguousarray(arr).tobytes())
+    h.update(json.dumps([data.sequence_ids, data.subject_pairs, list(data.class_names)]).encode())
+    return h.hexdigest()[:16]
 
 
 def _strings(values, field: str, unique: bool = False) -> tuple[str, ...]:

@@ -53,8 +53,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
-    from imm_model.cache import dataset_hash
-    from imm_model.data.dataset import InteractionDataset
+    from imm_model.data.dataset import InteractionDataset, dataset_hash
     from imm_model.outputs import FolderLock, Output, plan_outputs
     from imm_model.paths import SAMPLE_DATA, k3hi_raw_root
     from imm_model.reproduce.jobs import copy_records

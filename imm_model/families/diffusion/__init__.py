@@ -22,6 +22,9 @@ def _train(cfg, data, subject, out_dir, device="cpu", resume: bool = False, prog
     if cfg.teacher:
         from imm_model.families.diffusion.distill import distill
 
+        if resume:
+            raise ValueError("--resume: a student is trained in one go (minutes); run it again without --resume")
+
         return distill(cfg, data, subject, out_dir, device, progress)
     from imm_model.families.diffusion.trainer import train
 

@@ -67,7 +67,7 @@ class RetrievalReactionModel(ReactionModel):
     def build(cls, data, held_out_subject: str | None) -> RetrievalReactionModel:
         """Retrieval from `data` (a bundle read from a file, which the checkpoint names), never from
         `held_out_subject`'s sequences."""
-        from imm_model.cache import dataset_hash
+        from imm_model.data.dataset import dataset_hash
         from imm_model.data.splits import loso_fold
 
         if data.path is None:
@@ -121,8 +121,7 @@ def _training_data(meta: dict[str, Any], path: Path, named: Path | None = None):
     """The bundle a retrieval checkpoint names, if its content hash is the one recorded: the one the user names
     (`named`), else the file of its name beside the checkpoint or among the bundled data. A path written in the sidecar
     is never opened (whoever wrote the file chose it)."""
-    from imm_model.cache import dataset_hash
-    from imm_model.data.dataset import InteractionDataset
+    from imm_model.data.dataset import InteractionDataset, dataset_hash
     from imm_model.errors import IMMError
     from imm_model.paths import SAMPLE_DIR
 
