@@ -13,7 +13,7 @@ from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance
 from imm_model.families.gan.config import ModelConfig
 from imm_model.families.gan.recipes import NAMED, TrainConfig
 from imm_model.model.classifier_config import ClassifierConfig
-from imm_model.typed_config import FieldsOf, Flag, Interval, ListOf, Name, OneOf, constraint_of
+from imm_model.typed_config import FieldsOf, Flag, Interval, ListOf, Name, OneOf, PathText, constraint_of
 
 CONFIGS = (TrainConfig, ModelConfig, ClassifierConfig, DiffusionTrainConfig, DiffusionConfig, Guidance)
 
@@ -38,6 +38,8 @@ def invalid_values(check: Any) -> list[Any]:
         return ["yes", 1, None]
     if isinstance(check, Name):
         return ["", "a/b", "two\nlines", "x" * (check.max_length + 1), 3]
+    if isinstance(check, PathText):
+        return ["two\nlines", "x" * (check.max_length + 1), 3, None]
     if isinstance(check, ListOf):
         values = ["not a list", 5, [invalid_values(check.item)[0]]]
         return values + ([[]] if check.min_length else [])
