@@ -1,7 +1,7 @@
 """IMM Studio latency benchmark (headless Chromium through Playwright, remote rendering).
 
     .venv/bin/python benchmarks/explorer_latency.py [--trials 40] [--play-seconds 5] [--json out.json] [--checkpoint CK]
-    .venv/bin/python benchmarks/explorer_latency.py --models [--trials 20]   # only 6. below
+    .venv/bin/python benchmarks/explorer_latency.py --models [--trials 20]   # only 7. below
     .venv/bin/python benchmarks/explorer_latency.py --playback-only [--play-seconds 5] [--playback-scales 1,0.5] [--rounds 3]
         # only 3.'s page figure, for each size of the pictures while playing, back to back in one page
 
@@ -19,7 +19,8 @@ Measures, and prints with the machine's thread count and load:
      at once (each tab its own studio process);
   5. memory with 5 tabs: RSS, PSS and USS of each studio process (one per tab, plus the warm spare) and of the
      zygote they are forked from, and the PSS of all of them together (`--memory-only`: just this).
-  6. (`--models`) the model switch: slider latency with the diffusion model (the default), with the paper's GAN
+  6. where a slider's time goes on the server, stage by stage (benchmarks/slider_stages.py), beside 2.'s key to picture.
+  7. (`--models`) the model switch: slider latency with the diffusion model (the default), with the paper's GAN
      switched on, and with three diffusion variations side by side; the time from a click on "new variation" to its
      picture.
 Bars: slider p95 <= 60 ms idle, <= 100 ms with A/B or the 'reads as' panel, <= 150 ms with 5 tabs;
@@ -276,7 +277,7 @@ def main() -> int:
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--memory-only", action="store_true", help="only the memory of 5 tabs (CPU load does not skew it)")
     ap.add_argument("--checkpoint", type=Path, default=None, help="the one model every studio serves (default: the bundled ones)")
-    ap.add_argument("--models", action="store_true", help="only the model switch's latencies (6.)")
+    ap.add_argument("--models", action="store_true", help="only the model switch's latencies (7.)")
     ap.add_argument("--playback-only", action="store_true", help="only the pictures/s the page displays at 2x (3.)")
     ap.add_argument("--playback-scales", default="", help="with --playback-only: sizes of the pictures while playing, "
                     "fractions of the view's (e.g. 1,0.75,0.5), each measured in turn, --rounds times")
@@ -326,6 +327,7 @@ def main() -> int:
             studio.stop()
             browser.close()
     measure_render(res)
+    measure_stages(res)
     res["load_after"] = os.getloadavg()
     print(f"load average after: {os.getloadavg()[0]:.2f}")
     if args.json:
@@ -356,6 +358,17 @@ def measure_playback_scales(page, seconds: float, scales: list[float], rounds: i
         m = float(np.median(v))
         print(f"playback at 2x, pictures at {x:g} of the view's size: page displayed {m:.1f} pictures/s median of "
               f"{', '.join(f'{f:.1f}' for f in v)} ({m / base:.2f}x of {scales[-1]:g})   [bar >= 28]")
+
+
+def measure_stages(res: dict) -> None:
+    """Where a slider's time goes on the server, stage by stage (benchmarks/slider_stages.py, in this process): the
+    page's key-to-picture time above less these is the websocket, the decoding and the showing."""
+    from benchmarks.slider_stages import stage_table
+
+    res["slider_stages"] = lines = stage_table(moves_per_model=20)
+    print("slider stages on the server (label -> network -> clean-up -> beside -> reads as -> scene -> render -> "
+          "encode; then delivered: the figures above):")
+    print("\n".join(f"  {line}" for line in lines))
 
 
 def measure_render(res: dict) -> None:

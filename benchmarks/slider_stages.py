@@ -84,12 +84,10 @@ def one_move(session: Session, scene: Scene, label: Label, times: dict[str, list
         times[stage].append(1000 * seconds)
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--moves", type=int, default=40)
-    ap.add_argument("--threads", type=int, default=1)
-    args = ap.parse_args()
-    threadpool_limits(args.threads)
+def stage_table(moves_per_model: int = 40, threads: int = 1) -> list[str]:
+    """The stages of `moves_per_model` slider moves for each model, interleaved -> the lines `main` prints (also
+    `benchmarks/explorer_latency.py`, beside the page's key-to-picture time)."""
+    threadpool_limits(threads)
     data = InteractionDataset.load(SAMPLE_DATA)
     index = int(np.flatnonzero(data.held_out)[0]) if data.held_out.any() else 0
     parts = {part: ReadsAs.load(p) for part, p in (("upper", SAMPLE_UPPER_JUDGE), ("lower", SAMPLE_LOWER_JUDGE)) if p.exists()}
@@ -102,24 +100,34 @@ def main() -> None:
     scene.render_window.SetSize(round(width * DRAFT_SCALE), round(height * DRAFT_SCALE))
     ses0 = next(iter(sessions.values()))
     scene.set_sequence(ses0.leader, ses0.ground_truth, ses0.synth)
-    plans = {name: moves(data.class_names, args.moves, ses.part_labels, np.random.default_rng(1))  # the same moves each
+    plans = {name: moves(data.class_names, moves_per_model, ses.part_labels, np.random.default_rng(1))  # the same moves each
              for name, ses in sessions.items()}
     times = {name: defaultdict(list) for name in sessions}
     for name, ses in sessions.items():  # a first move each, not timed: caches and the first render
         one_move(ses, scene, plans[name][0], defaultdict(list), drafts[name])
-    for k in range(args.moves):  # interleaved: every model meets the same load
+    for k in range(moves_per_model):  # interleaved: every model meets the same load
         for name, ses in sessions.items():
             one_move(ses, scene, plans[name][k], times[name], drafts[name])
-    print(f"{args.moves} slider moves per model on sequence {data.sequence_ids[index]}, torch and BLAS threads "
-          f"{args.threads}, picture {scene.render_window.GetSize()} px at JPEG quality {INTERACTIVE_QUALITY}")
+    lines = [f"{moves_per_model} slider moves per model on sequence {data.sequence_ids[index]}, torch and BLAS threads "
+             f"{threads}, picture {scene.render_window.GetSize()} px at JPEG quality {INTERACTIVE_QUALITY}"]
     totals = {name: np.sum([times[name][s] for s in STAGES], axis=0) for name in sessions}
     for name in sessions:
         cells = ", ".join(f"{s} {np.median(times[name][s]):.1f}/{np.percentile(times[name][s], 95):.1f}" for s in STAGES)
         after = times[name][SETTLE]
         settle = f"; then {SETTLE} {np.median(after):.1f}/{np.percentile(after, 95):.1f}" if drafts[name] else ""
-        print(f"{name}: median/p95 ms: {cells}; total {np.median(totals[name]):.1f}/{np.percentile(totals[name], 95):.1f} "
-              f"({np.median(totals[name]) / np.median(totals['gan']):.2f}x the GAN's median){settle}")
+        lines.append(f"{name}: median/p95 ms: {cells}; total {np.median(totals[name]):.1f}/"
+                     f"{np.percentile(totals[name], 95):.1f} ({np.median(totals[name]) / np.median(totals['gan']):.2f}x "
+                     f"the GAN's median){settle}")
     scene.close()
+    return lines
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--moves", type=int, default=40)
+    ap.add_argument("--threads", type=int, default=1)
+    args = ap.parse_args()
+    print("\n".join(stage_table(args.moves, args.threads)))
 
 
 if __name__ == "__main__":
