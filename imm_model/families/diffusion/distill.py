@@ -34,6 +34,7 @@ from imm_model.families.diffusion.denoiser import ReactionDenoiser
 from imm_model.families.diffusion.model import DiffusionReactionModel
 from imm_model.families.diffusion.recipes import FAMILY, DiffusionTrainConfig
 from imm_model.families.diffusion.sampler import Guidance, cosine_alpha_bar, initial_noise, leader_noise, schedule_step
+from imm_model.families.diffusion.trainer import optimizer_step
 from imm_model.training.data import Augmenter, PaddedData, data_meta, derive_seed
 
 LOG_FIELDS = ("step", "loss", "x0", "velocity", "lr", "seconds")
@@ -154,13 +155,6 @@ class StudentTrainer:
                      "length": torch.as_tensor(lengths), "level": torch.as_tensor(levels), "label": torch.as_tensor(labels)}
 
     # ---- one step -------------------------------------------------------------------------
-    def lr_at(self, step: int) -> float:
-        cfg = self.cfg
-        if step < cfg.warmup_steps:
-            return cfg.lr * (step + 1) / cfg.warmup_steps
-        progress = (step - cfg.warmup_steps) / max(1, cfg.steps - cfg.warmup_steps)
-        return cfg.lr * (0.1 + 0.9 * 0.5 * (1 + np.cos(np.pi * min(progress, 1.0))))
-
     def student_sample(self, net: ReactionDenoiser, rows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """The student's own DDIM steps on pool rows, as the sampler takes them (sampler.py `ddim`, eta 0) ->
         (x0 (B, T, D) normalized, mask (B, T))."""
@@ -202,19 +196,7 @@ class StudentTrainer:
         mv = m[:, 1:] * m[:, :-1]
         vel_loss = (((x0[:, 1:] - x0[:, :-1]) - (target[:, 1:] - target[:, :-1])) ** 2 * mv).sum() / (mv.sum() * x0.shape[-1])
         loss = x0_loss + cfg.lambda_velocity * vel_loss
-        if not torch.isfinite(loss):
-            raise TrainingError(f"training stopped: the loss is not finite at step {self.step}")
-        lr = self.lr_at(self.step)
-        for group in self.opt.param_groups:
-            group["lr"] = lr
-        self.opt.zero_grad(set_to_none=True)
-        loss.backward()
-        torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
-        self.opt.step()
-        decay = min(cfg.ema_decay, (1 + self.step) / (10 + self.step))
-        with torch.no_grad():
-            for e, p in zip(self.ema.parameters(), net.parameters(), strict=True):
-                e.lerp_(p, 1 - decay)
+        lr = optimizer_step(cfg, self.opt, net, self.ema, loss, self.step)
         self.step += 1
         return {"loss": loss.item(), "x0": x0_loss.item(), "velocity": vel_loss.item(), "lr": lr}
 

@@ -75,13 +75,6 @@ class DiffusionTrainer:
         self.step = 0
 
     # ---- one step -------------------------------------------------------------------------
-    def lr_at(self, step: int) -> float:
-        cfg = self.cfg
-        if step < cfg.warmup_steps:
-            return cfg.lr * (step + 1) / cfg.warmup_steps
-        progress = (step - cfg.warmup_steps) / max(1, cfg.steps - cfg.warmup_steps)
-        return cfg.lr * (0.1 + 0.9 * 0.5 * (1 + np.cos(np.pi * min(progress, 1.0))))
-
     def train_step(self) -> dict[str, float]:
         cfg, net = self.cfg, self.net
         gen = torch.Generator().manual_seed(derive_seed(cfg.seed, self.step))
@@ -136,19 +129,7 @@ class DiffusionTrainer:
             joints = (b, t, -1, 3)
             geometric = self.geometry(net.denormalize_follower(pred).reshape(joints), follower.reshape(joints), mask)
             loss = loss + cfg.lambda_foot_contact * geometric["foot_contact"] + cfg.lambda_torso * geometric["torso"]
-        if not torch.isfinite(loss):
-            raise TrainingError(f"training stopped: the loss is not finite at step {self.step}")
-        lr = self.lr_at(self.step)
-        for group in self.opt.param_groups:
-            group["lr"] = lr
-        self.opt.zero_grad(set_to_none=True)
-        loss.backward()
-        torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
-        self.opt.step()
-        decay = min(cfg.ema_decay, (1 + self.step) / (10 + self.step))
-        with torch.no_grad():
-            for e, p in zip(self.ema.parameters(), net.parameters(), strict=True):
-                e.lerp_(p, 1 - decay)
+        lr = optimizer_step(cfg, self.opt, net, self.ema, loss, self.step)
         self.step += 1
         return {"loss": loss.item(), "x0": x0_loss.item(), "velocity": vel_loss.item(),
                 **{k: v.item() for k, v in geometric.items()}, "lr": lr}
@@ -220,6 +201,34 @@ class DiffusionTrainer:
         load_module_state(self.ema, prefixed(tensors, "denoiser"), "denoiser", path)
         optimizer_from_tensors(self.opt, tensors, meta["optim"], "optim")
         self.step = int(meta["training"]["step"])
+
+
+def learning_rate(cfg: DiffusionTrainConfig, step: int) -> float:
+    """cfg.lr after a linear warm-up of cfg.warmup_steps, decayed by a cosine to a tenth at cfg.steps."""
+    if step < cfg.warmup_steps:
+        return cfg.lr * (step + 1) / cfg.warmup_steps
+    progress = (step - cfg.warmup_steps) / max(1, cfg.steps - cfg.warmup_steps)
+    return cfg.lr * (0.1 + 0.9 * 0.5 * (1 + np.cos(np.pi * min(progress, 1.0))))
+
+
+def optimizer_step(cfg: DiffusionTrainConfig, opt: torch.optim.Optimizer, net: torch.nn.Module, ema: torch.nn.Module,
+                   loss: torch.Tensor, step: int) -> float:
+    """One optimizer step on `loss` at step `step`'s learning rate (gradients clipped at norm 1), then the moving
+    average `ema` of the weights updated -> the learning rate; a loss that is not finite stops training (one line)."""
+    if not torch.isfinite(loss):
+        raise TrainingError(f"training stopped: the loss is not finite at step {step}")
+    lr = learning_rate(cfg, step)
+    for group in opt.param_groups:
+        group["lr"] = lr
+    opt.zero_grad(set_to_none=True)
+    loss.backward()
+    torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
+    opt.step()
+    decay = min(cfg.ema_decay, (1 + step) / (10 + step))
+    with torch.no_grad():
+        for e, p in zip(ema.parameters(), net.parameters(), strict=True):
+            e.lerp_(p, 1 - decay)
+    return lr
 
 
 def train(cfg: DiffusionTrainConfig, data: InteractionDataset, subject: str | None, out_dir: Path, device="cpu",
