@@ -1,9 +1,11 @@
 """The studio pictures in docs/: the page at first load at both laptop sizes, in a real browser (Debian's chromium).
 
-    .venv/bin/python docs/scripts/studio_screenshots.py   # writes docs/studio.png (1366x768) and docs/studio-1280.png
+    .venv/bin/python docs/scripts/studio_screenshots.py   # docs/studio.png (1366x768), docs/studio-1280.png and
+                                                          # docs/studio-timeline.png (1366x768)
 
-The pictures of the review, the timeline and the gallery are taken by their browser tests' steps (see the user guide);
-these two show what a user sees first: the label mix, the view, the chart and the map.
+The pictures of the review and the gallery are taken by their browser tests' steps (see the user guide); the first two
+show what a user sees first: the label mix, the view, the chart and the map; the third the timeline's loop range and
+the chart plotting the distance between the two characters' right hands.
 """
 
 from __future__ import annotations
@@ -19,6 +21,27 @@ from tests import studio_probe as probe  # noqa: E402
 
 DOCS = Path(__file__).resolve().parents[1]
 SIZES = {"studio.png": (1366, 768), "studio-1280.png": (1280, 720)}
+TIMELINE = "studio-timeline.png"
+HANDS = "?plot=distance:A.right_hand:B.right_hand"  # a link's joint plot (explorer/ui/url_state.py)
+
+
+def map_fitted(page) -> None:
+    probe.wait_state(page, "s.get('latent_points') && s.get('latent_points').x.length > 0", timeout_ms=180000)
+
+
+def timeline(browser, url: str) -> None:
+    """The loop range over frames 6-17 of the take, paused at frame 12, the chart on the right hands' distance."""
+    page = probe.open_studio(browser, url + HANDS, 1366, 768)
+    map_fitted(page)
+    for frame, key in ((5, "["), (16, "]")):
+        probe.set_state(page, "frame", frame)
+        probe.press_key(page, key)
+    probe.wait_state(page, "JSON.stringify(s.get('loop_range')) === '[5,16]'")
+    probe.set_state(page, "frame", 11)
+    probe.wait_for_view_at_rest(page)
+    page.screenshot(path=str(DOCS / TIMELINE))
+    print(f"{DOCS / TIMELINE}: 1366x768")
+    page.close()
 
 
 def main() -> None:
@@ -27,11 +50,12 @@ def main() -> None:
         try:
             for name, (width, height) in SIZES.items():
                 page = probe.open_studio(browser, studio.url, width, height)
-                probe.wait_state(page, "s.get('latent_points') && s.get('latent_points').x.length > 0", timeout_ms=180000)  # the map fitted
+                map_fitted(page)
                 probe.wait_for_view_at_rest(page)
                 page.screenshot(path=str(DOCS / name))
                 print(f"{DOCS / name}: {width}x{height}")
                 page.close()
+            timeline(browser, studio.url)
         finally:
             browser.close()
 
