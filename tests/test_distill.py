@@ -144,3 +144,16 @@ def test_a_student_needs_a_teacher_and_a_teacher_a_student():
         replace(IMM_DIFFUSION_STUDENT, teacher="")
     with pytest.raises(ValueError, match="teacher"):
         replace(IMM_DIFFUSION, teacher="runs/x/fold-{fold}/final.safetensors")
+
+
+@pytest.mark.parametrize("extra, message", [([], "the student's teacher not found (train it first: imm train --config "
+                                                 "imm-diffusion --fold s04"),
+                                            (["--resume"], "--resume: a student is trained in one go")])
+def test_the_student_recipe_at_the_command_line_says_what_is_missing_in_one_line(tmp_path, monkeypatch, capsys, extra,
+                                                                                 message):
+    from imm_model.cli import main
+
+    monkeypatch.chdir(tmp_path)  # no runs/imm-diffusion here: the recipe's teacher is missing
+    assert main(["train", "--config", "imm-diffusion-student", "--fold", "s04", "--out", "runs/s", "--quiet", *extra]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1

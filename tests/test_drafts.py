@@ -83,3 +83,20 @@ def test_the_studio_loads_its_models_data_and_judges_without_torch(tmp_path):
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO_ROOT, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip() == "False"
+
+
+def test_a_hostile_or_broken_draft_file_is_passed_over(tmp_path):
+    """A candidate draft whose sidecar is junk, huge, a directory or names no teacher: the model draws itself."""
+    model = ReactionModel.load(SAMPLE_DIFFUSION)
+    junk = tmp_path / "junk.safetensors"
+    junk.with_suffix(".json").write_text("{not json")
+    huge = tmp_path / "huge.safetensors"
+    huge.with_suffix(".json").write_bytes(b" " * (64 << 20))
+    folder = tmp_path / "folder.safetensors"
+    folder.with_suffix(".json").mkdir()
+    lying = tmp_path / "lying.safetensors"  # names the right teacher, but its weights are not there
+    lying.with_suffix(".json").write_text(SAMPLE_STUDENT.with_suffix(".json").read_text())
+    attach_draft(model, [junk, huge, folder, lying, tmp_path / "missing.safetensors"])
+    assert model.draft is None
+    attach_draft(model, [junk, SAMPLE_STUDENT])
+    assert model.draft is not None

@@ -87,7 +87,7 @@ def load_models(named: list[tuple[str, Path]], data) -> dict:
         if name in models:
             raise ValueError(f"--model {name}: given twice; give each model a name of its own")
         model = models[name] = load_model(path, data)
-        for drawing in (model, model.draft) if model.draft is not None else (model,):  # a slider's first draft too
+        for drawing in filter(None, (model, model.draft)):  # a slider's first draft too
             drawing.synthesize_canonical(data.canonical(0)[0], drawing.label_vector([0.0] * len(model.class_names)))
     return models
 

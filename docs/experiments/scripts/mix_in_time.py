@@ -10,11 +10,11 @@ MIX_SHARE or more); beside them, the same judge's reading of real mixed motion: 
 from __future__ import annotations
 
 import argparse
-import json
 from itertools import combinations
 from pathlib import Path
 
 import numpy as np
+from diffusion_fold import record
 
 
 def fading(mask: np.ndarray) -> np.ndarray:
@@ -85,10 +85,7 @@ def main() -> None:
             p = judges.follower_view(judges.judge, model.synthesize_batch_canonical(judges.leaders, labels, [args.seed] * n))
             reads.append(float(np.mean((p[:, i] >= MIX_SHARE) & (p[:, j] >= MIX_SHARE))))
         row[name] = float(np.mean(reads))
-    print(json.dumps(row), flush=True)
-    if args.out:
-        with open(args.out, "a") as fh:
-            fh.write(json.dumps(row) + "\n")
+    record(row, args.out)
 
 
 if __name__ == "__main__":

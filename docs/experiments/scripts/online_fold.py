@@ -13,10 +13,10 @@ lockstep, one sampler batch per frame (`online_followers`, checked against the r
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
+from diffusion_fold import record
 
 
 def online_followers(model, leaders: list[np.ndarray], label_vectors: np.ndarray, seeds) -> list[np.ndarray]:
@@ -110,10 +110,7 @@ def main() -> None:
                 "interior_limb_speed_ratio": p["interior_limb_speed_ratio"], "jitter_ratio": scores["intervals"]["jitter_ratio"],
                 "foot_skate_mps": p["foot_skate_mps"], "multimodality_m": spread["multimodality_m"],
                 "judge_real_accuracy": judges.real_accuracy["follower_judge"]}
-        print(json.dumps(row), flush=True)
-        if args.out:
-            with open(args.out, "a") as fh:
-                fh.write(json.dumps(row) + "\n")
+        record(row, args.out)
 
 
 if __name__ == "__main__":

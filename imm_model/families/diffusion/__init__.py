@@ -20,10 +20,9 @@ def _recipes():
 
 def _train(cfg, data, subject, out_dir, device="cpu", resume: bool = False, progress: bool = True) -> Trained:
     if cfg.teacher:
-        from imm_model.families.diffusion.distill import distill
-
         if resume:
             raise ValueError("--resume: a student is trained in one go (minutes); run it again without --resume")
+        from imm_model.families.diffusion.distill import distill
 
         return distill(cfg, data, subject, out_dir, device, progress)
     from imm_model.families.diffusion.trainer import train

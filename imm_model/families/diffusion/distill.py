@@ -78,6 +78,9 @@ class StudentTrainer:
         self.device = torch.device(device)
         self.out = Path(out_dir)
         self.teacher_path = Path(cfg.teacher.format(fold=subject or "all"))
+        if not self.teacher_path.is_file():
+            raise CheckpointError(f"{self.teacher_path}: the student's teacher not found (train it first: imm train "
+                                  f"--config imm-diffusion --fold {subject or 'none'} --out {self.teacher_path.parents[1]})")
         arrays, meta = load_checkpoint(self.teacher_path, framework="np")
         if meta.get("family") != FAMILY:
             raise CheckpointError(f"{self.teacher_path}: not a diffusion model, which a teacher must be")
