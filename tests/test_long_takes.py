@@ -209,3 +209,28 @@ def test_the_studio_session_live_keeps_what_was_made_and_refuses_a_model_that_ca
     with pytest.raises(LabelError, match="cannot react live"):
         ses.set_live(True)
     assert not ses.live.on
+
+
+def test_votes_average_every_window_that_made_a_frame():
+    """A live frame is the weighted mean of every window's sample of it: equal weights at growth 1, the later window
+    alone as the growth grows without bound."""
+    from imm_model.families.diffusion import windows
+
+    votes = windows.Votes(1)
+    votes.add(np.zeros((3, 1, 3))).add(np.ones((3, 1, 3)))
+    np.testing.assert_allclose(votes.take(1)[:, 0, 0], [0.5])
+    votes.add(np.full((3, 1, 3), 4.0))
+    np.testing.assert_allclose(votes.take(3)[:, 0, 0], [5 / 3, 5 / 3, 4.0])  # the third frame: one window's sample
+    assert votes.take(2).shape == (0, 1, 3)
+
+
+def test_live_frames_averaged_over_windows_move_less_than_one_window_each(model, take, monkeypatch):
+    """One window's sample per frame made every live frame a seam; averaged over the windows that sampled it, the
+    follower's largest step from one frame to the next (a seam's) is smaller."""
+    from imm_model.families.diffusion import windows
+
+    step = lambda f: np.linalg.norm(np.diff(f, axis=0), axis=-1).max(1)  # noqa: E731 - the fastest joint's step
+    _, averaged = react_online(model, take[:40], {"pushing": 1.0})
+    monkeypatch.setattr(windows, "ENSEMBLE_GROWTH", 1e12)  # the window that returns a frame alone
+    _, alone = react_online(model, take[:40], {"pushing": 1.0})
+    assert step(averaged).max() < 0.8 * step(alone).max()

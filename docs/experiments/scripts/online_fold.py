@@ -23,7 +23,7 @@ def online_followers(model, leaders: list[np.ndarray], label_vectors: np.ndarray
     """What `model.online(label, seed=s)` returns for each canonical leader pushed frame by frame, then flushed."""
     from imm_model.cleanup import OnlineCleanup
     from imm_model.families.diffusion.sampler import initial_noise, leader_noise
-    from imm_model.families.diffusion.windows import CONTINUE_LEVEL, LOOKAHEAD, ONLINE_WINDOW, anchored
+    from imm_model.families.diffusion.windows import CONTINUE_LEVEL, LOOKAHEAD, ONLINE_WINDOW, Votes, anchored
 
     labels = model._label_input(model._label_array(label_vectors, len(leaders)))
     seeds = [0] * len(leaders) if seeds is None else [int(s) for s in seeds]
@@ -32,6 +32,7 @@ def online_followers(model, leaders: list[np.ndarray], label_vectors: np.ndarray
     noises = [initial_noise(s, len(a), d) for a, s in zip(leaders, seeds, strict=True)]
     zs = [leader_noise(s, len(a), d) for a, s in zip(leaders, seeds, strict=True)]
     raw = [np.zeros(a.shape) for a in leaders]
+    votes = [Votes(a.shape[1]) for a in leaders]
     made, frames = [0] * len(leaders), [None] * len(leaders)
     for t in range(max(map(len, leaders))):  # the leader frame just pushed
         rows, jobs = [], []
@@ -53,7 +54,7 @@ def online_followers(model, leaders: list[np.ndarray], label_vectors: np.ndarray
                             [(j[3], made[i] - j[0]) for i, j in zip(rows, jobs, strict=True)], CONTINUE_LEVEL)
         for i, (start, n, _, _), f in zip(rows, jobs, out, strict=True):
             k = made[i] - start
-            raw[i][made[i]:made[i] + n] = frames[i].to_world(f, sk)[k:k + n]
+            raw[i][made[i]:made[i] + n] = votes[i].add(frames[i].to_world(f, sk)[k:]).take(n)
             made[i] += n
     if model.raw:
         return [r.astype(np.float32) for r in raw]
@@ -84,9 +85,19 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--checkpoint", type=Path, required=True)
     ap.add_argument("--fold", required=True)
-    ap.add_argument("--modes", nargs="+", default=["offline", "online"])
+    ap.add_argument("--modes", nargs="+", default=["offline", "online"], choices=("offline", "online", "windows"))
+    ap.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
+                    help="a windows.py setting for this variant, e.g. ENSEMBLE_GROWTH=1e12 LOOKAHEAD=8 (recorded in the row)")
     ap.add_argument("--out", type=Path, default=None, help="append one JSON line per mode here")
     args = ap.parse_args()
+    from imm_model.families.diffusion import windows
+    settings = {}
+    for item in args.set:
+        name, value = item.split("=")
+        if not hasattr(windows, name) or not name.isupper():
+            ap.error(f"windows.py has no setting {name}")
+        setattr(windows, name, type(getattr(windows, name))(float(value)))
+        settings[name] = getattr(windows, name)
     data = InteractionDataset.load(SAMPLE_DATA)
     opts = EvalOptions(baselines=(), progress=False)
     judges = FoldJudges(data, args.fold, opts)
@@ -95,6 +106,10 @@ def main() -> None:
         model = ReactionModel.load(args.checkpoint)
         prepare_model(model, data, args.fold, opts)
         row = {"fold": args.fold, "mode": mode, "checkpoint": str(args.checkpoint), "leaders": len(judges.test)}
+        if settings and mode != "offline":
+            row["settings"] = settings
+        if mode == "windows":  # every clip made as a long take is, in windows (windows.take_windows)
+            model.window = 1
         if mode == "online":
             row["reactor_difference_m"] = check_against_the_reactor(model, data, judges.test)
             model.synthesize_batch_canonical = lambda leaders, labels, seeds=None, m=model: online_followers(m, leaders, labels, seeds)

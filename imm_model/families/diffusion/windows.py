@@ -12,8 +12,9 @@ a window's first frame does not continue the given ones exactly (the network nev
 The starting noise (and the leader's noise) is the seed's draw for the whole take, sliced per window.
 
 Live, `OnlineReactor` does the same one frame at a time, as the leader's frames come, in windows of `ONLINE_WINDOW`
-frames and without the crossfade (a frame returned is final): a follower frame never reads a leader frame beyond its
-lookahead, and a label changed mid-take changes the frames from the next one on, continuing the past ones.
+frames: a frame returned is final, so instead of the crossfade each frame is the mean of the samples every window up
+to its return made of it (`Votes`); a follower frame never reads a leader frame beyond its lookahead, and a label
+changed mid-take changes the frames from the next one on, continuing the past ones.
 """
 
 from __future__ import annotations
@@ -38,6 +39,11 @@ CONTINUE_LEVEL = 0.6
 REANCHOR_M = 0.5  # a window keeps the canonical frame before it until the leader's root is this far from its origin
 REANCHOR_DEG = 30.0  # ... or the leader has turned this far from its facing
 LABEL_RAMP = 8  # frames over which a label changed live moves from the old values to the new (0.53 s at 15 fps)
+# live, each follower frame is sampled by every window from the one that first reaches it to the one that returns it
+# (up to LOOKAHEAD + 1, each reading the leader no further than its lookahead); the frame returned is their weighted
+# mean, the later windows (more of the leader seen) weighing more by this factor each: one window alone made every
+# frame a seam (temporal ensembling, as ACT, Zhao et al. 2023, smooths action chunks)
+ENSEMBLE_GROWTH = 1.0
 
 
 def anchored(model, leader: np.ndarray, anchor: CanonicalFrame | None) -> CanonicalFrame:
@@ -99,7 +105,8 @@ class OnlineReactor:
     (n, J, 3) at the end of the take. `label` (and `scale`) may change between pushes: the reaction changes from the
     next frame on. The frames it returns go through a causal clean-up (cleanup.py OnlineCleanup) unless the model is
     `raw`. It makes the frames a long take's windows make (`take_windows`), one at a time: every frame is sampled
-    knowing only the leader up to its lookahead and the follower frames before it."""
+    knowing only the leader up to its lookahead and the follower frames before it, by each window from the one that
+    first reaches it to the one that returns it, and returned as their mean (`Votes`)."""
 
     def __init__(self, model, label, scale: float = 1.0, seed: int = 0):
         self.model, self.seed, self.lookahead, self.window = model, int(seed), LOOKAHEAD, min(ONLINE_WINDOW, model.window)
@@ -111,6 +118,7 @@ class OnlineReactor:
         self._leader_noise_stream = np.random.default_rng((self.seed, LEADER_NOISE_STREAM))  # leader_noise's
         self._leader = np.zeros((0, joints, 3))
         self._follower = np.zeros((0, joints, 3))  # the network's frames returned so far (before the clean-up)
+        self._votes = Votes(joints)  # the windows' samples of the frames not returned yet
         self._noise = np.zeros((0, d), np.float32)
         self._leader_z = np.zeros((0, d))
         self._first = 0  # the take's frame the buffers start at
@@ -187,8 +195,36 @@ class OnlineReactor:
         follower = np.concatenate([self._follower, np.zeros((len(self._leader) - known, *self._leader.shape[1:]))])
         self._ramped += 1
         self._frame = anchored(self.model, self._leader, self._frame)
-        out = window_follower(self.model, self._leader, follower, known, self._current(), self.seed, self._noise,
-                              self._leader_z, self._frame)[known:known + n]
+        made = window_follower(self.model, self._leader, follower, known, self._current(), self.seed, self._noise,
+                               self._leader_z, self._frame)[known:]
+        out = self._votes.add(made).take(n)
         self._follower = np.concatenate([self._follower, out])
         self.frames_out += n
         return (out if self._clean is None else self._clean(out)).astype(np.float32)
+
+
+class Votes:
+    """The samples the live windows make of the follower frames not returned yet, frame by frame: `add` the frames a
+    window made from the first one owed on, `take` the first n as each frame's weighted mean (ENSEMBLE_GROWTH)."""
+
+    def __init__(self, joints: int):
+        self.sums = np.zeros((0, joints, 3))
+        self.weights = np.zeros(0)
+
+    def add(self, frames: np.ndarray) -> Votes:
+        """Frames (n, J, 3) of one window, from the first frame owed on."""
+        extra = len(frames) - len(self.weights)
+        if extra > 0:
+            self.sums = np.concatenate([self.sums, np.zeros((extra, *self.sums.shape[1:]))])
+            self.weights = np.concatenate([self.weights, np.zeros(extra)])
+        # the samples so far weigh 1 / ENSEMBLE_GROWTH as much, the new one 1 (the same ratios as growing weights, bounded)
+        self.sums, self.weights = self.sums / ENSEMBLE_GROWTH, self.weights / ENSEMBLE_GROWTH
+        self.sums[:len(frames)] += np.asarray(frames, np.float64)
+        self.weights[:len(frames)] += 1.0
+        return self
+
+    def take(self, n: int) -> np.ndarray:
+        """The first n frames owed, (n, J, 3): each its samples' weighted mean; they are owed no more."""
+        out = self.sums[:n] / self.weights[:n, None, None]
+        self.sums, self.weights = self.sums[n:], self.weights[n:]
+        return out
