@@ -2,12 +2,14 @@
 streamed frame by frame, against the time a frame lasts and the offline reaction of the same leaders in the same run.
 
     .venv/bin/python benchmarks/online_reactor.py [--checkpoint sample_data/imm_diffusion.safetensors] [--threads 1]
-        [--leaders 10] [--repeats 4]
+        [--leaders 10] [--repeats 4] [--online-windows 16 30]
 
 Each of the first `--leaders` sequences of the bundled data, played `--repeats` times in a row, is streamed into a fresh
 reactor for each label (one class; three signed classes; a label per body part), interleaved with the offline
 reaction of the same take, so that both meet the same load. Prints the median and p95 push, the share of pushes
-slower than a frame at 15 fps (66.7 ms), and the offline reaction's time per frame.
+slower than a frame at 15 fps (66.7 ms), and the offline reaction's time per frame. `--online-windows` times reactors
+reading that many leader frames a push (windows.ONLINE_WINDOW), one after another on each take, so that they meet
+the same load.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from imm_model.data.dataset import InteractionDataset
+from imm_model.families.diffusion import windows
 from imm_model.inference import ReactionModel
 from imm_model.paths import SAMPLE_DATA, SAMPLE_DEFAULT
 
@@ -31,6 +34,8 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--leaders", type=int, default=10)
     ap.add_argument("--repeats", type=int, default=4)
+    ap.add_argument("--online-windows", type=int, nargs="+", default=[windows.ONLINE_WINDOW],
+                    help="leader frames a push reads (windows.ONLINE_WINDOW), each timed")
     args = ap.parse_args()
     threadpool_limits(args.threads)
     data = InteractionDataset.load(SAMPLE_DATA)
@@ -40,25 +45,27 @@ def main() -> None:
     if model.part_labels:
         labels[f"upper:{names[2]}, lower:-{names[1]}"] = {f"upper:{names[2]}": 1.0, f"lower:{names[1]}": -1.0}
     takes = [np.concatenate([data.world(i)[0]] * args.repeats) for i in range(args.leaders)]
-    reactor = model.online(labels["one class"])
     print(f"checkpoint {args.checkpoint}; threads {args.threads}; {len(takes)} takes of {sum(map(len, takes))} frames; "
-          f"{model.guidance.sample_steps} sampler steps; lookahead {reactor.lookahead} frames; window {reactor.window}")
+          f"{model.guidance.sample_steps} sampler steps; lookahead {windows.LOOKAHEAD} frames")
     for title, label in labels.items():
-        pushes, offline = [], []
+        pushes, offline = {w: [] for w in args.online_windows}, []
         for take in takes:
-            reactor = model.online(label)
-            for frame in take:
-                t = time.perf_counter()
-                reactor.push(frame)
-                pushes.append((time.perf_counter() - t) * 1000)
-            reactor.flush()
+            for w in args.online_windows:
+                windows.ONLINE_WINDOW = w
+                reactor = model.online(label)
+                for frame in take:
+                    t = time.perf_counter()
+                    reactor.push(frame)
+                    pushes[w].append((time.perf_counter() - t) * 1000)
+                reactor.flush()
             t = time.perf_counter()
             model.synthesize(take, label)
             offline.append((time.perf_counter() - t) * 1000 / len(take))
-        pushes = np.array(pushes)
-        print(f"{title}: push median {np.median(pushes):.1f} ms, p95 {np.percentile(pushes, 95):.1f} ms, "
-              f"{(pushes > FRAME_MS).mean():.1%} slower than a frame; offline {np.median(offline):.2f} ms a frame")
-
+        for w, times in pushes.items():
+            times = np.array(times)
+            print(f"{title}, window {min(w, model.window)}: push median {np.median(times):.1f} ms, p95 "
+                  f"{np.percentile(times, 95):.1f} ms, {(times > FRAME_MS).mean():.1%} slower than a frame")
+        print(f"{title}: offline {np.median(offline):.2f} ms a frame")
 
 if __name__ == "__main__":
     main()

@@ -9,7 +9,7 @@ import pytest
 from imm_model.cleanup import OnlineCleanup
 from imm_model.errors import DataFormatError, LabelError
 from imm_model.families.diffusion.sampler import keeping
-from imm_model.families.diffusion.windows import BLEND, LOOKAHEAD, STRIDE
+from imm_model.families.diffusion.windows import BLEND, STRIDE, TAKE_LOOKAHEAD
 from imm_model.inference import ReactionModel
 from imm_model.paths import SAMPLE_DIFFUSION, SAMPLE_GAN, SAMPLE_RETRIEVAL
 
@@ -75,7 +75,7 @@ def test_a_long_take_is_made_a_few_frames_at_a_time(model, take, sample_data):
     finally:
         model.raw = False
     assert whole.shape == take.shape and np.isfinite(whole).all()
-    before = t - LOOKAHEAD - STRIDE - BLEND  # a later window crossfades the last BLEND frames made
+    before = t - TAKE_LOOKAHEAD - STRIDE - BLEND  # a later window crossfades the last BLEND frames made
     np.testing.assert_array_equal(moved[:before], whole[:before])
     assert np.abs(moved[t:] - whole[t:]).max() > 0.05
     steps = np.linalg.norm(np.diff(whole, axis=0), axis=-1).mean(1)  # mean joint motion per frame
@@ -123,7 +123,9 @@ def test_a_label_changed_live_changes_the_next_frames_only(model, sample_data):
     np.testing.assert_array_equal(steered[:behind], kept[:behind])
     assert np.abs(steered[behind:] - kept[behind:]).max() > 0.05
     step = lambda f: np.linalg.norm(np.diff(f, axis=0), axis=-1).max(1)  # noqa: E731 - the fastest joint's step
-    assert step(steered)[behind - 1:].max() <= step(kept).max() + 0.05  # it turns, it does not jump to another pose
+    recorded = np.concatenate([step(sample_data.world(i)[1]) for i in range(0, len(sample_data), 5)])
+    # it turns, it does not jump to another pose: its fastest joint no faster than recorded followers' but 1 % of frames
+    assert step(steered)[behind - 1:].max() <= np.percentile(recorded, 99)
 
 
 def test_online_seeds_are_variations(model, take):

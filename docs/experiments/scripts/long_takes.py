@@ -11,7 +11,7 @@ beside the single clip sampled whole and the recorded follower (raw network outp
 
 `--online` also reacts frame by frame (`model.online`) and times each push; `--gan` adds a GAN's reaction to the same
 takes; `--whole` samples each take as one clip, as the model did before windows. `--window/--online-window/--blend/
---stride/--lookahead/--continue-level/--anchor` set the windows (imm_model/families/diffusion/windows.py) for the variants the record
+--stride/--lookahead/--take-lookahead/--continue-level/--anchor` set the windows (imm_model/families/diffusion/windows.py) for the variants the record
 compares; without them, as shipped.
 
     python docs/experiments/scripts/long_takes.py --repeats 1 4 8 --online --gan sample_data/imm_sbu.safetensors \\
@@ -74,7 +74,7 @@ def take(clip: np.ndarray, k: int, kind: str) -> np.ndarray:
 
 def set_windows(args) -> None:
     """The windows' settings for a variant (module constants, read at every call)."""
-    for name in ("window", "online_window", "blend", "stride", "lookahead"):
+    for name in ("window", "online_window", "blend", "stride", "lookahead", "take_lookahead"):
         if getattr(args, name) is not None:
             setattr(windows, name.upper(), getattr(args, name))
     if args.continue_level is not None:
@@ -99,7 +99,8 @@ def main() -> None:
     ap.add_argument("--online-window", type=int, default=None)
     ap.add_argument("--blend", type=int, default=None)
     ap.add_argument("--stride", type=int, default=None)
-    ap.add_argument("--lookahead", type=int, default=None)
+    ap.add_argument("--lookahead", type=int, default=None, help="live")
+    ap.add_argument("--take-lookahead", type=int, default=None, help="offline, a long take's windows")
     ap.add_argument("--continue-level", type=float, default=None)
     ap.add_argument("--anchor", choices=("shipped", "own", "fixed"), default="shipped")
     ap.add_argument("--whole", action="store_true", help="sample every take whole, as one clip (no windows)")
@@ -143,7 +144,7 @@ def main() -> None:
             row = {"variant": args.variant, "kind": args.kind, "mode": mode, "repeats": k, "leaders": len(held_out),
                    "fold": model.held_out_subject, "checkpoint": args.gan if mode == "gan" else args.checkpoint,
                    "seed": args.seed, "window": windows.WINDOW, "online_window": windows.ONLINE_WINDOW, "blend": windows.BLEND,
-                   "stride": windows.STRIDE, "lookahead": windows.LOOKAHEAD, "continue_level": windows.CONTINUE_LEVEL,
+                   "stride": windows.STRIDE, "lookahead": windows.LOOKAHEAD, "take_lookahead": windows.TAKE_LOOKAHEAD, "continue_level": windows.CONTINUE_LEVEL,
                    "anchor": args.anchor,
                    "hands_per_copy": hands.mean(0).round(4).tolist(), "torso_per_copy": torso.mean(0).round(4).tolist()}
             if seam:

@@ -3,7 +3,7 @@
 The denoiser sees every frame of a clip at once, with frame positions and a canonical frame it learned on clips of at
 most `model.window` frames (the longest training sequence), each from the start of an interaction; sampled whole, a
 longer take drifts away from its leader (docs/experiments/long-takes.md). A take longer than that is made `STRIDE`
-frames at a time: each time, a window of the last `WINDOW` leader frames up to `LOOKAHEAD` frames beyond the new ones,
+frames at a time: each time, a window of the last `WINDOW` leader frames up to `TAKE_LOOKAHEAD` frames beyond the new ones,
 in a canonical frame of its own (`anchored`: the window before's until the leader has moved away from it), so that it
 looks like a training clip wherever in the take it lies. The follower frames already made are given to the sampler,
 which inpaints the rest around them (sampler.py `sample`'s `known`, as PriorMDM continues a long sequence), and the
@@ -27,11 +27,16 @@ from imm_model.data.sequence import check_world_positions
 from imm_model.errors import DataFormatError
 from imm_model.families.diffusion.sampler import LEADER_NOISE_STREAM, initial_noise, leader_noise
 
-WINDOW = 22  # leader frames each window of a long take reads (the follower's given past, its blend and its new frames)
-ONLINE_WINDOW = 16  # leader frames each step of the online reactor reads (the frames before the one it makes given)
+WINDOW = 30  # leader frames each window of a long take reads (the follower's given past, its blend and its new frames)
+# leader frames each step of the online reactor reads (the frames before the one it makes given): 16 read as asked
+# for 0.53 of off-label leaders, 30 for 0.72, at 1.3-1.4x the push's time (docs/experiments/long-takes.md)
+ONLINE_WINDOW = 30
 STRIDE = 4  # new follower frames a window of a long take makes (live: 1, a frame per leader frame)
 BLEND = 6  # frames made by one window that the next samples again and crossfades into its own (offline only)
-LOOKAHEAD = 4  # leader frames a window reads beyond the last follower frame it makes (0.27 s at 15 fps)
+LOOKAHEAD = 4  # live: leader frames a window reads beyond the last follower frame it makes (0.27 s at 15 fps)
+# offline, where the whole take is known: the same, 0.8 s; a window that sees where the leader's action goes reads as
+# its label as a clip does (4 frames: off-label 0.75 against the whole clip's 0.92; docs/experiments/long-takes.md)
+TAKE_LOOKAHEAD = 12
 # a window continuing given frames starts its sampler at this noise level from them (the last one held), not from pure
 # noise: the given frames then hold the follower's placement and pose (from pure noise the 7-step sampler drew each
 # window's placement anew, and the follower jumped up to 1 m at a window's first frame)
@@ -82,7 +87,7 @@ def take_windows(model, leader: np.ndarray, label: np.ndarray, seed: int) -> np.
     follower = np.zeros(leader.shape, np.float64)
     done, frame = 0, None
     while done < frames:
-        end = min(done + STRIDE + LOOKAHEAD, frames)
+        end = min(done + STRIDE + TAKE_LOOKAHEAD, frames)
         start = max(0, end - WINDOW)
         keep = STRIDE if end < frames else frames - done
         blend = min(BLEND, done - start)
