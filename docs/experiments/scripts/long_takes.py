@@ -11,8 +11,8 @@ beside the single clip sampled whole and the recorded follower (raw network outp
 
 `--online` also reacts frame by frame (`model.online`) and times each push; `--gan` adds a GAN's reaction to the same
 takes; `--whole` samples each take as one clip, as the model did before windows. `--window/--online-window/--blend/
---stride/--lookahead/--take-lookahead/--continue-level/--anchor` set the windows (imm_model/families/diffusion/windows.py) for the variants the record
-compares; without them, as shipped.
+--stride/--lookahead/--take-lookahead/--continue-level/--anchor` set the windows
+(imm_model/families/diffusion/windows.py) for the variants the record compares; without them, as shipped.
 
     python docs/experiments/scripts/long_takes.py --repeats 1 4 8 --online --gan sample_data/imm_sbu.safetensors \\
         --out docs/experiments/data/long-takes.jsonl
@@ -144,8 +144,8 @@ def main() -> None:
             row = {"variant": args.variant, "kind": args.kind, "mode": mode, "repeats": k, "leaders": len(held_out),
                    "fold": model.held_out_subject, "checkpoint": args.gan if mode == "gan" else args.checkpoint,
                    "seed": args.seed, "window": windows.WINDOW, "online_window": windows.ONLINE_WINDOW, "blend": windows.BLEND,
-                   "stride": windows.STRIDE, "lookahead": windows.LOOKAHEAD, "take_lookahead": windows.TAKE_LOOKAHEAD, "continue_level": windows.CONTINUE_LEVEL,
-                   "anchor": args.anchor,
+                   "stride": windows.STRIDE, "lookahead": windows.LOOKAHEAD, "take_lookahead": windows.TAKE_LOOKAHEAD,
+                   "continue_level": windows.CONTINUE_LEVEL, "anchor": args.anchor,
                    "hands_per_copy": hands.mean(0).round(4).tolist(), "torso_per_copy": torso.mean(0).round(4).tolist()}
             if seam:
                 row["seam_step_m"] = None if np.isnan(seam).all() else round(float(np.nanmean(seam)), 4)
