@@ -7,7 +7,9 @@ limb speed and jitter, with `imm evaluate`'s own fold judges and scores (imm_mod
 "online" makes every follower as `model.online` does, frame by frame, each frame knowing the leader up to the
 reactor's lookahead and the follower frames before it, then its causal clean-up; the many leaders a fold scores run in
 lockstep, one sampler batch per frame (`online_followers`, checked against the reactor itself on a few leaders first).
-"offline" is the model's own `synthesize` (clips sampled whole). Both are scored on the same test leaders and labels.
+"offline" is the model's own `synthesize` (clips sampled whole); "windows" makes every clip as a long take is made,
+in windows (windows.take_windows). All are scored on the same test leaders and labels. `--set NAME=VALUE` changes a
+windows.py setting for a variant; each row records the settings it was made with.
 """
 
 from __future__ import annotations
@@ -17,6 +19,9 @@ from pathlib import Path
 
 import numpy as np
 from diffusion_fold import record
+
+SETTINGS = {"online": ("ONLINE_WINDOW", "LOOKAHEAD", "ENSEMBLE_GROWTH", "CONTINUE_LEVEL", "LABEL_RAMP"),
+            "windows": ("WINDOW", "TAKE_LOOKAHEAD", "STRIDE", "BLEND", "CONTINUE_LEVEL")}  # recorded with each row
 
 
 def online_followers(model, leaders: list[np.ndarray], label_vectors: np.ndarray, seeds) -> list[np.ndarray]:
@@ -91,13 +96,11 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=None, help="append one JSON line per mode here")
     args = ap.parse_args()
     from imm_model.families.diffusion import windows
-    settings = {}
     for item in args.set:
         name, value = item.split("=")
         if not hasattr(windows, name) or not name.isupper():
             ap.error(f"windows.py has no setting {name}")
         setattr(windows, name, type(getattr(windows, name))(float(value)))
-        settings[name] = getattr(windows, name)
     data = InteractionDataset.load(SAMPLE_DATA)
     opts = EvalOptions(baselines=(), progress=False)
     judges = FoldJudges(data, args.fold, opts)
@@ -106,8 +109,8 @@ def main() -> None:
         model = ReactionModel.load(args.checkpoint)
         prepare_model(model, data, args.fold, opts)
         row = {"fold": args.fold, "mode": mode, "checkpoint": str(args.checkpoint), "leaders": len(judges.test)}
-        if settings and mode != "offline":
-            row["settings"] = settings
+        if mode != "offline":  # the windows it was made with
+            row["settings"] = {name: getattr(windows, name) for name in SETTINGS[mode]}
         if mode == "windows":  # every clip made as a long take is, in windows (windows.take_windows)
             model.window = 1
         if mode == "online":
