@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
+
 import numpy as np
 import pytest
 
@@ -145,10 +148,16 @@ def test_the_fit_command_answers_bad_arguments_in_one_line(tmp_path):
     import subprocess
     import sys
 
+    from explorer.session.latent import LatentMap
+
     (tmp_path / "bad.npz").write_bytes(b"not a zip")
+    cache = tmp_path / "good.npz"
+    LatentMap(np.zeros((3, 2), np.float32), path=cache).save()
     for args, needle in (([], "usage"), ([str(tmp_path / "x.npz"), "pca"], "usage"),
                          ([str(tmp_path / "bad.npz"), "tsne"], "cannot be read"),
-                         ([str(tmp_path / "missing.npz"), "umap"], "cannot be read")):  # fmt: skip
+                         ([str(tmp_path / "missing.npz"), "umap"], "cannot be read"),
+                         ([str(tmp_path / "x.npz"), "afd", "model.safetensors"], "usage"),
+                         ([str(cache), "afd", str(tmp_path / "none.safetensors"), str(tmp_path / "x.npz")], "cannot score")):  # fmt: skip
         proc = subprocess.run([sys.executable, "-m", "explorer.session.latent", *args], capture_output=True, text=True, timeout=60)
         assert proc.returncode == 2 and needle in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
 
@@ -184,6 +193,40 @@ def test_per_sequence_afd_is_scored_once_and_cached(tmp_path, sample_data):
     again = latent.LatentMap.build(model, subset, tmp_path, "afd", methods=())
     assert list(again.afd_scores(model, subset)) == [] and model.synths == 6  # read from the cache file
     np.testing.assert_array_equal(again.afd, scores)
+
+
+def test_the_afds_are_scored_in_a_process_of_its_own_below_the_studios_priority(tmp_path, sample_data):
+    """The studio's map scores its AFDs in `python -m explorer.session.latent <cache> afd <checkpoint> <data>` at
+    BACKGROUND_NICE, not between the page's slider moves: the scores equal those made in the studio's own process (as
+    a map without a cache file still makes them), and a second map on the cache reads them back."""
+    import asyncio
+    import subprocess
+    import sys
+    import time
+
+    from explorer.session import latent
+    from imm_model.inference import ReactionModel
+    from imm_model.paths import SAMPLE_GAN
+
+    gan = ReactionModel.load(SAMPLE_GAN)
+    lm = latent.LatentMap.build(gan, sample_data, tmp_path, "gan", methods=())
+    scorer = subprocess.Popen([sys.executable, "-m", "explorer.session.latent", str(lm.path), "afd", str(SAMPLE_GAN),
+                               str(sample_data.path), latent.WHILE_STDIN_OPEN], stdin=subprocess.PIPE, stderr=subprocess.PIPE)
+    niceness = os.getpriority(os.PRIO_PROCESS, 0)
+    seen = niceness
+    while scorer.poll() is None and seen == niceness:
+        with contextlib.suppress(ProcessLookupError):
+            seen = os.getpriority(os.PRIO_PROCESS, scorer.pid)
+        time.sleep(0.005)
+    assert seen == min(niceness + latent.BACKGROUND_NICE, 19)
+    scorer.stdin.close()  # the studio's process ended: the scorer ends too, its scores unsaved
+    assert scorer.wait(60) == 1 and latent.LatentMap.load(lm.path).afd is None
+    asyncio.run(lm.score_elsewhere(gan, sample_data))
+    here = latent.LatentMap(lm.latents)  # no cache file: scored in this process
+    asyncio.run(here.score_elsewhere(gan, sample_data, 0))
+    assert lm.afd.shape == (len(sample_data),) and np.isfinite(lm.afd).all()
+    np.testing.assert_allclose(lm.afd, here.afd, rtol=1e-5)
+    np.testing.assert_array_equal(latent.LatentMap.build(gan, sample_data, tmp_path, "gan", methods=()).afd, lm.afd)
 
 
 def test_the_selection_list_sorts_worst_first_by_id_or_class(sample_data):

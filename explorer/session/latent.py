@@ -29,6 +29,10 @@ from imm_model.data.dataset import InteractionDataset
 from imm_model.evaluation.metrics import afd
 
 METHODS = ("tsne", "umap")
+# the projection fitter and the AFD scorer (`main`) run below the studio's priority: on a small machine they share
+# the cores with the page's first slider moves, which go first (in the studio's own process the scoring added up
+# to one synthesis, 20-30 ms, to a move: docs/experiments/studio-performance.md)
+BACKGROUND_NICE = 10
 CACHE_VERSION = "1"  # bump when embeddings or projections are computed differently
 KNN = 8
 
@@ -157,12 +161,12 @@ class LatentMap:
         return self.coords[method]
 
     @contextlib.contextmanager
-    def _file_lock(self):
+    def _file_lock(self, suffix: str = ".lock"):
         if not self.path:
             yield
             return
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        with open(self.path.with_suffix(".lock"), "a") as f:  # flock: released even when a fitter is killed
+        with open(self.path.with_suffix(suffix), "a") as f:  # flock: released even when a fitter is killed
             fcntl.flock(f, fcntl.LOCK_EX)
             yield
 
@@ -201,15 +205,35 @@ class LatentMap:
         if not self.path:
             await asyncio.to_thread(self.ensure, method)
             return
-        fitter = await asyncio.create_subprocess_exec(
-            sys.executable, "-m", "explorer.session.latent", str(self.path), method, WHILE_STDIN_OPEN,
+        error = await self._elsewhere(method)
+        if method not in self.coords:
+            raise RuntimeError(error)
+
+    async def score_elsewhere(self, model, data: InteractionDataset, pause_s: float = 0.01) -> None:
+        """`afd_scores` in a separate process below the studio's priority (`main`), then take its result: in the
+        studio's own process each sequence's synthesis held up a slider move that came meanwhile. Without a cache file,
+        or for a model or data not read from files, here, a sequence at a time with `pause_s` between."""
+        if self.afd is not None and len(self.afd) == len(data):
+            return
+        if not (self.path and getattr(model, "path", None) and data.path):
+            for _ in self.afd_scores(model, data):
+                await asyncio.sleep(pause_s)
+            return
+        error = await self._elsewhere("afd", str(model.path), str(data.path))
+        if self.afd is None:
+            raise RuntimeError(error)
+
+    async def _elsewhere(self, *words: str) -> str:
+        """Run `python -m explorer.session.latent <cache file> <words>` to its end and take what it saved; -> the last
+        line it wrote to stderr (its error, if it saved nothing)."""
+        worker = await asyncio.create_subprocess_exec(
+            sys.executable, "-m", "explorer.session.latent", str(self.path), *words, WHILE_STDIN_OPEN,
             stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.DEVNULL, stderr=asyncio.subprocess.PIPE,
         )  # fmt: skip
-        _, err = await fitter.communicate()  # stdin stays open: the fit ends with this process, not before
+        _, err = await worker.communicate()  # stdin stays open: the work ends with this process, not before
         self.reload()
-        if method not in self.coords:
-            lines = err.decode(errors="replace").strip().splitlines() or [f"exit code {fitter.returncode}"]
-            raise RuntimeError(lines[-1])
+        lines = err.decode(errors="replace").strip().splitlines() or [f"exit code {worker.returncode}"]
+        return lines[-1]
 
     def place(self, latent: np.ndarray, method: str, k: int = KNN) -> np.ndarray:
         """A new embedding -> 2D, as the inverse-distance-weighted mean of its k nearest neighbours'
@@ -241,21 +265,39 @@ def _exit_when_stdin_closes() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """`python -m explorer.session.latent <cache file> <method> [--while-stdin-open]`: fit one projection of a cached map
-    and save it (stopping if stdin closes first). Bad arguments get one line on stderr and exit code 2 (the studio
-    shows that line)."""
+    and save it; `... <cache file> afd <checkpoint> <data> [--while-stdin-open]`: score every sequence's AFD with that
+    model (`LatentMap.afd_scores`) and save them, once across processes (a second scorer waits for the first and reads
+    its scores). Either stops if stdin closes first and runs at BACKGROUND_NICE. Bad arguments get one line on stderr
+    and exit code 2 (the studio shows that line)."""
     args = sys.argv[1:] if argv is None else argv
     if args[-1:] == [WHILE_STDIN_OPEN]:
         args = args[:-1]
         _exit_when_stdin_closes()
-    if len(args) != 2 or args[1] not in METHODS:
-        print(f"usage: python -m explorer.session.latent <cache file> <{'|'.join(METHODS)}> [{WHILE_STDIN_OPEN}], not {' '.join(args)!r}",
-              file=sys.stderr)  # fmt: skip
+    task = args[1] if len(args) > 1 else ""
+    if not ((len(args) == 2 and task in METHODS) or (len(args) == 4 and task == "afd")):
+        print(f"usage: python -m explorer.session.latent <cache file> <{'|'.join(METHODS)}> [{WHILE_STDIN_OPEN}], or <cache file> "
+              f"afd <checkpoint> <data> [{WHILE_STDIN_OPEN}], not {' '.join(args)!r}", file=sys.stderr)  # fmt: skip
         return 2
+    os.nice(BACKGROUND_NICE)
     latent_map = LatentMap.load(Path(args[0]))
     if latent_map is None:
         print(f"latent map cache {args[0]} cannot be read", file=sys.stderr)
         return 2
-    latent_map.ensure(args[1])
+    if task in METHODS:
+        latent_map.ensure(task)
+        return 0
+    from explorer.session.words import one_line
+    from imm_model.errors import IMMError
+    from imm_model.inference import ReactionModel
+
+    try:
+        model, data = ReactionModel.load(Path(args[2])), InteractionDataset.load(Path(args[3]))
+    except (IMMError, OSError) as err:
+        print(f"cannot score the AFDs: {one_line(err)}", file=sys.stderr)
+        return 2
+    with latent_map._file_lock(".afd-lock"):
+        for _ in latent_map.afd_scores(model, data):
+            pass
     return 0
 
 

@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 
 SORT_KEYS = ("afd", "id", "class")
 AFD_DELAY_S = 2.0  # the per-sequence AFDs wait this long after the page opens: its first picture goes first
-AFD_STEP_S = 0.01  # ... and leave the event loop this long after each sequence's synthesis
+AFD_STEP_S = 0.01  # ... and, scored in the studio process (no cache file), yield this long after each sequence
 
 
 class LatentPanel:
@@ -121,9 +121,8 @@ class LatentPanel:
             return
         await asyncio.sleep(AFD_DELAY_S)
         ses = self.page.session
-        try:
-            for _ in self.latent.afd_scores(ses.map_model, ses.data):  # the map is of this model, whichever is on
-                await asyncio.sleep(AFD_STEP_S)  # one sequence at a time, between the page's own work
+        try:  # the map is of this model, whichever is on; scored in a process of its own, below the page's priority
+            await self.latent.score_elsewhere(ses.map_model, ses.data, AFD_STEP_S)
         except Exception as err:
             with self.page.state:
                 self.page.state.error = f"AFD of the sequences failed: {one_line(err)}"
