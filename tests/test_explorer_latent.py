@@ -195,7 +195,7 @@ def test_per_sequence_afd_is_scored_once_and_cached(tmp_path, sample_data):
     np.testing.assert_array_equal(again.afd, scores)
 
 
-def test_the_afds_are_scored_in_a_process_of_its_own_below_the_studios_priority(tmp_path, sample_data):
+def test_the_afds_are_scored_in_a_process_of_its_own_below_the_studios_priority(tmp_path, sample_data, monkeypatch):
     """The studio's map scores its AFDs in `python -m explorer.session.latent <cache> afd <checkpoint> <data>` at
     BACKGROUND_NICE, not between the page's slider moves: the scores equal those made in the studio's own process (as
     a map without a cache file still makes them), and a second map on the cache reads them back."""
@@ -227,6 +227,10 @@ def test_the_afds_are_scored_in_a_process_of_its_own_below_the_studios_priority(
     assert lm.afd.shape == (len(sample_data),) and np.isfinite(lm.afd).all()
     np.testing.assert_allclose(lm.afd, here.afd, rtol=1e-5)
     np.testing.assert_array_equal(latent.LatentMap.build(gan, sample_data, tmp_path, "gan", methods=()).afd, lm.afd)
+    stale = latent.LatentMap(lm.latents, path=lm.path)  # a tab's map, read before the scores were saved: no scorer
+    monkeypatch.setattr(latent.asyncio, "create_subprocess_exec", lambda *a, **k: pytest.fail("scored again"))
+    asyncio.run(stale.score_elsewhere(gan, sample_data))
+    np.testing.assert_array_equal(stale.afd, lm.afd)
 
 
 def test_the_selection_list_sorts_worst_first_by_id_or_class(sample_data):

@@ -213,6 +213,7 @@ class LatentMap:
         """`afd_scores` in a separate process below the studio's priority (`main`), then take its result: in the
         studio's own process each sequence's synthesis held up a slider move that came meanwhile. Without a cache file,
         or for a model or data not read from files, here, a sequence at a time with `pause_s` between."""
+        self.reload()  # another process may have saved them since this map was read (each tab's process asks)
         if self.afd is not None and len(self.afd) == len(data):
             return
         if not (self.path and getattr(model, "path", None) and data.path):
