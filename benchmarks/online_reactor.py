@@ -67,5 +67,6 @@ def main() -> None:
                   f"{np.percentile(times, 95):.1f} ms, {(times > FRAME_MS).mean():.1%} slower than a frame")
         print(f"{title}: offline {np.median(offline):.2f} ms a frame")
 
+
 if __name__ == "__main__":
     main()
