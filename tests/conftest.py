@@ -75,3 +75,13 @@ def page(studio, browser):
     probe.watch_view_images(pg)
     yield pg
     pg.close()
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """A failed browser test's report ends with what its studio wrote last (start-up, its processes' errors)."""
+    outcome = yield
+    report = outcome.get_result()
+    studio = item.funcargs.get("studio") if hasattr(item, "funcargs") else None
+    if report.failed and studio is not None:
+        report.sections.append(("studio log (last 40 lines)", "\n".join(studio.lines[-40:])))

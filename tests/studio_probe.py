@@ -100,19 +100,34 @@ def launch_chromium(playwright):
     return playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
 
 
-def open_studio(browser, url: str, width: int = 1400, height: int = 900, timeout_ms: int = 60000):
-    """A new page on the studio, returned once the remote 3D view shows a real picture."""
+def open_studio(browser, url: str, width: int = 1400, height: int = 900, timeout_ms: int = 120000):
+    """A new page on the studio, returned once the remote 3D view shows a real picture. Each page is served by a studio
+    process of its own, forked as the page asks for it when the spare is taken: on a busy two-core machine its first
+    picture can take most of a minute."""
     page = browser.new_page(viewport={"width": width, "height": height})
     page.goto(url, timeout=timeout_ms)
     wait_for_view(page, timeout_ms)
     return page
 
 
-def wait_for_view(page, timeout_ms: int = 60000) -> None:
-    page.wait_for_function(
-        f"() => {{ const i = document.querySelector('{VIEW_IMG}'); return i && i.complete && i.naturalWidth > 100 }}",
-        timeout=timeout_ms,
-    )
+# What the page shows of its view and its connection, for a wait that failed.
+VIEW_REPORT_JS = f"""() => {{ const i = document.querySelector('{VIEW_IMG}'), t = window.trame;
+    return {{img: !!i, complete: i && i.complete, naturalWidth: i && i.naturalWidth, box: i && i.getBoundingClientRect().width,
+             trame: !!t, alert: (document.querySelector('.v-alert') || {{}}).innerText || ''}}; }}"""
+
+
+def wait_for_view(page, timeout_ms: int = 120000) -> None:
+    """Until the 3D view's image shows a real picture; when it does not, the error says what the page had instead and
+    a screenshot goes to test-artifacts/."""
+    try:
+        page.wait_for_function(
+            f"() => {{ const i = document.querySelector('{VIEW_IMG}'); return i && i.complete && i.naturalWidth > 100 }}",
+            timeout=timeout_ms,
+        )
+    except Exception as err:
+        report = page.evaluate(VIEW_REPORT_JS)
+        shot(page, "view-never-shown")
+        raise TimeoutError(f"the 3D view showed no picture within {timeout_ms} ms; the page had {report}") from err
 
 
 def state(page, key: str):
