@@ -13,7 +13,7 @@ import torch
 
 from imm_model.errors import CheckpointError
 from imm_model.families import load_model
-from imm_model.families.diffusion.distill import LABEL_KINDS, StudentTrainer, pool_labels
+from imm_model.families.diffusion.distill import LABEL_KINDS, ReactionCritic, StudentTrainer, pool_labels
 from imm_model.families.diffusion.recipes import IMM_DIFFUSION, IMM_DIFFUSION_STUDENT
 from imm_model.families.diffusion.sampler import Guidance, sample, schedule_step
 from imm_model.families.diffusion.trainer import DiffusionTrainer
@@ -144,6 +144,44 @@ def test_a_student_needs_a_teacher_and_a_teacher_a_student():
         replace(IMM_DIFFUSION_STUDENT, teacher="")
     with pytest.raises(ValueError, match="teacher"):
         replace(IMM_DIFFUSION, teacher="runs/x/fold-{fold}/final.safetensors")
+    with pytest.raises(ValueError, match="lambda_adversarial"):
+        replace(IMM_DIFFUSION, lambda_adversarial=0.1)
+
+
+def test_the_critic_learns_to_tell_a_reaction_from_one_held_still_and_reads_the_label(student):
+    """Real: the teacher's reactions. Fake: the same reactions held at their mean pose (what an averaging student
+    drifts towards). A few Adam steps of the hinge loss separate them; the label enters the score."""
+    trainer = student[0]
+    torch.manual_seed(0)
+    pool = trainer.pool
+    rows = torch.arange(32)
+    t = int(pool["length"][rows].max())
+    mask = torch.arange(t)[None] < pool["length"][rows][:, None]
+    m = mask[..., None].float()
+    leader, real, label = pool["leader"][rows, :t] * m, pool["target"][rows, :t] * m, pool["label"][rows]
+    still = (real.sum(1, keepdim=True) / m.sum(1, keepdim=True)) * m
+    critic = ReactionCritic(real.shape[-1], label.shape[-1])
+    opt = torch.optim.Adam(critic.parameters(), lr=1e-3, betas=(0.5, 0.999))
+    for _ in range(60):
+        loss = (torch.relu(1 - critic(leader, real, label, mask)).mean()
+                + torch.relu(1 + critic(leader, still, label, mask)).mean())
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    with torch.no_grad():
+        assert (critic(leader, real, label, mask) > critic(leader, still, label, mask)).float().mean() > 0.9
+        assert not torch.allclose(critic(leader, real, label, mask), critic(leader, real, -label, mask))
+
+
+def test_a_student_with_a_critic_trains_both_and_logs_their_terms(teacher_runs, sample_data, tmp_path):
+    import csv
+
+    trainer = StudentTrainer(student_config(teacher_runs, lambda_adversarial=0.5), sample_data, "s04", tmp_path)
+    before = [p.detach().clone() for p in trainer.critic.parameters()]
+    trainer.fit(progress=False)
+    assert any(not torch.equal(a, b) for a, b in zip(before, trainer.critic.parameters(), strict=True))
+    rows = list(csv.DictReader(open(tmp_path / "log.csv")))
+    assert rows and float(rows[-1]["critic"]) > 0 and float(rows[-1]["adversarial"]) != 0
 
 
 @pytest.mark.parametrize("extra, message", [([], "the student's teacher not found (train it first: imm train --config "

@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 import torch
+import torch.nn as nn
+import torch.nn.functional as F
 
 import imm_model
 from imm_model.checkpoint import DIGEST, load_checkpoint, save_checkpoint
@@ -37,7 +39,9 @@ from imm_model.families.diffusion.sampler import Guidance, cosine_alpha_bar, ini
 from imm_model.families.diffusion.trainer import optimizer_step
 from imm_model.training.data import Augmenter, PaddedData, data_meta, derive_seed
 
-LOG_FIELDS = ("step", "loss", "x0", "velocity", "lr", "seconds")
+LOG_FIELDS = ("step", "loss", "x0", "velocity", "adversarial", "critic", "lr", "seconds")
+CRITIC_WIDTH = 128  # the critic's channels
+CRITIC_LR = 2e-4  # the critic's Adam learning rate (betas 0.5, 0.999: the usual GAN setting)
 POOL_BATCH = 64  # teacher reactions drawn per sampler call
 DEFAULT_SPREAD_SHARE = 0.5  # pool batches at the teacher's own spread; the rest at a uniform spread in 0..1
 
@@ -69,6 +73,32 @@ def pool_labels(rng: np.random.Generator, n: int, classes: int) -> np.ndarray:
         elif kind == 4:
             labels[row, picked[:3]] = rng.uniform(-1, 1.5, 3)
     return labels
+
+
+class ReactionCritic(nn.Module):
+    """Tells the teacher's reaction from the student's, given the leader and the signed label: dilated temporal
+    convolutions over each frame's leader pose, follower pose and follower velocity (normalized), pooled over the valid
+    frames, then a linear score plus the projection of the label onto the pooled features (Miyato & Koyama 2018), so a
+    reaction is judged as a reaction to this leader for this label. Spectrally normalized: its scores stay bounded.
+    Why hand-written: the GAN family's discriminator reads the follower alone and scores one-hot classes."""
+
+    def __init__(self, pose_dim: int, classes: int, width: int = CRITIC_WIDTH):
+        super().__init__()
+        sn = nn.utils.parametrizations.spectral_norm
+        self.convs = nn.ModuleList([sn(nn.Conv1d(3 * pose_dim, width, 5, padding=2))] +
+                                   [sn(nn.Conv1d(width, width, 5, padding=2 * d, dilation=d)) for d in (2, 4)])
+        self.score = sn(nn.Linear(width, 1))
+        self.label = sn(nn.Linear(classes, width, bias=False))
+
+    def forward(self, leader: torch.Tensor, follower: torch.Tensor, label: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        """leader, follower (B, T, D) normalized, label (B, C), mask (B, T) -> scores (B,)."""
+        velocity = torch.cat([torch.zeros_like(follower[:, :1]), follower[:, 1:] - follower[:, :-1]], 1)
+        m = mask[:, None].float()
+        h = torch.cat([leader, follower, velocity], -1).transpose(1, 2) * m
+        for conv in self.convs:
+            h = F.leaky_relu(conv(h), 0.2) * m
+        pooled = h.sum(-1) / m.sum(-1)
+        return self.score(pooled)[:, 0] + (self.label(label) * pooled).sum(-1)
 
 
 class StudentTrainer:
@@ -106,6 +136,10 @@ class StudentTrainer:
                                  swap, teacher_cfg.time_warp, teacher_cfg.scale_jitter, mirror)
         self.padded = PaddedData.from_dataset(data)
         self.alpha_bar = torch.as_tensor(cosine_alpha_bar(self.model_cfg.diffusion_steps), dtype=torch.float32)
+        self.critic = None
+        if cfg.lambda_adversarial:
+            self.critic = ReactionCritic(self.model_cfg.pose_dim, len(data.class_names)).to(self.device)
+            self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=CRITIC_LR, betas=(0.5, 0.999))
         self.step = 0
         self.pool: dict[str, torch.Tensor] = {}  # the teacher's reactions (`draw_pool`), normalized
         self.seeds = np.zeros(0, np.int64)  # the pool rows' sampler seeds
@@ -199,9 +233,23 @@ class StudentTrainer:
         mv = m[:, 1:] * m[:, :-1]
         vel_loss = (((x0[:, 1:] - x0[:, :-1]) - (target[:, 1:] - target[:, :-1])) ** 2 * mv).sum() / (mv.sum() * x0.shape[-1])
         loss = x0_loss + cfg.lambda_velocity * vel_loss
+        adversarial = critic_loss = torch.zeros(())
+        if self.critic is not None:
+            leader, label = self.pool["leader"][rows, : x0.shape[1]] * m, self.pool["label"][rows]
+            self.critic.requires_grad_(False)
+            adversarial = -self.critic(leader, x0, label, mask).mean()  # hinge loss, the generator's side
+            loss = loss + cfg.lambda_adversarial * adversarial
         lr = optimizer_step(cfg, self.opt, net, self.ema, loss, self.step)
+        if self.critic is not None:
+            self.critic.requires_grad_(True)
+            critic_loss = (F.relu(1 - self.critic(leader, target * m, label, mask)).mean()
+                           + F.relu(1 + self.critic(leader, x0.detach(), label, mask)).mean())
+            self.critic_opt.zero_grad(set_to_none=True)
+            critic_loss.backward()
+            self.critic_opt.step()
         self.step += 1
-        return {"loss": loss.item(), "x0": x0_loss.item(), "velocity": vel_loss.item(), "lr": lr}
+        return {"loss": loss.item(), "x0": x0_loss.item(), "velocity": vel_loss.item(), "adversarial": adversarial.item(),
+                "critic": critic_loss.item(), "lr": lr}
 
     # ---- the run --------------------------------------------------------------------------
     def fit(self, progress: bool = True) -> Path:
@@ -220,7 +268,7 @@ class StudentTrainer:
             while self.step < self.cfg.steps:
                 self.net.train()
                 parts = self.train_step()
-                for k in ("loss", "x0", "velocity"):
+                for k in ("loss", "x0", "velocity", "adversarial", "critic"):
                     totals[k] = totals.get(k, 0.0) + parts[k]
                 count += 1
                 bar.update(1)

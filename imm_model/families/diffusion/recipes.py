@@ -65,6 +65,9 @@ class DiffusionTrainConfig:
     # (distill.py; model.composed_label); empty: trained from the data
     teacher: str = param("", PathText())
     pool_rows: int = param(8192, Interval(int, 1, 1_000_000))  # the teacher's reactions a student learns from
+    # weight of a critic's verdict on a student's reactions beside the regression onto the teacher's (distill.py
+    # ReactionCritic, trained alongside to tell the teacher's reaction from the student's for the same leader and label)
+    lambda_adversarial: float = param(0.0, Interval(float, 0, None))
     checkpoint_every: int = param(1000, Interval(int, 1, None))  # steps between resumable checkpoints
     seed: int = param(0, Interval(int, 0, 2**31 - 1))  # initial weights, batches, noise and augmentation
 
@@ -76,7 +79,9 @@ class DiffusionTrainConfig:
              ("given_prob", lambda c: c.given_prob == 0 or c.model.get("given_frames") is True,
               "0 unless model.given_frames is true"),
              ("teacher", lambda c: bool(c.teacher) == (c.model.get("composed_label") is True),
-              "a checkpoint path exactly when model.composed_label is true (a student is distilled from a teacher)"))
+              "a checkpoint path exactly when model.composed_label is true (a student is distilled from a teacher)"),
+             ("lambda_adversarial", lambda c: c.lambda_adversarial == 0 or bool(c.teacher),
+              "0 unless a teacher is set (the critic judges a student's reactions)"))
 
     def __post_init__(self) -> None:
         validate(self, "training config")
@@ -138,6 +143,12 @@ IMM_DIFFUSION_STUDENT = DiffusionTrainConfig(
     ema_decay=0.995,
 )
 
+# The same student with a critic beside the regression (Sauer et al. 2023, adversarial diffusion distillation): a
+# regressed student averages what it cannot resolve, a critic that tells its reactions from the teacher's for the same
+# leader and label pushes back towards the teacher's distribution (docs/experiments/sampler-student-critic.md).
+IMM_DIFFUSION_STUDENT_CRITIC = replace(IMM_DIFFUSION_STUDENT, name="imm-diffusion-student-critic", lambda_adversarial=0.1)
+
 NAMED: dict[str, DiffusionTrainConfig] = {"imm-diffusion": IMM_DIFFUSION, "imm-diffusion-mixed": IMM_DIFFUSION_MIXED,
                                           "imm-diffusion-parts": IMM_DIFFUSION_PARTS,
-                                          "imm-diffusion-student": IMM_DIFFUSION_STUDENT}
+                                          "imm-diffusion-student": IMM_DIFFUSION_STUDENT,
+                                          "imm-diffusion-student-critic": IMM_DIFFUSION_STUDENT_CRITIC}
