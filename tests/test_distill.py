@@ -5,6 +5,7 @@ results)."""
 
 from __future__ import annotations
 
+import csv
 from dataclasses import replace
 
 import numpy as np
@@ -146,6 +147,8 @@ def test_a_student_needs_a_teacher_and_a_teacher_a_student():
         replace(IMM_DIFFUSION, teacher="runs/x/fold-{fold}/final.safetensors")
     with pytest.raises(ValueError, match="lambda_adversarial"):
         replace(IMM_DIFFUSION, lambda_adversarial=0.1)
+    with pytest.raises(ValueError, match="lambda_label"):
+        replace(IMM_DIFFUSION, lambda_label=0.1)
 
 
 def test_the_critic_learns_to_tell_a_reaction_from_one_held_still_and_reads_the_label(student):
@@ -174,8 +177,6 @@ def test_the_critic_learns_to_tell_a_reaction_from_one_held_still_and_reads_the_
 
 
 def test_a_student_with_a_critic_trains_both_and_logs_their_terms(teacher_runs, sample_data, tmp_path):
-    import csv
-
     trainer = StudentTrainer(student_config(teacher_runs, lambda_adversarial=0.5), sample_data, "s04", tmp_path)
     before = [p.detach().clone() for p in trainer.critic.parameters()]
     trainer.fit(progress=False)
@@ -195,3 +196,36 @@ def test_the_student_recipe_at_the_command_line_says_what_is_missing_in_one_line
     assert main(["train", "--config", "imm-diffusion-student", "--fold", "s04", "--out", "runs/s", "--quiet", *extra]) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1
+
+
+def test_the_label_critic_reads_what_each_row_performs_and_skips_rows_that_perform_nothing(teacher_runs, sample_data, tmp_path,
+                                                                                           monkeypatch):
+    """lambda_label: the fold's follower classifier (here a quick one) scores a student's reaction against the classes
+    its row performs, as shares; a row that performs nothing (no label, or only avoided classes) adds nothing."""
+    import torch.nn.functional as F
+
+    from imm_model import cache
+    from tests.test_training_terms import quick_follower_classifier
+
+    quick = quick_follower_classifier(sample_data)
+    asked = []
+    monkeypatch.setattr(cache, "fold_classifier", lambda cfg, data, subject, **k: asked.append(subject) or quick)
+    trainer = StudentTrainer(student_config(teacher_runs, lambda_label=0.5), sample_data, "s04", tmp_path)
+    assert asked == ["s04"]
+    trainer.draw_pool(progress=False)
+    rows = torch.arange(24)
+    with torch.no_grad():
+        x0, mask = trainer.student_sample(trainer.net.eval(), rows)
+        label = torch.zeros(24, 6)
+        label[:8, 0] = 1.0  # performs kicking
+        label[8:16, 1], label[8:16, 2] = 1.0, 1.0  # performs two classes: half each
+        label[16:, 3] = -1.0  # avoids a class only: nothing performed
+        loss = trainer.label_loss(x0, mask, label)
+        follower = x0[:16] * trainer.follower_scale["follower_std"] + trainer.follower_scale["follower_mean"]
+        logits = quick(follower, mask[:16].sum(-1))
+        target = label[:16] / label[:16].sum(-1, keepdim=True)
+        assert torch.allclose(loss, F.cross_entropy(logits, target))
+        assert torch.equal(trainer.label_loss(x0[16:], mask[16:], label[16:]), torch.zeros(()))
+    trainer.fit(progress=False)
+    rows = list(csv.DictReader(open(tmp_path / "log.csv")))
+    assert float(rows[-1]["label"]) > 0

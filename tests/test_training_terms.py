@@ -53,8 +53,8 @@ def test_the_critic_is_the_folds_follower_gru_scoring_both_labels(sample_data, t
     """The critic is the cached follower GRU (FOLLOWER) of the fold, asked for once; every batch it scores the
     true-label follower and the drawn-label one."""
     from imm_model import cache
-    from imm_model.families.gan.critic import LabelCritic
     from imm_model.model.classifier_config import FOLLOWER
+    from imm_model.training.label_critic import LabelCritic
 
     quick = quick_follower_classifier(sample_data)
     asked, scored = [], []
@@ -73,9 +73,9 @@ def test_the_critic_is_the_folds_follower_gru_scoring_both_labels(sample_data, t
 def test_label_critic_loss_is_the_soft_cross_entropy_and_reaches_the_follower(sample_data):
     """The critic's loss is the mean soft cross-entropy of its frozen classifier; its gradient reaches the generated
     follower, never the classifier."""
-    from imm_model.families.gan.critic import LabelCritic
     from imm_model.model.classifier import MotionClassifier
     from imm_model.model.classifier_config import ClassifierConfig
+    from imm_model.training.label_critic import LabelCritic
 
     torch.manual_seed(0)
     clf = MotionClassifier(ClassifierConfig(inputs="follower", hidden=8, features=8), 45, 6)

@@ -12,7 +12,7 @@ Two architectures, so that a classifier used as a training critic is never also 
 Both end in a `features`-wide ReLU layer (the FID embedding) and a linear class head. Per-frame inputs are
 standardized with the training set's statistics (buffers, saved with the weights). Training augments with
 a small yaw, a body-size scale and positional noise; benchmarks/classifier_accuracy.py measures the accuracies that chose them. Used by
-the evaluation as judges and, optionally, by the GAN's training as a frozen critic (families/gan/critic.py).
+the evaluation as judges and, optionally, by the GAN's training as a frozen critic (training/label_critic.py).
 """
 
 from __future__ import annotations

@@ -38,10 +38,11 @@ from imm_model.families.diffusion.recipes import FAMILY, DiffusionTrainConfig
 from imm_model.families.diffusion.sampler import Guidance, cosine_alpha_bar, initial_noise, leader_noise, schedule_step
 from imm_model.families.diffusion.trainer import optimizer_step
 from imm_model.training.data import Augmenter, PaddedData, data_meta, derive_seed
+from imm_model.training.label_critic import LabelCritic
 
-LOG_FIELDS = ("step", "loss", "x0", "velocity", "adversarial", "critic", "lr", "seconds")
+LOG_FIELDS = ("step", "loss", "x0", "velocity", "adversarial", "critic", "label", "lr", "seconds")
 CRITIC_WIDTH = 128  # the critic's channels
-CRITIC_LR = 2e-4  # the critic's Adam learning rate (betas 0.5, 0.999: the usual GAN setting)
+CRITIC_LR = 1e-3  # the critic's Adam learning rate (betas 0.5, 0.999: the usual GAN setting)
 POOL_BATCH = 64  # teacher reactions drawn per sampler call
 DEFAULT_SPREAD_SHARE = 0.5  # pool batches at the teacher's own spread; the rest at a uniform spread in 0..1
 
@@ -140,6 +141,8 @@ class StudentTrainer:
         if cfg.lambda_adversarial:
             self.critic = ReactionCritic(self.model_cfg.pose_dim, len(data.class_names)).to(self.device)
             self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=CRITIC_LR, betas=(0.5, 0.999))
+        self.label_critic = LabelCritic.for_fold(data, subject, self.device) if cfg.lambda_label else None
+        self.follower_scale = {k: torch.as_tensor(teacher.weights[k], device=self.device) for k in ("follower_mean", "follower_std")}
         self.step = 0
         self.pool: dict[str, torch.Tensor] = {}  # the teacher's reactions (`draw_pool`), normalized
         self.seeds = np.zeros(0, np.int64)  # the pool rows' sampler seeds
@@ -239,6 +242,10 @@ class StudentTrainer:
             self.critic.requires_grad_(False)
             adversarial = -self.critic(leader, x0, label, mask).mean()  # hinge loss, the generator's side
             loss = loss + cfg.lambda_adversarial * adversarial
+        label_loss = torch.zeros(())
+        if self.label_critic is not None:
+            label_loss = self.label_loss(x0, mask, self.pool["label"][rows])
+            loss = loss + cfg.lambda_label * label_loss
         lr = optimizer_step(cfg, self.opt, net, self.ema, loss, self.step)
         if self.critic is not None:
             self.critic.requires_grad_(True)
@@ -249,7 +256,21 @@ class StudentTrainer:
             self.critic_opt.step()
         self.step += 1
         return {"loss": loss.item(), "x0": x0_loss.item(), "velocity": vel_loss.item(), "adversarial": adversarial.item(),
-                "critic": critic_loss.item(), "lr": lr}
+                "critic": critic_loss.item(), "label": label_loss.item(), "lr": lr}
+
+    def label_loss(self, x0: torch.Tensor, mask: torch.Tensor, label: torch.Tensor) -> torch.Tensor:
+        """The label critic's cross-entropy for the classes each row performs (its positive values, as shares), weighed
+        by how much it performs them (their sum, up to 1); rows that perform nothing add nothing."""
+        performed = label.clamp(min=0)
+        amount = performed.sum(-1)
+        rows = amount > 0
+        if not rows.any():
+            return torch.zeros(())
+        follower = x0[rows] * self.follower_scale["follower_std"] + self.follower_scale["follower_mean"]
+        target = performed[rows] / amount[rows, None]
+        ce = F.cross_entropy(self.label_critic.classifier(follower, mask[rows].sum(-1)), target, reduction="none")
+        weight = amount[rows].clamp(max=1)
+        return (ce * weight).sum() / weight.sum()
 
     # ---- the run --------------------------------------------------------------------------
     def fit(self, progress: bool = True) -> Path:
@@ -268,7 +289,7 @@ class StudentTrainer:
             while self.step < self.cfg.steps:
                 self.net.train()
                 parts = self.train_step()
-                for k in ("loss", "x0", "velocity", "adversarial", "critic"):
+                for k in ("loss", "x0", "velocity", "adversarial", "critic", "label"):
                     totals[k] = totals.get(k, 0.0) + parts[k]
                 count += 1
                 bar.update(1)

@@ -68,6 +68,9 @@ class DiffusionTrainConfig:
     # weight of a critic's verdict on a student's reactions beside the regression onto the teacher's (distill.py
     # ReactionCritic, trained alongside to tell the teacher's reaction from the student's for the same leader and label)
     lambda_adversarial: float = param(0.0, Interval(float, 0, None))
+    # weight of a frozen follower classifier's cross-entropy for the classes a row performs, on a student's reaction
+    # (training/label_critic.py: trained on the fold's real training followers; the evaluation judges with others)
+    lambda_label: float = param(0.0, Interval(float, 0, None))
     checkpoint_every: int = param(1000, Interval(int, 1, None))  # steps between resumable checkpoints
     seed: int = param(0, Interval(int, 0, 2**31 - 1))  # initial weights, batches, noise and augmentation
 
@@ -81,7 +84,9 @@ class DiffusionTrainConfig:
              ("teacher", lambda c: bool(c.teacher) == (c.model.get("composed_label") is True),
               "a checkpoint path exactly when model.composed_label is true (a student is distilled from a teacher)"),
              ("lambda_adversarial", lambda c: c.lambda_adversarial == 0 or bool(c.teacher),
-              "0 unless a teacher is set (the critic judges a student's reactions)"))
+              "0 unless a teacher is set (the critic judges a student's reactions)"),
+             ("lambda_label", lambda c: c.lambda_label == 0 or bool(c.teacher),
+              "0 unless a teacher is set (the label critic reads a student's reactions)"))
 
     def __post_init__(self) -> None:
         validate(self, "training config")

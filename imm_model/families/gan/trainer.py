@@ -28,7 +28,7 @@ from imm_model.device import move_module
 from imm_model.errors import CheckpointError, TrainingError
 from imm_model.families.gan import losses
 from imm_model.families.gan.config import model_config_for
-from imm_model.families.gan.critic import LabelCritic, drawn_labels
+from imm_model.families.gan.critic import drawn_labels
 from imm_model.families.gan.discriminator import Discriminator
 from imm_model.families.gan.energy import class_profiles, energy_loss, limb_speeds, mixed_profile
 from imm_model.families.gan.generator import Generator
@@ -36,6 +36,7 @@ from imm_model.families.gan.recipes import TrainConfig, same_recipe
 from imm_model.families.gan.schedule import adversarial_weight, lr_scale
 from imm_model.training.curves import plot_curves
 from imm_model.training.data import Augmenter, PaddedData, data_meta, derive_seed
+from imm_model.training.label_critic import LabelCritic
 
 LOSS_TERMS = ("l1", "bone", "cont", "adv", "critic", "energy")
 LOG_FIELDS = ("epoch", "adv_weight", "lr_scale", *LOSS_TERMS, "d_loss", "d_real_acc", "d_fake_acc", "val_afd_m", "val_l1", "seconds")
