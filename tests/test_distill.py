@@ -35,8 +35,9 @@ def teacher_runs(tmp_path_factory, sample_data):
 
 
 def student_config(teacher: str, **changes):
+    """The student recipe, small; without its label critic unless asked (the fold's classifier takes minutes to train)."""
     return replace(IMM_DIFFUSION_STUDENT, teacher=teacher, pool_rows=48, steps=30, batch_size=16, lr=3e-3, warmup_steps=0,
-                   **changes)
+                   **({"lambda_label": 0.0} | changes))
 
 
 @pytest.fixture(scope="module")

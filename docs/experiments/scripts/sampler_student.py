@@ -7,7 +7,8 @@ difference from the teacher at 7 steps paired by fold and a 95 % Student t inter
         --fold sXX --out docs/experiments/data/sampler-student.jsonl     # per fold
     python docs/experiments/scripts/sampler_student.py
 
-With data/sampler-student-critic.jsonl (the same per fold for imm-diffusion-student-critic) its column joins the table.
+With data/sampler-student-label.jsonl (the same per fold for the student trained with the label critic, the
+`imm-diffusion-student` recipe now) its column joins the table.
 """
 
 from __future__ import annotations
@@ -32,8 +33,8 @@ def main() -> None:
     ap.add_argument("--student", type=Path, default=DATA / "sampler-student.jsonl")
     ap.add_argument("--steps", type=Path, default=DATA / "sampler-steps.jsonl")
     ap.add_argument("--parts", type=Path, default=DATA / "part-folds.jsonl")
-    ap.add_argument("--critic", type=Path, default=DATA / "sampler-student-critic.jsonl",
-                    help="rows of the student trained with a critic (imm-diffusion-student-critic), a column when present")
+    ap.add_argument("--labelled", type=Path, default=DATA / "sampler-student-label.jsonl",
+                    help="rows of the student trained with the label critic (imm-diffusion-student now), a column when present")
     args = ap.parse_args()
     teacher = {(r["fold"], r["guidance"]["sample_steps"]): r for r in rows(args.steps)}
     joined = {r["fold"]: r for r in rows(args.parts) if r.get("join_outputs") and r["seed"] == 0 and "parts" not in r["checkpoint"]}
@@ -41,8 +42,8 @@ def main() -> None:
                                     for f, s in teacher if s == 7},
                "teacher, 2 steps": {f: r for (f, s), r in teacher.items() if s == 2},
                "student, 2 steps": {r["fold"]: r for r in rows(args.student)}}
-    if rows(args.critic):
-        columns["student with a critic, 2 steps"] = {r["fold"]: r for r in rows(args.critic)}
+    if rows(args.labelled):
+        columns["student + label critic"] = {r["fold"]: r for r in rows(args.labelled)}
     names = list(columns)
     for group, folds in GROUPS.items():
         have = [f for f in folds if all(f in columns[n] for n in names)]

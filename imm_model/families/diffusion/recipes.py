@@ -134,9 +134,10 @@ IMM_DIFFUSION_PARTS = replace(IMM_DIFFUSION, name="imm-diffusion-parts", model=I
                               mix_prob=0.3, part_drop=0.3)
 
 # A 2-step student of `imm-diffusion` (distill.py): the network reads the signed label and is asked once per step, 2
-# steps, trained for 2000 steps of batch 32 from 8192 of the teacher's reactions to the fold's training leaders; the
-# teacher's run folder is runs/imm-diffusion (`imm train --config imm-diffusion`), its sampler settings kept
-# (docs/experiments/sampler-student.md).
+# steps, trained for 2000 steps of batch 32 from 8192 of the teacher's reactions to the fold's training leaders, the
+# fold's follower classifier's cross-entropy for the performed classes weighed 0.2 beside the regression (a regressed
+# student averages the label away); the teacher's run folder is runs/imm-diffusion (`imm train --config
+# imm-diffusion`), its sampler settings kept (docs/experiments/sampler-student.md, sampler-student-critics.md).
 IMM_DIFFUSION_STUDENT = DiffusionTrainConfig(
     name="imm-diffusion-student",
     model=dict(composed_label=True),
@@ -146,14 +147,9 @@ IMM_DIFFUSION_STUDENT = DiffusionTrainConfig(
     lr=1e-4,
     warmup_steps=100,
     ema_decay=0.995,
+    lambda_label=0.2,
 )
-
-# The same student with a critic beside the regression (Sauer et al. 2023, adversarial diffusion distillation): a
-# regressed student averages what it cannot resolve, a critic that tells its reactions from the teacher's for the same
-# leader and label pushes back towards the teacher's distribution (docs/experiments/sampler-student-critic.md).
-IMM_DIFFUSION_STUDENT_CRITIC = replace(IMM_DIFFUSION_STUDENT, name="imm-diffusion-student-critic", lambda_adversarial=0.1)
 
 NAMED: dict[str, DiffusionTrainConfig] = {"imm-diffusion": IMM_DIFFUSION, "imm-diffusion-mixed": IMM_DIFFUSION_MIXED,
                                           "imm-diffusion-parts": IMM_DIFFUSION_PARTS,
-                                          "imm-diffusion-student": IMM_DIFFUSION_STUDENT,
-                                          "imm-diffusion-student-critic": IMM_DIFFUSION_STUDENT_CRITIC}
+                                          "imm-diffusion-student": IMM_DIFFUSION_STUDENT}
