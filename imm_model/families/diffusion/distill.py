@@ -10,6 +10,11 @@ Composition survives as far as the teacher's pool teaches it: reactions to the t
 the front ends ask for them (`pool_labels`), at spread levels and seeds drawn alike. A label per body part needs no
 teaching: the sampler samples each part as a whole-body label and joins the reactions (Guidance.join_outputs).
 
+A regressed student averages what it cannot resolve, and an averaged reaction reads less as any class. Beside the
+regression: the fold's frozen follower classifier reads each reaction against the classes its row performs
+(`lambda_label`, what the recipe weighs), and optionally an adversarial critic tells the student's reaction from the
+teacher's (`ReactionCritic`, `lambda_adversarial`, an experiment: docs/experiments/sampler-student-critics.md).
+
 Run directory: log.csv and final.safetensors/.json (the EMA student), like the trainer's.
 """
 
