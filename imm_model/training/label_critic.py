@@ -38,6 +38,9 @@ class LabelCritic:
 
         return cls(cache.fold_classifier(FOLLOWER, data, subject).to(device))
 
-    def loss(self, follower: torch.Tensor, lengths: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        """follower (B, T, 3J) canonical metres, target (B, C) class probabilities -> soft cross-entropy (mean)."""
-        return F.cross_entropy(self.classifier(follower, lengths), target, reduction="none").mean()
+    def loss(self, follower: torch.Tensor, lengths: torch.Tensor, target: torch.Tensor,
+             weight: torch.Tensor | None = None) -> torch.Tensor:
+        """follower (B, T, 3J) canonical metres, target (B, C) class probabilities -> soft cross-entropy (mean, or the
+        mean weighed by `weight` (B,))."""
+        ce = F.cross_entropy(self.classifier(follower, lengths), target, reduction="none")
+        return ce.mean() if weight is None else (ce * weight).sum() / weight.sum()

@@ -146,8 +146,10 @@ class StudentTrainer:
         if cfg.lambda_adversarial:
             self.critic = ReactionCritic(self.model_cfg.pose_dim, len(data.class_names)).to(self.device)
             self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=CRITIC_LR, betas=(0.5, 0.999))
-        self.label_critic = LabelCritic.for_fold(data, subject, self.device) if cfg.lambda_label else None
-        self.follower_scale = {k: torch.as_tensor(teacher.weights[k], device=self.device) for k in ("follower_mean", "follower_std")}
+        self.label_critic = None
+        if cfg.lambda_label:  # it reads metres: the student's normalized reactions are scaled back
+            self.label_critic = LabelCritic.for_fold(data, subject, self.device)
+            self.follower_scale = {k: torch.as_tensor(teacher.weights[k], device=self.device) for k in ("follower_mean", "follower_std")}
         self.step = 0
         self.pool: dict[str, torch.Tensor] = {}  # the teacher's reactions (`draw_pool`), normalized
         self.seeds = np.zeros(0, np.int64)  # the pool rows' sampler seeds
@@ -241,15 +243,16 @@ class StudentTrainer:
         mv = m[:, 1:] * m[:, :-1]
         vel_loss = (((x0[:, 1:] - x0[:, :-1]) - (target[:, 1:] - target[:, :-1])) ** 2 * mv).sum() / (mv.sum() * x0.shape[-1])
         loss = x0_loss + cfg.lambda_velocity * vel_loss
+        label = self.pool["label"][rows]
         adversarial = critic_loss = torch.zeros(())
         if self.critic is not None:
-            leader, label = self.pool["leader"][rows, : x0.shape[1]] * m, self.pool["label"][rows]
+            leader = self.pool["leader"][rows, : x0.shape[1]] * m
             self.critic.requires_grad_(False)
             adversarial = -self.critic(leader, x0, label, mask).mean()  # hinge loss, the generator's side
             loss = loss + cfg.lambda_adversarial * adversarial
         label_loss = torch.zeros(())
         if self.label_critic is not None:
-            label_loss = self.label_loss(x0, mask, self.pool["label"][rows])
+            label_loss = self.label_loss(x0, mask, label)
             loss = loss + cfg.lambda_label * label_loss
         lr = optimizer_step(cfg, self.opt, net, self.ema, loss, self.step)
         if self.critic is not None:
@@ -272,10 +275,7 @@ class StudentTrainer:
         if not rows.any():
             return torch.zeros(())
         follower = x0[rows] * self.follower_scale["follower_std"] + self.follower_scale["follower_mean"]
-        target = performed[rows] / amount[rows, None]
-        ce = F.cross_entropy(self.label_critic.classifier(follower, mask[rows].sum(-1)), target, reduction="none")
-        weight = amount[rows].clamp(max=1)
-        return (ce * weight).sum() / weight.sum()
+        return self.label_critic.loss(follower, mask[rows].sum(-1), performed[rows] / amount[rows, None], amount[rows].clamp(max=1))
 
     # ---- the run --------------------------------------------------------------------------
     def fit(self, progress: bool = True) -> Path:
