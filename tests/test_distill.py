@@ -42,7 +42,8 @@ def student_config(teacher: str, **changes):
 
 @pytest.fixture(scope="module")
 def student(teacher_runs, sample_data, tmp_path_factory):
-    trainer = StudentTrainer(student_config(teacher_runs), sample_data, "s04", tmp_path_factory.mktemp("student"))
+    trainer = StudentTrainer(student_config(teacher_runs, window_share=0.5), sample_data, "s04",
+                             tmp_path_factory.mktemp("student"))
     trainer.draw_pool(progress=False)
     rows = torch.arange(len(trainer.pool["length"]))
 
@@ -115,6 +116,44 @@ def test_the_student_ships_the_sampler_it_was_trained_through(student, sample_da
         t = len(follower)
         trained = (x0[k, :t].numpy() * w["follower_std"] + w["follower_mean"]).reshape(t, -1, 3)
         assert np.abs(trained - follower).max() < 1e-3
+
+
+def test_a_window_row_is_a_long_takes_window_and_the_student_samples_it_as_the_windows_do(student):
+    """A window row: a slice of a clip row's leader and noise, given the teacher's reaction to its first frames, its
+    target the teacher's continuation of them; the student's pool sampler makes of it what the model's sampler makes
+    of a window of a long take (windows.py: the given frames held, the start noised from them at CONTINUE_LEVEL)."""
+    from imm_model.families.diffusion.windows import CONTINUE_LEVEL
+
+    trainer, path, _, _ = student
+    pool, model = trainer.pool, load_model(path)
+    windows = np.flatnonzero(pool["known"].numpy() > 0)
+    clips = np.flatnonzero(pool["known"].numpy() == 0)
+    assert 0.25 < len(windows) / len(clips) < 0.75  # window_share 0.5
+    assert (pool["start"][windows] == schedule_step(CONTINUE_LEVEL, 100)).all()
+    assert (pool["known"][windows] < pool["length"][windows]).all()
+    # each window's leader and given frames are a stretch of one clip row's leader and teacher reaction
+    w = int(windows[0])
+    t, k = int(pool["length"][w]), int(pool["known"][w])
+    source = [r for r in clips if pool["length"][r] >= t and trainer.seeds[r] == trainer.seeds[w]]
+    assert len(source) == 1
+    r = source[0]
+    offsets = [a for a in range(int(pool["length"][r]) - t + 1)
+               if torch.equal(pool["leader"][r, a:a + t], pool["leader"][w, :t])]
+    assert offsets and torch.allclose(pool["given"][w, :k], pool["target"][r, offsets[0]:offsets[0] + k])
+    rows = windows[:4]
+    wts = model.weights
+    with torch.no_grad():
+        x0, _ = trainer.student_sample(trainer.ema, torch.as_tensor(rows))
+    for i, row in enumerate(rows):
+        t, k = int(pool["length"][row]), int(pool["known"][row])
+        leader = (pool["leader"][row, :t].numpy() * wts["leader_std"] + wts["leader_mean"]).reshape(t, -1, 3)
+        given = (pool["given"][row, :t].numpy() * wts["follower_std"] + wts["follower_mean"]).reshape(t, -1, 3)
+        made = model._sample([leader], pool["label"][row][None].numpy(), [int(trainer.seeds[row])],
+                             [pool["noise"][row, :t].numpy()], [pool["leader_noise"][row, :t].numpy().astype(np.float64)],
+                             [(given, k)], CONTINUE_LEVEL)[0]
+        trained = (x0[i, :t].numpy() * wts["follower_std"] + wts["follower_mean"]).reshape(t, -1, 3)
+        assert np.abs(trained - made).max() < 1e-3
+        assert np.abs(made[:k] - given[:k]).max() < 1e-4  # the given frames stay as given
 
 
 def test_the_student_answers_the_api_with_seeds_mixes_and_parts(student, sample_data):

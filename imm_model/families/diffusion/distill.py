@@ -42,6 +42,7 @@ from imm_model.families.diffusion.model import DiffusionReactionModel
 from imm_model.families.diffusion.recipes import FAMILY, DiffusionTrainConfig
 from imm_model.families.diffusion.sampler import Guidance, cosine_alpha_bar, initial_noise, leader_noise, schedule_step
 from imm_model.families.diffusion.trainer import optimizer_step
+from imm_model.families.diffusion.windows import BLEND, CONTINUE_LEVEL, LOOKAHEAD, STRIDE, TAKE_LOOKAHEAD, WINDOW
 from imm_model.training.data import Augmenter, PaddedData, data_meta, derive_seed
 from imm_model.training.label_critic import LabelCritic
 
@@ -60,6 +61,17 @@ LABEL_KINDS = (
     ("three classes at values in -1..1.5", 0.15),
     ("no label", 0.05),
 )
+
+
+def window_bounds(rng: np.random.Generator, length: int) -> tuple[int, int, int]:
+    """A window of a long take inside a clip of `length` frames, as windows.py cuts them -> (start, end, given): it ends
+    at a frame drawn uniformly from the 8th on, reads up to WINDOW frames back, and is given the follower frames before
+    the ones it makes, as a long take's window (BLEND + STRIDE + TAKE_LOOKAHEAD made) or, as often, the live reactor's
+    (LOOKAHEAD + 1 made) is; at least one frame given, at least one made."""
+    end = int(rng.integers(min(8, length), length + 1))
+    start = max(0, end - WINDOW)
+    made = BLEND + STRIDE + TAKE_LOOKAHEAD if rng.random() < 0.5 else LOOKAHEAD + 1
+    return start, end, int(np.clip(end - start - made, 1, end - start - 1))
 
 
 def pool_labels(rng: np.random.Generator, n: int, classes: int) -> np.ndarray:
@@ -157,22 +169,24 @@ class StudentTrainer:
     # ---- the teacher's reactions ----------------------------------------------------------------
     def draw_pool(self, progress: bool = True) -> None:
         """cfg.pool_rows teacher reactions: augmented training leaders, labels (`pool_labels`), seeds and spreads,
-        each row's starting noise and leader noise as the sampler draws them from its seed, all normalized."""
+        each row's starting noise and leader noise as the sampler draws them from its seed; and, for a share
+        (cfg.window_share) of them, a window of it that continues the teacher's reaction (`window_bounds`), sampled as
+        windows.py samples one (its slices of the row's noise, the given frames noised to CONTINUE_LEVEL), as one more
+        row. All normalized."""
         from tqdm import tqdm
 
         cfg, teacher, d = self.cfg, self.teacher, self.model_cfg.pose_dim
         rng = np.random.default_rng((cfg.seed, 1))
         gen = torch.Generator().manual_seed(derive_seed(cfg.seed, 10**9))
-        t_max = int(self.padded.lengths.max())
         n = cfg.pool_rows
-        leaders, targets, noises, leader_noises = (np.zeros((n, t_max, d), np.float32) for _ in range(4))
-        lengths, levels = np.zeros(n, np.int64), np.zeros(n, np.int64)
         labels = pool_labels(rng, n, len(self.data.class_names))
         # rows asking for the same classes side by side: the teacher composes one term per class any row of a batch weighs
         labels = labels[np.argsort((labels != 0) @ (1 << np.arange(labels.shape[1])), kind="stable")]
         seeds = rng.integers(0, 2**31 - 1, n)
         spread_trained = teacher.config.leader_noise
         base = teacher.guidance
+        rows_made: list[dict] = []  # one per pool row: canonical (T, D) arrays and its scalars
+        windows: list[dict] = []
         for start in tqdm(range(0, n, POOL_BATCH), disable=not progress, desc="teacher reactions", unit="batch"):
             rows = np.arange(start, min(n, start + POOL_BATCH))
             idx = torch.as_tensor(self.train_idx)[torch.randint(len(self.train_idx), (len(rows),), generator=gen)]
@@ -181,30 +195,57 @@ class StudentTrainer:
             if spread_trained:
                 spread = base.leader_noise if rng.random() < DEFAULT_SPREAD_SHARE else float(rng.uniform(0, 1))
             teacher.guidance = replace(base, leader_noise=spread)
+            level = schedule_step(spread, self.model_cfg.diffusion_steps)
             canon = [leader[k, : int(length[k])].numpy().reshape(int(length[k]), -1, 3) for k in range(len(rows))]
             followers = teacher._sample(canon, labels[rows], seeds[rows].tolist())
-            for k, row in enumerate(rows):
-                t = int(length[k])
-                lengths[row] = t
-                leaders[row, :t] = canon[k].reshape(t, d)
-                targets[row, :t] = followers[k].reshape(t, d)
-                noises[row, :t] = initial_noise(int(seeds[row]), t, d)
-                leader_noises[row, :t] = leader_noise(int(seeds[row]), t, d)
-                levels[row] = schedule_step(spread, self.model_cfg.diffusion_steps)
+            batch = [{"leader": canon[k].reshape(len(canon[k]), d), "target": followers[k].reshape(len(canon[k]), d),
+                      "noise": initial_noise(int(seeds[row]), len(canon[k]), d),
+                      "leader_noise": leader_noise(int(seeds[row]), len(canon[k]), d),
+                      "label": labels[row], "seed": seeds[row], "level": level, "known": 0} for k, row in enumerate(rows)]
+            rows_made += batch
+            cut = [(row, *window_bounds(rng, len(row["leader"]))) for row in batch if rng.random() < cfg.window_share]
+            if cut:
+                given = [(row["target"][a:b].reshape(b - a, -1, 3), k) for row, a, b, k in cut]
+                made = teacher._sample([row["leader"][a:b].reshape(b - a, -1, 3) for row, a, b, _ in cut],
+                                       np.stack([row["label"] for row, *_ in cut]), [int(row["seed"]) for row, *_ in cut],
+                                       [row["noise"][a:b] for row, a, b, _ in cut],
+                                       [row["leader_noise"][a:b] for row, a, b, _ in cut], given, CONTINUE_LEVEL)
+                windows += [{"leader": row["leader"][a:b], "target": made[i].reshape(b - a, d), "given": row["target"][a:b],
+                             "noise": row["noise"][a:b], "leader_noise": row["leader_noise"][a:b], "label": row["label"],
+                             "seed": row["seed"], "level": level, "known": k} for i, (row, a, b, k) in enumerate(cut)]
         teacher.guidance = base
-        self.seeds = seeds
-        if not np.isfinite(targets).all():
-            raise TrainingError(f"{self.teacher_path}: the teacher's reactions are not finite")
+        rows_made += windows
+        self.seeds = np.array([row["seed"] for row in rows_made])
         w = teacher.weights
-        self.pool = {"leader": torch.as_tensor((leaders - w["leader_mean"]) / w["leader_std"]),
-                     "target": torch.as_tensor((targets - w["follower_mean"]) / w["follower_std"]),
-                     "noise": torch.as_tensor(noises), "leader_noise": torch.as_tensor(leader_noises),
-                     "length": torch.as_tensor(lengths), "level": torch.as_tensor(levels), "label": torch.as_tensor(labels)}
+        lengths = np.array([len(row["leader"]) for row in rows_made])
+
+        def padded(key: str, mean=0.0, std=1.0) -> torch.Tensor:
+            out = np.zeros((len(rows_made), int(lengths.max()), d), np.float32)
+            for i, row in enumerate(rows_made):
+                if key in row:
+                    out[i, : lengths[i]] = (row[key] - mean) / std
+            return torch.as_tensor(out)
+
+        target = padded("target", w["follower_mean"], w["follower_std"])
+        if not torch.isfinite(target).all():
+            raise TrainingError(f"{self.teacher_path}: the teacher's reactions are not finite")
+        known = np.array([row["known"] for row in rows_made])
+        steps_total = self.model_cfg.diffusion_steps
+        self.pool = {"leader": padded("leader", w["leader_mean"], w["leader_std"]), "target": target,
+                     "given": padded("given", w["follower_mean"], w["follower_std"]),
+                     "noise": padded("noise"), "leader_noise": padded("leader_noise"), "length": torch.as_tensor(lengths),
+                     "level": torch.as_tensor(np.array([row["level"] for row in rows_made])),
+                     "label": torch.as_tensor(np.stack([row["label"] for row in rows_made])),
+                     "known": torch.as_tensor(known),
+                     # the step each row's sampler starts at: a window's from its given frames, a clip's as the guidance's
+                     "start": torch.as_tensor(np.where(known > 0, schedule_step(CONTINUE_LEVEL, steps_total),
+                                                       schedule_step(self.guidance.memory_level, steps_total)))}
 
     # ---- one step -------------------------------------------------------------------------
     def student_sample(self, net: ReactionDenoiser, rows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """The student's own DDIM steps on pool rows, as the sampler takes them (sampler.py `ddim`, eta 0) ->
-        (x0 (B, T, D) normalized, mask (B, T))."""
+        """The student's own DDIM steps on pool rows, as the sampler takes them (sampler.py `ddim`, eta 0; a window's
+        given frames held at every step, as `keeping` holds them, and its start noised from them as model.py
+        `_sample` does) -> (x0 (B, T, D) normalized, mask (B, T))."""
         p, g = self.pool, self.guidance
         length = p["length"][rows]
         t = int(length.max())
@@ -218,16 +259,23 @@ class StudentTrainer:
         label = p["label"][rows]
         on = torch.ones(len(rows), dtype=torch.bool)
         steps_total = self.model_cfg.diffusion_steps
-        steps = np.linspace(schedule_step(g.memory_level, steps_total), 0, g.sample_steps).round().astype(int)
-        x = p["noise"][rows, :t] * m
+        steps = torch.as_tensor(np.linspace(p["start"][rows].numpy(), 0, g.sample_steps).round().astype(int))  # (S, B)
+        known = p["known"][rows]
+        given = p["given"][rows, :t]
+        where = (torch.arange(t)[None] < known[:, None])[..., None]
+        held = torch.where(where, given, given[torch.arange(len(rows)), (known - 1).clamp(min=0)][:, None])
+        a_start = self.alpha_bar[steps[0]][:, None, None]
+        x = torch.where((known > 0)[:, None, None], a_start.sqrt() * held + (1 - a_start).sqrt() * p["noise"][rows, :t],
+                        p["noise"][rows, :t]) * m
         for i, step in enumerate(steps):
-            read = noisy if step > 0 else leader  # the last step reads the clean leader (model.py)
-            leader_on = on if step <= g.leader_below * (steps_total - 1) else ~on
-            x0 = net(x, torch.full((len(rows),), int(step)), read, leader_on, label, on, mask,
+            read = torch.where((step > 0)[:, None, None], noisy, leader)  # the last step reads the clean leader (model.py)
+            leader_on = step <= g.leader_below * (steps_total - 1)
+            x0 = net(x, step, read, leader_on, label, on, mask,
                      leader_level=level.float() * (step > 0)).clamp(-g.clip, g.clip) * m
+            x0 = torch.where(where, given, x0)
             if i + 1 == len(steps):
                 return x0, mask
-            a, a_next = self.alpha_bar[step], self.alpha_bar[steps[i + 1]]
+            a, a_next = self.alpha_bar[step][:, None, None], self.alpha_bar[steps[i + 1]][:, None, None]
             eps = (x - a.sqrt() * x0) / (1 - a).sqrt()
             x = (a_next.sqrt() * x0 + (1 - a_next).sqrt() * eps) * m
         raise AssertionError("unreachable: sample_steps >= 1")
@@ -239,8 +287,9 @@ class StudentTrainer:
         x0, mask = self.student_sample(net, rows)
         target = self.pool["target"][rows, : x0.shape[1]]
         m = mask[..., None].float()
-        x0_loss = ((x0 - target) ** 2 * m).sum() / (m.sum() * x0.shape[-1])
-        mv = m[:, 1:] * m[:, :-1]
+        made = (mask & (torch.arange(x0.shape[1])[None] >= self.pool["known"][rows][:, None]))[..., None].float()
+        x0_loss = ((x0 - target) ** 2 * made).sum() / (made.sum() * x0.shape[-1])
+        mv = m[:, 1:] * m[:, :-1] * torch.maximum(made[:, 1:], made[:, :-1])  # a window's seam counts, its given frames not
         vel_loss = (((x0[:, 1:] - x0[:, :-1]) - (target[:, 1:] - target[:, :-1])) ** 2 * mv).sum() / (mv.sum() * x0.shape[-1])
         loss = x0_loss + cfg.lambda_velocity * vel_loss
         label = self.pool["label"][rows]

@@ -65,6 +65,10 @@ class DiffusionTrainConfig:
     # (distill.py; model.composed_label); empty: trained from the data
     teacher: str = param("", PathText())
     pool_rows: int = param(8192, Interval(int, 1, 1_000_000))  # the teacher's reactions a student learns from
+    # share of those reactions that also give the student a window of a long take to learn from (distill.py
+    # `window_bounds`): the teacher continuing its own reaction's earlier frames, as a long take's windows and the
+    # live reactor sample (windows.py)
+    window_share: float = param(0.0, FRACTION)
     # weight of a critic's verdict on a student's reactions beside the regression onto the teacher's (distill.py
     # ReactionCritic, trained alongside to tell the teacher's reaction from the student's for the same leader and label)
     lambda_adversarial: float = param(0.0, Interval(float, 0, None))
@@ -86,7 +90,9 @@ class DiffusionTrainConfig:
              ("lambda_adversarial", lambda c: c.lambda_adversarial == 0 or bool(c.teacher),
               "0 unless a teacher is set (the critic judges a student's reactions)"),
              ("lambda_label", lambda c: c.lambda_label == 0 or bool(c.teacher),
-              "0 unless a teacher is set (the label critic reads a student's reactions)"))
+              "0 unless a teacher is set (the label critic reads a student's reactions)"),
+             ("window_share", lambda c: c.window_share == 0 or bool(c.teacher),
+              "0 unless a teacher is set (the teacher's windows are a student's pool rows)"))
 
     def __post_init__(self) -> None:
         validate(self, "training config")
