@@ -131,15 +131,12 @@ def test_a_window_row_is_a_long_takes_window_and_the_student_samples_it_as_the_w
     assert 0.25 < len(windows) / len(clips) < 0.75  # window_share 0.5
     assert (pool["start"][windows] == schedule_step(CONTINUE_LEVEL, 100)).all()
     assert (pool["known"][windows] < pool["length"][windows]).all()
-    # each window's leader and given frames are a stretch of one clip row's leader and teacher reaction
+    # each window's leader and given frames are a stretch of its clip row's leader and teacher reaction
     w = int(windows[0])
-    t, k = int(pool["length"][w]), int(pool["known"][w])
-    source = [r for r in clips if pool["length"][r] >= t and trainer.seeds[r] == trainer.seeds[w]]
-    assert len(source) == 1
-    r = source[0]
-    offsets = [a for a in range(int(pool["length"][r]) - t + 1)
-               if torch.equal(pool["leader"][r, a:a + t], pool["leader"][w, :t])]
-    assert offsets and torch.allclose(pool["given"][w, :k], pool["target"][r, offsets[0]:offsets[0] + k])
+    t, k, r, a = (int(pool[key][w]) for key in ("length", "known", "source", "offset"))
+    assert r in clips and trainer.seeds[r] == trainer.seeds[w]
+    assert torch.equal(pool["leader"][r, a:a + t], pool["leader"][w, :t])
+    assert torch.allclose(pool["given"][w, :k], pool["target"][r, a:a + k])
     rows = windows[:4]
     wts = model.weights
     with torch.no_grad():
@@ -154,6 +151,40 @@ def test_a_window_row_is_a_long_takes_window_and_the_student_samples_it_as_the_w
         trained = (x0[i, :t].numpy() * wts["follower_std"] + wts["follower_mean"]).reshape(t, -1, 3)
         assert np.abs(trained - made).max() < 1e-3
         assert np.abs(made[:k] - given[:k]).max() < 1e-4  # the given frames stay as given
+
+
+def test_refreshed_windows_continue_the_students_own_reaction(teacher_runs, sample_data, tmp_path):
+    """window_refresh: a window row is given the student's own reaction to its clip, and its target becomes the
+    teacher's continuation of those frames (the teacher's sampler on the window, given them)."""
+    from imm_model.families.diffusion.windows import CONTINUE_LEVEL
+
+    trainer = StudentTrainer(student_config(teacher_runs, window_share=0.5, window_refresh=10), sample_data, "s04", tmp_path)
+    trainer.draw_pool(progress=False)
+    pool = trainer.pool
+    before = pool["target"].clone()
+    for _ in range(5):
+        trainer.train_step()
+    trainer.refresh_windows()
+    windows = torch.nonzero(pool["known"] > 0)[:, 0]
+    w = int(windows[0])
+    t, k, r, a = (int(pool[key][w]) for key in ("length", "known", "source", "offset"))
+    with torch.no_grad():
+        own, _ = trainer.student_sample(trainer.ema, torch.tensor([r]))
+    assert torch.allclose(pool["given"][w, :k], own[0, a:a + k], atol=1e-5)
+    assert not torch.allclose(pool["target"][w, :t], before[w, :t])
+    clips = torch.nonzero(pool["known"] == 0)[:, 0]
+    assert torch.equal(pool["target"][clips], before[clips])  # the clips keep the teacher's reaction
+    model, wts = trainer.teacher, trainer.teacher.weights
+    leader = (pool["leader"][w, :t].numpy() * wts["leader_std"] + wts["leader_mean"]).reshape(t, -1, 3)
+    given = (pool["given"][w, :t].numpy() * wts["follower_std"] + wts["follower_mean"]).reshape(t, -1, 3)
+    spread = int(pool["level"][w]) / (trainer.model_cfg.diffusion_steps - 1)
+    guidance = model.guidance
+    model.guidance = replace(guidance, leader_noise=spread)
+    made = model._sample([leader], pool["label"][w][None].numpy(), [int(trainer.seeds[w])], [pool["noise"][w, :t].numpy()],
+                         [pool["leader_noise"][w, :t].numpy()], [(given, k)], CONTINUE_LEVEL)[0]
+    model.guidance = guidance
+    target = (pool["target"][w, :t].numpy() * wts["follower_std"] + wts["follower_mean"]).reshape(t, -1, 3)
+    assert np.abs(target - made).max() < 1e-4
 
 
 def test_the_student_answers_the_api_with_seeds_mixes_and_parts(student, sample_data):
@@ -189,6 +220,10 @@ def test_a_student_needs_a_teacher_and_a_teacher_a_student():
         replace(IMM_DIFFUSION, lambda_adversarial=0.1)
     with pytest.raises(ValueError, match="lambda_label"):
         replace(IMM_DIFFUSION, lambda_label=0.1)
+    with pytest.raises(ValueError, match="window_share"):
+        replace(IMM_DIFFUSION, window_share=0.5)
+    with pytest.raises(ValueError, match="window_refresh"):
+        replace(IMM_DIFFUSION_STUDENT, window_share=0.0, window_refresh=500)
 
 
 def test_the_critic_learns_to_tell_a_reaction_from_one_held_still_and_reads_the_label(student):

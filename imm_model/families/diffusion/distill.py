@@ -203,16 +203,15 @@ class StudentTrainer:
                       "leader_noise": leader_noise(int(seeds[row]), len(canon[k]), d),
                       "label": labels[row], "seed": seeds[row], "level": level, "known": 0} for k, row in enumerate(rows)]
             rows_made += batch
-            cut = [(row, *window_bounds(rng, len(row["leader"]))) for row in batch if rng.random() < cfg.window_share]
-            if cut:
-                given = [(row["target"][a:b].reshape(b - a, -1, 3), k) for row, a, b, k in cut]
-                made = teacher._sample([row["leader"][a:b].reshape(b - a, -1, 3) for row, a, b, _ in cut],
-                                       np.stack([row["label"] for row, *_ in cut]), [int(row["seed"]) for row, *_ in cut],
-                                       [row["noise"][a:b] for row, a, b, _ in cut],
-                                       [row["leader_noise"][a:b] for row, a, b, _ in cut], given, CONTINUE_LEVEL)
-                windows += [{"leader": row["leader"][a:b], "target": made[i].reshape(b - a, d), "given": row["target"][a:b],
-                             "noise": row["noise"][a:b], "leader_noise": row["leader_noise"][a:b], "label": row["label"],
-                             "seed": row["seed"], "level": level, "known": k} for i, (row, a, b, k) in enumerate(cut)]
+            for k, row in enumerate(batch):
+                if rng.random() < cfg.window_share:
+                    a, b, known = window_bounds(rng, len(row["leader"]))
+                    windows.append({key: row[key][a:b] for key in ("leader", "noise", "leader_noise")}
+                                   | {"given": row["target"][a:b], "label": row["label"], "seed": row["seed"],
+                                      "level": level, "known": known, "source": int(rows[k]), "offset": a})
+            fresh = [w for w in windows if "target" not in w]
+            for w, made in zip(fresh, self.continue_windows(fresh, spread), strict=True):
+                w["target"] = made
         teacher.guidance = base
         rows_made += windows
         self.seeds = np.array([row["seed"] for row in rows_made])
@@ -237,9 +236,60 @@ class StudentTrainer:
                      "level": torch.as_tensor(np.array([row["level"] for row in rows_made])),
                      "label": torch.as_tensor(np.stack([row["label"] for row in rows_made])),
                      "known": torch.as_tensor(known),
+                     # a window's clip row and the frame it starts at in it (a clip: -1, 0): `refresh_windows`
+                     "source": torch.as_tensor(np.array([row.get("source", -1) for row in rows_made])),
+                     "offset": torch.as_tensor(np.array([row.get("offset", 0) for row in rows_made])),
                      # the step each row's sampler starts at: a window's from its given frames, a clip's as the guidance's
                      "start": torch.as_tensor(np.where(known > 0, schedule_step(CONTINUE_LEVEL, steps_total),
                                                        schedule_step(self.guidance.memory_level, steps_total)))}
+
+    def continue_windows(self, windows: list[dict], spread: float) -> list[np.ndarray]:
+        """The teacher's reaction to windows of a long take (dicts of canonical (T, D) "leader", "given", "noise",
+        "leader_noise", and "label", "seed", "known"), each continuing its first `known` given frames as windows.py's
+        `window_follower` continues them, at leader spread `spread` -> canonical (T, D) followers."""
+        if not windows:
+            return []
+        teacher, base = self.teacher, self.teacher.guidance
+        teacher.guidance = replace(base, leader_noise=spread)
+        try:
+            made = teacher._sample([w["leader"].reshape(len(w["leader"]), -1, 3) for w in windows],
+                                   np.stack([w["label"] for w in windows]), [int(w["seed"]) for w in windows],
+                                   [w["noise"] for w in windows], [w["leader_noise"] for w in windows],
+                                   [(w["given"].reshape(len(w["given"]), -1, 3), w["known"]) for w in windows], CONTINUE_LEVEL)
+        finally:
+            teacher.guidance = base
+        return [m.reshape(len(m), -1) for m in made]
+
+    def refresh_windows(self) -> None:
+        """The window rows given the student's own reaction to their clip (the EMA's, as it samples) instead of the
+        teacher's, and the teacher's continuation of that as their target: a long take's windows continue what the
+        student made, and a student taught only to continue the teacher's frames drifts from its own (exposure bias;
+        the DAgger remedy, Ross et al. 2011)."""
+        p, w = self.pool, self.teacher.weights
+        rows = torch.nonzero(p["known"] > 0)[:, 0]
+        if not len(rows):
+            return
+        sources = p["source"][rows]
+        own = torch.zeros_like(p["target"])
+        with torch.no_grad():
+            for chunk in torch.unique(sources).split(POOL_BATCH):
+                x0, _ = self.student_sample(self.ema, chunk)
+                own[chunk, : x0.shape[1]] = x0
+        steps_total = self.model_cfg.diffusion_steps
+        for level in torch.unique(p["level"][rows]).tolist():
+            at_level = rows[p["level"][rows] == level]
+            for chunk in at_level.split(POOL_BATCH):
+                windows = []
+                for r in chunk.tolist():
+                    t, a, src = int(p["length"][r]), int(p["offset"][r]), int(p["source"][r])
+                    given = own[src, a:a + t].numpy()
+                    p["given"][r, :t] = own[src, a:a + t]
+                    windows.append({"leader": p["leader"][r, :t].numpy() * w["leader_std"] + w["leader_mean"],
+                                    "given": given * w["follower_std"] + w["follower_mean"],
+                                    "noise": p["noise"][r, :t].numpy(), "leader_noise": p["leader_noise"][r, :t].numpy(),
+                                    "label": p["label"][r].numpy(), "seed": self.seeds[r], "known": int(p["known"][r])})
+                for r, made in zip(chunk.tolist(), self.continue_windows(windows, level / (steps_total - 1)), strict=True):
+                    p["target"][r, : len(made)] = torch.as_tensor((made - w["follower_mean"]) / w["follower_std"])
 
     # ---- one step -------------------------------------------------------------------------
     def student_sample(self, net: ReactionDenoiser, rows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -341,6 +391,8 @@ class StudentTrainer:
             bar = tqdm(total=self.cfg.steps, disable=not progress, desc=f"student {self.subject or 'none'}", unit="step",
                        mininterval=2.0)
             while self.step < self.cfg.steps:
+                if self.cfg.window_refresh and self.step and self.step % self.cfg.window_refresh == 0:
+                    self.refresh_windows()
                 self.net.train()
                 parts = self.train_step()
                 for k in ("loss", "x0", "velocity", "adversarial", "critic", "label"):

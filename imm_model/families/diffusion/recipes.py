@@ -69,6 +69,9 @@ class DiffusionTrainConfig:
     # `window_bounds`): the teacher continuing its own reaction's earlier frames, as a long take's windows and the
     # live reactor sample (windows.py)
     window_share: float = param(0.0, FRACTION)
+    # every this many steps the windows are given the student's own reaction to their clip instead of the teacher's,
+    # the teacher's continuation of it their new target (distill.py `refresh_windows`); 0: the teacher's throughout
+    window_refresh: int = param(0, Interval(int, 0, None))
     # weight of a critic's verdict on a student's reactions beside the regression onto the teacher's (distill.py
     # ReactionCritic, trained alongside to tell the teacher's reaction from the student's for the same leader and label)
     lambda_adversarial: float = param(0.0, Interval(float, 0, None))
@@ -92,7 +95,9 @@ class DiffusionTrainConfig:
              ("lambda_label", lambda c: c.lambda_label == 0 or bool(c.teacher),
               "0 unless a teacher is set (the label critic reads a student's reactions)"),
              ("window_share", lambda c: c.window_share == 0 or bool(c.teacher),
-              "0 unless a teacher is set (the teacher's windows are a student's pool rows)"))
+              "0 unless a teacher is set (the teacher's windows are a student's pool rows)"),
+             ("window_refresh", lambda c: c.window_refresh == 0 or c.window_share > 0,
+              "0 unless window_share is above 0 (it remakes the window rows)"))
 
     def __post_init__(self) -> None:
         validate(self, "training config")
