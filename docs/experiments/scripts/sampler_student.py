@@ -7,8 +7,9 @@ difference from the teacher at 7 steps paired by fold and a 95 % Student t inter
         --fold sXX --out docs/experiments/data/sampler-student.jsonl     # per fold
     python docs/experiments/scripts/sampler_student.py
 
-With data/sampler-student-label.jsonl (the same per fold for the student trained with the label critic, the
-`imm-diffusion-student` recipe now) its column joins the table.
+With data/sampler-student-label.jsonl (the same per fold for the student trained with the label critic) its column
+joins the table; `--column NAME=PATH` adds another student's rows (e.g. the window-taught student's,
+data/sampler-student-windows.jsonl).
 """
 
 from __future__ import annotations
@@ -35,6 +36,8 @@ def main() -> None:
     ap.add_argument("--parts", type=Path, default=DATA / "part-folds.jsonl")
     ap.add_argument("--labelled", type=Path, default=DATA / "sampler-student-label.jsonl",
                     help="rows of the student trained with the label critic (imm-diffusion-student now), a column when present")
+    ap.add_argument("--column", action="append", default=[], metavar="NAME=PATH",
+                    help="another student's rows (diffusion_fold.py per fold) as a column named NAME")
     args = ap.parse_args()
     teacher = {(r["fold"], r["guidance"]["sample_steps"]): r for r in rows(args.steps)}
     joined = {r["fold"]: r for r in rows(args.parts) if r.get("join_outputs") and r["seed"] == 0 and "parts" not in r["checkpoint"]}
@@ -44,6 +47,9 @@ def main() -> None:
                "student, 2 steps": {r["fold"]: r for r in rows(args.student)}}
     if rows(args.labelled):
         columns["student + label critic"] = {r["fold"]: r for r in rows(args.labelled)}
+    for column in args.column:
+        name, _, path = column.partition("=")
+        columns[name] = {r["fold"]: r for r in rows(Path(path))}
     names = list(columns)
     for group, folds in GROUPS.items():
         have = [f for f in folds if all(f in columns[n] for n in names)]
