@@ -113,7 +113,7 @@ def open_studio(browser, url: str, width: int = 1400, height: int = 900, timeout
 # What the page shows of its view and its connection, for a wait that failed.
 VIEW_REPORT_JS = f"""() => {{ const i = document.querySelector('{VIEW_IMG}'), t = window.trame;
     return {{img: !!i, complete: i && i.complete, naturalWidth: i && i.naturalWidth, box: i && i.getBoundingClientRect().width,
-             trame: !!t, alert: (document.querySelector('.v-alert') || {{}}).innerText || ''}}; }}"""
+             trame: !!t, alert: (document.querySelector('.v-alert') || {{}}).innerText || '', address: location.pathname}}; }}"""
 
 
 def wait_for_view(page, timeout_ms: int = 120000) -> None:

@@ -124,7 +124,7 @@ class Launcher:
         except LaunchError as err:
             return web.Response(status=503, content_type="text/html", text=_error_page(str(err)))
         asyncio.get_running_loop().call_later(CLAIM_VISIT_S, self.pool.retire_if_unvisited, w)
-        asyncio.get_running_loop().call_later(CLAIM_TIMEOUT_S, self.pool.retire_if_unconnected, w)
+        asyncio.get_running_loop().call_later(CLAIM_TIMEOUT_S, self.pool.retire_if_unconnected, w, CLAIM_TIMEOUT_S)
         token = secrets.token_urlsafe(18)
         self.pool.sessions[token] = w
         w.browser = request.cookies.get(BROWSER_COOKIE) or secrets.token_urlsafe(18)

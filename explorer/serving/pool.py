@@ -156,8 +156,10 @@ class WorkerPool:
             del self.sessions[token]
         self._top_up()
 
-    def retire_if_unconnected(self, w: Worker) -> None:
-        if not w.connected:
+    def retire_if_unconnected(self, w: Worker, waited_s: float) -> None:
+        if not w.connected and not (w.exited or w.retired):
+            # said, because a tab still loading its page when this happens stays on trame's "Loading..."
+            print(f"a tab's studio process ended: its page did not connect within {waited_s:g} s of its claim", flush=True)
             self.retire(w)
 
     def retire_if_gone(self, w: Worker) -> None:
