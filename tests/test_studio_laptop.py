@@ -49,8 +49,13 @@ def test_a_value_typed_per_class_sets_its_slider(browser, studio):
         page.wait_for_function(f"() => document.querySelector('#value-slider-{free}').value === '1.00'", timeout=10000)
         scale = page.locator("#value-scale")
         scale.fill("1.5")
+        # the server changes the page while the value is being typed (a reaction settling does): the typing stays
+        probe.set_state(page, "label_text", "changed while typing")
+        page.wait_for_function("() => document.querySelector('#label-text').innerText.includes('changed while typing')")
+        assert scale.input_value() == "1.5"
         scale.press("Enter")
         probe.wait_state(page, "s.get('scale') === 1.5", timeout_ms=30000)
+        page.wait_for_function("() => document.querySelector('#value-scale').value === '1.50'", timeout=10000)
         toggle = page.locator(f"#parts-{free}")
         if probe.state(page, "part_labels"):  # the default model reads a label per body part: the switch says so in words
             assert "by body part" in toggle.inner_text().lower()

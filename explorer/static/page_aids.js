@@ -58,3 +58,25 @@ window.immWatchFit = (selector, fixed, per, key) => requestAnimationFrame(() => 
   });
   el.immFit.observe(el);
 });
+
+// A value being typed into one of the number fields beside the sliders (.imm-value) stays as typed until Enter or
+// leaving the field sets it: the page re-renders whenever the server changes any state (a reaction settling, the
+// 'reads as' panel), and Vue writes each field's bound value back into it then, which threw the typing away.
+(() => {
+  const native = Object.getOwnPropertyDescriptor(HTMLInputElement.prototype, 'value');
+  const typing = new WeakSet();
+  const guard = (el) => {
+    if (Object.prototype.hasOwnProperty.call(el, 'value')) return;
+    Object.defineProperty(el, 'value', {
+      configurable: true,
+      get() { return native.get.call(this); },
+      set(v) { if (!(typing.has(this) && document.activeElement === this)) native.set.call(this, v); },
+    });
+  };
+  const field = (e) => e.target && e.target.classList && e.target.classList.contains('imm-value') ? e.target : null;
+  document.addEventListener('input', (e) => { const el = field(e); if (el) { guard(el); typing.add(el); } }, true);
+  // committed (Enter, or the field left): the value the server sets from it shows again
+  const done = (e) => { const el = field(e); if (el) typing.delete(el); };
+  document.addEventListener('change', done, true);
+  document.addEventListener('focusout', done, true);
+})();
