@@ -4,7 +4,9 @@
 // server to open and play it (trigger `latent_pick`); a box or lasso selection sets `latent_selection`.
 //
 // plotly.js is 4.8 MB: it is fetched and evaluated only once the 3D view shows its first picture, so the page
-// opens as fast as it does without it (benchmarks/explorer_startup.py). The launcher serves it for every tab at one
+// opens as fast as it does without it (benchmarks/explorer_startup.py), and once the user has not pressed a key,
+// clicked or dragged for QUIET_MS: evaluating it holds the page's thread for up to a second on a busy machine, and a
+// slider moved meanwhile showed its picture that much later (benchmarks/explorer_latency.py, the first changes). The launcher serves it for every tab at one
 // path above the tab's /s/<id>/ (a reverse proxy's prefix kept: the path is relative), so the browser's cache
 // serves a second tab; explorer/serving/page_shell.py puts plotly.js's version into its name.
 (() => {
@@ -12,16 +14,27 @@
   const VIEW_IMG = '.imm-scene img';
   const PLOT_ID = 'latent-plotly';
   const FIRST_PICTURE_WAIT_MS = 8000;  // load it anyway after this long (a page with no picture still gets its map)
+  const QUIET_MS = 1000;  // ... and after this long without a key, click or drag
+  const LATEST_MS = 10000;  // ... or this long after the first picture, however busy the user is
+  let lastInput = performance.now();
+  for (const type of ['keydown', 'pointerdown', 'pointermove', 'wheel', 'input']) {
+    document.addEventListener(type, (e) => {
+      if (type !== 'pointermove' || e.buttons) lastInput = performance.now();
+    }, {capture: true, passive: true});
+  }
   let loading = null;
   let plotted = null;  // the element the figure lives in
   let last = {points: null, marks: null, mode: 'class', colors: null};
 
-  function afterFirstPicture() {
+  function afterFirstPictureWhenQuiet() {
     return new Promise((resolve) => {
       const start = performance.now();
+      let shown = null;  // when the first picture was seen
       const poll = () => {
+        const now = performance.now();
         const img = document.querySelector(VIEW_IMG);
-        if ((img && img.complete && img.naturalWidth > 100) || performance.now() - start > FIRST_PICTURE_WAIT_MS) resolve();
+        if (shown === null && ((img && img.complete && img.naturalWidth > 100) || now - start > FIRST_PICTURE_WAIT_MS)) shown = now;
+        if (shown !== null && (now - lastInput >= QUIET_MS || now - shown > LATEST_MS)) resolve();
         else setTimeout(poll, 50);
       };
       poll();
@@ -30,7 +43,7 @@
 
   function plotly() {
     if (!loading) {
-      loading = afterFirstPicture().then(() => new Promise((resolve, reject) => {
+      loading = afterFirstPictureWhenQuiet().then(() => new Promise((resolve, reject) => {
         const script = document.createElement('script');
         script.src = PLOTLY_SRC;
         script.async = true;
