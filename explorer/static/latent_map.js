@@ -6,9 +6,10 @@
 // plotly.js is 4.8 MB: it is fetched and evaluated only once the 3D view shows its first picture, so the page
 // opens as fast as it does without it (benchmarks/explorer_startup.py), and once the user has not pressed a key,
 // clicked or dragged for QUIET_MS: evaluating it holds the page's thread for up to a second on a busy machine, and a
-// slider moved meanwhile showed its picture that much later (benchmarks/explorer_latency.py, the first changes). The launcher serves it for every tab at one
-// path above the tab's /s/<id>/ (a reverse proxy's prefix kept: the path is relative), so the browser's cache
-// serves a second tab; explorer/serving/page_shell.py puts plotly.js's version into its name.
+// slider moved meanwhile showed its picture that much later (benchmarks/explorer_latency.py, the first changes).
+// The launcher serves it for every tab at one path above the tab's /s/<id>/ (a reverse proxy's prefix kept: the path
+// is relative), so the browser's cache serves a second tab; explorer/serving/page_shell.py puts plotly.js's version
+// into its name.
 (() => {
   const PLOTLY_SRC = '../../static/plotly.min.js';  // explorer/serving/launcher.py, `static`
   const VIEW_IMG = '.imm-scene img';

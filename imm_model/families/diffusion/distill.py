@@ -203,15 +203,16 @@ class StudentTrainer:
                       "leader_noise": leader_noise(int(seeds[row]), len(canon[k]), d),
                       "label": labels[row], "seed": seeds[row], "level": level, "known": 0} for k, row in enumerate(rows)]
             rows_made += batch
+            cut = []  # this batch's windows
             for k, row in enumerate(batch):
                 if rng.random() < cfg.window_share:
                     a, b, known = window_bounds(rng, len(row["leader"]))
-                    windows.append({key: row[key][a:b] for key in ("leader", "noise", "leader_noise")}
-                                   | {"given": row["target"][a:b], "label": row["label"], "seed": row["seed"],
-                                      "level": level, "known": known, "source": int(rows[k]), "offset": a})
-            fresh = [w for w in windows if "target" not in w]
-            for w, made in zip(fresh, self.continue_windows(fresh, spread), strict=True):
+                    cut.append({key: row[key][a:b] for key in ("leader", "noise", "leader_noise")}
+                               | {"given": row["target"][a:b], "label": row["label"], "seed": row["seed"],
+                                  "level": level, "known": known, "source": int(rows[k]), "offset": a})
+            for w, made in zip(cut, self.continue_windows(cut, spread), strict=True):
                 w["target"] = made
+            windows += cut
         teacher.guidance = base
         rows_made += windows
         self.seeds = np.array([row["seed"] for row in rows_made])
@@ -282,10 +283,9 @@ class StudentTrainer:
                 windows = []
                 for r in chunk.tolist():
                     t, a, src = int(p["length"][r]), int(p["offset"][r]), int(p["source"][r])
-                    given = own[src, a:a + t].numpy()
                     p["given"][r, :t] = own[src, a:a + t]
                     windows.append({"leader": p["leader"][r, :t].numpy() * w["leader_std"] + w["leader_mean"],
-                                    "given": given * w["follower_std"] + w["follower_mean"],
+                                    "given": p["given"][r, :t].numpy() * w["follower_std"] + w["follower_mean"],
                                     "noise": p["noise"][r, :t].numpy(), "leader_noise": p["leader_noise"][r, :t].numpy(),
                                     "label": p["label"][r].numpy(), "seed": self.seeds[r], "known": int(p["known"][r])})
                 for r, made in zip(chunk.tolist(), self.continue_windows(windows, level / (steps_total - 1)), strict=True):
