@@ -85,3 +85,14 @@ def pytest_runtest_makereport(item, call):
     studio = item.funcargs.get("studio") if hasattr(item, "funcargs") else None
     if report.failed and studio is not None:
         report.sections.append(("studio log (last 40 lines)", "\n".join(studio.lines[-40:])))
+
+
+def pytest_terminal_summary(terminalreporter):
+    """Each studio process a launcher found stuck and replaced, with its threads' stacks, whether or not a test failed:
+    a tab that recovered still names a fault worth knowing."""
+    from tests.studio_probe import NOTICE, StudioProcess
+
+    for studio in StudioProcess.noticed:
+        first = next(i for i, line in enumerate(studio.lines) if line.startswith(NOTICE))
+        terminalreporter.write_sep("-", f"studio notices ({studio.url})")
+        terminalreporter.write_line("\n".join(studio.lines[first:first + 80]))

@@ -31,8 +31,14 @@ VIEW_IMG = ".v-main .rounded.border img"
 LATENT_POINTS = "#latent-plotly .scatterlayer .point"  # the latent map's points, once Plotly has drawn them
 
 
+NOTICE = "a tab's studio process was replaced"  # the launcher's line for one found stuck (explorer/serving/pool.py)
+
+
 class StudioProcess:
-    """`imm explore --port 0 --no-browser` in a subprocess; `url` once it printed its address."""
+    """`imm explore --port 0 --no-browser` in a subprocess; `url` once it printed its address. `noticed`: every
+    studio of this test run whose launcher replaced a stuck studio process, for the run's summary (tests/conftest.py)."""
+
+    noticed: list[StudioProcess] = []
 
     def __init__(self, *extra: str, cache_dir: Path | None = None, timeout: float = 60.0):
         cmd = [sys.executable, "-m", "imm_model.cli", "explore", "--port", "0", "--no-browser", *extra]
@@ -48,6 +54,8 @@ class StudioProcess:
         def pump(stream):
             for line in stream:
                 self.lines.append(line.rstrip())
+                if line.startswith(NOTICE) and self not in StudioProcess.noticed:
+                    StudioProcess.noticed.append(self)
                 m = URL_RE.search(line)
                 if m and not self.url:
                     self.url, self.ready_s = m.group(1), time.monotonic() - self.started
@@ -111,9 +119,12 @@ def open_studio(browser, url: str, width: int = 1400, height: int = 900, timeout
 
 
 # What the page shows of its view and its connection, for a wait that failed.
+# `link`: the page's websocket (explorer/static/websocket_bytes.js); `app`: trame has mounted the page's layout
 VIEW_REPORT_JS = f"""() => {{ const i = document.querySelector('{VIEW_IMG}'), t = window.trame;
     return {{img: !!i, complete: i && i.complete, naturalWidth: i && i.naturalWidth, box: i && i.getBoundingClientRect().width,
-             trame: !!t, alert: (document.querySelector('.v-alert') || {{}}).innerText || '', address: location.pathname}}; }}"""
+             trame: !!t, app: !!document.querySelector('.v-application'), link: window.__immLink || null,
+             loaded: document.readyState,
+             alert: (document.querySelector('.v-alert') || {{}}).innerText || '', address: location.pathname}}; }}"""
 
 
 def wait_for_view(page, timeout_ms: int = 120000) -> None:

@@ -377,3 +377,45 @@ def test_a_tab_opened_while_claims_are_rate_limited_tries_again_and_gets_its_stu
         finally:
             pg.close()
         assert 429 in [f.result() for f in burst]
+
+
+@pytest.mark.parametrize("stuck_before", ["page", "websocket"])
+def test_a_stuck_studio_process_is_replaced_and_its_tab_goes_to_a_fresh_one(browser, tmp_path, monkeypatch, stuck_before):
+    """A tab's studio process that stops answering (stopped here with SIGSTOP) before its page is served, or after the
+    page and before its websocket: the launcher ends it after IMM_STUDIO_ANSWER_TIMEOUT, says so with its stacks, and
+    the tab goes to the front page for a fresh studio with the view its address names."""
+    import contextlib
+    import os
+    import signal
+
+    monkeypatch.setenv("IMM_STUDIO_ANSWER_TIMEOUT", "3")
+    with probe.StudioProcess(cache_dir=tmp_path) as studio:
+        (spare,) = _studio_processes(studio)  # the first tab's studio process
+        pg = browser.new_page()
+        if stuck_before == "page":
+            os.kill(spare, signal.SIGSTOP)
+        else:  # once its page is served, as the page opens its websocket (trame's loading.tpl may still be on its way)
+
+            def stop_then_connect(ws):
+                if spare in _studio_processes(studio):
+                    os.kill(spare, signal.SIGSTOP)
+                ws.connect_to_server()
+
+            pg.route_web_socket("**/ws", stop_then_connect)
+        try:
+            pg.goto(studio.url + "?frame=5")
+            probe.wait_for_view(pg, 90000)
+            probe.wait_state(pg, "s.get('frame') === 5")  # the address's view, in the fresh studio
+            assert "/s/" in pg.url
+        finally:
+            pg.close()
+            with contextlib.suppress(ProcessLookupError):  # a stopped process that was not ended would outlive the studio
+                os.kill(spare, signal.SIGCONT)
+        deadline = time.monotonic() + 10
+        while spare in _studio_processes(studio):
+            assert time.monotonic() < deadline, "the stuck studio process was not ended"
+            time.sleep(0.1)
+        lines = studio.read_log()
+        notice = [ln for ln in lines if ln.startswith(probe.NOTICE)]
+        assert len(notice) == 1 and "did not answer" in notice[0] and " 3 s" in notice[0], lines[-10:]
+        probe.StudioProcess.noticed.remove(studio)  # expected here: not a fault for the run's summary

@@ -7,13 +7,15 @@ front page's script claims one (a same-origin POST: a bare GET or another web pa
 to it (proxy.py) and forks the next spare in the background. A tab's studio process is ended (by the zygote, with
 SIGKILL if it is too busy to stop) RECONNECT_GRACE_S after its last websocket closed, or CLAIM_TIMEOUT_S after a claim
 that no browser connected to (CLAIM_VISIT_S if its page was not even asked for), so a closed tab frees its client slot
-within seconds.
+within seconds. A studio process that has not answered its tab's page or websocket within ANSWER_S is stuck: it is
+ended, and the tab is sent to a fresh one.
 """
 
 from __future__ import annotations
 
 import asyncio
 import errno
+import functools
 import gc
 import hmac
 import html
@@ -39,6 +41,9 @@ CLAIM_TIMEOUT_S = float(os.environ.get("IMM_STUDIO_CLAIM_TIMEOUT", "20"))
 # retired, and so is the oldest such claim when a claim finds every slot taken, so a script posting claims in a loop
 # never keeps a tab from a studio.
 CLAIM_VISIT_S = min(5.0, CLAIM_TIMEOUT_S)
+# A studio process answers its page's websocket in milliseconds: one that has not within ANSWER_S is stuck, and is
+# replaced (proxy.py forward_websocket; $IMM_STUDIO_ANSWER_TIMEOUT: tests)
+ANSWER_S = float(os.environ.get("IMM_STUDIO_ANSWER_TIMEOUT", "30"))
 # Stopping waits for the studio processes (pool.py STOP_S), then at most CLOSE_S for the tabs' connections to close:
 # within 5 s in all.
 CLOSE_S = 1.0
@@ -143,22 +148,28 @@ class Launcher:
         w = self.pool.sessions.get(request.match_info["token"])
         if w is None or w.exited:
             self.pool.sessions.pop(request.match_info["token"], None)
+        # an old or unknown link, or another browser's tab: back to the front page for a fresh studio, with the view the
+        # link names
+        fresh = web.HTTPFound("../../" + (f"?{request.query_string}" if request.query_string else ""))
         if w is None or w.exited or not hmac.compare_digest(request.cookies.get(BROWSER_COOKIE, "").encode(), w.browser.encode()):
-            # an old or unknown link, or another browser's tab: back to the front page for a fresh studio, with the view
-            # the link names
-            raise web.HTTPFound("../../" + (f"?{request.query_string}" if request.query_string else ""))
+            raise fresh
         tail = request.match_info["tail"]
         w.last_seen = time.monotonic()
+        stuck = functools.partial(self.pool.retire_silent, w)
         if request.headers.get("Upgrade", "").lower() != "websocket":
             # the page asked for again once a websocket had connected is a reload, even while the closing one is still
             # being torn down here (the browser sends the new request as soon as the old page unloads)
             w.reloading = w.reloading or (w.connected and (not w.sockets or tail in ("", "index.html")))
-            return await forward_http(request, w.port, tail)
+            answer = await forward_http(request, w.port, tail, answer_s=ANSWER_S, on_silent=stuck)
+            if answer is None and tail in ("", "index.html"):
+                raise fresh  # its studio process was stuck, and is replaced: the page goes to a fresh one
+            return answer or web.Response(status=504, text="the studio process of this tab did not answer: reload the page")
         w.sockets += 1
         w.connected, w.reloading = True, False
         w.budget = w.budget or InboundBudget()
         try:
-            return await forward_websocket(request, w.port, tail, w.secret, w.budget, on_message=self.pool.note_traffic)
+            return await forward_websocket(request, w.port, tail, w.secret, w.budget, on_message=self.pool.note_traffic,
+                                           answer_s=ANSWER_S, on_silent=stuck)
         finally:
             w.sockets -= 1
             w.last_seen = time.monotonic()

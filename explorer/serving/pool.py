@@ -162,6 +162,15 @@ class WorkerPool:
             print(f"a tab's studio process ended: its page did not connect within {waited_s:g} s of its claim", flush=True)
             self.retire(w)
 
+    def retire_silent(self, w: Worker, why: str) -> None:
+        """Its page's request or websocket found it stuck (proxy.py): its threads' Python stacks go to the log
+        (explorer/serving/zygote.py `dump`), then it is retired; the page asks for a fresh studio."""
+        if w.exited or w.retired:  # said once, for its first request that found it so
+            return
+        print(f"a tab's studio process was replaced: {why}", flush=True)
+        self._tell(f"dump {w.id}")
+        self.retire(w)
+
     def retire_if_gone(self, w: Worker) -> None:
         """Called after a tab's last websocket closed: retire it unless the tab came back or is coming back."""
         if w.sockets or w.exited or w.retired:

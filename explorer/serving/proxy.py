@@ -15,22 +15,33 @@ import asyncio
 import contextlib
 from collections.abc import Callable
 
-from aiohttp import ClientSession, WSCloseCode, WSMsgType, web
+from aiohttp import ClientError, ClientSession, WSCloseCode, WSMsgType, web
 
 from explorer.trame_adapter import MAX_FRAME_BYTES, WSLINK_HEADER, WSLINK_HELLO
 
 MAX_MESSAGE_BYTES = 32 * 1024 * 1024  # an upload is at most 20 MB (explorer/session/session.py) plus framing
 MAX_PENDING_BYTES = 32 * 1024 * 1024  # all messages a studio process is still receiving, over all its websockets
 HEARTBEAT_S = 20.0  # a browser that vanished without closing (network lost) is noticed within 1.5x this
+# The close code a tab's websocket gets when its studio process did not answer: the page asks the front page for a fresh
+# studio (explorer/static/websocket_bytes.js). 4000-4999 are the application's own codes.
+SILENT_CLOSE = 4013
 HOP_HEADERS = {"connection", "keep-alive", "transfer-encoding", "upgrade", "host", "content-length", "content-encoding"}
 
 
-async def forward_http(request: web.Request, port: int, tail: str) -> web.StreamResponse:
-    """GET the same path from the studio process on 127.0.0.1:port and stream the answer back."""
+async def forward_http(request: web.Request, port: int, tail: str, answer_s: float | None = None,
+                       on_silent: Callable[[str], None] = lambda why: None) -> web.StreamResponse | None:
+    """GET the same path from the studio process on 127.0.0.1:port and stream the answer back; None, after
+    `on_silent(why)`, when the studio process has not answered within `answer_s` (it is stuck)."""
     url = f"http://127.0.0.1:{port}/{tail}"
     async with ClientSession(auto_decompress=False) as session:
-        async with session.request(request.method, url, params=request.query, allow_redirects=False,
-                                   headers={k: v for k, v in request.headers.items() if k.lower() not in HOP_HEADERS}) as upstream:
+        try:
+            async with asyncio.timeout(answer_s):  # to its answer's headers; the body streams without a limit
+                upstream = await session.request(request.method, url, params=request.query, allow_redirects=False,
+                                                  headers={k: v for k, v in request.headers.items() if k.lower() not in HOP_HEADERS})
+        except (TimeoutError, OSError, ClientError) as err:
+            on_silent(_silence(err, answer_s, f"its page's request for /{tail[:80]}"))
+            return None
+        async with upstream:
             response = web.StreamResponse(status=upstream.status,
                                           headers={k: v for k, v in upstream.headers.items() if k.lower() not in HOP_HEADERS})
             if "Content-Encoding" in upstream.headers:
@@ -42,6 +53,13 @@ async def forward_http(request: web.Request, port: int, tail: str) -> web.Stream
                     await response.write(chunk)
                 await response.write_eof()
             return response
+
+
+def _silence(err: BaseException, answer_s: float | None, what: str) -> str:
+    """Why a studio process is taken for stuck, in words: it did not answer `what` in time, or could not be reached."""
+    if isinstance(err, TimeoutError) and not isinstance(err, ClientError):
+        return f"it did not answer {what} within {answer_s:g} s"
+    return f"{what} could not reach it ({type(err).__name__}: {' '.join(str(err).split())[:200]})"
 
 
 HEADER = WSLINK_HEADER  # wslink's chunk header: message id, offset, total size (uint32 little-endian each)
@@ -107,10 +125,14 @@ def with_secret(frame: bytes, secret: str) -> bytes:
 
 async def forward_websocket(request: web.Request, port: int, tail: str, secret: str | None = None,
                             budget: InboundBudget | None = None,
-                            on_message: Callable[[], None] = lambda: None) -> web.WebSocketResponse:
+                            on_message: Callable[[], None] = lambda: None,
+                            answer_s: float | None = None,
+                            on_silent: Callable[[str], None] = lambda why: None) -> web.WebSocketResponse:
     """Relay a websocket between the browser and the studio process, both directions, text and binary; the
     browser's hello carries the studio's secret; the browser's chunks are checked against `budget`; `on_message` is
-    called for every message relayed."""
+    called for every message relayed. A studio process that has not accepted the websocket and sent its first message
+    within `answer_s` (it answers the hello in milliseconds) is taken for stuck: the browser's websocket is closed with
+    SILENT_CLOSE (the page then asks for a fresh studio: explorer/static/websocket_bytes.js) and `on_silent(why)` called."""
     budget = budget or InboundBudget()
     # No permessage-deflate: the pictures are JPEG already, deflating them costs a thread hop per frame, and a tab
     # closing mid-send would leave aiohttp's shielded compress-and-send task with an exception no one retrieves.
@@ -119,31 +141,44 @@ async def forward_websocket(request: web.Request, port: int, tail: str, secret: 
     browser = web.WebSocketResponse(max_msg_size=MAX_FRAME_BYTES, autoping=True, heartbeat=HEARTBEAT_S, compress=False)
     await browser.prepare(request)
     connection = id(browser)
-    async with ClientSession() as session:
-        async with session.ws_connect(f"http://127.0.0.1:{port}/{tail}", max_msg_size=0, autoping=True) as studio:
+    progress = {"browser": 0, "studio": 0}  # messages relayed each way, for the line a silent studio gets
+    try:
+        async with asyncio.timeout(answer_s) as deadline, ClientSession() as session:
+            async with session.ws_connect(f"http://127.0.0.1:{port}/{tail}", max_msg_size=0, autoping=True) as studio:
 
-            async def pump(source, sink) -> None:
-                inbound = sink is studio
-                # a tab closing mid-message resets its connection: that ends the relay, it is not an error
-                with contextlib.suppress(ConnectionResetError):
-                    async for msg in source:
-                        on_message()
-                        if msg.type == WSMsgType.TEXT:
-                            await sink.send_str(msg.data)
-                        elif msg.type == WSMsgType.BINARY:
-                            if inbound and (refused := budget.admit(connection, msg.data)) is not None:
-                                await browser.close(code=WSCloseCode.MESSAGE_TOO_BIG, message=f"refused: {refused}".encode()[:120])
+                async def pump(source, sink) -> None:
+                    inbound = sink is studio
+                    side = "browser" if inbound else "studio"
+                    # a tab closing mid-message resets its connection: that ends the relay, it is not an error
+                    with contextlib.suppress(ConnectionResetError):
+                        async for msg in source:
+                            on_message()
+                            if not inbound and not progress["studio"]:
+                                deadline.reschedule(None)  # it answers: no time limit from now on
+                            progress[side] += 1
+                            if msg.type == WSMsgType.TEXT:
+                                await sink.send_str(msg.data)
+                            elif msg.type == WSMsgType.BINARY:
+                                if inbound and (refused := budget.admit(connection, msg.data)) is not None:
+                                    await browser.close(code=WSCloseCode.MESSAGE_TOO_BIG, message=f"refused: {refused}".encode()[:120])
+                                    break
+                                await sink.send_bytes(with_secret(msg.data, secret) if secret and inbound else msg.data)
+                            else:  # close or error: the other side is closed too
                                 break
-                            await sink.send_bytes(with_secret(msg.data, secret) if secret and inbound else msg.data)
-                        else:  # close or error: the other side is closed too
-                            break
-                    await sink.close()
+                        await sink.close()
 
-            tasks = [asyncio.ensure_future(pump(browser, studio)), asyncio.ensure_future(pump(studio, browser))]
-            try:
-                _, pending = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
-                for task in pending:
-                    task.cancel()
-            finally:
-                budget.forget(connection)
+                tasks = [asyncio.ensure_future(pump(browser, studio)), asyncio.ensure_future(pump(studio, browser))]
+                try:
+                    await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+                finally:
+                    for task in tasks:
+                        task.cancel()
+    except (TimeoutError, OSError, ClientError) as err:
+        if progress["studio"]:  # it had answered: a connection lost later is the end of the relay, as a close is
+            return browser
+        why = _silence(err, answer_s, f"its page's websocket ({progress['browser']} messages from the page, none from it)")
+        await browser.close(code=SILENT_CLOSE, message=b"the studio process did not answer")
+        on_silent(why)
+    finally:
+        budget.forget(connection)
     return browser

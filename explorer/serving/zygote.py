@@ -10,6 +10,8 @@ The launcher (launcher.py) talks to it with lines on its stdin and stdout:
   launcher -> zygote   "spawn <id> <secret>"   fork studio process <id> with its own wslink secret
                        "retire <id>"           its tab has gone: SIGTERM, and SIGKILL RETIRE_GRACE_S later if it is
                                                still there (busy: its server's signal handler runs on its event loop)
+                       "dump <id>"             it is stuck: SIGUSR1, on which it writes its threads' Python stacks to
+                                               stderr (faulthandler: even while its main thread is stuck in C code)
                        end of file             the launcher is gone: every studio process is killed, then this one ends
   zygote -> launcher   "IMM-WORKER LOADED" or "IMM-WORKER ERROR - <message>" once, after loading
                        "IMM-WORKER READY <id> <port> <page folder>", "IMM-WORKER ERROR <id> <message>", "IMM-WORKER EXIT <id> <code>"
@@ -18,6 +20,8 @@ This process stays single-threaded (a select loop): forking a process with threa
 
 from __future__ import annotations
 
+import contextlib
+import faulthandler
 import gc
 import os
 import select
@@ -79,10 +83,16 @@ class ForkServer:
     def command(self, words: list[str]) -> None:
         if len(words) == 3 and words[0] == "spawn":
             self.fork(words[1], words[2])
-        elif len(words) == 2 and words[0] == "retire":
+        elif len(words) == 2 and words[0] in ("retire", "dump"):
             for pid, (wid, _) in list(self.children.items()):
-                if wid == words[1]:
+                if wid == words[1] and words[0] == "retire":
                     self.retire(pid)
+                elif wid == words[1]:
+                    self.dump(pid)
+
+    def dump(self, pid: int) -> None:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGUSR1)
 
     def retire(self, pid: int) -> None:
         if pid in self.killing:
@@ -119,6 +129,7 @@ class ForkServer:
         channel = os.fdopen(os.dup(1), "w")  # our lines to the launcher; stray prints go to stderr instead
         os.dup2(2, 1)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        faulthandler.register(signal.SIGUSR1, file=sys.stderr, all_threads=True)  # "dump": where it is stuck
         gc.enable()
         code = 2
         try:

@@ -1,7 +1,8 @@
 // Loaded before trame's client (explorer/serving/page_shell.py). wslink's client asks the browser to deliver each binary
 // websocket message as a Blob, then reads it back with two asynchronous Blob reads; on a busy machine that took
 // ~20 ms between a picture's arrival and its display. Here the socket delivers an ArrayBuffer, handed to wslink
-// in a Blob-shaped wrapper whose reads resolve at once.
+// in a Blob-shaped wrapper whose reads resolve at once. The wrapper also sends the tab to a fresh studio when the
+// launcher found its studio process stuck (below).
 (() => {
   class Bytes {
     constructor(buffer, start = 0, end = buffer.byteLength) { this.buffer = buffer; this.start = start; this.end = end; }
@@ -12,14 +13,40 @@
   const Native = window.WebSocket;
   function BytesWebSocket(...args) {
     const ws = new Native(...args);
+    link.opened = performance.now();
     ws.binaryType = "arraybuffer";
     Object.defineProperty(ws, "binaryType", { get: () => "blob", set: () => {} });  // wslink sets "blob"
     let onmessage = null;
     Object.defineProperty(ws, "onmessage", { get: () => onmessage, set: (fn) => { onmessage = fn; } });
     ws.addEventListener("message", (e) => {
+      if (!link.messages++) forgetTries();
       if (onmessage) onmessage(e.data instanceof ArrayBuffer ? { type: e.type, data: new Bytes(e.data) } : e);
     });
+    ws.addEventListener("close", (e) => {
+      link.closed = e.code;
+      if (e.code === NO_ANSWER && !link.messages) freshStudio();
+    });
     return ws;
+  }
+  // What the page's websocket has done (window.__immLink: when it opened, messages received, its close code): read by
+  // a test whose page never showed its studio.
+  const link = window.__immLink = { opened: null, messages: 0, closed: null };
+  // A studio process that did not answer its page is replaced by the launcher, which closes the websocket with
+  // NO_ANSWER (explorer/serving/proxy.py SILENT_CLOSE): the tab goes to the front page for a fresh studio, with the view
+  // its address names, twice in a row at most (counted in the tab's sessionStorage until a studio answers).
+  const NO_ANSWER = 4013, TRIES = "imm-studio-retries", MAX_TRIES = 2;
+  const forgetTries = () => { try { sessionStorage.removeItem(TRIES); } catch (e) {} };
+  function freshStudio() {
+    let tries = MAX_TRIES;
+    try { tries = Number(sessionStorage.getItem(TRIES)) || 0; sessionStorage.setItem(TRIES, String(tries + 1)); } catch (e) {}
+    if (tries < MAX_TRIES) {
+      location.replace(new URL("../../" + location.search, location.href).href);
+    } else {
+      forgetTries();
+      document.body.insertAdjacentHTML("afterbegin", '<p id="imm-no-answer" style="position:fixed;z-index:9999;top:0;' +
+        'left:0;right:0;margin:0;padding:1em;background:#fff;color:#b00020;font-family:sans-serif">The studio did not ' +
+        "answer this tab (twice): reload the page to try again.</p>");
+    }
   }
   BytesWebSocket.prototype = Native.prototype;
   Object.assign(BytesWebSocket, { CONNECTING: 0, OPEN: 1, CLOSING: 2, CLOSED: 3 });
