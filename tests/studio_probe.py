@@ -119,11 +119,15 @@ def open_studio(browser, url: str, width: int = 1400, height: int = 900, timeout
 
 
 # What the page shows of its view and its connection, for a wait that failed.
-# `link`: the page's websocket (explorer/static/websocket_bytes.js); `app`: trame has mounted the page's layout
+# `link`: the page's websocket (explorer/static/websocket_bytes.js); `app`: trame has mounted the page's layout;
+# `pending`: the page's stylesheets and scripts that have not loaded (trame's client waits for each before the layout)
 VIEW_REPORT_JS = f"""() => {{ const i = document.querySelector('{VIEW_IMG}'), t = window.trame;
     return {{img: !!i, complete: i && i.complete, naturalWidth: i && i.naturalWidth, box: i && i.getBoundingClientRect().width,
              trame: !!t, app: !!document.querySelector('.v-application'), link: window.__immLink || null,
-             loaded: document.readyState,
+             loaded: document.readyState, pending: (() => {{
+                 const done = new Set(performance.getEntriesByType('resource').map((r) => r.name));
+                 return [...document.querySelectorAll('script[src], link[rel=stylesheet]')].map((e) => e.src || e.href)
+                     .filter((u) => !done.has(u)); }})(),
              alert: (document.querySelector('.v-alert') || {{}}).innerText || '', address: location.pathname}}; }}"""
 
 

@@ -419,3 +419,26 @@ def test_a_stuck_studio_process_is_replaced_and_its_tab_goes_to_a_fresh_one(brow
         notice = [ln for ln in lines if ln.startswith(probe.NOTICE)]
         assert len(notice) == 1 and "did not answer" in notice[0] and " 3 s" in notice[0], lines[-10:]
         probe.StudioProcess.noticed.remove(studio)  # expected here: not a fault for the run's summary
+
+
+def test_a_page_whose_layout_never_comes_is_loaded_again_and_keeps_its_studio(browser, studio):
+    """trame's client draws the page once each of its stylesheets has loaded: one that never arrives (held here, the
+    first time it is asked for) would leave the tab on "Loading..." for ever. The page loads itself again after 20 s,
+    keeping its studio (the same address), and shows its view."""
+    asked = []
+
+    def hold_the_first(route):
+        asked.append(route.request.url)
+        if len(asked) > 1:
+            route.continue_()  # (the first is never answered)
+
+    pg = browser.new_page()
+    pg.route("**/vuetify3.css", hold_the_first)
+    try:
+        pg.goto(studio.url)
+        pg.wait_for_url("**/s/**")
+        token = pg.url.split("/s/")[1].split("/")[0]
+        probe.wait_for_view(pg, 90000)
+        assert len(asked) == 2 and pg.url.split("/s/")[1].split("/")[0] == token
+    finally:
+        pg.close()

@@ -2,7 +2,7 @@
 // websocket message as a Blob, then reads it back with two asynchronous Blob reads; on a busy machine that took
 // ~20 ms between a picture's arrival and its display. Here the socket delivers an ArrayBuffer, handed to wslink
 // in a Blob-shaped wrapper whose reads resolve at once. The wrapper also sends the tab to a fresh studio when the
-// launcher found its studio process stuck (below).
+// launcher found its studio process stuck, and loads the page again when its layout never came (below).
 (() => {
   class Bytes {
     constructor(buffer, start = 0, end = buffer.byteLength) { this.buffer = buffer; this.start = start; this.end = end; }
@@ -19,7 +19,7 @@
     let onmessage = null;
     Object.defineProperty(ws, "onmessage", { get: () => onmessage, set: (fn) => { onmessage = fn; } });
     ws.addEventListener("message", (e) => {
-      if (!link.messages++) forgetTries();
+      if (!link.messages++) { forgetTries(); watchLayout(); }
       if (onmessage) onmessage(e.data instanceof ArrayBuffer ? { type: e.type, data: new Bytes(e.data) } : e);
     });
     ws.addEventListener("close", (e) => {
@@ -36,6 +36,21 @@
   // its address names, twice in a row at most (counted in the tab's sessionStorage until a studio answers).
   const NO_ANSWER = 4013, TRIES = "imm-studio-retries", MAX_TRIES = 2;
   const forgetTries = () => { try { sessionStorage.removeItem(TRIES); } catch (e) {} };
+  // trame's client draws the page once every stylesheet and script its state names has loaded, and waits for ever on
+  // one that never arrives: a page whose studio answers but whose layout has not appeared LAYOUT_S later is loaded
+  // again, once in a row (the studio keeps its session across a reload).
+  const LAYOUT_S = 20, RELOADED = "imm-studio-reloaded";
+  function watchLayout() {
+    setTimeout(() => {
+      let again = false;
+      try {
+        if (document.querySelector(".v-application")) { sessionStorage.removeItem(RELOADED); return; }
+        again = !sessionStorage.getItem(RELOADED);
+        sessionStorage.setItem(RELOADED, "1");
+      } catch (e) { return; }
+      if (again) location.reload();
+    }, LAYOUT_S * 1000);
+  }
   function freshStudio() {
     let tries = MAX_TRIES;
     try { tries = Number(sessionStorage.getItem(TRIES)) || 0; sessionStorage.setItem(TRIES, String(tries + 1)); } catch (e) {}
