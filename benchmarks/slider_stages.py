@@ -55,7 +55,7 @@ def moves(names, count: int, part_labels: bool, rng) -> list[Label]:
 
 
 def one_move(session: Session, scene: Scene, label: Label, times: dict[str, list[float]], draft: bool) -> None:
-    model = session.model.draft if draft and session.model.draft is not None else session.model  # what draws the picture
+    model = (session.model.draft_for(len(session.leader)) if draft else None) or session.model  # what draws the picture
     clock = time.perf_counter
     t0 = clock()
     vector = session.check_label(label)

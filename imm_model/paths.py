@@ -39,16 +39,16 @@ def _sample_dir() -> Path:
 SAMPLE_DIR = _sample_dir()
 SAMPLE_DATA = SAMPLE_DIR / "sbu_interactions.npz"
 SAMPLE_GAN = SAMPLE_DIR / "imm_sbu.safetensors"  # the paper's GAN (`imm-steer`), one click away in the studio
-SAMPLE_DIFFUSION = SAMPLE_DIR / "imm_diffusion.safetensors"  # the reaction diffusion model (`imm-diffusion`)
-# the model ReactionModel.load(), `imm generate` and the studio use when none is given
-# (docs/experiments/default-model.md: its FID over 7 folds x 3 seeds is not worse than the GAN's)
-SAMPLE_DEFAULT = SAMPLE_DIFFUSION
+# the reaction diffusion model (`imm-diffusion`, 7 sampler steps): the default's teacher, which makes its long takes and
+# live reactions
+SAMPLE_DIFFUSION = SAMPLE_DIR / "imm_diffusion.safetensors"
+# a 2-step student of it (`imm-diffusion-student`), the default model: ReactionModel.load(), `imm generate` and the studio
+# use it when none is given, its long takes and live reactions made by its teacher (docs/experiments/default-student.md)
+SAMPLE_STUDENT = SAMPLE_DIR / "imm_diffusion_student.safetensors"
+SAMPLE_DEFAULT = SAMPLE_STUDENT
 # the diffusion model trained with a label per body part (`imm-diffusion-parts`): experimental, not opened by the studio
 # by default (the default model takes a label per body part too, and measured the same on part labels: its model card)
 SAMPLE_PARTS = SAMPLE_DIR / "imm_diffusion_parts.safetensors"
-# a 2-step student of the bundled diffusion model (`imm-diffusion-student`): the studio's draft of its reaction while a
-# slider moves (ReactionModel.attach_draft; docs/experiments/sampler-student.md)
-SAMPLE_STUDENT = SAMPLE_DIR / "imm_diffusion_student.safetensors"
 SAMPLE_RETRIEVAL = SAMPLE_DIR / "imm_retrieval.safetensors"  # 1-NN retrieval from the bundled data, s04 held out
 SAMPLE_JUDGE = SAMPLE_DIR / "follower_judge.safetensors"  # the studio's "reads as" classifier (imm_model/reads_as.py)
 # the body-part judges: the follower's upper and lower body read alone, the studio's reading per part of a mix

@@ -100,7 +100,7 @@ def test_the_student_ships_the_sampler_it_was_trained_through(student, sample_da
     trainer, path, _, _ = student
     model = load_model(path)
     assert model.config.composed_label and model.guidance.sample_steps == 2
-    assert model.info["teacher"]["path"] == trainer.cfg.teacher.format(fold="s04")
+    assert (path.parent / model.info["teacher"]["path"]).samefile(trainer.cfg.teacher.format(fold="s04"))
     pool = trainer.pool
     level = schedule_step(model.guidance.leader_noise, model.config.diffusion_steps)
     rows = np.flatnonzero(pool["level"].numpy() == level)[:4]
@@ -196,6 +196,57 @@ def test_the_student_answers_the_api_with_seeds_mixes_and_parts(student, sample_
     assert not np.allclose(one, model.synthesize(leader, {"kicking": 1, "punching": -1}, seed=0))
     parts = model.synthesize(leader, {"upper:kicking": 1, "lower:punching": 1}, seed=0)
     assert parts.shape == one.shape and np.isfinite(parts).all()
+
+
+def test_a_student_s_teacher_makes_its_long_takes_and_live_reactions_when_it_is_there_as_it_was(student, sample_data,
+                                                                                               teacher_runs, tmp_path):
+    """The student's sidecar names its teacher's file from its own folder: loaded, the student samples a clip itself
+    and a long take and a live reaction through the teacher (exactly the teacher's), its spread followed there; a
+    moving slider drafts a long take with the student's own windows, and a clip with nothing (the student draws it).
+    Without that teacher file, or with other weights in it, the student makes them itself."""
+    import json
+    import os
+    import shutil
+
+    from imm_model.checkpoint import sidecar_path
+
+    path = student[1]
+    named = json.loads(sidecar_path(path).read_text())["teacher"]["path"]
+    teacher_file = teacher_runs.format(fold="s04")
+    assert not os.path.isabs(named) and os.path.samefile(path.parent / named, teacher_file)
+    model, teacher = load_model(path), load_model(teacher_file)
+    assert model.takes is not None and model.takes.path.samefile(teacher_file)
+    leader = sample_data.world(0)[0]
+    take = np.concatenate([leader, leader[::-1], leader, leader[::-1]])
+    assert len(take) > model.window >= len(leader)
+    label = {"kicking": 1, "punching": -0.5}
+    assert np.array_equal(model.synthesize(take, label, seed=3), teacher.synthesize(take, label, seed=3))
+    assert not np.allclose(model.synthesize(leader, label, seed=3), teacher.synthesize(leader, label, seed=3))
+    assert not np.allclose(model.draft.synthesize(take, label, seed=3), teacher.synthesize(take, label, seed=3))
+    assert model.draft_for(len(take)) is model.draft and model.draft_for(len(leader)) is None  # a clip: itself, at once
+    teacher.attach_draft(load_model(path))  # the teacher opened alone, the student its draft: drafting a take, fast
+    assert teacher.draft_for(len(take)).takes is None
+    model.spread = teacher.spread = 0.6
+    assert model.takes.spread == model.draft.spread == 0.6
+    assert np.array_equal(model.synthesize(take, label, seed=3), teacher.synthesize(take, label, seed=3))
+    live, own = model.online(label, seed=2), teacher.online(label, seed=2)
+    pushed = [(live.push(f), own.push(f)) for f in leader]
+    assert all((a is None and b is None) or np.array_equal(a, b) for a, b in pushed)
+
+    alone = tmp_path / "alone"  # the student copied without its teacher
+    alone.mkdir()
+    shutil.copy(path, alone / path.name)
+    shutil.copy(sidecar_path(path), sidecar_path(alone / path.name))
+    assert load_model(alone / path.name).takes is None
+    other = tmp_path / "other"  # beside a teacher file with other weights
+    (other / "student").mkdir(parents=True)
+    (other / "student" / named).parent.mkdir(parents=True, exist_ok=True)
+    shutil.copy(path, other / "student" / path.name)
+    shutil.copy(sidecar_path(path), sidecar_path(other / "student" / path.name))
+    shutil.copy(student[1], other / "student" / named)  # a student's weights where the teacher should be
+    shutil.copy(sidecar_path(student[1]), sidecar_path(other / "student" / named))
+    lonely = load_model(other / "student" / path.name)
+    assert lonely.takes is None and not np.array_equal(lonely.synthesize(take, label, seed=3), teacher.synthesize(take, label, seed=3))
 
 
 def test_a_teacher_that_saw_the_fold_is_refused_in_one_line(teacher_runs, sample_data, tmp_path):

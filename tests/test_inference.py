@@ -13,7 +13,7 @@ from imm_model.data.splits import loso_fold
 from imm_model.errors import DataFormatError, LabelError
 from imm_model.evaluation.metrics import afd
 from imm_model.inference import Label, ReactionModel
-from imm_model.paths import SAMPLE_DIFFUSION, SAMPLE_GAN, SAMPLE_MODELS
+from imm_model.paths import SAMPLE_DIFFUSION, SAMPLE_GAN, SAMPLE_MODELS, SAMPLE_STUDENT
 
 
 @pytest.fixture(scope="module")
@@ -132,9 +132,11 @@ def test_bundled_model_beats_a_trivial_baseline_on_its_held_out_subject(model, s
 
 def test_the_default_model_is_the_bundled_diffusion_model(model, sample_data, tmp_path):
     """ReactionModel.load(), the one-call helpers, `imm generate` and the studio's switch default to the diffusion
-    model (docs/experiments/default-model.md); the GAN stays bundled and loads by its path."""
+    model's 2-step student, its teacher making its long takes (docs/experiments/default-model.md, default-student.md);
+    the GAN stays bundled and loads by its path."""
     default = ReactionModel.load()
-    assert default.family == "diffusion" and default.settings.seed and default.path == SAMPLE_DIFFUSION
+    assert default.family == "diffusion" and default.settings.seed and default.path == SAMPLE_STUDENT
+    assert default.guidance.sample_steps == 2 and default.takes.path == SAMPLE_DIFFUSION
     assert model.family == "gan" and not model.settings.seed
     assert list(SAMPLE_MODELS) == ["diffusion", "gan", "retrieval"] and SAMPLE_MODELS["gan"] == SAMPLE_GAN
     world = sample_data.world(7)[0]
@@ -144,7 +146,7 @@ def test_the_default_model_is_the_bundled_diffusion_model(model, sample_data, tm
     out = tmp_path / "d.npz"
     assert main(["generate", "--sequence", sample_data.sequence_ids[7], "--label", "hugging", "--out", str(out)]) == 0
     with np.load(out) as z:
-        assert str(z["checkpoint"]) == SAMPLE_DIFFUSION.name and int(z["seed"]) == 0
+        assert str(z["checkpoint"]) == SAMPLE_STUDENT.name and int(z["seed"]) == 0
         np.testing.assert_allclose(z["follower"], ours, atol=1e-4)
     assert main(["generate", "--sequence", sample_data.sequence_ids[7], "--label", "hugging", "--out", str(out), "--force",
                  "--checkpoint", str(SAMPLE_GAN)]) == 0

@@ -54,6 +54,7 @@ class ReactionModelLike(Protocol):
                                    seeds: Sequence[int] | None = None) -> list[np.ndarray]: ...
     def latent_canonical_batch(self, leaders: list[np.ndarray], label_vectors: np.ndarray) -> np.ndarray: ...
     def online(self, label: Any, scale: float = 1.0, seed: int = 0) -> Any: ...
+    def draft_for(self, frames: int) -> ReactionModelLike | None: ...
 
 
 def load_model(checkpoint: Path, data: InteractionDataset) -> ReactionModelLike:
@@ -340,7 +341,8 @@ class Session:
         """The follower for the current leader, mix, model and seed, and the followers beside it (`variations` False:
         those of the previous mix stay until `side_by_side.draw`). `draft`: drawn by the model's draft if it has one
         (not in live mode, whose frames are final), until `settle`."""
-        model = self.model.draft if draft and self.model.draft is not None and not self.live.on else self.model
+        drafting = self.model.draft_for(len(self.leader)) if draft and not self.live.on else None
+        model = drafting or self.model
         out = np.asarray(model.synthesize_canonical(self.leader, self.vector, seed=self.seed), np.float32)
         if out.shape != self.leader.shape:
             raise ValueError(f"model returned shape {out.shape}, expected {self.leader.shape}")

@@ -213,6 +213,10 @@ class ReactionModel:
         spread and reaction-memory level (None when unused)."""
         return {"seed": seed if self.settings.seed else None, "spread": self.spread, "memory": None}
 
+    def draft_for(self, frames: int) -> ReactionModel | None:
+        """What draws a leader of `frames` frames while a slider moves, when not this model itself: its `draft`."""
+        return self.draft
+
     def attach_draft(self, student: ReactionModel) -> None:
         """Draw `student` while a slider moves (`draft`): a model distilled from this very one, its sidecar naming these
         weights' digest as its teacher's, for the same classes and skeleton; another is one CheckpointError line."""

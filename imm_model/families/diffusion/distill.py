@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import copy
 import csv
+import os
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -421,8 +422,9 @@ class StudentTrainer:
             "train_config": self.cfg.to_dict(),
             **data_meta(self.data, self.subject, self.train_idx),
             "follower_bone_lengths": self.teacher.info["follower_bone_lengths"],
-            # which model it drafts for: ReactionModel.attach_draft matches this digest against the model's own
-            "teacher": {"path": str(self.teacher_path), DIGEST: self.teacher.info.get(DIGEST)},
+            # which model it drafts for (ReactionModel.attach_draft matches this digest against the model's own) and
+            # where that model is, from the student's folder: it makes the student's long takes (model.py teacher_for_takes)
+            "teacher": {"path": os.path.relpath(self.teacher_path.resolve(), self.out.resolve()), DIGEST: self.teacher.info.get(DIGEST)},
             "training": {"fold": f"loso-{self.subject}" if self.subject else "all", "step": self.step,
                          "train_sequences": len(self.train_idx), "seed": self.cfg.seed, "pool_rows": self.cfg.pool_rows},
         }

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import contextlib
+import copy
 import functools
+import json
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -39,6 +41,9 @@ class DiffusionReactionModel(ReactionModel):
         self.window = int(meta.get("max_train_length", 46))  # frames the sampler reads at once: longer takes go in windows
         self.max_length = MAX_TAKE_FRAMES
         self.memory = None  # the reaction memory (reaction_memory.py) its sampler may start from
+        # the model its long takes and live reactions come from: a student's teacher (`teacher_for_takes`), which
+        # continues a window better than the student learnt to; None: this model itself
+        self.takes: DiffusionReactionModel | None = None
         # the sampling loop, sampler.py `sample` (an experiment may put another with its signature here: it gets the
         # network call, the normalized leaders and masks, labels, starting noise, guidance, steps, seeds, and the
         # network's pair_terms and part_labels)
@@ -89,6 +94,9 @@ class DiffusionReactionModel(ReactionModel):
         if isinstance(level, bool) or not isinstance(level, int | float | np.floating) or not 0 <= level <= 1:
             raise LabelError(f"spread must be a number in 0..1, not {level!r}")
         self.guidance = replace(self.guidance, leader_noise=float(level))
+        for other in (self.takes, self.draft):  # its long takes and its draft follow the same leader as loosely
+            if isinstance(other, DiffusionReactionModel) and other.config.leader_noise:
+                other.spread = level
 
     @functools.cached_property
     def net(self):
@@ -111,6 +119,10 @@ class DiffusionReactionModel(ReactionModel):
         model = cls({k: np.ascontiguousarray(v, np.float32) for k, v in weights.items()}, cfg, guidance, meta, path, device)
         if model.fast is None:
             model.net  # noqa: B018 - built (and moved to the GPU) now, not at the first synthesis
+        model.takes = teacher_for_takes(meta, path, device)
+        if model.takes is not None:  # what a moving slider draws of a long take: the student's own windows, the faster
+            model.draft = copy.copy(model)
+            model.draft.takes = None
         return model
 
     def _denoiser(self, leaders: np.ndarray, mask: np.ndarray, leader_level: int = 0):
@@ -149,8 +161,8 @@ class DiffusionReactionModel(ReactionModel):
         mean, std = self.weights["leader_mean"], self.weights["leader_std"]
         return (x - mean) / std * mask[..., None], mask
 
-    def _network(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int]) -> list[np.ndarray]:
-        labels = self._label_input(labels)
+    def _network(self, leaders: list[np.ndarray], raw: np.ndarray, seeds: list[int]) -> list[np.ndarray]:
+        labels = self._label_input(raw)
         out: list[np.ndarray] = [np.empty(0)] * len(leaders)
         clips = [i for i, a in enumerate(leaders) if len(a) <= self.window]
         for start in range(0, len(clips), self.BATCH):
@@ -158,8 +170,9 @@ class DiffusionReactionModel(ReactionModel):
             for i, follower in zip(rows, self._sample([leaders[i] for i in rows], labels[rows], [seeds[i] for i in rows]),
                                    strict=True):
                 out[i] = follower
+        takes = self.takes or self
         for i in (i for i, a in enumerate(leaders) if len(a) > self.window):  # a long take: in windows (windows.py)
-            out[i] = take_windows(self, np.asarray(leaders[i], np.float32), labels[i], seeds[i])
+            out[i] = take_windows(takes, np.asarray(leaders[i], np.float32), takes._label_input(raw[i:i + 1])[0], seeds[i])
         return out
 
     def _sample(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int],
@@ -218,8 +231,18 @@ class DiffusionReactionModel(ReactionModel):
         x, mask = self._padded(starts)
         return (x - self.weights["follower_mean"]) / self.weights["follower_std"] * mask[..., None]
 
+    def attach_draft(self, student: ReactionModel) -> None:
+        super().attach_draft(student)
+        if isinstance(student, DiffusionReactionModel):
+            student.takes = None  # a draft is for speed: it draws a long take with its own windows, not through this model
+
+    def draft_for(self, frames: int) -> ReactionModel | None:
+        """A student whose teacher makes its long takes drafts those with its own windows, and a clip with nothing: it
+        draws a clip itself, at once."""
+        return None if self.takes is not None and frames <= self.window else self.draft
+
     def online(self, label, scale: float = 1.0, seed: int = 0) -> OnlineReactor:
-        return OnlineReactor(self, label, scale, seed)
+        return OnlineReactor(self.takes or self, label, scale, seed)
 
     @contextlib.contextmanager
     def probing(self):
@@ -240,6 +263,8 @@ class DiffusionReactionModel(ReactionModel):
         except ValueError as err:
             raise LabelError(f"memory level: {err}") from None
         self.attach_memory(data)
+        if self.takes is not None:
+            self.takes.use_memory(level, data)
 
     def provenance(self, seed: int) -> dict[str, Any]:
         return super().provenance(seed) | {"memory": self.guidance.memory_level if self.guidance.uses_memory else None}
@@ -284,3 +309,27 @@ def _clean_at_the_last_step(noisy, clean):
     """`sample`'s network call from the noised leader's network call, except at the last step (step 0), whose prediction
     is the output: there the clean leader's, or the leader's noise would show in the reaction as jitter."""
     return lambda x_t, step, *terms: (clean if step == 0 else noisy)(x_t, step, *terms)
+
+
+def teacher_for_takes(meta: dict[str, Any], path: Path, device: str = "cpu") -> DiffusionReactionModel | None:
+    """A distilled student's teacher (distill.py), loaded to make the student's long takes and live reactions: the
+    diffusion checkpoint its sidecar names (relative to the student's folder), when that file holds the very weights it
+    was distilled from and is no student itself. None for a model that is no student, or whose teacher is not there as
+    it was (then the student makes them itself); its weights are loaded only once its sidecar matches."""
+    from imm_model.checkpoint import DIGEST, load_checkpoint, sidecar_path
+    from imm_model.inputs import MAX_SETTINGS_BYTES, read_input_text
+
+    named = meta.get("teacher")
+    if not (isinstance(named, dict) and isinstance(named.get("path"), str) and isinstance(named.get(DIGEST), str)):
+        return None
+    where = Path(path).parent / named["path"]
+    try:
+        if not where.is_file():
+            return None
+        side = json.loads(read_input_text(sidecar_path(where), "teacher sidecar", MAX_SETTINGS_BYTES))
+        if not isinstance(side, dict) or side.get(DIGEST) != named[DIGEST] or side.get("family") != "diffusion" or "teacher" in side:
+            return None
+        arrays, teacher_meta = load_checkpoint(where, framework="np")
+    except (OSError, ValueError, CheckpointError):
+        return None
+    return DiffusionReactionModel.from_checkpoint(arrays, teacher_meta, where, device)

@@ -144,13 +144,13 @@ IMM_DIFFUSION_MIXED = replace(IMM_DIFFUSION, name="imm-diffusion-mixed", model=I
 IMM_DIFFUSION_PARTS = replace(IMM_DIFFUSION, name="imm-diffusion-parts", model=IMM_DIFFUSION.model | {"part_labels": True},
                               mix_prob=0.3, part_drop=0.3)
 
-# A 2-step student of `imm-diffusion` (distill.py): the network reads the signed label and is asked once per step, 2
-# steps, trained for 2000 steps of batch 32 from 8192 of the teacher's reactions to the fold's training leaders and,
-# for half of them, a window of a long take continuing the teacher's reaction (as long takes and the live reactor
-# sample), the fold's follower classifier's cross-entropy for the performed classes weighed 0.2 beside the regression
+# A 2-step student of `imm-diffusion` (distill.py), the default model: the network reads the signed label and is asked
+# once per step, 2 steps, trained for 2000 steps of batch 32 from 8192 of the teacher's reactions to the fold's training
+# leaders, the fold's follower classifier's cross-entropy for the performed classes weighed 0.2 beside the regression
 # (a regressed student averages the label away); the teacher's run folder is runs/imm-diffusion (`imm train --config
-# imm-diffusion`), its sampler settings kept (docs/experiments/sampler-student.md, sampler-student-critics.md,
-# sampler-student-windows.md).
+# imm-diffusion`), its sampler settings kept. The teacher makes the student's long takes and live reactions
+# (model.py teacher_for_takes), which a student taught on windows too still made further from the leader
+# (docs/experiments/sampler-student.md, sampler-student-critics.md, sampler-student-windows.md, default-student.md).
 IMM_DIFFUSION_STUDENT = DiffusionTrainConfig(
     name="imm-diffusion-student",
     model=dict(composed_label=True),
@@ -161,7 +161,6 @@ IMM_DIFFUSION_STUDENT = DiffusionTrainConfig(
     warmup_steps=100,
     ema_decay=0.995,
     lambda_label=0.2,
-    window_share=0.5,
 )
 
 NAMED: dict[str, DiffusionTrainConfig] = {"imm-diffusion": IMM_DIFFUSION, "imm-diffusion-mixed": IMM_DIFFUSION_MIXED,
