@@ -88,8 +88,8 @@ def pytest_runtest_makereport(item, call):
 
 
 def pytest_terminal_summary(terminalreporter):
-    """Each studio process a launcher found stuck and replaced, with its threads' stacks, whether or not a test failed:
-    a tab that recovered still names a fault worth knowing."""
+    """Each studio process a launcher found stuck and replaced (with its threads' stacks), and each page that loaded
+    itself again, whether or not a test failed: a tab that recovered still names a fault worth knowing."""
     from tests.studio_probe import NOTICE, StudioProcess
 
     for studio in StudioProcess.noticed:

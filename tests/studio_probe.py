@@ -31,12 +31,14 @@ VIEW_IMG = ".v-main .rounded.border img"
 LATENT_POINTS = "#latent-plotly .scatterlayer .point"  # the latent map's points, once Plotly has drawn them
 
 
-NOTICE = "a tab's studio process was replaced"  # the launcher's line for one found stuck (explorer/serving/pool.py)
+# the launcher's lines for a tab's studio process found stuck (explorer/serving/pool.py) and for a page that loaded
+# itself again because its layout had not come (explorer/serving/launcher.py layout_late)
+NOTICE = ("a tab's studio process was replaced", "a tab's page was loaded again")
 
 
 class StudioProcess:
     """`imm explore --port 0 --no-browser` in a subprocess; `url` once it printed its address. `noticed`: every
-    studio of this test run whose launcher replaced a stuck studio process, for the run's summary (tests/conftest.py)."""
+    studio of this test run whose launcher said a NOTICE line, for the run's summary (tests/conftest.py)."""
 
     noticed: list[StudioProcess] = []
 

@@ -424,7 +424,7 @@ def test_a_stuck_studio_process_is_replaced_and_its_tab_goes_to_a_fresh_one(brow
 def test_a_page_whose_layout_never_comes_is_loaded_again_and_keeps_its_studio(browser, studio):
     """trame's client draws the page once each of its stylesheets has loaded: one that never arrives (held here, the
     first time it is asked for) would leave the tab on "Loading..." for ever. The page loads itself again after 20 s,
-    keeping its studio (the same address), and shows its view."""
+    keeping its studio (the same address), and shows its view; the studio's log names the file it waited for."""
     asked = []
 
     def hold_the_first(route):
@@ -442,3 +442,6 @@ def test_a_page_whose_layout_never_comes_is_loaded_again_and_keeps_its_studio(br
         assert len(asked) == 2 and pg.url.split("/s/")[1].split("/")[0] == token
     finally:
         pg.close()
+    said = [ln for ln in studio.read_log() if ln.startswith("a tab's page was loaded again")]
+    assert len(said) == 1 and "vuetify3.css" in said[0], said  # the launcher names what held the page
+    probe.StudioProcess.noticed.remove(studio)  # expected here: not a fault for the run's summary

@@ -48,6 +48,8 @@ ANSWER_S = float(os.environ.get("IMM_STUDIO_ANSWER_TIMEOUT", "30"))
 # within 5 s in all.
 CLOSE_S = 1.0
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
+LAYOUT_LATE_S = 20  # a page loads itself again when its layout has not come this long after its studio answered
+LATE_NOTE_CHARS = 600  # of the files such a page names as still loading, in the log
 IMMUTABLE = "public, max-age=31536000, immutable"  # /static/: every name there changes with its content
 
 
@@ -176,6 +178,22 @@ class Launcher:
             if not w.sockets:
                 asyncio.get_running_loop().call_later(RECONNECT_GRACE_S, self.pool.retire_if_gone, w)
 
+    async def layout_late(self, request):
+        """POST /s/<token>/layout-late from a tab's page about to load itself again because its layout had not come
+        (explorer/static/websocket_bytes.js): said in one line with the files it was still waiting for (at most
+        LATE_NOTE_CHARS of what the page sent, printable), so that a tab that recovered still names what held it."""
+        from aiohttp import web
+
+        w = self.pool.sessions.get(request.match_info["token"])
+        if (not self.access.authorized(request) or not self.access.from_the_page(request) or w is None
+                or not hmac.compare_digest(request.cookies.get(BROWSER_COOKIE, "").encode(), w.browser.encode())):
+            return web.Response(status=403, text="refused: the studio only answers its own page")
+        waiting = (await request.content.read(LATE_NOTE_CHARS)).decode(errors="replace")
+        waiting = "".join(c if c.isprintable() else "?" for c in waiting) or "nothing named"
+        print(f"a tab's page was loaded again: its layout had not come {LAYOUT_LATE_S:g} s after its studio answered "
+              f"(still loading: {waiting})", flush=True)
+        return web.Response(status=204)
+
     async def no_session_manager(self, request):
         """trame's page first asks `paraview/` for a session (a ParaView-style launcher's endpoint) and connects to its
         own `ws` when that gives none: 204 says "none" without the 405 a browser would log on every load."""
@@ -239,6 +257,7 @@ class Launcher:
         app.router.add_post("/claim", self.claim)
         app.router.add_get("/s/{token}/{tail:.*}", self.studio)
         app.router.add_post("/s/{token}/paraview/", self.no_session_manager)
+        app.router.add_post("/s/{token}/layout-late", self.layout_late)
         app.router.add_get("/static/{name}", self.static)
         app.router.add_get("/static/{key}/{tail:.+}", self.page_file)
         runner = web.AppRunner(app, access_log=None, shutdown_timeout=CLOSE_S)

@@ -38,8 +38,14 @@
   const forgetTries = () => { try { sessionStorage.removeItem(TRIES); } catch (e) {} };
   // trame's client draws the page once every stylesheet and script its state names has loaded, and waits for ever on
   // one that never arrives: a page whose studio answers but whose layout has not appeared LAYOUT_S later is loaded
-  // again, once in a row (the studio keeps its session across a reload).
+  // again, once in a row (the studio keeps its session across a reload), and tells the launcher which files it was
+  // still waiting for (explorer/serving/launcher.py LAYOUT_LATE_S, the same time).
   const LAYOUT_S = 20, RELOADED = "imm-studio-reloaded";
+  const stillLoading = () => {
+    const done = new Set(performance.getEntriesByType("resource").map((r) => r.name));
+    return [...document.querySelectorAll("script[src], link[rel=stylesheet]")].map((e) => e.src || e.href)
+      .filter((u) => !done.has(u)).map((u) => new URL(u).pathname).join(" ");
+  };
   function watchLayout() {
     setTimeout(() => {
       let again = false;
@@ -48,7 +54,9 @@
         again = !sessionStorage.getItem(RELOADED);
         sessionStorage.setItem(RELOADED, "1");
       } catch (e) { return; }
-      if (again) location.reload();
+      if (!again) return;
+      try { navigator.sendBeacon("layout-late", stillLoading()); } catch (e) {}
+      location.reload();
     }, LAYOUT_S * 1000);
   }
   function freshStudio() {
