@@ -301,8 +301,9 @@ def test_a_second_tab_takes_plotly_and_trames_files_from_the_browsers_cache(stud
         (first_url, first, first_bytes), (second_url, second, second_bytes) = tabs
         assert first_url != second_url and sorted(x["url"] for x in first) == sorted(x["url"] for x in second)
         assert len(first) >= 8 and all(x["url"].startswith(studio.url + "static/") for x in first), first
-        plotly = [x for x in first if "/plotly-" in x["url"]]
-        assert len(plotly) == 1 and not plotly[0]["cached"] and plotly[0]["bytes"] > 1_000_000, plotly
+        plotly = [x for x in first if "/plotly-" in x["url"]]  # fetched once after the first picture, run from the cache
+        downloaded = [x for x in plotly if x["bytes"] >= 1000]
+        assert len(downloaded) == 1 and not downloaded[0]["cached"] and downloaded[0]["bytes"] > 1_000_000, plotly
         assert all(x["cached"] and x["bytes"] < 1000 for x in second), [x for x in second if not x["cached"]]
         assert first_bytes > 5_000_000 and second_bytes < first_bytes / 50, (first_bytes, second_bytes)
     finally:

@@ -3,10 +3,12 @@
 // trame's state; the layout calls immLatent.draw / immLatent.marks when they change. A click on a point asks the
 // server to open and play it (trigger `latent_pick`); a box or lasso selection sets `latent_selection`.
 //
-// plotly.js is 4.8 MB: it is fetched and evaluated only once the 3D view shows its first picture, so the page
-// opens as fast as it does without it (benchmarks/explorer_startup.py), and once the user has not pressed a key,
-// clicked or dragged for QUIET_MS: evaluating it holds the page's thread for up to a second on a busy machine, and a
-// slider moved meanwhile showed its picture that much later (benchmarks/explorer_latency.py, the first changes).
+// plotly.js is 4.8 MB: it is fetched (into the browser's cache) once the 3D view shows its first picture, so the
+// page opens as fast as it does without it (benchmarks/explorer_startup.py), and evaluated once the user has not
+// pressed a key, clicked or dragged for QUIET_MS, however long that takes: evaluating it holds the page's thread for
+// up to two seconds on a busy machine, and a slider moved meanwhile showed its picture that much later
+// (benchmarks/explorer_latency.py, the first changes; forced 10 s after the first picture, it froze a slider that
+// never rested for 1.3 s).
 // The launcher serves it for every tab at one path above the tab's /s/<id>/ (a reverse proxy's prefix kept: the path
 // is relative), so the browser's cache serves a second tab; explorer/serving/page_shell.py puts plotly.js's version
 // into its name.
@@ -15,8 +17,7 @@
   const VIEW_IMG = '.imm-scene img';
   const PLOT_ID = 'latent-plotly';
   const FIRST_PICTURE_WAIT_MS = 8000;  // load it anyway after this long (a page with no picture still gets its map)
-  const QUIET_MS = 1000;  // ... and after this long without a key, click or drag
-  const LATEST_MS = 10000;  // ... or this long after the first picture, however busy the user is
+  const QUIET_MS = 1000;  // ... and evaluate it after this long without a key, click or drag
   let lastInput = performance.now();
   for (const type of ['keydown', 'pointerdown', 'pointermove', 'wheel', 'input']) {
     document.addEventListener(type, (e) => {
@@ -30,12 +31,15 @@
   function afterFirstPictureWhenQuiet() {
     return new Promise((resolve) => {
       const start = performance.now();
-      let shown = null;  // when the first picture was seen
+      let shown = false;  // the first picture was seen, and plotly.js asked for
       const poll = () => {
         const now = performance.now();
         const img = document.querySelector(VIEW_IMG);
-        if (shown === null && ((img && img.complete && img.naturalWidth > 100) || now - start > FIRST_PICTURE_WAIT_MS)) shown = now;
-        if (shown !== null && (now - lastInput >= QUIET_MS || now - shown > LATEST_MS)) resolve();
+        if (!shown && ((img && img.complete && img.naturalWidth > 100) || now - start > FIRST_PICTURE_WAIT_MS)) {
+          shown = true;
+          fetch(PLOTLY_SRC).then((r) => r.blob()).catch(() => {});  // into the cache: the script below takes it there
+        }
+        if (shown && now - lastInput >= QUIET_MS) resolve();
         else setTimeout(poll, 50);
       };
       poll();
