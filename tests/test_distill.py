@@ -245,6 +245,13 @@ def test_a_student_s_teacher_makes_its_long_takes_and_live_reactions_when_it_is_
     shutil.copy(sidecar_path(path), sidecar_path(other / "student" / path.name))
     shutil.copy(student[1], other / "student" / named)  # a student's weights where the teacher should be
     shutil.copy(sidecar_path(student[1]), sidecar_path(other / "student" / named))
+    special = tmp_path / "special"  # its sidecar naming a device where the teacher should be: not read
+    special.mkdir()
+    shutil.copy(path, special / path.name)
+    meta = json.loads(sidecar_path(path).read_text())
+    meta["teacher"]["path"] = "/dev/zero"
+    sidecar_path(special / path.name).write_text(json.dumps(meta))
+    assert load_model(special / path.name).takes is None
     lonely = load_model(other / "student" / path.name)
     assert lonely.takes is None and not np.array_equal(lonely.synthesize(take, label, seed=3), teacher.synthesize(take, label, seed=3))
 

@@ -741,6 +741,36 @@ def test_sigterm_with_two_tabs_open_leaves_no_studio_process_after_5_s(tmp_path)
     assert count >= 4 and code == 0 and not left, (count, code, left)
 
 
+def test_a_late_layout_note_is_one_capped_printable_line_and_only_from_the_tabs_own_page(small_studio):
+    """POST /s/<token>/layout-late (a page about to reload because its layout never came): the tab's own page is
+    answered 204 and its note logged in one line, at most 600 characters of it, control characters made printable;
+    a bare POST, another browser (no cookie) or an unknown token is refused 403 and logs nothing."""
+    import aiohttp
+
+    from tests.studio_probe import StudioProcess
+
+    async def go():
+        tab, _ = await _open_tab(small_studio)
+        note = tab.url + tab.path + "layout-late"
+        try:
+            async with tab.http.post(note, data=b"\x1b[31m/evil.css\n" + b"x" * 5000, headers={"Origin": tab.origin}) as r:
+                own = r.status
+            async with aiohttp.ClientSession() as stranger:  # no cookie of the claiming browser
+                async with stranger.post(note, data=b"/y.css", headers={"Origin": tab.origin}) as r:
+                    other = r.status
+            async with tab.http.post(tab.url + "s/unknown-token/layout-late", data=b"/z.css", headers={"Origin": tab.origin}) as r:
+                unknown = r.status
+        finally:
+            await tab.close()
+        return own, other, unknown
+
+    assert asyncio.run(go()) == (204, 403, 403)
+    said = [ln for ln in small_studio.read_log() if ln.startswith("a tab's page was loaded again")]
+    assert len(said) == 1 and "\x1b" not in said[0] and "?[31m/evil.css?xxx" in said[0], said
+    assert said[0].count("x") < 700 and "/y.css" not in said[0] and "/z.css" not in said[0]
+    StudioProcess.noticed.remove(small_studio)  # expected here: not a fault for the run's summary
+
+
 def test_a_closing_tab_leaves_no_traceback_in_the_log(small_studio):
     """Tabs closed while pictures were streaming to them (the tests above): the proxy logs no unretrieved
     connection-reset error or any other traceback."""
