@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from imm_model.errors import CheckpointError, IMMError
-from imm_model.inputs import check_input
+from imm_model.inputs import MAX_SETTINGS_BYTES, check_input, read_input_text
 
 if TYPE_CHECKING:
     import torch
@@ -86,6 +86,16 @@ def _check_pair(path: Path, side: Path, meta: dict, embedded: dict | None, tenso
         if json.dumps(embedded["training"], sort_keys=True) != json.dumps(meta["training"], sort_keys=True):
             raise CheckpointError(f"{path}: the weights and {side.name} come from different saves (their training "
                                   f"records differ: an interrupted save?)")
+
+
+def peek_sidecar(path: Path | str) -> dict:
+    """A checkpoint's JSON sidecar, read within MAX_SETTINGS_BYTES and before its weights are (to choose whether to
+    load them); {} when it is absent, unreadable or not a JSON object."""
+    try:
+        meta = json.loads(read_input_text(sidecar_path(path), "checkpoint sidecar", MAX_SETTINGS_BYTES))
+    except (OSError, ValueError, RecursionError, IMMError):
+        return {}
+    return meta if isinstance(meta, dict) else {}
 
 
 def _parse_meta(text: str, where: Path) -> dict:

@@ -126,10 +126,7 @@ def open_studio(browser, url: str, width: int = 1400, height: int = 900, timeout
 VIEW_REPORT_JS = f"""() => {{ const i = document.querySelector('{VIEW_IMG}'), t = window.trame;
     return {{img: !!i, complete: i && i.complete, naturalWidth: i && i.naturalWidth, box: i && i.getBoundingClientRect().width,
              trame: !!t, app: !!document.querySelector('.v-application'), link: window.__immLink || null,
-             loaded: document.readyState, pending: (() => {{
-                 const done = new Set(performance.getEntriesByType('resource').map((r) => r.name));
-                 return [...document.querySelectorAll('script[src], link[rel=stylesheet]')].map((e) => e.src || e.href)
-                     .filter((u) => !done.has(u)); }})(),
+             loaded: document.readyState, pending: window.__immLink ? window.__immLink.waiting() : null,
              alert: (document.querySelector('.v-alert') || {{}}).innerText || '', address: location.pathname}}; }}"""
 
 

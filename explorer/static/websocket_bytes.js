@@ -28,9 +28,9 @@
     });
     return ws;
   }
-  // What the page's websocket has done (window.__immLink: when it opened, messages received, its close code): read by
-  // a test whose page never showed its studio.
-  const link = window.__immLink = { opened: null, messages: 0, closed: null };
+  // What the page's websocket has done (window.__immLink: when it opened, messages received, its close code) and the
+  // stylesheets and scripts the page still waits for (`waiting()`): read by a test whose page never showed its studio.
+  const link = window.__immLink = { opened: null, messages: 0, closed: null, waiting: () => stillLoading() };
   // A studio process that did not answer its page is replaced by the launcher, which closes the websocket with
   // NO_ANSWER (explorer/serving/proxy.py SILENT_CLOSE): the tab goes to the front page for a fresh studio, with the view
   // its address names, twice in a row at most (counted in the tab's sessionStorage until a studio answers).

@@ -43,12 +43,12 @@ def load_model(path: Path | str | None = None, device: str = "cpu", data: Path |
 def attach_draft(model: ReactionModel, candidates) -> None:
     """Give `model` as its draft (ReactionModel.attach_draft) the first of `candidates` (checkpoint paths) distilled from
     it; one missing, unreadable or distilled from another model is passed over, its weights never loaded."""
-    from imm_model.checkpoint import DIGEST, sidecar_path
+    from imm_model.checkpoint import DIGEST, peek_sidecar
 
     for path in map(Path, candidates):
         try:
-            meta = json.loads(read_input_text(sidecar_path(path), "draft sidecar", MAX_SETTINGS_BYTES))
-            if not isinstance(meta, dict) or (meta.get("teacher") or {}).get(DIGEST) != model.info.get(DIGEST):
+            teacher = peek_sidecar(path).get("teacher")
+            if not isinstance(teacher, dict) or teacher.get(DIGEST) != model.info.get(DIGEST):
                 continue
             model.attach_draft(load_model(path))
             return

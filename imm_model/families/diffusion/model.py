@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import copy
 import functools
-import json
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -316,8 +315,7 @@ def teacher_for_takes(meta: dict[str, Any], path: Path, device: str = "cpu") -> 
     diffusion checkpoint its sidecar names (relative to the student's folder), when that file holds the very weights it
     was distilled from and is no student itself. None for a model that is no student, or whose teacher is not there as
     it was (then the student makes them itself); its weights are loaded only once its sidecar matches."""
-    from imm_model.checkpoint import DIGEST, load_checkpoint, sidecar_path
-    from imm_model.inputs import MAX_SETTINGS_BYTES, read_input_text
+    from imm_model.checkpoint import DIGEST, load_checkpoint, peek_sidecar
 
     named = meta.get("teacher")
     if not (isinstance(named, dict) and isinstance(named.get("path"), str) and isinstance(named.get(DIGEST), str)):
@@ -326,8 +324,8 @@ def teacher_for_takes(meta: dict[str, Any], path: Path, device: str = "cpu") -> 
     try:
         if not where.is_file():
             return None
-        side = json.loads(read_input_text(sidecar_path(where), "teacher sidecar", MAX_SETTINGS_BYTES))
-        if not isinstance(side, dict) or side.get(DIGEST) != named[DIGEST] or side.get("family") != "diffusion" or "teacher" in side:
+        side = peek_sidecar(where)
+        if side.get(DIGEST) != named[DIGEST] or side.get("family") != "diffusion" or "teacher" in side:
             return None
         arrays, teacher_meta = load_checkpoint(where, framework="np")
     except (OSError, ValueError, CheckpointError):
