@@ -19,7 +19,7 @@ from imm_model.families.diffusion.denoiser import ReactionDenoiser, torch_denois
 from imm_model.families.diffusion.denoiser_numpy import NumpyDenoiser
 from imm_model.families.diffusion.model import DiffusionReactionModel
 from imm_model.families.diffusion.recipes import IMM_DIFFUSION, DiffusionTrainConfig
-from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, cosine_alpha_bar, initial_noise, sample
+from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, cosine_alpha_bar, initial_noise, sample, smoothed
 from imm_model.families.diffusion.trainer import DiffusionTrainer
 from imm_model.inference import ReactionModel
 from imm_model.paths import SAMPLE_GAN
@@ -111,6 +111,28 @@ def test_seeds_give_variations_and_repeat_exactly(tiny_model, leader):
     assert np.allclose(draws[0], a, atol=1e-5)  # samples=N starts at `seed`
     spread = [np.abs(draws[0] - d).mean() for d in draws[1:]]
     assert min(spread) > 1e-3  # other seeds are other reactions
+
+
+def test_smoothing_blends_each_follower_towards_savitzky_golay(tiny_model, leader):
+    """Guidance.smoothing: `smoothed` is scipy's Savitzky-Golay filter (5 frames, order 2, ends fitted) at share 1 and
+    the motion itself at 0; a model's raw follower at 0.3 is its follower at 0 blended so (the clean-up aside: the
+    canonical-to-world move is rigid, so the blend commutes with it), with smaller frame-to-frame accelerations."""
+    from scipy.signal import savgol_filter
+
+    motion = np.random.default_rng(0).standard_normal((23, 15, 3)).astype(np.float32)
+    assert np.allclose(smoothed(motion, 1.0), savgol_filter(motion.astype(np.float64), 5, 2, axis=0), atol=1e-5)
+    assert smoothed(motion, 0.0) is motion and smoothed(motion[:4], 1.0) is not None
+    assert np.array_equal(smoothed(motion[:4], 1.0), motion[:4])  # shorter than the window: as it is
+    model = ReactionModel.load(tiny_model)
+    model.raw = True
+    plain = model.synthesize(leader, {"kicking": 1}, seed=0)
+    model.guidance = replace(model.guidance, smoothing=0.3)
+    blended = model.synthesize(leader, {"kicking": 1}, seed=0)
+    assert np.allclose(blended, smoothed(plain, 0.3), atol=1e-4)
+    accel = [np.abs(np.diff(m, 2, axis=0)).mean() for m in (plain, blended)]
+    assert accel[1] < 0.9 * accel[0]
+    with pytest.raises(ValueError, match="smoothing"):
+        replace(model.guidance, smoothing=1.5)
 
 
 @pytest.mark.parametrize("eta", [0.0, 0.5])

@@ -34,7 +34,7 @@ def headline(result: dict) -> dict:
     out = {
         "afd": float(np.mean([c["afd"] for c in m["classes"].values()])),
         "afd_nn1": float(np.mean([c["afd"] for c in nn1["classes"].values()])) if nn1 else None,
-        "fid": m["fid"], "fid_nn1": nn1.get("fid"),
+        "fid": m["fid"], "fid_nn1": nn1.get("fid"), "kid": m["kid"], "kid_nn1": nn1.get("kid"),
         "judge_real_accuracy": result["classifier"]["real_accuracy"]["follower_judge"],
         "off_label": result["adherence_off_diagonal_judge"], "true_label": float(np.nanmean(np.diag(matrix))),
         "mix_both_read": float(np.mean([r["both_read"] for r in mixes])),
@@ -51,7 +51,8 @@ def headline(result: dict) -> dict:
         # root-relative limb speed, and the same with the generated motion smoothed like the real: jitter lowers the
         # second below the first
         "limb_speed_ratio": p["limb_speed_ratio"], "smooth_limb_speed_ratio": p["smooth_limb_speed_ratio"],
-        "bone_error_cm": p["bone_error_cm"], "foot_skate_mps": p["foot_skate_mps"], "interpenetration": p["interpenetration"],
+        "bone_error_cm": p["bone_error_cm"], "foot_skate_mps": p["foot_skate_mps"], "jitter_ratio": p["jitter_ratio"],
+        "interpenetration": p["interpenetration"],
         "real_interpenetration": p["real_interpenetration"],
         "start_root_m": m["afd_parts"]["start_root_m"], "limb_m": m["afd_parts"]["limb_m"],
     }
@@ -98,6 +99,10 @@ def main(argv: list[str] | None = None, adapt=None, extra: dict | None = None) -
                     help="noise levels t/(T-1) on the leader to score (models trained with noised leaders)")
     ap.add_argument("--memory-level", type=float, nargs="*", default=[],
                     help="noise levels t/(T-1) to start the sampler at from the reaction memory (the fold's training pairs)")
+    ap.add_argument("--join-each-step", action="store_true",
+                    help="a label per body part joined at every sampler step rather than the parts' reactions after it")
+    ap.add_argument("--smoothing", type=float, default=None,
+                    help="each follower blended this far towards its smoothing in time (Guidance.smoothing)")
     ap.add_argument("--baselines", default="nn1")
     ap.add_argument("--raw", action="store_true")
     ap.add_argument("--out", type=Path, default=None, help="append one JSON line per run here")
@@ -114,7 +119,9 @@ def main(argv: list[str] | None = None, adapt=None, extra: dict | None = None) -
             changes = {k: v for k, v in (("label_scale", scale), ("leader_scale", args.leader_scale),
                                          ("sample_steps", args.sample_steps), ("eta", args.eta),
                                          ("guided_below", args.guided_below), ("leader_below", args.leader_below),
-                                         ("leader_noise", leader_noise), ("memory_level", memory_level))
+                                         ("leader_noise", leader_noise), ("memory_level", memory_level),
+                                         ("join_outputs", False if args.join_each_step else None),
+                                         ("smoothing", args.smoothing))
                        if v is not None}
             try:
                 model.guidance = replace(model.guidance, **changes)

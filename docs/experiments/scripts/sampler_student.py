@@ -9,7 +9,8 @@ difference from the teacher at 7 steps paired by fold and a 95 % Student t inter
 
 With data/sampler-student-label.jsonl (the same per fold for the student trained with the label critic) its column
 joins the table; `--column NAME=PATH` adds another student's rows (e.g. the window-taught student's,
-data/sampler-student-windows.jsonl).
+data/sampler-student-windows.jsonl). KID and jitter are read where the rows have them: the teacher's from
+data/teacher-fold-figures.jsonl (diffusion_fold.py on each fold's teacher at its shipped 7 steps).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from sampler_steps import FIGURES, GROUPS, interval
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 JOINED = ("part_read",)  # the teacher's figures read from its joined-part rows (part-folds.jsonl)
+LATER = ("kid", "jitter_ratio")  # figures diffusion_fold.py records since the first student rows; the teacher's below
 
 
 def rows(path: Path) -> list[dict]:
@@ -36,12 +38,15 @@ def main() -> None:
     ap.add_argument("--parts", type=Path, default=DATA / "part-folds.jsonl")
     ap.add_argument("--labelled", type=Path, default=DATA / "sampler-student-label.jsonl",
                     help="rows of the student trained with the label critic (imm-diffusion-student now), a column when present")
+    ap.add_argument("--teacher-figures", type=Path, default=DATA / "teacher-fold-figures.jsonl",
+                    help="the teacher's rows at 7 steps with the later figures (KID, jitter)")
     ap.add_argument("--column", action="append", default=[], metavar="NAME=PATH",
                     help="another student's rows (diffusion_fold.py per fold) as a column named NAME")
     args = ap.parse_args()
     teacher = {(r["fold"], r["guidance"]["sample_steps"]): r for r in rows(args.steps)}
     joined = {r["fold"]: r for r in rows(args.parts) if r.get("join_outputs") and r["seed"] == 0 and "parts" not in r["checkpoint"]}
-    columns = {"teacher, 7 steps": {f: teacher[(f, 7)] | {k: joined[f][k] for k in JOINED if f in joined}
+    later = {r["fold"]: {k: r[k] for k in LATER if k in r} for r in rows(args.teacher_figures)}
+    columns = {"teacher, 7 steps": {f: teacher[(f, 7)] | {k: joined[f][k] for k in JOINED if f in joined} | later.get(f, {})
                                     for f, s in teacher if s == 7},
                "teacher, 2 steps": {f: r for (f, s), r in teacher.items() if s == 2},
                "student, 2 steps": {r["fold"]: r for r in rows(args.student)}}
@@ -58,12 +63,15 @@ def main() -> None:
             continue
         print("| figure | " + " | ".join(names) + " | " + " | ".join(f"{n} - teacher, 7 [95 % t]" for n in names[1:]) + " |")
         print("|---|" + "---:|" * (2 * len(names) - 1))
-        for key in FIGURES:
+        for key in FIGURES + LATER:
             values = {n: np.array([columns[n][f].get(key, np.nan) for f in have], float) for n in names}
-            cells = [f"{values[n].mean():.3f}" for n in names]
+            cells = [f"{values[n].mean():.3f}" if np.isfinite(values[n]).all() else "-" for n in names]
             diffs = []
             for n in names[1:]:
                 d = values[n] - values[names[0]]
+                if not np.isfinite(d).all():
+                    diffs.append("-")
+                    continue
                 lo, hi = interval(d)
                 apart = "" if np.isnan(lo) or lo <= 0 <= hi else " *"
                 diffs.append(f"{d.mean():+.3f} [{lo:+.3f}, {hi:+.3f}]{apart}")

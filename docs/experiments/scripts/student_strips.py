@@ -30,7 +30,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--fold", default="s04")
     ap.add_argument("--sequence-index", type=int, default=0, help="which of the fold's held-out sequences")
-    ap.add_argument("--labels", nargs="+", default=["pushing", "kicking", "hugging"])
+    ap.add_argument("--labels", nargs="+", default=["pushing", "kicking", "hugging"],
+                    help="each a class, or keys at 1 joined by commas (a mix, or a label per body part: upper:A,lower:B)")
     ap.add_argument("--model", action="append", required=True, help="NAME=CHECKPOINT")
     ap.add_argument("--frames", type=int, default=6)
     ap.add_argument("--out", type=Path, required=True)
@@ -43,7 +44,8 @@ def main() -> None:
     up, side = sk.vertical_axis, [a for a in range(3) if a != sk.vertical_axis][0]
     frames = np.linspace(0, len(leader) - 1, args.frames).round().astype(int)
     rows = [(f"recorded ({data.class_names[data.actions[i]]})", real)]
-    rows += [(f"{name}: {label}", model.synthesize(leader, {label: 1.0}, seed=0)) for label in args.labels for name, model in models]
+    rows += [(f"{name}: {label}", model.synthesize(leader, dict.fromkeys(label.split(","), 1.0), seed=0))
+             for label in args.labels for name, model in models]
     fig, axes = plt.subplots(len(rows), 1, figsize=(2.0 * args.frames, 1.9 * len(rows)), squeeze=False)
     span = np.ptp(np.concatenate([leader, real])[..., side]) + 1.0
     for ax, (title, follower) in zip(axes[:, 0], rows, strict=True):

@@ -183,7 +183,7 @@ class DiffusionReactionModel(ReactionModel):
         k), gives its first k frames (the sampler inpaints the rest around them); with `continue_level` < 1 and k > 0
         in every row, the sampler starts at that noise level from the given frames, the last one held for the rest
         (what the window continues), not from pure noise."""
-        from imm_model.families.diffusion.sampler import forward_noised, initial_noise, leader_noise, schedule_step
+        from imm_model.families.diffusion.sampler import forward_noised, initial_noise, leader_noise, schedule_step, smoothed
 
         d, steps = self.config.pose_dim, self.config.diffusion_steps
         level = schedule_step(self.guidance.leader_noise, steps)
@@ -217,7 +217,7 @@ class DiffusionReactionModel(ReactionModel):
         x0 = self.sampler(denoise, x, mask, labels, noise, guidance, steps, seeds=seeds,
                           pair_terms=self.config.pair_terms, part_labels=self.config.part_labels, join=join, **given)
         followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
-        return [followers[k, : len(a)].reshape(len(a), -1, 3) for k, a in enumerate(leaders)]
+        return [smoothed(followers[k, : len(a)].reshape(len(a), -1, 3), self.guidance.smoothing) for k, a in enumerate(leaders)]
 
     def _memory_starts(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int]) -> np.ndarray:
         """The reaction memory's starting reactions for these rows -> (B, T_max, D) normalized, zero-padded."""

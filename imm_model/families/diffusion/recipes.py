@@ -146,21 +146,24 @@ IMM_DIFFUSION_PARTS = replace(IMM_DIFFUSION, name="imm-diffusion-parts", model=I
 
 # A 2-step student of `imm-diffusion` (distill.py), the default model: the network reads the signed label and is asked
 # once per step, 2 steps, trained for 2000 steps of batch 32 from 8192 of the teacher's reactions to the fold's training
-# leaders, the fold's follower classifier's cross-entropy for the performed classes weighed 0.2 beside the regression
-# (a regressed student averages the label away); the teacher's run folder is runs/imm-diffusion (`imm train --config
-# imm-diffusion`), its sampler settings kept. The teacher makes the student's long takes and live reactions
-# (model.py teacher_for_takes), which a student taught on windows too still made further from the leader
-# (docs/experiments/sampler-student.md, sampler-student-critics.md, sampler-student-windows.md, default-student.md).
+# leaders, the fold's follower classifier's cross-entropy for the performed classes weighed 0.6 beside the regression
+# (a regressed student averages the label away; 0.6 reads mixes and part mixes better than 0.2, nothing worse), and
+# each follower blended 0.3 of the way towards its smoothing in time (Guidance.smoothing: the student's frames jitter
+# more than the teacher's, and 0.3 brings them to the teacher's on the dev folds); the
+# teacher's run folder is runs/imm-diffusion (`imm train --config imm-diffusion`), its sampler settings kept. The
+# teacher makes the student's long takes and live reactions (model.py teacher_for_takes), which a student taught on
+# windows too still made further from the leader (docs/experiments/sampler-student.md, sampler-student-critics.md,
+# sampler-student-windows.md, default-student.md, student-label-weight.md).
 IMM_DIFFUSION_STUDENT = DiffusionTrainConfig(
     name="imm-diffusion-student",
     model=dict(composed_label=True),
-    guidance=dict(sample_steps=2),
+    guidance=dict(sample_steps=2, smoothing=0.3),
     teacher="runs/imm-diffusion/fold-{fold}/final.safetensors",
     steps=2000,
     lr=1e-4,
     warmup_steps=100,
     ema_decay=0.995,
-    lambda_label=0.2,
+    lambda_label=0.6,
 )
 
 NAMED: dict[str, DiffusionTrainConfig] = {"imm-diffusion": IMM_DIFFUSION, "imm-diffusion-mixed": IMM_DIFFUSION_MIXED,

@@ -138,6 +138,9 @@ class Guidance:
     # rather than the two predictions at every step: the network never reads a joined state, which pulls each part
     # towards the other's reaction
     join_outputs: bool = param(False, Flag())
+    # each follower blended this far towards its Savitzky-Golay smoothing in time (`smoothed`): a 2-step student's
+    # frames jitter more than its many-step teacher's; 0 = the sampler's followers as they are
+    smoothing: float = param(0.0, Interval(float, 0, 1))
 
     def __post_init__(self) -> None:
         validate(self, "guidance")
@@ -152,6 +155,26 @@ class Guidance:
     @classmethod
     def from_dict(cls, d: dict) -> Guidance:
         return cls(**checked_kwargs(cls, d, "guidance"))
+
+
+SMOOTH_FRAMES = 5  # the Savitzky-Golay window of `smoothed`: two frames either side, a quadratic fitted through them
+
+
+def smoothed(motion: np.ndarray, share: float) -> np.ndarray:
+    """motion (T, ...) blended `share` of the way towards its Savitzky-Golay smoothing in time (SMOOTH_FRAMES, order
+    2; the ends from the polynomial fitted to the first and last window, as scipy's savgol_filter(mode="interp")
+    gives it). Written here in numpy: scipy.signal costs the studio ~1 s to import. Shorter motion is left as it is."""
+    w, half = SMOOTH_FRAMES, SMOOTH_FRAMES // 2
+    if share == 0 or len(motion) < w:
+        return motion
+    vander = np.vander(np.arange(-half, half + 1), 3, increasing=True)
+    fit = vander @ np.linalg.pinv(vander)  # (w, w): the fitted value at each window position from the window's frames
+    x = np.asarray(motion, np.float64)
+    out = np.empty_like(x)
+    out[half:len(x) - half] = np.tensordot(np.lib.stride_tricks.sliding_window_view(x, w, axis=0), fit[half], axes=([-1], [0]))
+    out[:half] = np.tensordot(fit[:half], x[:w], axes=([1], [0]))
+    out[len(x) - half:] = np.tensordot(fit[half + 1:], x[-w:], axes=([1], [0]))
+    return ((1 - share) * x + share * out).astype(motion.dtype)
 
 
 def initial_noise(seed: int, frames: int, dim: int) -> np.ndarray:
