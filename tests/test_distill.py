@@ -116,6 +116,11 @@ def test_the_student_ships_the_sampler_it_was_trained_through(student, sample_da
         t = len(follower)
         trained = (x0[k, :t].numpy() * w["follower_std"] + w["follower_mean"]).reshape(t, -1, 3)
         assert np.abs(trained - follower).max() < 1e-3
+    # a clip is then smoothed in time as the recipe asks (the model's `_network`; a window keeps its given frames)
+    assert model.guidance.smoothing == IMM_DIFFUSION_STUDENT.guidance["smoothing"] > 0
+    clip = model.synthesize(leaders[0], {"kicking": 1.0}, seed=seeds[0])
+    model.guidance = replace(model.guidance, smoothing=0.0)
+    assert not np.allclose(clip, model.synthesize(leaders[0], {"kicking": 1.0}, seed=seeds[0]), atol=1e-4)
 
 
 def test_a_window_row_is_a_long_takes_window_and_the_student_samples_it_as_the_windows_do(student):

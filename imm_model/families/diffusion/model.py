@@ -15,7 +15,7 @@ from imm_model.data.labels import whole_body
 from imm_model.errors import CheckpointError, LabelError
 from imm_model.families.base import ReactionModel, SamplerSettings, check_compatible, described_weights
 from imm_model.families.diffusion.denoiser_numpy import NumpyDenoiser
-from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, sample
+from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, sample, smoothed
 from imm_model.families.diffusion.windows import OnlineReactor, take_windows
 
 MAX_TAKE_FRAMES = 36_000  # the longest leader taken (40 minutes at 15 fps; sampled in windows, windows.py)
@@ -168,7 +168,7 @@ class DiffusionReactionModel(ReactionModel):
             rows = clips[start:start + self.BATCH]
             for i, follower in zip(rows, self._sample([leaders[i] for i in rows], labels[rows], [seeds[i] for i in rows]),
                                    strict=True):
-                out[i] = follower
+                out[i] = smoothed(follower, self.guidance.smoothing)  # a clip's; a window keeps the frames it is given
         takes = self.takes or self
         for i in (i for i, a in enumerate(leaders) if len(a) > self.window):  # a long take: in windows (windows.py)
             out[i] = take_windows(takes, np.asarray(leaders[i], np.float32), takes._label_input(raw[i:i + 1])[0], seeds[i])
@@ -183,7 +183,7 @@ class DiffusionReactionModel(ReactionModel):
         k), gives its first k frames (the sampler inpaints the rest around them); with `continue_level` < 1 and k > 0
         in every row, the sampler starts at that noise level from the given frames, the last one held for the rest
         (what the window continues), not from pure noise."""
-        from imm_model.families.diffusion.sampler import forward_noised, initial_noise, leader_noise, schedule_step, smoothed
+        from imm_model.families.diffusion.sampler import forward_noised, initial_noise, leader_noise, schedule_step
 
         d, steps = self.config.pose_dim, self.config.diffusion_steps
         level = schedule_step(self.guidance.leader_noise, steps)
@@ -217,7 +217,7 @@ class DiffusionReactionModel(ReactionModel):
         x0 = self.sampler(denoise, x, mask, labels, noise, guidance, steps, seeds=seeds,
                           pair_terms=self.config.pair_terms, part_labels=self.config.part_labels, join=join, **given)
         followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
-        return [smoothed(followers[k, : len(a)].reshape(len(a), -1, 3), self.guidance.smoothing) for k, a in enumerate(leaders)]
+        return [followers[k, : len(a)].reshape(len(a), -1, 3) for k, a in enumerate(leaders)]
 
     def _memory_starts(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int]) -> np.ndarray:
         """The reaction memory's starting reactions for these rows -> (B, T_max, D) normalized, zero-padded."""

@@ -138,8 +138,9 @@ class Guidance:
     # rather than the two predictions at every step: the network never reads a joined state, which pulls each part
     # towards the other's reaction
     join_outputs: bool = param(False, Flag())
-    # each follower blended this far towards its Savitzky-Golay smoothing in time (`smoothed`): a 2-step student's
-    # frames jitter more than its many-step teacher's; 0 = the sampler's followers as they are
+    # each clip's follower blended this far towards its Savitzky-Golay smoothing in time (`smoothed`; a window of a
+    # long take keeps the frames it is given): a 2-step student's frames jitter more than its many-step teacher's;
+    # 0 = the sampler's followers as they are
     smoothing: float = param(0.0, Interval(float, 0, 1))
 
     def __post_init__(self) -> None:
