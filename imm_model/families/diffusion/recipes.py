@@ -148,12 +148,12 @@ IMM_DIFFUSION_PARTS = replace(IMM_DIFFUSION, name="imm-diffusion-parts", model=I
 # once per step, 2 steps, trained for 2000 steps of batch 32 from 8192 of the teacher's reactions to the fold's training
 # leaders, the fold's follower classifier's cross-entropy for the performed classes weighed 0.6 beside the regression
 # (a regressed student averages the label away; 0.6 reads mixes and part mixes better than 0.2, nothing worse), and
-# each follower blended 0.3 of the way towards its smoothing in time (Guidance.smoothing: the student's frames jitter
-# more than the teacher's, and 0.3 brings them to the teacher's on the dev folds); the
-# teacher's run folder is runs/imm-diffusion (`imm train --config imm-diffusion`), its sampler settings kept. The
-# teacher makes the student's long takes and live reactions (model.py teacher_for_takes), which a student taught on
-# windows too still made further from the leader (docs/experiments/sampler-student.md, sampler-student-critics.md,
-# sampler-student-windows.md, default-student.md, student-label-weight.md).
+# each clip's follower blended 0.3 of the way towards its smoothing in time (Guidance.smoothing: the student's frames
+# jitter more than the teacher's, and 0.3 brings them to the teacher's on the dev folds). The teacher's run folder is
+# runs/imm-diffusion (`imm train --config imm-diffusion`), its sampler settings kept. The teacher makes the student's
+# long takes and live reactions (model.py teacher_for_takes), which a student taught on windows too still made further
+# from the leader (docs/experiments/sampler-student.md, sampler-student-critics.md, sampler-student-windows.md,
+# default-student.md, student-label-weight.md).
 IMM_DIFFUSION_STUDENT = DiffusionTrainConfig(
     name="imm-diffusion-student",
     model=dict(composed_label=True),

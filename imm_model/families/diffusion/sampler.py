@@ -159,17 +159,18 @@ class Guidance:
 
 
 SMOOTH_FRAMES = 5  # the Savitzky-Golay window of `smoothed`: two frames either side, a quadratic fitted through them
+_VANDER = np.vander(np.arange(SMOOTH_FRAMES) - SMOOTH_FRAMES // 2, 3, increasing=True)
+# (w, w): the quadratic's fitted value at each position of a window, from the window's frames (least squares)
+_FIT = _VANDER @ np.linalg.pinv(_VANDER)
 
 
 def smoothed(motion: np.ndarray, share: float) -> np.ndarray:
     """motion (T, ...) blended `share` of the way towards its Savitzky-Golay smoothing in time (SMOOTH_FRAMES, order
     2; the ends from the polynomial fitted to the first and last window, as scipy's savgol_filter(mode="interp")
     gives it). Written here in numpy: scipy.signal costs the studio ~1 s to import. Shorter motion is left as it is."""
-    w, half = SMOOTH_FRAMES, SMOOTH_FRAMES // 2
+    w, half, fit = SMOOTH_FRAMES, SMOOTH_FRAMES // 2, _FIT
     if share == 0 or len(motion) < w:
         return motion
-    vander = np.vander(np.arange(-half, half + 1), 3, increasing=True)
-    fit = vander @ np.linalg.pinv(vander)  # (w, w): the fitted value at each window position from the window's frames
     x = np.asarray(motion, np.float64)
     out = np.empty_like(x)
     out[half:len(x) - half] = np.tensordot(np.lib.stride_tricks.sliding_window_view(x, w, axis=0), fit[half], axes=([-1], [0]))
