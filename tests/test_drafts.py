@@ -51,6 +51,22 @@ def test_a_moving_slider_draws_the_draft_and_the_rest_the_models_own(models, sam
     assert 0 < gap < 0.15  # a draft of the same reaction: centimetres apart, not another reaction
 
 
+def test_a_reaction_made_off_the_page_s_thread_replaces_only_the_draft_it_was_made_for(models, sample_data):
+    """The studio makes the model's own reaction on a worker thread (a long take's takes seconds): one made for a mix
+    the user has moved on from is dropped, and the draft of the newer mix stays until its own reaction comes."""
+    ses = Session(sample_data, models, index=0)
+    eye = np.eye(len(ses.class_names), dtype=np.float32)
+    ses.set_label(eye[3], variations=False, draft=True)
+    draws, make = ses.own_reaction()
+    ses.set_label(eye[1], variations=False, draft=True)  # a slider moved before the reaction was made
+    stale = make()
+    assert not ses.settle(stale, draws) and ses.drafted
+    draws, make = ses.own_reaction()
+    assert ses.settle(make(), draws) and not ses.drafted
+    assert np.array_equal(ses.synth, models["diffusion"].synthesize_canonical(ses.leader, eye[1], seed=ses.seed))
+    assert ses.own_reaction() is None and not ses.settle(stale, draws)
+
+
 def test_a_file_holds_the_models_own_reaction_never_the_draft(models, sample_data):
     ses = Session(sample_data, models, index=0)
     ses.set_label(np.eye(len(ses.class_names), dtype=np.float32)[1], variations=False, draft=True)

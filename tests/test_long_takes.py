@@ -8,10 +8,10 @@ import pytest
 
 from imm_model.cleanup import OnlineCleanup
 from imm_model.errors import DataFormatError, LabelError
-from imm_model.families.diffusion.sampler import keeping
-from imm_model.families.diffusion.windows import BLEND, STRIDE, TAKE_LOOKAHEAD
+from imm_model.families.diffusion.sampler import Guidance, ddim, keeping
+from imm_model.families.diffusion.windows import BLEND, RESAMPLE, STRIDE, TAKE_LOOKAHEAD
 from imm_model.inference import ReactionModel
-from imm_model.paths import SAMPLE_DIFFUSION, SAMPLE_GAN, SAMPLE_RETRIEVAL
+from imm_model.paths import SAMPLE_DEFAULT, SAMPLE_DIFFUSION, SAMPLE_GAN, SAMPLE_RETRIEVAL
 
 
 @pytest.fixture(scope="module")
@@ -54,6 +54,57 @@ def test_known_frames_are_held_at_every_step():
     keeping(predict, (values, where, True))(np.zeros((1, 5, 3), np.float32), 3)
     assert (seen[-1][0, :2] == 7).all() and (seen[-1][0, 2:] == 0).all()  # one trained so reads them clean
     assert keeping(predict, None) is predict
+
+
+def test_resampling_takes_each_step_again_and_keeps_the_given_frames():
+    """RePaint's resampling in the sampling loop: every step but the last is taken `times` more times, from its
+    result noised back; the given frames stay as given, its noise follows the rows' keys, and 0 times is the plain
+    loop bit for bit."""
+    rng = np.random.default_rng(0)
+    values = rng.standard_normal((2, 6, 3)).astype(np.float32)
+    where = np.zeros((2, 6), bool)
+    where[:, :2] = True
+    mask = np.ones((2, 6), bool)
+    calls = []
+
+    def predict(x, step):  # a toy network whose prediction depends on its input
+        calls.append(step)
+        return np.tanh(0.5 * x + 0.1 * step / 100).astype(np.float32)
+
+    held = keeping(predict, (values, where, False))
+    guidance = Guidance(sample_steps=4)
+    noise = rng.standard_normal((2, 6, 3)).astype(np.float32)
+    plain = ddim(held, noise, mask, guidance, 100)
+    n_plain = len(calls)
+    np.testing.assert_array_equal(ddim(held, noise, mask, guidance, 100, resample=(0, [1, 2])), plain)
+    calls.clear()
+    again = ddim(held, noise, mask, guidance, 100, resample=(3, [(0, 4), (0, 8)]))
+    assert len(calls) == (n_plain - 1) * 4 + 1  # the last step's prediction is the answer: not taken again
+    np.testing.assert_array_equal(again[:, :2], values[:, :2])
+    assert np.abs(again[:, 2:] - plain[:, 2:]).max() > 1e-3
+    np.testing.assert_array_equal(ddim(held, noise, mask, guidance, 100, resample=(3, [(0, 4), (0, 8)])), again)
+    other = ddim(held, noise, mask, guidance, 100, resample=(3, [(0, 4), (0, 9)]))
+    np.testing.assert_array_equal(other[0], again[0])  # each row's noise from its own key
+    assert np.abs(other[1, 2:] - again[1, 2:]).max() > 1e-4
+
+
+def test_a_long_take_s_windows_resample_and_a_clip_does_not(model, take, sample_data):
+    """A long take's windows take each step RESAMPLE more times (windows.py); a clip is sampled once, whatever the
+    setting, and a draft (a student drawing while a slider moves) takes each step once."""
+    assert model.resample == RESAMPLE > 0
+    clip = sample_data.world(7)[0]
+    label = {"hugging": 1.0}
+    shipped_take, shipped_clip = model.synthesize(take, label, seed=1), model.synthesize(clip, label, seed=1)
+    model.resample = 0
+    try:
+        once_take, once_clip = model.synthesize(take, label, seed=1), model.synthesize(clip, label, seed=1)
+    finally:
+        model.resample = RESAMPLE
+    np.testing.assert_array_equal(once_clip, shipped_clip)
+    assert np.abs(once_take - shipped_take).max() > 0.01
+    np.testing.assert_array_equal(model.synthesize(take, label, seed=1), shipped_take)  # deterministic per seed
+    student = ReactionModel.load(SAMPLE_DEFAULT)
+    assert student.takes is not None and student.takes.resample == RESAMPLE and student.draft.resample == 0
 
 
 def test_a_long_take_is_made_a_few_frames_at_a_time(model, take, sample_data):

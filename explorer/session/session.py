@@ -131,6 +131,7 @@ class Session:
         self.index = -1
         self.synth: np.ndarray | None = None
         self.drafted = False  # `synth` is the model's draft's, until `settle` draws the model's own
+        self.draws = 0  # followers drawn so far: what a follower made off the page's thread (`own_reaction`) replaces
         self.side_by_side = SideBySide(self)
         self.pinned = PinnedMix(self)
         self.readings = Readings(self, reader, dict(part_readers or {}))
@@ -348,12 +349,30 @@ class Session:
             raise ValueError(f"model returned shape {out.shape}, expected {self.leader.shape}")
         self.synth = self.live.follow(out) if self.live.on else out
         self.drafted = model is not self.model
+        self.draws += 1
         self.side_by_side.follow(variations)  # other models' followers wait with the variations: each costs a reaction
         return out
 
-    def settle(self) -> bool:
-        """The model's own follower in place of its draft's (the sliders rest); False: there was no draft to replace."""
-        if not self.drafted:
+    def settle(self, follower: np.ndarray | None = None, draws: int | None = None) -> bool:
+        """The model's own follower in place of its draft's (the sliders rest), drawn now or given as `own_reaction`'s
+        call made it for draw `draws`; False: there was no draft to replace, or another follower was drawn since."""
+        if not self.drafted or (draws is not None and draws != self.draws):
             return False
-        self.synthesize(variations=False)
+        if follower is None:
+            self.synthesize(variations=False)
+            return True
+        if follower.shape != self.leader.shape:
+            raise ValueError(f"model returned shape {follower.shape}, expected {self.leader.shape}")
+        self.synth, self.drafted = follower, False
+        self.draws += 1
+        self.side_by_side.follow(False)
         return True
+
+    def own_reaction(self) -> tuple[int, Callable[[], np.ndarray]] | None:
+        """What `settle` draws, as a call that reads nothing the session holds later, so that it may run on a worker
+        thread (a long take's own reaction takes seconds, and the page answers meanwhile), with the draw it is to
+        replace (`settle(follower, draws)`); None: no draft is shown."""
+        if not self.drafted:
+            return None
+        model, leader, vector, seed = self.model, self.leader, self.vector.copy(), self.seed
+        return self.draws, lambda: np.asarray(model.synthesize_canonical(leader, vector, seed=seed), np.float32)

@@ -38,6 +38,8 @@ class LabelMixer:
         page.ctrl.reset_label = self.reset
         self.apply_mix = page.guarded(self._apply_mix)
         self.settle_draft = page.guarded(self._settle_draft)
+        self.show_settled = page.guarded(self._show_settled)
+        self._settling: asyncio.Task | None = None  # the model's own reaction being made to replace the draft's
 
     def write_state(self) -> None:
         """The sliders onto the session's mix: a class whose parts differ shows them apart."""
@@ -113,10 +115,31 @@ class LabelMixer:
 
     def _settle_draft(self) -> None:
         """Before the view's still picture (0.17 s after the last change): what rests on screen and in the panels is
-        the model's own reaction, the draft only what moved."""
-        if self.page.session.settle():
+        the model's own reaction, the draft only what moved. It is made on a worker thread (a long take's takes
+        seconds), the page answering meanwhile: a slider moved before it is done draws its draft at once, and the
+        reaction made for the mix before it is dropped (Session.settle)."""
+        made = self.page.session.own_reaction()
+        if made is not None:
+            with self.page.state:
+                self.page.state.computing = True
+            self._settling = asynchronous.create_task(self._settle(*made))
+
+    async def _settle(self, draws: int, make) -> None:
+        try:
+            follower = await asyncio.to_thread(make)
+        except Exception as err:  # shown in the page's alert, as a handler's error is
+            follower = err
+        self.show_settled(draws, follower)
+
+    def _show_settled(self, draws: int, follower) -> None:
+        self.model_switch.settle()
+        if isinstance(follower, Exception):
+            raise follower
+        if self.page.session.settle(follower, draws):
             self.scene.set_synthesized(self.page.session.synth)
             self.page.ctrl.view_update()  # full size: the sliders rest
+            if self._task is None or self._task.done():  # the mix's panels were drawn for the draft: again, for this
+                self.update_review()
 
     def match(self):
         if self.page.session.own_class is not None:  # an uploaded leader has no class to match

@@ -10,8 +10,10 @@ the frames where a window of a long take begins ("seam": its first new frame) an
 beside the single clip sampled whole and the recorded follower (raw network output, no clean-up, for the steps).
 
 `--online` also reacts frame by frame (`model.online`) and times each push; `--gan` adds a GAN's reaction to the same
-takes; `--whole` samples each take as one clip, as the model did before windows. `--window/--online-window/--blend/
---stride/--lookahead/--take-lookahead/--continue-level/--anchor` set the windows
+takes; `--whole` samples each take as one clip, as the model did before windows; `--own-takes` has a student make its
+takes itself instead of its teacher; `--label-scale` sets the label's guidance scale of the model that makes them;
+`--resample` how many times a window takes each sampler step again (windows.py RESAMPLE).
+`--window/--online-window/--blend/--stride/--lookahead/--take-lookahead/--continue-level/--anchor` set the windows
 (imm_model/families/diffusion/windows.py) for the variants the record compares; without them, as shipped.
 
     python docs/experiments/scripts/long_takes.py --repeats 1 4 8 --online --gan sample_data/imm_sbu.safetensors \\
@@ -23,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -95,6 +98,8 @@ def main() -> None:
     ap.add_argument("--gan", default=None, help="also this GAN checkpoint's reaction to the same takes (a reference)")
     ap.add_argument("--limit", type=int, default=None, help="the first N held-out leaders only")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed-per-leader", action="store_true",
+                    help="leader n reacts with seed + n (a seed's draw is shared by every leader of a length)")
     ap.add_argument("--window", type=int, default=None)
     ap.add_argument("--online-window", type=int, default=None)
     ap.add_argument("--blend", type=int, default=None)
@@ -104,6 +109,9 @@ def main() -> None:
     ap.add_argument("--continue-level", type=float, default=None)
     ap.add_argument("--anchor", choices=("shipped", "own", "fixed"), default="shipped")
     ap.add_argument("--whole", action="store_true", help="sample every take whole, as one clip (no windows)")
+    ap.add_argument("--own-takes", action="store_true", help="a student makes its long takes itself, not its teacher")
+    ap.add_argument("--label-scale", type=float, default=None, help="the label's guidance scale for the takes' model")
+    ap.add_argument("--resample", type=int, default=None, help="a window's steps each taken again this many times (RePaint)")
     ap.add_argument("--variant", default="shipped", help="a name for the row")
     ap.add_argument("--out", default=None, help="append one JSON line per (mode, repeats) here")
     args = ap.parse_args()
@@ -113,26 +121,34 @@ def main() -> None:
     model = ReactionModel.load(args.checkpoint)
     if args.whole:
         model.window = model.max_length
+    if args.own_takes:
+        model.takes = None
+    if args.label_scale is not None:
+        takes = model.takes or model
+        takes.guidance = replace(takes.guidance, label_scale=args.label_scale)
+    if args.resample is not None:
+        (model.takes or model).resample = args.resample
     gan = ReactionModel.load(args.gan) if args.gan else None
     held_out = loso_fold(data.subject_pairs, model.held_out_subject).test[: args.limit]
     modes = ["real", "offline"] + (["online"] if args.online else []) + (["gan"] if gan else [])
     for mode in modes:
         for k in [1] if mode == "real" else args.repeats:
             per_copy, push_times, seam, elsewhere = [], [], [], []
-            for i in held_out:
+            for n, i in enumerate(held_out):
+                seed = args.seed + n if args.seed_per_leader else args.seed
                 clip, real = data.world(i)
                 leader = take(clip, k, args.kind)
                 label = {data.class_names[data.actions[i]]: 1.0}
                 if mode == "real":  # the recorded follower of the single clip: where real reactions stand
                     follower = real
                 elif mode in ("offline", "gan"):
-                    follower = (model if mode == "offline" else gan).synthesize(leader, label, seed=args.seed)
+                    follower = (model if mode == "offline" else gan).synthesize(leader, label, seed=seed)
                 else:
-                    follower, times = online_follower(model, leader, label, args.seed)
+                    follower, times = online_follower(model, leader, label, seed)
                     push_times += times
                 per_copy.append(copy_figures(leader, follower, model.skeleton, k))
                 if mode != "gan":
-                    raw = follower if mode == "real" else _raw(model, mode, leader, label, args.seed)
+                    raw = follower if mode == "real" else _raw(model, mode, leader, label, seed)
                     st = steps(raw)
                     starts = _seams(len(leader), model) if mode == "offline" and len(leader) > model.window else (
                         np.arange(len(st)) if mode == "online" else np.zeros(0, int))
@@ -143,10 +159,12 @@ def main() -> None:
             torso = np.array([[c["torso"] for c in row] for row in per_copy])
             row = {"variant": args.variant, "kind": args.kind, "mode": mode, "repeats": k, "leaders": len(held_out),
                    "fold": model.held_out_subject, "checkpoint": args.gan if mode == "gan" else args.checkpoint,
-                   "seed": args.seed, "window": windows.WINDOW, "online_window": windows.ONLINE_WINDOW, "blend": windows.BLEND,
+                   "seed": args.seed, "seed_per_leader": args.seed_per_leader, "window": windows.WINDOW,
+                   "online_window": windows.ONLINE_WINDOW, "blend": windows.BLEND,
                    "stride": windows.STRIDE, "lookahead": windows.LOOKAHEAD, "take_lookahead": windows.TAKE_LOOKAHEAD,
-                   "continue_level": windows.CONTINUE_LEVEL, "anchor": args.anchor,
-                   "hands_per_copy": hands.mean(0).round(4).tolist(), "torso_per_copy": torso.mean(0).round(4).tolist()}
+                   "continue_level": windows.CONTINUE_LEVEL, "anchor": args.anchor, "resample": (model.takes or model).resample,
+                   "hands_per_copy": hands.mean(0).round(4).tolist(), "torso_per_copy": torso.mean(0).round(4).tolist(),
+                   "hands_per_leader": hands.round(4).tolist(), "torso_per_leader": torso.round(4).tolist()}
             if seam:
                 row["seam_step_m"] = None if np.isnan(seam).all() else round(float(np.nanmean(seam)), 4)
                 row["other_step_m"] = None if np.isnan(elsewhere).all() else round(float(np.nanmean(elsewhere)), 4)

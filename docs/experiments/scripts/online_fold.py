@@ -21,7 +21,7 @@ import numpy as np
 from diffusion_fold import record
 
 SETTINGS = {"online": ("ONLINE_WINDOW", "LOOKAHEAD", "ENSEMBLE_GROWTH", "CONTINUE_LEVEL", "LABEL_RAMP"),
-            "windows": ("WINDOW", "TAKE_LOOKAHEAD", "STRIDE", "BLEND", "CONTINUE_LEVEL")}  # recorded with each row
+            "windows": ("WINDOW", "TAKE_LOOKAHEAD", "STRIDE", "BLEND", "CONTINUE_LEVEL", "RESAMPLE")}  # recorded with each row
 
 
 def online_followers(model, leaders: list[np.ndarray], label_vectors: np.ndarray, seeds) -> list[np.ndarray]:
@@ -107,6 +107,7 @@ def main() -> None:
     y, c = data.actions[judges.test], len(data.class_names)
     for mode in args.modes:
         model = ReactionModel.load(args.checkpoint)
+        (model.takes or model).resample = windows.RESAMPLE  # a model reads it when it loads: --set's value
         prepare_model(model, data, args.fold, opts)
         row = {"fold": args.fold, "mode": mode, "checkpoint": str(args.checkpoint), "leaders": len(judges.test)}
         if mode != "offline":  # the windows it was made with

@@ -16,7 +16,7 @@ from imm_model.errors import CheckpointError, LabelError
 from imm_model.families.base import ReactionModel, SamplerSettings, check_compatible, described_weights
 from imm_model.families.diffusion.denoiser_numpy import NumpyDenoiser
 from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance, sample, smoothed
-from imm_model.families.diffusion.windows import OnlineReactor, take_windows
+from imm_model.families.diffusion.windows import RESAMPLE, OnlineReactor, take_windows
 
 MAX_TAKE_FRAMES = 36_000  # the longest leader taken (40 minutes at 15 fps; sampled in windows, windows.py)
 
@@ -43,6 +43,7 @@ class DiffusionReactionModel(ReactionModel):
         # the model its long takes and live reactions come from: a student's teacher (`teacher_for_takes`), which
         # continues a window better than the student learnt to; None: this model itself
         self.takes: DiffusionReactionModel | None = None
+        self.resample = RESAMPLE  # times a long take's window takes each sampler step again (windows.py; a draft's 0)
         # the sampling loop, sampler.py `sample` (an experiment may put another with its signature here: it gets the
         # network call, the normalized leaders and masks, labels, starting noise, guidance, steps, seeds, and the
         # network's pair_terms and part_labels)
@@ -121,7 +122,7 @@ class DiffusionReactionModel(ReactionModel):
         model.takes = teacher_for_takes(meta, path, device)
         if model.takes is not None:  # what a moving slider draws of a long take: the student's own windows, the faster
             model.draft = copy.copy(model)
-            model.draft.takes = None
+            model.draft.takes, model.draft.resample = None, 0  # each window's steps once: a draft is for speed
         return model
 
     def _denoiser(self, leaders: np.ndarray, mask: np.ndarray, leader_level: int = 0):
@@ -176,13 +177,15 @@ class DiffusionReactionModel(ReactionModel):
 
     def _sample(self, leaders: list[np.ndarray], labels: np.ndarray, seeds: list[int],
                 noises: list[np.ndarray] | None = None, leader_noises: list[np.ndarray] | None = None,
-                known: list[tuple[np.ndarray, int]] | None = None, continue_level: float = 1.0) -> list[np.ndarray]:
+                known: list[tuple[np.ndarray, int]] | None = None, continue_level: float = 1.0,
+                resample: tuple[int, list] | None = None) -> list[np.ndarray]:
         """One sampler batch: canonical leaders (T_i, J, 3), the sampler's labels (`_label_input`), seeds -> followers
         (T_i, J, 3) canonical. The starting noise and the leader's noise default to the seeds' draws for each length
         (a window of a long take brings its slice of the take's); `known`, per row (canonical follower (T_i, J, 3),
         k), gives its first k frames (the sampler inpaints the rest around them); with `continue_level` < 1 and k > 0
         in every row, the sampler starts at that noise level from the given frames, the last one held for the rest
-        (what the window continues), not from pure noise."""
+        (what the window continues), not from pure noise; `resample` (times, per row a seed) takes each sampler step
+        again so that the given frames and the ones sampled around them settle together (sampler.py `ddim`)."""
         from imm_model.families.diffusion.sampler import forward_noised, initial_noise, leader_noise, schedule_step
 
         d, steps = self.config.pose_dim, self.config.diffusion_steps
@@ -214,6 +217,8 @@ class DiffusionReactionModel(ReactionModel):
                 held = np.where(where[..., None], values, values[np.arange(len(counts)), counts - 1][:, None])
                 noise = forward_noised(held, noise, mask, schedule_step(continue_level, steps), steps)
                 guidance = replace(guidance, memory_level=continue_level)
+            if resample and resample[0]:
+                given["resample"] = resample
         x0 = self.sampler(denoise, x, mask, labels, noise, guidance, steps, seeds=seeds,
                           pair_terms=self.config.pair_terms, part_labels=self.config.part_labels, join=join, **given)
         followers = x0 * self.weights["follower_std"] + self.weights["follower_mean"]
@@ -233,7 +238,8 @@ class DiffusionReactionModel(ReactionModel):
     def attach_draft(self, student: ReactionModel) -> None:
         super().attach_draft(student)
         if isinstance(student, DiffusionReactionModel):
-            student.takes = None  # a draft is for speed: it draws a long take with its own windows, not through this model
+            # a draft is for speed: it draws a long take with its own windows, not through this model, each step once
+            student.takes, student.resample = None, 0
 
     def draft_for(self, frames: int) -> ReactionModel | None:
         """A student whose teacher makes its long takes drafts those with its own windows, and a clip with nothing: it

@@ -186,6 +186,7 @@ def initial_noise(seed: int, frames: int, dim: int) -> np.ndarray:
 
 STEP_NOISE_STREAM = 1  # the per-step noise's generator is seeded from (seed, this), apart from the starting noise's
 LEADER_NOISE_STREAM = 2  # and the leader noise's from (seed, this)
+RESAMPLE_STREAM = 3  # and the noise of `ddim`'s resampling from (its rows' keys, this)
 
 
 def schedule_step(level: float, diffusion_steps: int) -> int:
@@ -205,11 +206,11 @@ def leader_noise(seed: int, frames: int, dim: int) -> np.ndarray:
     return np.random.default_rng((int(seed), LEADER_NOISE_STREAM)).standard_normal((frames, dim))
 
 
-def step_noise(seeds, lengths, shape: tuple[int, int, int]):
+def step_noise(seeds, lengths, shape: tuple[int, int, int], stream: int = STEP_NOISE_STREAM):
     """A generator of the stochastic steps' noise, (B, T, D) float32 per call: row i from a numpy Generator of its own
-    seeded from (seeds[i], STEP_NOISE_STREAM), drawing (lengths[i], D) a step (zero padding beyond), so that a row's
-    noise depends on its seed and length only, not on its batch."""
-    gens = [np.random.default_rng((int(s), STEP_NOISE_STREAM)) for s in seeds]
+    seeded from (seeds[i], stream) (a seed: an int, or a tuple of ints), drawing (lengths[i], D) a step (zero padding
+    beyond), so that a row's noise depends on its seed and length only, not on its batch."""
+    gens = [np.random.default_rng((*(int(v) for v in np.atleast_1d(s)), stream)) for s in seeds]
     while True:
         z = np.zeros(shape, np.float32)
         for i, g in enumerate(gens):
@@ -293,33 +294,48 @@ def ddim_step(x: np.ndarray, x0: np.ndarray, a: float, a_next: float, eta: float
     return (x * m).astype(np.float32)
 
 
-def ddim(predict, noise: np.ndarray, mask: np.ndarray, guidance: Guidance, diffusion_steps: int, seeds=None) -> np.ndarray:
+def ddim(predict, noise: np.ndarray, mask: np.ndarray, guidance: Guidance, diffusion_steps: int, seeds=None,
+         resample: tuple[int, list] | None = None) -> np.ndarray:
     """The sampling loop, apart from what a step predicts: from `noise` (B, T, D), x_t at the start step
     (Guidance.memory_level's), `predict(x_t, step)` -> x0 (B, T, D) at each of the guidance's `sample_steps` steps
     and a `ddim_step` between them -> the last prediction, float32. With guidance.eta > 0 each step but the last adds
     noise drawn from the rows' `seeds` (B ints, required then; see step_noise). `sample` predicts with the composed
-    label; another composition brings its own `predict` and reuses this loop."""
+    label; another composition brings its own `predict` and reuses this loop.
+
+    With `resample` = (times, keys) each step but the last is taken `times` more times, its result noised back to the
+    step's level in between with noise drawn from the rows' `keys` (B seeds, step_noise's RESAMPLE_STREAM): RePaint's
+    resampling (Lugmayr et al. 2022), so that frames held by `predict` (`keeping`) and the frames sampled around them
+    settle together rather than the held ones being pasted in once a step."""
     b, t, d = noise.shape
     alpha_bar = cosine_alpha_bar(diffusion_steps)
     steps = np.linspace(schedule_step(guidance.memory_level, diffusion_steps), 0, guidance.sample_steps).round().astype(int)
     m = mask[..., None].astype(np.float32)
     x = noise.astype(np.float32)
-    fresh = None
+    fresh = again = None
     if guidance.eta > 0:
         if seeds is None or len(seeds) != b:
             raise ValueError(f"sampling with eta {guidance.eta} needs one seed per row ({b})")
         fresh = step_noise(seeds, mask.sum(1), (b, t, d))
+    times = resample[0] if resample else 0
+    if times:
+        again = step_noise(resample[1], mask.sum(1), (b, t, d), RESAMPLE_STREAM)
     for i, step in enumerate(steps):
-        x0 = predict(x, int(step))
-        if i + 1 == len(steps):
-            return x0.astype(np.float32)
-        x = ddim_step(x, x0, alpha_bar[step], alpha_bar[steps[i + 1]], guidance.eta, m, None if fresh is None else next(fresh))
+        for turn in range(times + 1):
+            x0 = predict(x, int(step))
+            if i + 1 == len(steps):
+                return x0.astype(np.float32)
+            after = ddim_step(x, x0, alpha_bar[step], alpha_bar[steps[i + 1]], guidance.eta, m,
+                              None if fresh is None else next(fresh))
+            if turn < times:  # back from the next step's level to this one's
+                back = alpha_bar[step] / alpha_bar[steps[i + 1]]
+                x = ((np.sqrt(back) * after + np.sqrt(1 - back) * next(again)) * m).astype(np.float32)
+        x = after
     raise AssertionError("unreachable: sample_steps >= 1")
 
 
 def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, noise: np.ndarray, guidance: Guidance,
            diffusion_steps: int, seeds=None, pair_terms: bool = False, part_labels: bool = False, join=None,
-           known=None, composed_label: bool = False) -> np.ndarray:
+           known=None, composed_label: bool = False, resample: tuple[int, list] | None = None) -> np.ndarray:
     """DDIM (`ddim`) from `noise` (B, T, D) -> normalized followers x0 (B, T, D), numpy float32, each step predicting
     the composed label's x0.
 
@@ -340,11 +356,11 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
     sampled: every step's prediction holds them at their values (inpainting by replacement, as PriorMDM continues a
     long sequence), and with `clean` (a network trained so: DiffusionConfig.given_frames) the network reads them clean
     in its noised input; the frames sampled around them continue them, as a window of a long take continues the one
-    before."""
+    before. `resample` (`ddim`'s) takes each step again so that the two settle together."""
     flags = (pair_terms, part_labels, composed_label)
     if join is None:
         predict = guided_prediction(denoise, labels, guidance, diffusion_steps, mask, *flags)
-        return ddim(keeping(predict, known), noise, mask, guidance, diffusion_steps, seeds)
+        return ddim(keeping(predict, known), noise, mask, guidance, diffusion_steps, seeds, resample)
     c = labels.shape[1] // 2
     upper, lower = labels[:, :c], labels[:, c:]
     if part_labels:  # each part's values as the whole-body condition (e_c, e_c) the network saw on every one-class row
@@ -352,7 +368,7 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
     apart = ~np.all(labels[:, :c] == labels[:, c:], axis=1)[:, None, None]
     by_upper = guided_prediction(denoise, upper, guidance, diffusion_steps, mask, *flags)
     if not apart.any():
-        return ddim(keeping(by_upper, known), noise, mask, guidance, diffusion_steps, seeds)
+        return ddim(keeping(by_upper, known), noise, mask, guidance, diffusion_steps, seeds, resample)
     by_lower = guided_prediction(denoise, lower, guidance, diffusion_steps, mask, *flags)
     m = mask[..., None].astype(np.float32)
 
@@ -360,10 +376,10 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
         return (np.where(apart, join(x_upper, x_lower), x_upper) * m).astype(np.float32)
 
     if guidance.join_outputs:
-        return joined(ddim(keeping(by_upper, known), noise, mask, guidance, diffusion_steps, seeds),
-                      ddim(keeping(by_lower, known), noise, mask, guidance, diffusion_steps, seeds))
+        return joined(ddim(keeping(by_upper, known), noise, mask, guidance, diffusion_steps, seeds, resample),
+                      ddim(keeping(by_lower, known), noise, mask, guidance, diffusion_steps, seeds, resample))
     return ddim(keeping(lambda x, step: joined(by_upper(x, step), by_lower(x, step)), known), noise, mask, guidance,
-                diffusion_steps, seeds)
+                diffusion_steps, seeds, resample)
 
 
 def keeping(predict, known):

@@ -6,13 +6,14 @@ longer take drifts away from its leader (docs/experiments/long-takes.md). A take
 frames at a time: each time, a window of the last `WINDOW` leader frames up to `TAKE_LOOKAHEAD` frames beyond the new ones,
 in a canonical frame of its own (`anchored`: the window before's until the leader has moved away from it), so that it
 looks like a training clip wherever in the take it lies. The follower frames already made are given to the sampler,
-which inpaints the rest around them (sampler.py `sample`'s `known`, as PriorMDM continues a long sequence), and the
-window's new frames are kept; the last `BLEND` frames made are sampled again and crossfaded into the window's, because
-a window's first frame does not continue the given ones exactly (the network never learnt to continue a given past).
+which inpaints the rest around them (sampler.py `sample`'s `known`, as PriorMDM continues a long sequence), taking
+each sampler step `RESAMPLE` more times so that the two settle together (RePaint's resampling), and the window's new
+frames are kept; the last `BLEND` frames made are sampled again and crossfaded into the window's, because a window's
+first frame does not continue the given ones exactly (the network never learnt to continue a given past).
 The starting noise (and the leader's noise) is the seed's draw for the whole take, sliced per window.
 
 Live, `OnlineReactor` does the same one frame at a time, as the leader's frames come, in windows of `ONLINE_WINDOW`
-frames: a frame returned is final, so instead of the crossfade each frame is the mean of the samples every window up
+frames, each sampler step taken once (a push has a frame's time): a frame returned is final, so instead of the crossfade each frame is the mean of the samples every window up
 to its return made of it (`Votes`); a follower frame never reads a leader frame beyond its lookahead, and a label
 changed mid-take changes the frames from the next one on, continuing the past ones.
 """
@@ -41,6 +42,10 @@ TAKE_LOOKAHEAD = 12
 # noise: the given frames then hold the follower's placement and pose (from pure noise the 7-step sampler drew each
 # window's placement anew, and the follower jumped up to 1 m at a window's first frame)
 CONTINUE_LEVEL = 0.6
+# a window of a long take takes each sampler step this many times more, noised back in between (RePaint): the frames
+# it samples settle with the frames it is given, and the follower stays as near its leader as in a clip (hands per
+# copy of a leader played 4 times within 0.00 m of the clip's, against +0.04 m without; docs/experiments/long-takes.md)
+RESAMPLE = 3
 REANCHOR_M = 0.5  # a window keeps the canonical frame before it until the leader's root is this far from its origin
 REANCHOR_DEG = 30.0  # ... or the leader has turned this far from its facing
 LABEL_RAMP = 8  # frames over which a label changed live moves from the old values to the new (0.53 s at 15 fps)
@@ -67,14 +72,17 @@ def anchored(model, leader: np.ndarray, anchor: CanonicalFrame | None) -> Canoni
 
 
 def window_follower(model, leader: np.ndarray, follower: np.ndarray, known: int, label: np.ndarray, seed: int,
-                    noise: np.ndarray, leader_z: np.ndarray, frame: CanonicalFrame) -> np.ndarray:
+                    noise: np.ndarray, leader_z: np.ndarray, frame: CanonicalFrame,
+                    resample: tuple[int, tuple[int, int]] | None = None) -> np.ndarray:
     """One window: leader (W, J, 3) and follower (W, J, 3) in the take's frame, the follower's first `known` frames
     given -> the window's follower (W, J, 3) in the take's frame, sampled in canonical `frame` (`anchored`) with
-    `label` (the sampler's label input), the seed and the window's slices of the take's noise."""
+    `label` (the sampler's label input), the seed and the window's slices of the take's noise; `resample` = (times,
+    the window's own seed): each sampler step taken again that many times (sampler.py `ddim`)."""
     skeleton = model.skeleton
     given = frame.to_canonical(np.asarray(follower, np.float64), skeleton).astype(np.float32)
     out = model._sample([frame.to_canonical(np.asarray(leader, np.float64), skeleton).astype(np.float32)], label[None],
-                        [seed], [noise], [leader_z], [(given, known)], CONTINUE_LEVEL)[0]
+                        [seed], [noise], [leader_z], [(given, known)], CONTINUE_LEVEL,
+                        None if resample is None else (resample[0], [resample[1]]))[0]
     return frame.to_world(out, skeleton)
 
 
@@ -93,7 +101,7 @@ def take_windows(model, leader: np.ndarray, label: np.ndarray, seed: int) -> np.
         blend = min(BLEND, done - start)
         frame = anchored(model, leader[start:end], frame)
         made = window_follower(model, leader[start:end], follower[start:end], done - start - blend, label, seed,
-                               noise[start:end], leader_z[start:end], frame)
+                               noise[start:end], leader_z[start:end], frame, (model.resample, (seed, done)))
         if blend:
             weight = (np.arange(1, blend + 1) / (blend + 1))[:, None, None]
             follower[done - blend:done] = (1 - weight) * follower[done - blend:done] + weight * made[done - start - blend:done - start]
