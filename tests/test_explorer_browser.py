@@ -359,6 +359,32 @@ def test_upload_a_bvh_leader_then_a_broken_file(page, tmp_path, sample_data):
     page.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=10000)
 
 
+def test_a_long_takes_own_reaction_is_made_while_the_page_answers(page, tmp_path, sample_data):
+    """A long uploaded leader: a slider draws the default's draft at once, and its own reaction (its teacher's, in
+    windows: seconds) is made on a worker thread, the page answering a slider meanwhile and showing that it computes;
+    then the view rests on it, with no error."""
+    from imm_model.data.bvh import write_bvh
+
+    leader = tmp_path / "long_take.bvh"
+    write_bvh(leader, np.concatenate([sample_data.world(i)[0] for i in range(0, 100, 10)]))
+    n = probe.state(page, "mix_count")
+    page.locator("input[type=file]").set_input_files(str(leader))
+    page.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n, timeout=60000)
+    assert probe.state(page, "num_frames") > 200
+    probe.wait_state(page, "!s.get('computing')", 120000)
+    slider = f".slider-{probe.state(page, 'class_names')[1].replace(' ', '_')}"
+    answered_while_computing = []
+    for key in ("Home", "End") if probe.state(page, "w_1") > 0.5 else ("End", "Home"):  # each press moves it
+        n = probe.state(page, "mix_count")
+        probe.press_slider(page, slider, key)
+        page.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n, timeout=60000)
+        answered_while_computing.append(probe.state(page, "computing"))
+    assert answered_while_computing[-1], answered_while_computing  # the second press came during the first's reaction
+    probe.wait_state(page, "!s.get('computing')", 120000)
+    probe.wait_for_view_at_rest(page)
+    assert probe.state(page, "error") == ""
+
+
 def _load_sequence(page, index: int) -> None:
     """Pick a sequence as the page does and wait for the server's answer (the page's own sequence_index changes at
     once; the label and the review follow from the server)."""

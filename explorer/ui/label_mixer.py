@@ -74,7 +74,8 @@ class LabelMixer:
                 self._pending = False
                 await self.model_switch.announce()  # a slow model's "computing" reaches the page before its synthesis
                 review_due = bool(self.apply_mix()) or review_due
-                self.model_switch.settle()
+                if self._settling is None or self._settling.done():  # else the page still waits for the model's own
+                    self.model_switch.settle()
                 await asyncio.sleep(PICTURE_S)  # the picture is rendered, encoded and sent before anything else
                 if not self._pending:  # the sliders rest: the model's own follower replaces its draft's
                     self.settle_draft()
@@ -117,7 +118,12 @@ class LabelMixer:
         """Before the view's still picture (0.17 s after the last change): what rests on screen and in the panels is
         the model's own reaction, the draft only what moved. It is made on a worker thread (a long take's takes
         seconds), the page answering meanwhile: a slider moved before it is done draws its draft at once, and the
-        reaction made for the mix before it is dropped (Session.settle)."""
+        reaction made for the mix before it is dropped (Session.settle). One at a time: the one running makes the
+        current mix's next, if the mix moved meanwhile."""
+        if self._settling is None or self._settling.done():
+            self._start_settling()
+
+    def _start_settling(self) -> None:
         made = self.page.session.own_reaction()
         if made is not None:
             with self.page.state:
@@ -130,6 +136,8 @@ class LabelMixer:
         except Exception as err:  # shown in the page's alert, as a handler's error is
             follower = err
         self.show_settled(draws, follower)
+        if not isinstance(follower, Exception) and self.page.session.drafted and not self._pending:
+            self._start_settling()  # it was made for a mix moved on from, and the sliders rest: the current one's
 
     def _show_settled(self, draws: int, follower) -> None:
         self.model_switch.settle()
