@@ -366,11 +366,11 @@ def test_a_long_takes_own_reaction_is_made_while_the_page_answers(page, tmp_path
     from imm_model.data.bvh import write_bvh
 
     leader = tmp_path / "long_take.bvh"
-    write_bvh(leader, np.concatenate([sample_data.world(i)[0] for i in range(0, 100, 10)]))
+    write_bvh(leader, np.concatenate([sample_data.world(i)[0] for i in range(0, 60, 10)]))
     n = probe.state(page, "mix_count")
     page.locator("input[type=file]").set_input_files(str(leader))
     page.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n, timeout=60000)
-    assert probe.state(page, "num_frames") > 200
+    assert probe.state(page, "num_frames") > 100  # beyond the longest training clip (46 frames): made in windows
     probe.wait_state(page, "!s.get('computing')", 120000)
     slider = f".slider-{probe.state(page, 'class_names')[1].replace(' ', '_')}"
     answered_while_computing = []

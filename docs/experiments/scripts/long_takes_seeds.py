@@ -8,7 +8,7 @@ clip of its own seed: with one seed for all leaders, the interval is over the se
 (`long_takes.py --seed-per-leader`, independent draws), over the leaders, each copy paired with its leader's clip.
 Reads the rows of `long_takes.py` (one per variant, seed, mode and take length):
 
-    python docs/experiments/scripts/long_takes_seeds.py docs/experiments/data/long-takes-resample.jsonl
+    python docs/experiments/scripts/long_takes_seeds.py docs/experiments/data/long-takes-resample.jsonl --against resample-0
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("rows", nargs="+", help="long_takes.py output files (JSON lines)")
     ap.add_argument("--kind", default="repeat")
+    ap.add_argument("--against", default=None, help="also each variant's copies minus this variant's, paired by seed and leader")
     args = ap.parse_args()
     rows = [json.loads(line) for path in args.rows for line in open(path) if line.strip()]
     rows = [r for r in rows if r["mode"] == "offline" and r["kind"] == args.kind]
@@ -62,6 +63,16 @@ def main() -> None:
                 mean, low, high = interval(gaps)
                 cells.append(f"{mean:+.3f} [{low:+.3f}, {high:+.3f}]{'' if mean <= BARS[figure] else ' over'}")
             print("    " + "; ".join(cells))
+            base = takes.get((args.against, by_leader, k), {})
+            paired = [s for s in seeds if s in base]
+            if args.against and variant != args.against and paired and by_leader:
+                cells = []
+                for c in range(k):
+                    gaps = [g for s in paired for g in np.array(by_seed[s][f"{figure}_per_leader"])[:, c]
+                            - np.array(base[s][f"{figure}_per_leader"])[:, c]]
+                    mean, low, high = interval(gaps)
+                    cells.append(f"{mean:+.3f} [{low:+.3f}, {high:+.3f}]")
+                print(f"    minus {args.against}'s, seeds {paired}: " + "; ".join(cells))
 
 
 if __name__ == "__main__":

@@ -13,9 +13,10 @@ first frame does not continue the given ones exactly (the network never learnt t
 The starting noise (and the leader's noise) is the seed's draw for the whole take, sliced per window.
 
 Live, `OnlineReactor` does the same one frame at a time, as the leader's frames come, in windows of `ONLINE_WINDOW`
-frames, each sampler step taken once (a push has a frame's time): a frame returned is final, so instead of the crossfade each frame is the mean of the samples every window up
-to its return made of it (`Votes`); a follower frame never reads a leader frame beyond its lookahead, and a label
-changed mid-take changes the frames from the next one on, continuing the past ones.
+frames, each sampler step taken once (a push has a frame's time): a frame returned is final, so instead of the
+crossfade each frame is the mean of the samples every window up to its return made of it (`Votes`); a follower frame
+never reads a leader frame beyond its lookahead, and a label changed mid-take changes the frames from the next one on,
+continuing the past ones.
 """
 
 from __future__ import annotations
