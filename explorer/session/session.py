@@ -344,9 +344,7 @@ class Session:
         (not in live mode, whose frames are final), until `settle`."""
         drafting = self.model.draft_for(len(self.leader)) if draft and not self.live.on else None
         model = drafting or self.model
-        out = np.asarray(model.synthesize_canonical(self.leader, self.vector, seed=self.seed), np.float32)
-        if out.shape != self.leader.shape:
-            raise ValueError(f"model returned shape {out.shape}, expected {self.leader.shape}")
+        out = self._checked(np.asarray(model.synthesize_canonical(self.leader, self.vector, seed=self.seed), np.float32))
         self.synth = self.live.follow(out) if self.live.on else out
         self.drafted = model is not self.model
         self.draws += 1
@@ -361,12 +359,15 @@ class Session:
         if follower is None:
             self.synthesize(variations=False)
             return True
-        if follower.shape != self.leader.shape:
-            raise ValueError(f"model returned shape {follower.shape}, expected {self.leader.shape}")
-        self.synth, self.drafted = follower, False
+        self.synth, self.drafted = self._checked(follower), False
         self.draws += 1
         self.side_by_side.follow(False)
         return True
+
+    def _checked(self, follower: np.ndarray) -> np.ndarray:
+        if follower.shape != self.leader.shape:
+            raise ValueError(f"model returned shape {follower.shape}, expected {self.leader.shape}")
+        return follower
 
     def own_reaction(self) -> tuple[int, Callable[[], np.ndarray]] | None:
         """What `settle` draws, as a call that reads nothing the session holds later, so that it may run on a worker

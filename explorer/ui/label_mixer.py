@@ -138,9 +138,10 @@ class LabelMixer:
         self.show_settled(draws, follower)
         if not isinstance(follower, Exception) and self.page.session.drafted and not self._pending:
             self._start_settling()  # it was made for a mix moved on from, and the sliders rest: the current one's
+        else:
+            self.model_switch.settle()
 
     def _show_settled(self, draws: int, follower) -> None:
-        self.model_switch.settle()
         if isinstance(follower, Exception):
             raise follower
         if self.page.session.settle(follower, draws):

@@ -74,16 +74,15 @@ def anchored(model, leader: np.ndarray, anchor: CanonicalFrame | None) -> Canoni
 
 def window_follower(model, leader: np.ndarray, follower: np.ndarray, known: int, label: np.ndarray, seed: int,
                     noise: np.ndarray, leader_z: np.ndarray, frame: CanonicalFrame,
-                    resample: tuple[int, tuple[int, int]] | None = None) -> np.ndarray:
+                    resample: tuple[int, list] | None = None) -> np.ndarray:
     """One window: leader (W, J, 3) and follower (W, J, 3) in the take's frame, the follower's first `known` frames
     given -> the window's follower (W, J, 3) in the take's frame, sampled in canonical `frame` (`anchored`) with
     `label` (the sampler's label input), the seed and the window's slices of the take's noise; `resample` = (times,
-    the window's own seed): each sampler step taken again that many times (sampler.py `ddim`)."""
+    [the window's own seed]): each sampler step taken again that many times (sampler.py `ddim`)."""
     skeleton = model.skeleton
     given = frame.to_canonical(np.asarray(follower, np.float64), skeleton).astype(np.float32)
     out = model._sample([frame.to_canonical(np.asarray(leader, np.float64), skeleton).astype(np.float32)], label[None],
-                        [seed], [noise], [leader_z], [(given, known)], CONTINUE_LEVEL,
-                        None if resample is None else (resample[0], [resample[1]]))[0]
+                        [seed], [noise], [leader_z], [(given, known)], CONTINUE_LEVEL, resample)[0]
     return frame.to_world(out, skeleton)
 
 
@@ -102,7 +101,7 @@ def take_windows(model, leader: np.ndarray, label: np.ndarray, seed: int) -> np.
         blend = min(BLEND, done - start)
         frame = anchored(model, leader[start:end], frame)
         made = window_follower(model, leader[start:end], follower[start:end], done - start - blend, label, seed,
-                               noise[start:end], leader_z[start:end], frame, (model.resample, (seed, done)))
+                               noise[start:end], leader_z[start:end], frame, (model.resample, [(seed, done)]))
         if blend:
             weight = (np.arange(1, blend + 1) / (blend + 1))[:, None, None]
             follower[done - blend:done] = (1 - weight) * follower[done - blend:done] + weight * made[done - start - blend:done - start]
