@@ -26,6 +26,8 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=257)
     ap.add_argument("--repeats", type=int, default=3)
     args = ap.parse_args()
+    if args.frames <= 46 or args.repeats < 1:
+        ap.error("--frames must be beyond the longest training clip (46) and --repeats at least 1")
     data = load_any(paths.SAMPLE_DATA)
     model = ReactionModel.load(paths.SAMPLE_DEFAULT)
     leader = np.concatenate([data.world(i)[0] for i in range(0, len(data), 7)])[: args.frames]
