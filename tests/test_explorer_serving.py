@@ -105,7 +105,8 @@ def test_behind_a_reverse_proxy_with_a_path_prefix(browser, tmp_path):
             n_mix = probe.state(pg, "mix_count")
             probe.press_slider(pg, f".slider-{names[2].replace(' ', '_')}", "End")
             pg.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=15000)
-            pg.wait_for_selector(probe.LATENT_POINTS, timeout=30000)  # plotly.js from the launcher's /imm/static/
+            # plotly.js from the launcher's /imm/static/; the map of a cold cache, as the other cold starts wait for it
+            pg.wait_for_selector(probe.LATENT_POINTS, timeout=60000)
             pg.close()
     finally:
         proxy.close()
