@@ -12,7 +12,8 @@ Measures, and prints with the machine's thread count and load:
      (empty latent cache: embeddings + t-SNE recomputed) and warm (cache filled);
   2. slider -> redrawn follower: a class slider is moved with the keyboard; time from the key event
      to the `load` of the next view image in the page (performance.now() in the page), p50/p95, with the
-     'reads as' panel and, in a second studio in the same run, without it (--judge none);
+     'reads as' panel and, in a second studio in the same run, without it (--judge none); the first series split
+     into the key to its state sent (the page), sent to picture in (the server and the wire) and picture in to shown;
   3. playback: pictures the page actually displays per second while playing at 2x (30 fps target),
      and the server's render capability (update + render + JPEG per frame, same view size) in fps.
   4. the same slider latency with a mix pinned (A/B compare: two followers in the view), and with five tabs open
@@ -60,11 +61,25 @@ def start_to_interactive(browser, cache_dir: Path, model: tuple[str, ...]) -> tu
     return studio.ready_s, interactive, mapped, studio
 
 
-def slider_latency(page, trials: int) -> np.ndarray:
+# The page's share of a change, timed in the page: every websocket message it sends and every picture it turns into an
+# image URL (trame-rca hands each JPEG to the <img> as a blob URL), so that a change splits into the key to its state
+# sent (the page's own work: the slider, Vue's re-render), sent to picture in (the server and the wire), and picture in
+# to picture shown (the decode)
+WIRE_JS = """() => { if (window.__immWire) return; const wire = window.__immWire = {sent: [], pictures: []};
+    const send = WebSocket.prototype.send;
+    WebSocket.prototype.send = function (data) { wire.sent.push(performance.now()); return send.call(this, data); };
+    const url = URL.createObjectURL;
+    URL.createObjectURL = function (blob) { wire.pictures.push(performance.now()); return url.call(URL, blob); }; }"""
+PAGE_STAGES = ("key -> state sent", "sent -> picture in", "picture in -> shown")
+
+
+def slider_latency(page, trials: int, stages: dict | None = None) -> np.ndarray:
+    """Key to redrawn picture (ms) for `trials` slider changes; `stages`, when given, gets each change's PAGE_STAGES."""
     page.evaluate(
         """() => { window.__immKeys = []; if (window.__immKeysOn) return; window.__immKeysOn = true;
         document.addEventListener('keydown', () => window.__immKeys.push(performance.now()), true); }"""
     )
+    page.evaluate(WIRE_JS)
     names = probe.state(page, "class_names")
     own = [i for i in range(len(names)) if probe.state(page, f"w_{i}") == 1.0][0]
     css = f".slider-{names[(own + 1) % len(names)].replace(' ', '_')}"
@@ -79,12 +94,24 @@ def slider_latency(page, trials: int) -> np.ndarray:
             arg=[n_key, n_img],
             timeout=10000,
         )
-        dt = page.evaluate(
-            "([k, n]) => window.__immImages.slice(n).find(t => t > window.__immKeys[k]) - window.__immKeys[k]", [n_key, n_img]
+        times = page.evaluate(
+            """([k, n]) => { const key = window.__immKeys[k], shown = window.__immImages.slice(n).find(t => t > key);
+            const sent = window.__immWire.sent.find(t => t > key), ins = window.__immWire.pictures.filter(t => t > key && t <= shown);
+            return [shown - key, sent === undefined ? null : sent - key, ins.length ? ins[ins.length - 1] - key : null]; }""",
+            [n_key, n_img],
         )
-        out.append(dt)
+        out.append(times[0])
+        if stages is not None and None not in times:
+            shown, sent, picture = times
+            for name, ms in zip(PAGE_STAGES, (sent, picture - sent, shown - picture), strict=True):
+                stages.setdefault(name, []).append(round(ms, 1))
         time.sleep(0.25)  # idle between trials: measure one change, not a queue
     return np.array(out, float)
+
+
+def _say_stages(stages: dict) -> None:
+    print("  where it went, in the page: " + "; ".join(
+        f"{name} p50 {np.percentile(ms, 50):.0f} / p95 {np.percentile(ms, 95):.0f} ms" for name, ms in stages.items()))
 
 
 def displayed_fps(page, seconds: float) -> tuple[float, int]:
@@ -231,8 +258,10 @@ def measure_sliders(browser, studio: probe.StudioProcess, cache: Path, trials: i
     """Slider latency with the 'reads as' panel, then with a mix pinned, then in a studio without the panel."""
     page = probe.open_studio(browser, studio.url, *VIEW_SIZE)
     probe.watch_view_images(page)
-    res["slider_ms"] = _p(lat := slider_latency(page, trials))
+    res["slider_ms_page_stages"] = stages = {}
+    res["slider_ms"] = _p(lat := slider_latency(page, trials, stages))
     _say("slider -> redrawn follower", lat, "p95 <= 60 ms idle; <= 100 ms with the panel")
+    _say_stages(stages)
     page.locator("#pin-mix").click()
     page.wait_for_function("() => !!window.trame.state.get('pinned_text')", timeout=10000)
     res["slider_ms_ab"] = _p(lat := slider_latency(page, trials))

@@ -2,14 +2,14 @@
 streamed frame by frame, against the time a frame lasts and the offline reaction of the same leaders in the same run.
 
     .venv/bin/python benchmarks/online_reactor.py [--checkpoint sample_data/imm_diffusion.safetensors] [--threads 1]
-        [--leaders 10] [--repeats 4] [--online-windows 16 30]
+        [--leaders 10] [--repeats 4] [--online-windows 16 30] [--live-steps 7 4]
 
 Each of the first `--leaders` sequences of the bundled data, played `--repeats` times in a row, is streamed into a fresh
 reactor for each label (one class; three signed classes; a label per body part), interleaved with the offline
 reaction of the same take, so that both meet the same load. Prints the median and p95 push, the share of pushes
 slower than a frame at 15 fps (66.7 ms), and the offline reaction's time per frame. `--online-windows` times reactors
-reading that many leader frames a push (windows.ONLINE_WINDOW), one after another on each take, so that they meet
-the same load.
+reading that many leader frames a push (windows.ONLINE_WINDOW), and `--live-steps` reactors taking that many sampler
+steps a push (windows.LIVE_STEPS), each pair one after another on each take, so that they meet the same load.
 """
 
 from __future__ import annotations
@@ -36,7 +36,11 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=4)
     ap.add_argument("--online-windows", type=int, nargs="+", default=[windows.ONLINE_WINDOW],
                     help="leader frames a push reads (windows.ONLINE_WINDOW), each timed")
+    ap.add_argument("--live-steps", type=int, nargs="+", default=[windows.LIVE_STEPS],
+                    help="sampler steps a push takes (windows.LIVE_STEPS), each timed")
     args = ap.parse_args()
+    if min(args.live_steps) < 1 or min(args.online_windows) < 2 or args.leaders < 1 or args.repeats < 1 or args.threads < 1:
+        ap.error("--live-steps, --leaders, --repeats and --threads must be at least 1, --online-windows at least 2")
     threadpool_limits(args.threads)
     data = InteractionDataset.load(SAMPLE_DATA)
     model = ReactionModel.load(args.checkpoint)
@@ -46,24 +50,25 @@ def main() -> None:
         labels[f"upper:{names[2]}, lower:-{names[1]}"] = {f"upper:{names[2]}": 1.0, f"lower:{names[1]}": -1.0}
     takes = [np.concatenate([data.world(i)[0]] * args.repeats) for i in range(args.leaders)]
     print(f"checkpoint {args.checkpoint}; threads {args.threads}; {len(takes)} takes of {sum(map(len, takes))} frames; "
-          f"{model.guidance.sample_steps} sampler steps; lookahead {windows.LOOKAHEAD} frames")
+          f"lookahead {windows.LOOKAHEAD} frames")
     for title, label in labels.items():
-        pushes, offline = {w: [] for w in args.online_windows}, []
+        variants = [(w, s) for w in args.online_windows for s in args.live_steps]
+        pushes, offline = {v: [] for v in variants}, []
         for take in takes:
-            for w in args.online_windows:
-                windows.ONLINE_WINDOW = w
+            for w, s in variants:
+                windows.ONLINE_WINDOW, windows.LIVE_STEPS = w, s
                 reactor = model.online(label)
                 for frame in take:
                     t = time.perf_counter()
                     reactor.push(frame)
-                    pushes[w].append((time.perf_counter() - t) * 1000)
+                    pushes[w, s].append((time.perf_counter() - t) * 1000)
                 reactor.flush()
             t = time.perf_counter()
             model.synthesize(take, label)
             offline.append((time.perf_counter() - t) * 1000 / len(take))
-        for w, times in pushes.items():
+        for (w, s), times in pushes.items():
             times = np.array(times)
-            print(f"{title}, window {min(w, model.window)}: push median {np.median(times):.1f} ms, p95 "
+            print(f"{title}, window {min(w, model.window)}, {s} steps: push median {np.median(times):.1f} ms, p95 "
                   f"{np.percentile(times, 95):.1f} ms, {(times > FRAME_MS).mean():.1%} slower than a frame")
         print(f"{title}: offline {np.median(offline):.2f} ms a frame")
 

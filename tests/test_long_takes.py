@@ -9,7 +9,7 @@ import pytest
 from imm_model.cleanup import OnlineCleanup
 from imm_model.errors import DataFormatError, LabelError
 from imm_model.families.diffusion.sampler import Guidance, ddim, keeping
-from imm_model.families.diffusion.windows import BLEND, RESAMPLE, STRIDE, TAKE_LOOKAHEAD
+from imm_model.families.diffusion.windows import BLEND, LIVE_STEPS, LOOKAHEAD, RESAMPLE, STRIDE, TAKE_LOOKAHEAD
 from imm_model.inference import ReactionModel
 from imm_model.paths import SAMPLE_DEFAULT, SAMPLE_DIFFUSION, SAMPLE_GAN, SAMPLE_RETRIEVAL
 
@@ -105,6 +105,30 @@ def test_a_long_take_s_windows_resample_and_a_clip_does_not(model, take, sample_
     np.testing.assert_array_equal(model.synthesize(take, label, seed=1), shipped_take)  # deterministic per seed
     student = ReactionModel.load(SAMPLE_DEFAULT)
     assert student.takes is not None and student.takes.resample == RESAMPLE and student.draft.resample == 0
+
+
+def test_a_live_push_takes_live_steps_and_a_clip_the_model_s_own(model, take, monkeypatch):
+    """A push samples its window in LIVE_STEPS network calls (windows.py `live`), fewer than the model's own, which a
+    clip still takes; the model itself keeps its steps."""
+    steps = model.guidance.sample_steps
+    assert LIVE_STEPS < steps
+    calls = []
+    network = type(model)._denoiser
+
+    def counted(self, *args, **kwargs):
+        denoise = network(self, *args, **kwargs)
+        return lambda x_t, step, *rest: calls.append(step) or denoise(x_t, step, *rest)
+
+    monkeypatch.setattr(type(model), "_denoiser", counted)
+    reactor = model.online({"kicking": 1.0})
+    for frame in take[:LOOKAHEAD]:
+        assert reactor.push(frame) is None
+    assert not calls
+    assert reactor.push(take[LOOKAHEAD]) is not None
+    assert len(calls) == LIVE_STEPS
+    calls.clear()
+    model.synthesize(take[:40], {"kicking": 1.0})
+    assert len(calls) == steps == model.guidance.sample_steps
 
 
 def test_a_long_take_is_made_a_few_frames_at_a_time(model, take, sample_data):

@@ -265,10 +265,11 @@ def label_mix(page: LayoutParts) -> None:
             class_slider(f"lower_{i}", i, f"lower-slider lower-slider-{name}", f"lower-slider-{i}")
     with html.Div(classes="d-flex align-center", style="height: 30px"):
         html.Div("scale", classes="text-body-2", style="flex: 0 0 48px; font-weight: 600")
-        v3.VSlider(v_model=("scale",), min=0, max=2, step=0.05, density="compact", hide_details=True, id="scale-slider")
-        html.Input(type="number", min=0, max=2, step=0.05, value=("Number(scale).toFixed(2)",), classes="ml-2 imm-value",
-                   id="value-scale", title="type the scale, 0 .. 2: Enter or leaving the field sets it",
-                   __events=["change"], change="scale = Math.max(0, Math.min(2, Number($event.target.value) || 0))")
+        with rendered_apart():
+            v3.VSlider(v_model=("scale",), min=0, max=2, step=0.05, density="compact", hide_details=True, id="scale-slider")
+            html.Input(type="number", min=0, max=2, step=0.05, value=("Number(scale).toFixed(2)",), classes="ml-2 imm-value",
+                       id="value-scale", title="type the scale, 0 .. 2: Enter or leaving the field sets it",
+                       __events=["change"], change="scale = Math.max(0, Math.min(2, Number($event.target.value) || 0))")
     html.Div("{{ label_text }}", classes="text-body-2 mt-1 pa-2 rounded bg-grey-lighten-4", id="label-text",
              style="overflow-wrap: anywhere")  # part keys are long words
     compare_row(page)
@@ -278,11 +279,12 @@ def label_mix(page: LayoutParts) -> None:
 def class_slider(key: str, i: int, classes: str, slider_id: str) -> None:
     """A class's slider (-1 .. +1, in its colour) and its value, which the user may type (Enter or leaving the field
     sets it, within -1 .. +1)."""
-    v3.VSlider(v_model=(key,), min=-1, max=1, step=0.05, density="compact", hide_details=True, color=class_color(i),
-               track_color="grey-lighten-2", classes=classes, id=slider_id)
-    html.Input(type="number", min=-1, max=1, step=0.05, value=(f"Number({key}).toFixed(2)",), classes="ml-2 imm-value",
-               id=f"value-{slider_id}", title="type a value, -1 (avoid) .. +1 (perform): Enter or leaving the field sets it",
-               __events=["change"], change=f"{key} = Math.max(-1, Math.min(1, Number($event.target.value) || 0))")
+    with rendered_apart():
+        v3.VSlider(v_model=(key,), min=-1, max=1, step=0.05, density="compact", hide_details=True, color=class_color(i),
+                   track_color="grey-lighten-2", classes=classes, id=slider_id)
+        html.Input(type="number", min=-1, max=1, step=0.05, value=(f"Number({key}).toFixed(2)",), classes="ml-2 imm-value",
+                   id=f"value-{slider_id}", title="type a value, -1 (avoid) .. +1 (perform): Enter or leaving the field sets it",
+                   __events=["change"], change=f"{key} = Math.max(-1, Math.min(1, Number($event.target.value) || 0))")
 
 
 def part_tag(part: str, shown: str | None = None) -> None:
@@ -390,10 +392,11 @@ def first_use_hints() -> None:
                 click=HINTS_DONE)
 
 
-def per_frame():
-    """A wrapper for what changes with every frame while playing (the frame slider, the time, the chart's cursor): its
-    contents are a slot, rendered by a component of their own, so a new frame re-renders them and not the page's whole
-    template (which took ~10 ms of the browser's main thread a frame on 2 cores: docs/experiments/studio-performance.md)."""
+def rendered_apart():
+    """A wrapper for what changes often (the frame slider, the time and the chart's cursor with every frame played; a
+    class slider with every move): its contents are a slot, rendered by a component of their own, so a change to the
+    state they read re-renders them and not the page's whole template (which took ~10 ms of the browser's main thread
+    a frame on 2 cores, and held a slider's state back as long: docs/experiments/studio-performance.md)."""
     return v3.VDefaultsProvider()
 
 
@@ -417,7 +420,7 @@ def timeline() -> None:
     is) and the frames of contact as ticks above it (a click seeks there)."""
     client.Style(TIMELINE_CSS)
     with html.Div(classes="imm-timeline", id="timeline"):
-        with per_frame():
+        with rendered_apart():
             v3.VSlider(
                 v_model=("frame",),
                 min=0,
@@ -461,7 +464,7 @@ def playback_bar(page: LayoutParts) -> None:
         )
         v3.VBtn(icon="mdi-skip-next", size="small", variant="text", click=(page.ctrl.step_frame, "[1]"))
         timeline()
-        with per_frame():
+        with rendered_apart():
             html.Div("{{ time_text }}", classes="text-caption", style="width: 190px", id="time-text")
         v3.VSelect(
             v_model=("speed",),
@@ -551,7 +554,7 @@ def distance_chart() -> None:
     with html.Div(classes="imm-fill", id="distance-chart"):
         html.Div(v_html=("distance_chart",))
         with html.Div(classes="imm-plot", style=f"{DISTANCE_BOX}; cursor: crosshair", click=SEEK_JS, id="distance-seek"):
-            with per_frame():
+            with rendered_apart():
                 html.Div(classes="imm-cursor", style=("{left: (100 * frame / Math.max(1, num_frames - 1)) + '%'}",))
 
 

@@ -13,7 +13,7 @@ beside the single clip sampled whole and the recorded follower (raw network outp
 takes; `--whole` samples each take as one clip, as the model did before windows; `--own-takes` has a student make its
 takes itself instead of its teacher; `--label-scale` sets the label's guidance scale of the model that makes them;
 `--resample` how many times a window takes each sampler step again (windows.py RESAMPLE).
-`--window/--online-window/--blend/--stride/--lookahead/--take-lookahead/--continue-level/--anchor` set the windows
+`--window/--online-window/--blend/--stride/--lookahead/--live-steps/--take-lookahead/--continue-level/--anchor` set the windows
 (imm_model/families/diffusion/windows.py) for the variants the record compares; without them, as shipped.
 
     python docs/experiments/scripts/long_takes.py --repeats 1 4 8 --online --gan sample_data/imm_sbu.safetensors \\
@@ -77,7 +77,7 @@ def take(clip: np.ndarray, k: int, kind: str) -> np.ndarray:
 
 def set_windows(args) -> None:
     """The windows' settings for a variant (module constants, read at every call)."""
-    for name in ("window", "online_window", "blend", "stride", "lookahead", "take_lookahead"):
+    for name in ("window", "online_window", "blend", "stride", "lookahead", "take_lookahead", "live_steps"):
         if getattr(args, name) is not None:
             setattr(windows, name.upper(), getattr(args, name))
     if args.continue_level is not None:
@@ -105,6 +105,7 @@ def main() -> None:
     ap.add_argument("--blend", type=int, default=None)
     ap.add_argument("--stride", type=int, default=None)
     ap.add_argument("--lookahead", type=int, default=None, help="live")
+    ap.add_argument("--live-steps", type=int, default=None, help="live: sampler steps a push takes")
     ap.add_argument("--take-lookahead", type=int, default=None, help="offline, a long take's windows")
     ap.add_argument("--continue-level", type=float, default=None)
     ap.add_argument("--anchor", choices=("shipped", "own", "fixed"), default="shipped")
@@ -161,7 +162,8 @@ def main() -> None:
                    "fold": model.held_out_subject, "checkpoint": args.gan if mode == "gan" else args.checkpoint,
                    "seed": args.seed, "seed_per_leader": args.seed_per_leader, "window": windows.WINDOW,
                    "online_window": windows.ONLINE_WINDOW, "blend": windows.BLEND,
-                   "stride": windows.STRIDE, "lookahead": windows.LOOKAHEAD, "take_lookahead": windows.TAKE_LOOKAHEAD,
+                   "stride": windows.STRIDE, "lookahead": windows.LOOKAHEAD, "live_steps": windows.LIVE_STEPS,
+                   "take_lookahead": windows.TAKE_LOOKAHEAD,
                    "continue_level": windows.CONTINUE_LEVEL, "anchor": args.anchor, "resample": (model.takes or model).resample,
                    "hands_per_copy": hands.mean(0).round(4).tolist(), "torso_per_copy": torso.mean(0).round(4).tolist(),
                    "hands_per_leader": hands.round(4).tolist(), "torso_per_leader": torso.round(4).tolist()}

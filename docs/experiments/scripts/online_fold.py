@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from diffusion_fold import record
 
-SETTINGS = {"online": ("ONLINE_WINDOW", "LOOKAHEAD", "ENSEMBLE_GROWTH", "CONTINUE_LEVEL", "LABEL_RAMP"),
+SETTINGS = {"online": ("ONLINE_WINDOW", "LOOKAHEAD", "ENSEMBLE_GROWTH", "CONTINUE_LEVEL", "LABEL_RAMP", "LIVE_STEPS"),
             "windows": ("WINDOW", "TAKE_LOOKAHEAD", "STRIDE", "BLEND", "CONTINUE_LEVEL", "RESAMPLE")}  # recorded with each row
 
 
@@ -28,8 +28,9 @@ def online_followers(model, leaders: list[np.ndarray], label_vectors: np.ndarray
     """What `model.online(label, seed=s)` returns for each canonical leader pushed frame by frame, then flushed."""
     from imm_model.cleanup import OnlineCleanup
     from imm_model.families.diffusion.sampler import initial_noise, leader_noise
-    from imm_model.families.diffusion.windows import CONTINUE_LEVEL, LOOKAHEAD, ONLINE_WINDOW, Votes, anchored
+    from imm_model.families.diffusion.windows import CONTINUE_LEVEL, LOOKAHEAD, ONLINE_WINDOW, Votes, anchored, live
 
+    model = live(model)
     labels = model._label_input(model._label_array(label_vectors, len(leaders)))
     seeds = [0] * len(leaders) if seeds is None else [int(s) for s in seeds]
     window, d, sk = min(ONLINE_WINDOW, model.window), model.config.pose_dim, model.skeleton

@@ -13,13 +13,16 @@ first frame does not continue the given ones exactly (the network never learnt t
 The starting noise (and the leader's noise) is the seed's draw for the whole take, sliced per window.
 
 Live, `OnlineReactor` does the same one frame at a time, as the leader's frames come, in windows of `ONLINE_WINDOW`
-frames, each sampler step taken once (a push has a frame's time): a frame returned is final, so instead of the
+frames, in `LIVE_STEPS` sampler steps each taken once (a push has a frame's time): a frame returned is final, so instead of the
 crossfade each frame is the mean of the samples every window up to its return made of it (`Votes`); a follower frame
 never reads a leader frame beyond its lookahead, and a label changed mid-take changes the frames from the next one on,
 continuing the past ones.
 """
 
 from __future__ import annotations
+
+import copy
+from dataclasses import replace
 
 import numpy as np
 
@@ -49,6 +52,10 @@ CONTINUE_LEVEL = 0.6
 RESAMPLE = 3
 REANCHOR_M = 0.5  # a window keeps the canonical frame before it until the leader's root is this far from its origin
 REANCHOR_DEG = 30.0  # ... or the leader has turned this far from its facing
+# live: the sampler steps a push's window takes (at most the model's own), spread from CONTINUE_LEVEL down: a window
+# starts from the frames it continues, so it needs fewer than a clip drawn from pure noise (4 against the model's 7:
+# a push in 0.6x the time, the live LOSO table no worse; docs/experiments/long-takes.md)
+LIVE_STEPS = 4
 LABEL_RAMP = 8  # frames over which a label changed live moves from the old values to the new (0.53 s at 15 fps)
 # live, each follower frame is sampled by every window from the one that first reaches it to the one that returns it
 # (up to LOOKAHEAD + 1, each reading the leader no further than its lookahead); the frame returned is their weighted
@@ -110,6 +117,14 @@ def take_windows(model, leader: np.ndarray, label: np.ndarray, seed: int) -> np.
     return follower.astype(np.float32)
 
 
+def live(model):
+    """`model` as the live reactor samples with it: the same network and guidance, each window taking LIVE_STEPS
+    sampler steps."""
+    fast = copy.copy(model)
+    fast.guidance = replace(model.guidance, sample_steps=min(LIVE_STEPS, model.guidance.sample_steps))
+    return fast
+
+
 class OnlineReactor:
     """A reaction to a leader streamed frame by frame (`ReactionModel.online`).
 
@@ -122,7 +137,7 @@ class OnlineReactor:
     first reaches it to the one that returns it, and returned as their mean (`Votes`)."""
 
     def __init__(self, model, label, scale: float = 1.0, seed: int = 0):
-        self.model, self.seed, self.lookahead, self.window = model, int(seed), LOOKAHEAD, min(ONLINE_WINDOW, model.window)
+        self.model, self.seed, self.lookahead, self.window = live(model), int(seed), LOOKAHEAD, min(ONLINE_WINDOW, model.window)
         self._scale, self._label = float(scale), label
         self._vector = self._label_input(label, scale)
         self._ramp_from, self._ramped = self._vector, LABEL_RAMP  # the values a label change moves from, frames since
