@@ -2,6 +2,7 @@
 
     .venv/bin/python benchmarks/explorer_latency.py [--trials 40] [--play-seconds 5] [--json out.json] [--checkpoint CK]
     .venv/bin/python benchmarks/explorer_latency.py --models [--trials 20]   # only 7. below
+    .venv/bin/python benchmarks/explorer_latency.py --sliders-only [--trials 20]   # only 2.'s first series, by stage
     .venv/bin/python benchmarks/explorer_latency.py --playback-only [--play-seconds 5] [--playback-scales 1,0.5] [--rounds 3]
         # only 3.'s page figure, for each size of the pictures while playing, back to back in one page
 
@@ -254,14 +255,20 @@ def measure_start(browser, cache: Path, res: dict, model: tuple[str, ...]) -> pr
     return studio
 
 
-def measure_sliders(browser, studio: probe.StudioProcess, cache: Path, trials: int, res: dict, model: tuple[str, ...]):
-    """Slider latency with the 'reads as' panel, then with a mix pinned, then in a studio without the panel."""
+def first_slider_series(browser, studio: probe.StudioProcess, trials: int, res: dict):
+    """Slider latency with the 'reads as' panel in a new page, split by stage; the page."""
     page = probe.open_studio(browser, studio.url, *VIEW_SIZE)
     probe.watch_view_images(page)
     res["slider_ms_page_stages"] = stages = {}
     res["slider_ms"] = _p(lat := slider_latency(page, trials, stages))
     _say("slider -> redrawn follower", lat, "p95 <= 60 ms idle; <= 100 ms with the panel")
     _say_stages(stages)
+    return page
+
+
+def measure_sliders(browser, studio: probe.StudioProcess, cache: Path, trials: int, res: dict, model: tuple[str, ...]):
+    """Slider latency with the 'reads as' panel, then with a mix pinned, then in a studio without the panel."""
+    page = first_slider_series(browser, studio, trials, res)
     page.locator("#pin-mix").click()
     page.wait_for_function("() => !!window.trame.state.get('pinned_text')", timeout=10000)
     res["slider_ms_ab"] = _p(lat := slider_latency(page, trials))
@@ -311,6 +318,7 @@ def main() -> int:
     ap.add_argument("--playback-scales", default="", help="with --playback-only: sizes of the pictures while playing, "
                     "fractions of the view's (e.g. 1,0.75,0.5), each measured in turn, --rounds times")
     ap.add_argument("--rounds", type=int, default=3, help="with --playback-scales: rounds over the sizes")
+    ap.add_argument("--sliders-only", action="store_true", help="only 2.'s first series, with its split by stage")
     args = ap.parse_args()
     if args.checkpoint and not args.checkpoint.is_file():
         ap.error(f"checkpoint not found: {args.checkpoint}")  # one line, before any studio or browser starts
@@ -335,6 +343,7 @@ def main() -> int:
 
         alone = (lambda st: measure_models(browser, st, args.trials, res)) if args.models else \
             playback_alone if args.playback_only else \
+            (lambda st: first_slider_series(browser, st, args.trials, res)) if args.sliders_only else \
             (lambda st: measure_tabs(browser, st, 0, res)) if args.memory_only else None
         if alone is not None:  # one part of the benchmark, in one studio
             studio = probe.StudioProcess(*model, cache_dir=cache, timeout=120)
