@@ -18,6 +18,10 @@
   const PLOT_ID = 'latent-plotly';
   const FIRST_PICTURE_WAIT_MS = 8000;  // load it anyway after this long (a page with no picture still gets its map)
   const QUIET_MS = 1000;  // ... and evaluate it after this long without a key, click or drag
+  // The star (the current mix) moves once keys, clicks and drags have rested this long, the latest marks only: moving
+  // it redraws the figure, 50-100 ms of the page's thread on 2 cores, which held back the next slider move's state
+  // (docs/experiments/studio-performance.md)
+  const MARKS_QUIET_MS = 400;
   let lastInput = performance.now();
   for (const type of ['keydown', 'pointerdown', 'pointermove', 'wheel', 'input']) {
     document.addEventListener(type, (e) => {
@@ -27,6 +31,14 @@
   let loading = null;
   let plotted = null;  // the element the figure lives in
   let last = {points: null, marks: null, mode: 'class', colors: null};
+  let marksDue = null;  // the star's move waiting for a pause (a promise), or null
+
+  function whenQuiet(quietMs) {
+    return new Promise((resolve) => {
+      const poll = () => (performance.now() - lastInput >= quietMs ? resolve() : setTimeout(poll, 50));
+      poll();
+    });
+  }
 
   function afterFirstPictureWhenQuiet() {
     return new Promise((resolve) => {
@@ -167,8 +179,14 @@
       return render().catch((err) => window.trame.state.set('error', String(err.message || err)));
     },
     marks(marks) {
-      last.marks = marks;
-      return (plotted ? moveMarks() : render()).catch(() => {});
+      last.marks = marks;  // a move already waiting takes these
+      if (!marksDue) {
+        marksDue = whenQuiet(MARKS_QUIET_MS).then(() => {
+          marksDue = null;
+          return (plotted ? moveMarks() : render()).catch(() => {});
+        });
+      }
+      return marksDue;
     },
   };
 })();

@@ -131,7 +131,8 @@ def page_hooks() -> None:
     """Keys, the view named in the page's URL (on load), and the URL kept on what is shown."""
     client.ClientTriggers(mounted=f"{LISTENER_JS}; trigger('open_url_view', [utils.get('location.search')]); "
                                   f"show_hints = !utils.get('localStorage').getItem('{HINTS_SEEN}')")
-    client.ClientStateChange(value="url_query", change="url_query && utils.get('history').replaceState(null, '', url_query)")
+    with rendered_apart():  # the query changes after every move: read here, not by the page's whole template
+        client.ClientStateChange(value="url_query", change="url_query && utils.get('history').replaceState(null, '', url_query)")
 
 
 def keys_card() -> None:
@@ -270,10 +271,12 @@ def label_mix(page: LayoutParts) -> None:
             html.Input(type="number", min=0, max=2, step=0.05, value=("Number(scale).toFixed(2)",), classes="ml-2 imm-value",
                        id="value-scale", title="type the scale, 0 .. 2: Enter or leaving the field sets it",
                        __events=["change"], change="scale = Math.max(0, Math.min(2, Number($event.target.value) || 0))")
-    html.Div("{{ label_text }}", classes="text-body-2 mt-1 pa-2 rounded bg-grey-lighten-4", id="label-text",
-             style="overflow-wrap: anywhere")  # part keys are long words
+    with rendered_apart():
+        html.Div("{{ label_text }}", classes="text-body-2 mt-1 pa-2 rounded bg-grey-lighten-4", id="label-text",
+                 style="overflow-wrap: anywhere")  # part keys are long words
     compare_row(page)
-    reads_as_panel()
+    with rendered_apart():  # it changes with every follower drawn
+        reads_as_panel()
 
 
 def class_slider(key: str, i: int, classes: str, slider_id: str) -> None:
@@ -437,8 +440,9 @@ def timeline() -> None:
                                  f"width: {AT_FRAME.format('loop_range[1] - loop_range[0]')}}}",)):
                 html.Span("{{ loop_range[0] + 1 }}", classes="imm-loop-in")
                 html.Span("{{ loop_range[1] + 1 }}", classes="imm-loop-out")
-            html.Div(v_for="m in contact_marks", key=("m",), classes="imm-contact-tick", click="frame = m",
-                     style=(f"{{left: {AT_FRAME.format('m')}}}",), title=("'contact: the bodies closest at frame ' + (m + 1)",))
+            with rendered_apart():  # the contact frames change with every follower drawn
+                html.Div(v_for="m in contact_marks", key=("m",), classes="imm-contact-tick", click="frame = m",
+                         style=(f"{{left: {AT_FRAME.format('m')}}}",), title=("'contact: the bodies closest at frame ' + (m + 1)",))
 
 
 def loop_range_buttons(page: LayoutParts) -> None:
@@ -490,9 +494,11 @@ def review_cards(page: LayoutParts) -> None:
             with html.Div(classes="d-flex align-center px-2", style="gap: 4px"):
                 chart_picker(page)
                 v3.VSpacer()
-                html.Div("{{ afd_text }}", v_if="!plot_kind", classes="text-caption", id="afd-text")
-            html.Div("{{ contact_text }}", v_if="!plot_kind", classes="text-caption px-2", style=f"color: {WARNING}",
-                     id="contact-text")
+                with rendered_apart():  # these change with every follower drawn
+                    html.Div("{{ afd_text }}", v_if="!plot_kind", classes="text-caption", id="afd-text")
+            with rendered_apart():
+                html.Div("{{ contact_text }}", v_if="!plot_kind", classes="text-caption px-2", style=f"color: {WARNING}",
+                         id="contact-text")
             distance_chart()
         with v3.VCard(variant="outlined", classes=("latent_rows.length ? 'pa-1 imm-selecting' : 'pa-1'",), id="latent-card"):
             with html.Div(classes="d-flex align-center px-2", style="gap: 6px"):
@@ -552,7 +558,8 @@ def distance_chart() -> None:
     """explorer/rendering/charts.py's markup, with the frame cursor on top (it follows playback without a redraw)."""
     client.Style(CHART_CSS)
     with html.Div(classes="imm-fill", id="distance-chart"):
-        html.Div(v_html=("distance_chart",))
+        with rendered_apart():  # drawn anew with every follower
+            html.Div(v_html=("distance_chart",))
         with html.Div(classes="imm-plot", style=f"{DISTANCE_BOX}; cursor: crosshair", click=SEEK_JS, id="distance-seek"):
             with rendered_apart():
                 html.Div(classes="imm-cursor", style=("{left: (100 * frame / Math.max(1, num_frames - 1)) + '%'}",))
@@ -576,9 +583,10 @@ def latent_map() -> None:
                  v_if="projection_busy", classes="text-caption text-medium-emphasis", id="latent-busy",
                  style="position: absolute; left: 50%; top: 45%; transform: translateX(-50%); background: rgba(255,255,255,.85)")
     draw = "utils.get('immLatent').draw(latent_points, latent_marks, latent_color, latent_colors)"
-    client.ClientStateChange(value="latent_points", trigger_on_create=True, change=draw)
-    client.ClientStateChange(value="latent_color", change=draw)
-    client.ClientStateChange(value="latent_marks", change="utils.get('immLatent').marks(latent_marks)")
+    with rendered_apart():  # the marks change with every follower drawn: read here, not by the page's whole template
+        client.ClientStateChange(value="latent_points", trigger_on_create=True, change=draw)
+        client.ClientStateChange(value="latent_color", change=draw)
+        client.ClientStateChange(value="latent_marks", change="utils.get('immLatent').marks(latent_marks)")
 
 
 def selection_list(page: LayoutParts) -> None:
