@@ -42,6 +42,50 @@ def test_sliders_and_reads_as_bars_do_not_glide(page):
     assert {d for ds in durations for d in ds.replace(" ", "").split(",")} == {"0s"}, durations
 
 
+# Counts the renders of the component whose own render makes the element with this id (Vue's components reached from
+# the app's root vnode; a slot's contents belong to the component that renders the slot): window.__immRenders.
+COUNT_RENDERS_JS = """(id) => {
+  const owns = (vnode) => {  // the element in this subtree, not inside a child component
+    if (!vnode) return false;
+    if (vnode.props && vnode.props.id === id) return true;
+    return !vnode.component && Array.isArray(vnode.children) && vnode.children.some(owns);
+  };
+  const components = [];
+  const walk = (vnode) => {
+    if (!vnode) return;
+    if (vnode.component) { components.push(vnode.component); walk(vnode.component.subTree); return; }
+    if (Array.isArray(vnode.children)) vnode.children.forEach(walk);
+  };
+  walk(document.querySelector('#app')._vnode);
+  const owner = components.find((c) => owns(c.subTree));
+  window.__immRenders = 0;
+  const render = owner.render;
+  owner.render = function (...args) { window.__immRenders += 1; return render.apply(this, args); };
+  return owner.type.name;
+}"""
+
+
+def test_a_slider_move_re_renders_the_slider_and_what_it_changed_not_the_drawer(page):
+    """A class slider's new value, and what the server sends back with the follower (the label in words, the reads-as
+    panel, the contact ticks, the map's marks, the URL), re-render parts of their own (layout.py `rendered_apart`),
+    not the drawer around them: on 2 cores the drawer's re-render held each move's state back ~10 ms
+    (docs/experiments/studio-performance.md). The counter itself counts: a key the drawer reads re-renders it."""
+    assert page.evaluate(COUNT_RENDERS_JS, "match-label") == "VNavigationDrawer"
+    renders = "() => new Promise((r) => requestAnimationFrame(() => setTimeout(() => r(window.__immRenders), 0)))"
+    names = probe.state(page, "class_names")
+    own = [i for i in range(len(names)) if probe.state(page, f"w_{i}") == 1.0][0]
+    other = (own + 1) % len(names)
+    before = probe.state(page, "label_text")
+    probe.set_state(page, f"w_{other}", 1.0)  # the server draws the mix and sends back what changed with it
+    probe.wait_state(page, f"s.get('label_text') !== {before!r}")
+    probe.wait_for_view_at_rest(page)
+    assert page.evaluate(renders) == 0
+    probe.set_state(page, "key_slider", other)  # the drawer underlines the class a key selects
+    assert page.evaluate(renders) >= 1
+    probe.set_state(page, f"w_{other}", 0.0)
+    probe.set_state(page, "key_slider", own)
+
+
 def test_a_label_changes_first_picture_is_a_stretched_draft_then_full_size(page):
     """explorer/rendering/view_stream.py: the picture right after a slider move is rendered at half the view's width and
     height and shown stretched over the whole view; the still picture that follows is full size."""

@@ -396,10 +396,12 @@ def first_use_hints() -> None:
 
 
 def rendered_apart():
-    """A wrapper for what changes often (the frame slider, the time and the chart's cursor with every frame played; a
-    class slider with every move): its contents are a slot, rendered by a component of their own, so a change to the
-    state they read re-renders them and not the page's whole template (which took ~10 ms of the browser's main thread
-    a frame on 2 cores, and held a slider's state back as long: docs/experiments/studio-performance.md)."""
+    """A wrapper for what changes often outside any other component's slot (the frame slider, the time and the
+    chart's cursor with every frame played; the class sliders, the label in words, the reads-as panel, the contact
+    ticks, the map's marks and the URL with every move): its contents are a slot, rendered by a component of their
+    own, so a change to the state they read re-renders them and not the whole component around them (the page's
+    template, or the drawer with most of the controls), which took ~10 ms of the browser's main thread a frame on 2
+    cores and held a slider's state back as long (benchmarks/page_render_cost.py, docs/experiments/studio-performance.md)."""
     return v3.VDefaultsProvider()
 
 
@@ -494,11 +496,9 @@ def review_cards(page: LayoutParts) -> None:
             with html.Div(classes="d-flex align-center px-2", style="gap: 4px"):
                 chart_picker(page)
                 v3.VSpacer()
-                with rendered_apart():  # these change with every follower drawn
-                    html.Div("{{ afd_text }}", v_if="!plot_kind", classes="text-caption", id="afd-text")
-            with rendered_apart():
-                html.Div("{{ contact_text }}", v_if="!plot_kind", classes="text-caption px-2", style=f"color: {WARNING}",
-                         id="contact-text")
+                html.Div("{{ afd_text }}", v_if="!plot_kind", classes="text-caption", id="afd-text")
+            html.Div("{{ contact_text }}", v_if="!plot_kind", classes="text-caption px-2", style=f"color: {WARNING}",
+                     id="contact-text")
             distance_chart()
         with v3.VCard(variant="outlined", classes=("latent_rows.length ? 'pa-1 imm-selecting' : 'pa-1'",), id="latent-card"):
             with html.Div(classes="d-flex align-center px-2", style="gap: 6px"):
@@ -558,8 +558,7 @@ def distance_chart() -> None:
     """explorer/rendering/charts.py's markup, with the frame cursor on top (it follows playback without a redraw)."""
     client.Style(CHART_CSS)
     with html.Div(classes="imm-fill", id="distance-chart"):
-        with rendered_apart():  # drawn anew with every follower
-            html.Div(v_html=("distance_chart",))
+        html.Div(v_html=("distance_chart",))
         with html.Div(classes="imm-plot", style=f"{DISTANCE_BOX}; cursor: crosshair", click=SEEK_JS, id="distance-seek"):
             with rendered_apart():
                 html.Div(classes="imm-cursor", style=("{left: (100 * frame / Math.max(1, num_frames - 1)) + '%'}",))
