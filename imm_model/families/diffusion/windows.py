@@ -54,7 +54,8 @@ REANCHOR_M = 0.5  # a window keeps the canonical frame before it until the leade
 REANCHOR_DEG = 30.0  # ... or the leader has turned this far from its facing
 # live: the sampler steps a push's window takes (at most the model's own), spread from CONTINUE_LEVEL down: a window
 # starts from the frames it continues, so it needs fewer than a clip drawn from pure noise (4 against the model's 7:
-# a push in 0.6x the time, the live LOSO table no worse; docs/experiments/long-takes.md)
+# a push in 0.6-0.67x the time; on the live LOSO table every figure within the folds' spread of 7's but the jitter,
+# +0.035 on the dev folds, still under real followers'; docs/experiments/long-takes.md)
 LIVE_STEPS = 4
 LABEL_RAMP = 8  # frames over which a label changed live moves from the old values to the new (0.53 s at 15 fps)
 # live, each follower frame is sampled by every window from the one that first reaches it to the one that returns it
