@@ -17,9 +17,8 @@ import argparse
 import json
 from pathlib import Path
 
-import numpy as np
-from online_table import FIGURES
-from sampler_steps import GROUPS, interval
+from online_table import print_rows
+from sampler_steps import GROUPS
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "live-steps-loso.jsonl"
 BASE = 7  # the model's own sampler steps, what a push took before LIVE_STEPS
@@ -45,15 +44,7 @@ def main() -> None:
         print(f"| figure | whole clip | live, {BASE} steps | " + " | ".join(f"live, {s} steps" for s in args.steps) + " | "
               + " | ".join(f"{s} - {BASE} [95 % t]" for s in args.steps) + " |")
         print("|---|" + "---:|" * (2 + 2 * len(args.steps)))
-        for key in FIGURES:
-            values = {n: np.array([columns[n][f][key] for f in have], float) for n in names}
-            diffs = []
-            for s in args.steps:
-                d = values[s] - values[BASE]
-                lo, hi = interval(d)
-                apart = "" if np.isnan(lo) or lo <= 0 <= hi else " *"
-                diffs.append(f"{d.mean():+.3f} [{lo:+.3f}, {hi:+.3f}]{apart}")
-            print(f"| {key} | " + " | ".join(f"{values[n].mean():.3f}" for n in names) + " | " + " | ".join(diffs) + " |")
+        print_rows(columns, names, have, [(s, BASE) for s in args.steps])
     print("\n* the interval leaves out 0: a difference beyond the folds' spread")
 
 

@@ -59,16 +59,22 @@ def main() -> None:
             continue
         print("| figure | whole clip | live | in windows | live - whole [95 % t] | windows - whole [95 % t] |")
         print("|---|---:|---:|---:|---:|---:|")
-        for key in FIGURES:
-            values = {n: np.array([columns[n][f][key] for f in have], float) for n in names}
-            diffs = []
-            for n in names[1:]:
-                d = values[n] - values["offline"]
-                lo, hi = interval(d)
-                apart = "" if np.isnan(lo) or lo <= 0 <= hi else " *"
-                diffs.append(f"{d.mean():+.3f} [{lo:+.3f}, {hi:+.3f}]{apart}")
-            print(f"| {key} | " + " | ".join(f"{values[n].mean():.3f}" for n in names) + " | " + " | ".join(diffs) + " |")
+        print_rows(columns, names, have, [(n, "offline") for n in names[1:]])
     print("\n* the interval leaves out 0: a difference beyond the folds' spread")
+
+
+def print_rows(columns: dict, names: list, folds: list[str], pairs: list[tuple]) -> None:
+    """One table row per figure: each column's mean over the folds, then each (column, reference) pair's difference
+    paired by fold with its 95 % t interval (* where it leaves out 0)."""
+    for key in FIGURES:
+        values = {n: np.array([columns[n][f][key] for f in folds], float) for n in names}
+        diffs = []
+        for n, reference in pairs:
+            d = values[n] - values[reference]
+            lo, hi = interval(d)
+            apart = "" if np.isnan(lo) or lo <= 0 <= hi else " *"
+            diffs.append(f"{d.mean():+.3f} [{lo:+.3f}, {hi:+.3f}]{apart}")
+        print(f"| {key} | " + " | ".join(f"{values[n].mean():.3f}" for n in names) + " | " + " | ".join(diffs) + " |")
 
 
 if __name__ == "__main__":
