@@ -126,7 +126,14 @@ def test_with_join_outputs_each_part_is_sampled_on_its_own_and_the_reactions_joi
     upper, lower = np.eye(C, dtype=np.float32)[[2, 4, 0]], -np.eye(C, dtype=np.float32)[[1, 3, 0]]
     lower[2] = upper[2]  # the last row's parts agree
     g = Guidance(label_scale=2.0, sample_steps=4, clip=100.0, join_outputs=True)
-    apart = sample(net, leaders, mask, np.concatenate([upper, lower], 1), noise, g, 100, join=average)
+    calls = []
+
+    def counted(*args):
+        calls.append(len(args[0]))
+        return net(*args)
+
+    apart = sample(counted, leaders, mask, np.concatenate([upper, lower], 1), noise, g, 100, join=average)
+    assert len(calls) == g.sample_steps  # both parts' reactions side by side: one network call a step
     alone = [ddim(guided_prediction(net, v, g, 100, mask), noise, mask, g, 100) for v in (upper, lower)]
     np.testing.assert_allclose(apart[:2], average(*alone)[:2], atol=1e-6)
     np.testing.assert_array_equal(apart[2], sample(net, leaders, mask, upper, noise, g, 100)[2])

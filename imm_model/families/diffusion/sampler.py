@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import ClassVar
 
@@ -366,20 +367,30 @@ def sample(denoise, leaders: np.ndarray, mask: np.ndarray, labels: np.ndarray, n
     if part_labels:  # each part's values as the whole-body condition (e_c, e_c) the network saw on every one-class row
         upper, lower = np.concatenate([upper, upper], 1), np.concatenate([lower, lower], 1)
     apart = ~np.all(labels[:, :c] == labels[:, c:], axis=1)[:, None, None]
-    by_upper = guided_prediction(denoise, upper, guidance, diffusion_steps, mask, *flags)
     if not apart.any():
-        return ddim(keeping(by_upper, known), noise, mask, guidance, diffusion_steps, seeds, resample)
-    by_lower = guided_prediction(denoise, lower, guidance, diffusion_steps, mask, *flags)
+        return ddim(keeping(guided_prediction(denoise, upper, guidance, diffusion_steps, mask, *flags), known), noise,
+                    mask, guidance, diffusion_steps, seeds, resample)
+    by_parts = predicting(denoise, [guided_terms(v, guidance, diffusion_steps, mask, *flags) for v in (upper, lower)],
+                          guidance, diffusion_steps)
     m = mask[..., None].astype(np.float32)
 
     def joined(x_upper: np.ndarray, x_lower: np.ndarray) -> np.ndarray:
         return (np.where(apart, join(x_upper, x_lower), x_upper) * m).astype(np.float32)
 
-    if guidance.join_outputs:
-        return joined(ddim(keeping(by_upper, known), noise, mask, guidance, diffusion_steps, seeds, resample),
-                      ddim(keeping(by_lower, known), noise, mask, guidance, diffusion_steps, seeds, resample))
-    return ddim(keeping(lambda x, step: joined(by_upper(x, step), by_lower(x, step)), known), noise, mask, guidance,
-                diffusion_steps, seeds, resample)
+    if not guidance.join_outputs:
+        return ddim(keeping(lambda x, step: joined(*by_parts([x, x], step)), known), noise, mask, guidance,
+                    diffusion_steps, seeds, resample)
+    # each part's reaction sampled on its own, the two side by side as one batch of 2B rows (one network call a step)
+    b = len(labels)
+
+    def twice(a) -> np.ndarray:
+        return np.concatenate([a, a])
+
+    both = ddim(keeping(lambda x, step: np.concatenate(by_parts([x[:b], x[b:]], step)),
+                        None if known is None else (twice(known[0]), twice(np.asarray(known[1])), known[2])),
+                twice(noise), twice(mask), guidance, diffusion_steps, None if seeds is None else [*seeds, *seeds],
+                None if resample is None else (resample[0], [*resample[1], *resample[1]]))
+    return joined(both[:b], both[b:])
 
 
 def keeping(predict, known):
@@ -394,21 +405,29 @@ def keeping(predict, known):
     return lambda x, step: np.where(where, values, predict(x, step)).astype(np.float32)
 
 
-def guided_prediction(denoise, labels: np.ndarray, guidance: Guidance, diffusion_steps: int, mask: np.ndarray,
-                      pair_terms: bool = False, part_labels: bool = False, composed_label: bool = False):
-    """`predict(x_t, step)` -> x0 (B, T, D): the network's terms for `labels` (as `sample` takes them) composed by the
-    guidance at one step, clipped and masked; a student's (`composed_label`) one call with the label itself."""
+@dataclass(frozen=True)
+class GuidedTerms:
+    """One guided prediction's network rows: per row of x_t, `count` terms whose inputs are `leader_on`, `label` and
+    `label_on` (count * B rows, term-major, as `denoise` takes them), and `compose(terms (count, B, T, D), step)` -> x0
+    (B, T, D), clipped and masked."""
+
+    count: int
+    leader_on: np.ndarray
+    label: np.ndarray
+    label_on: np.ndarray
+    compose: Callable[[np.ndarray, int], np.ndarray]
+
+
+def guided_terms(labels: np.ndarray, guidance: Guidance, diffusion_steps: int, mask: np.ndarray,
+                 pair_terms: bool = False, part_labels: bool = False, composed_label: bool = False) -> GuidedTerms:
+    """The network's terms for `labels` (as `sample` takes them) and their composition by the guidance at one step; a
+    student's (`composed_label`) one term, the label itself."""
     b = labels.shape[0]
     m = mask[..., None].astype(np.float32)
     if composed_label:
-        label_input, on = labels.astype(np.float32), np.ones(b, bool)
-        off = np.zeros(b, bool)
-
-        def predict_composed(x: np.ndarray, step: int) -> np.ndarray:
-            with_leader = on if step <= guidance.leader_below * (diffusion_steps - 1) else off
-            return np.clip(denoise(x, step, with_leader, label_input, on), -guidance.clip, guidance.clip) * m
-
-        return predict_composed
+        on = np.ones(b, bool)
+        return GuidedTerms(1, on, labels.astype(np.float32), on,
+                           lambda terms, step: np.clip(terms[0], -guidance.clip, guidance.clip) * m)
     conditions, weights = label_terms(labels, pair_terms, part_labels)
     k = len(conditions)
     n_terms = 1 + k + (guidance.leader_scale != 1.0)
@@ -419,14 +438,9 @@ def guided_prediction(denoise, labels: np.ndarray, guidance: Guidance, diffusion
     leader_on = np.ones((n_terms, b), bool)
     if guidance.leader_scale != 1.0:
         leader_on[-1] = False
-    label_input, label_on, leader_on = label_input.reshape(n_terms * b, -1), label_on.reshape(-1), leader_on.reshape(-1)
-    no_leader = np.zeros_like(leader_on)
     unguided = weights[..., None, None]  # (K, B, 1, 1): the label terms at s = 1
 
-    def predict(x: np.ndarray, step: int) -> np.ndarray:
-        _, t, d = x.shape
-        with_leader = leader_on if step <= guidance.leader_below * (diffusion_steps - 1) else no_leader
-        terms = denoise(np.tile(x, (n_terms, 1, 1)), step, with_leader, label_input, label_on).reshape(n_terms, b, t, d)
+    def compose(terms: np.ndarray, step: int) -> np.ndarray:
         base = terms[0]
         x0 = base
         strength = np.float32(guidance.label_scale) if step <= guidance.guided_below * (diffusion_steps - 1) else np.float32(1)
@@ -436,4 +450,35 @@ def guided_prediction(denoise, labels: np.ndarray, guidance: Guidance, diffusion
             x0 = terms[-1] + guidance.leader_scale * (x0 - terms[-1])
         return np.clip(x0, -guidance.clip, guidance.clip) * m
 
+    return GuidedTerms(n_terms, leader_on.reshape(-1), label_input.reshape(n_terms * b, -1), label_on.reshape(-1), compose)
+
+
+def predicting(denoise, groups: list[GuidedTerms], guidance: Guidance, diffusion_steps: int):
+    """`predict([x_t per group], step)` -> [x0 per group]: each group's guided prediction from its own x_t (B, T, D),
+    all in one network call (on a CPU a few small calls cost more than one of their rows together)."""
+    leader_on = np.concatenate([g.leader_on for g in groups])
+    label = np.concatenate([g.label for g in groups])
+    label_on = np.concatenate([g.label_on for g in groups])
+    no_leader = np.zeros_like(leader_on)
+
+    def predict(xs: list[np.ndarray], step: int) -> list[np.ndarray]:
+        with_leader = leader_on if step <= guidance.leader_below * (diffusion_steps - 1) else no_leader
+        terms = denoise(np.concatenate([np.tile(x, (g.count, 1, 1)) for g, x in zip(groups, xs, strict=True)]), step,
+                        with_leader, label, label_on)
+        out, start = [], 0
+        for g, x in zip(groups, xs, strict=True):
+            rows = g.count * len(x)
+            out.append(g.compose(terms[start:start + rows].reshape(g.count, *x.shape), step))
+            start += rows
+        return out
+
     return predict
+
+
+def guided_prediction(denoise, labels: np.ndarray, guidance: Guidance, diffusion_steps: int, mask: np.ndarray,
+                      pair_terms: bool = False, part_labels: bool = False, composed_label: bool = False):
+    """`predict(x_t, step)` -> x0 (B, T, D): the network's terms for `labels` (as `sample` takes them) composed by the
+    guidance at one step, clipped and masked; a student's (`composed_label`) one call with the label itself."""
+    predict = predicting(denoise, [guided_terms(labels, guidance, diffusion_steps, mask, pair_terms, part_labels,
+                                                composed_label)], guidance, diffusion_steps)
+    return lambda x, step: predict([x], step)[0]
