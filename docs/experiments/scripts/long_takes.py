@@ -13,8 +13,9 @@ beside the single clip sampled whole and the recorded follower (raw network outp
 takes; `--whole` samples each take as one clip, as the model did before windows; `--own-takes` has a student make its
 takes itself instead of its teacher; `--label-scale` sets the label's guidance scale of the model that makes them;
 `--resample` how many times a window takes each sampler step again (windows.py RESAMPLE).
-`--window/--online-window/--blend/--stride/--lookahead/--live-steps/--take-lookahead/--continue-level/--anchor` set the windows
-(imm_model/families/diffusion/windows.py) for the variants the record compares; without them, as shipped.
+`--window/--online-window/--blend/--stride/--lookahead/--live-steps/--take-lookahead/--continue-level/--ensemble-growth/
+--anchor` set the windows (imm_model/families/diffusion/windows.py) for the variants the record compares; without them,
+as shipped.
 
     python docs/experiments/scripts/long_takes.py --repeats 1 4 8 --online --gan sample_data/imm_sbu.safetensors \\
         --out docs/experiments/data/long-takes.jsonl
@@ -82,6 +83,8 @@ def set_windows(args) -> None:
             setattr(windows, name.upper(), getattr(args, name))
     if args.continue_level is not None:
         windows.CONTINUE_LEVEL = args.continue_level
+    if args.ensemble_growth is not None:
+        windows.ENSEMBLE_GROWTH = args.ensemble_growth
     if args.anchor == "own":  # every window standardized on its own first frames
         windows.anchored = lambda model, leader, anchor: CanonicalFrame.from_leader(
             np.asarray(leader, np.float64), model.skeleton, model.canonical_mode)
@@ -108,6 +111,8 @@ def main() -> None:
     ap.add_argument("--live-steps", type=int, default=None, help="live: sampler steps a push takes")
     ap.add_argument("--take-lookahead", type=int, default=None, help="offline, a long take's windows")
     ap.add_argument("--continue-level", type=float, default=None)
+    ap.add_argument("--ensemble-growth", type=float, default=None,
+                    help="live: how much more each later window's sample of a frame weighs")
     ap.add_argument("--anchor", choices=("shipped", "own", "fixed"), default="shipped")
     ap.add_argument("--whole", action="store_true", help="sample every take whole, as one clip (no windows)")
     ap.add_argument("--own-takes", action="store_true", help="a student makes its long takes itself, not its teacher")
@@ -164,7 +169,8 @@ def main() -> None:
                    "online_window": windows.ONLINE_WINDOW, "blend": windows.BLEND,
                    "stride": windows.STRIDE, "lookahead": windows.LOOKAHEAD, "live_steps": windows.LIVE_STEPS,
                    "take_lookahead": windows.TAKE_LOOKAHEAD,
-                   "continue_level": windows.CONTINUE_LEVEL, "anchor": args.anchor, "resample": (model.takes or model).resample,
+                   "continue_level": windows.CONTINUE_LEVEL, "ensemble_growth": windows.ENSEMBLE_GROWTH,
+                   "anchor": args.anchor, "resample": (model.takes or model).resample,
                    "hands_per_copy": hands.mean(0).round(4).tolist(), "torso_per_copy": torso.mean(0).round(4).tolist(),
                    "hands_per_leader": hands.round(4).tolist(), "torso_per_leader": torso.round(4).tolist()}
             if seam:
