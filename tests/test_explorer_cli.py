@@ -401,3 +401,55 @@ def test_control_characters_in_a_path_are_shown_escaped_on_one_line(tmp_path):
     assert_one_line_error(proc, "--model mine: checkpoint not found", "a\\nb\\x1b[2J.safetensors")
     assert "\x1b" not in proc.stderr
     assert_one_line_error(run_explore("--data", f"{tmp_path}/x\ny.npz"), "data file not found", "x\\ny.npz")
+
+
+def test_a_tab_gone_before_its_page_is_answered_leaves_no_error(caplog):
+    """The launcher forwarding a tab's request to its studio process: a tab closed while the studio process is still
+    answering (before the answer's headers could go out) is no error, and nothing is logged as one."""
+    import asyncio
+    import logging
+
+    from aiohttp import web
+
+    from explorer.serving.proxy import forward_http
+
+    async def serve(handler) -> tuple[web.AppRunner, int]:
+        app = web.Application()
+        app.router.add_get("/{tail:.*}", handler)
+        runner = web.AppRunner(app)
+        await runner.setup()
+        site = web.TCPSite(runner, "127.0.0.1", 0)
+        await site.start()
+        return runner, site._server.sockets[0].getsockname()[1]
+
+    async def go() -> None:
+        closed, forwarded = asyncio.Event(), asyncio.Event()
+
+        async def studio_process(request):
+            await closed.wait()  # answers only once the tab has gone
+            await asyncio.sleep(0.1)
+            return web.Response(text="the page")
+
+        async def launcher(request):
+            try:
+                return await forward_http(request, studio_port, request.match_info["tail"], answer_s=10)
+            finally:
+                forwarded.set()
+
+        studio, studio_port = await serve(studio_process)
+        front, port = await serve(launcher)
+        try:
+            _, writer = await asyncio.open_connection("127.0.0.1", port)
+            writer.write(b"GET /s/token/index.html HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+            await writer.drain()
+            writer.close()  # the tab is closed
+            closed.set()
+            await asyncio.wait_for(forwarded.wait(), 10)
+            await asyncio.sleep(0.2)  # aiohttp finishes the request (and would log its error) after the handler returns
+        finally:
+            await front.cleanup()
+            await studio.cleanup()
+
+    with caplog.at_level(logging.DEBUG, logger="aiohttp"):
+        asyncio.run(go())
+    assert not [r for r in caplog.records if r.levelno >= logging.ERROR or r.exc_info], [r.getMessage() for r in caplog.records]

@@ -46,9 +46,10 @@ async def forward_http(request: web.Request, port: int, tail: str, answer_s: flo
                                           headers={k: v for k, v in upstream.headers.items() if k.lower() not in HOP_HEADERS})
             if "Content-Encoding" in upstream.headers:
                 response.headers["Content-Encoding"] = upstream.headers["Content-Encoding"]
-            await response.prepare(request)
-            # a tab closed or reloaded mid-answer (a large script still streaming) is not an error: stop sending
+            # a tab closed or reloaded before or during the answer (a large script still streaming) is not an error:
+            # stop sending (aiohttp then finishes the request as a client that went away)
             with contextlib.suppress(ConnectionResetError):
+                await response.prepare(request)
                 async for chunk in upstream.content.iter_chunked(1 << 16):
                     await response.write(chunk)
                 await response.write_eof()
