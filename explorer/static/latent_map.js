@@ -33,34 +33,31 @@
   let last = {points: null, marks: null, mode: 'class', colors: null};
   let marksDue = null;  // the star's move waiting for a pause (a promise), or null
 
-  function whenQuiet(quietMs) {
+  function until(ready) {  // resolves at the first 50 ms poll at which ready() holds
     return new Promise((resolve) => {
-      const poll = () => (performance.now() - lastInput >= quietMs ? resolve() : setTimeout(poll, 50));
+      const poll = () => (ready() ? resolve() : setTimeout(poll, 50));
       poll();
     });
   }
 
-  function afterFirstPictureWhenQuiet() {
-    return new Promise((resolve) => {
-      const start = performance.now();
-      let shown = false;  // the first picture was seen, and plotly.js asked for
-      const poll = () => {
-        const now = performance.now();
-        const img = document.querySelector(VIEW_IMG);
-        if (!shown && ((img && img.complete && img.naturalWidth > 100) || now - start > FIRST_PICTURE_WAIT_MS)) {
-          shown = true;
-          fetch(PLOTLY_SRC).then((r) => r.blob()).catch(() => {});  // into the cache: the script below takes it there
-        }
-        if (shown && now - lastInput >= QUIET_MS) resolve();
-        else setTimeout(poll, 50);
-      };
-      poll();
+  function whenQuiet(quietMs) {
+    return until(() => performance.now() - lastInput >= quietMs);
+  }
+
+  function firstPicture() {  // the 3D view's first picture shown, or FIRST_PICTURE_WAIT_MS passed without one
+    const start = performance.now();
+    return until(() => {
+      const img = document.querySelector(VIEW_IMG);
+      return (img && img.complete && img.naturalWidth > 100) || performance.now() - start > FIRST_PICTURE_WAIT_MS;
     });
   }
 
   function plotly() {
     if (!loading) {
-      loading = afterFirstPictureWhenQuiet().then(() => new Promise((resolve, reject) => {
+      loading = firstPicture().then(() => {
+        fetch(PLOTLY_SRC).then((r) => r.blob()).catch(() => {});  // into the cache: the script below takes it there
+        return whenQuiet(QUIET_MS);
+      }).then(() => new Promise((resolve, reject) => {
         const script = document.createElement('script');
         script.src = PLOTLY_SRC;
         script.async = true;
