@@ -72,9 +72,12 @@ def main() -> int:
     for child in range(1, args.children + 1):
         read, write = os.pipe()
         pid = os.fork()
-        if pid == 0:  # the child: what a tab's studio process does
+        if pid == 0:  # the child: what a tab's studio process does; it never returns into the parent's loop
             os.close(read)
-            line = " ".join(f"{ms:.1f}/{faults}" for ms, faults in moves_in_a_child(loaded, args.moves))
+            try:
+                line = " ".join(f"{ms:.1f}/{faults}" for ms, faults in moves_in_a_child(loaded, args.moves))
+            except Exception as err:  # noqa: BLE001 - said in the parent's one line
+                line = f"failed: {type(err).__name__}: {err}"
             os.write(write, line.encode())
             os._exit(0)
         os.close(write)
