@@ -44,6 +44,11 @@ checks that the installed packages still have each thing below, naming the packa
    kwargs)` (`trame.trigger`) logs an unknown name in full: wrapped to refuse it first (`controller.trigger_fn`).
    The frame size a studio accepts is trame's `ws_max_msg_size` option plus wslink's 4 KB of overhead
    (wslink/backends/aiohttp).
+11. The page's template (trame-client). `AbstractElement.__exit__` renders the widget's whole subtree at the end of
+   every `with` block (a side effect kept for the state defaults it sets), so a nested layout is rendered once per
+   level it is nested in: the studio's 518 widgets made 3685 renders, 0.25-0.45 s of every tab's start. Inside
+   `rendered_once()` a widget's exit only leaves the element stack (`HTML_CTX.exit`); the layout's own exit
+   (`AbstractLayout.__exit__`, then `flush_content`) renders the tree, and sets those defaults, once.
 
 Nothing here imports trame, trame-rca or wslink at module level: the launcher reads the wire-format constants
 without loading them.
@@ -51,6 +56,7 @@ without loading them.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import importlib
 import logging
@@ -355,3 +361,17 @@ def preload() -> None:
     """Import trame's, trame-rca's and wslink's serving modules (before forking, so that no child imports them)."""
     for name in PRELOAD:
         importlib.import_module(name)
+
+
+# ---- 11. the page's template ---------------------------------------------------------------------------------------
+@contextlib.contextmanager
+def rendered_once():
+    """Widgets built inside render when the enclosing layout's `with` ends, not at every nested `with`'s end."""
+    from trame_client.widgets.core import HTML_CTX, AbstractElement
+
+    render_on_exit = AbstractElement.__exit__
+    AbstractElement.__exit__ = lambda self, *exc: HTML_CTX.exit(self)
+    try:
+        yield
+    finally:
+        AbstractElement.__exit__ = render_on_exit

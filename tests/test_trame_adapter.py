@@ -288,3 +288,38 @@ def test_the_adapter_is_the_only_module_reaching_into_trame_privates():
             continue
         text = path.read_text()
         assert not [n for n in names if n in text], f"{path.relative_to(root.parent)} uses {[n for n in names if n in text]}"
+
+
+# ---- 11. the page's template ---------------------------------------------------------------------------------------
+def _nested_page(name: str):
+    """A small layout nested five levels deep, with a state default and an inline style -> (template, the default)."""
+    from trame.app import get_server
+    from trame.ui.vuetify3 import VAppLayout
+    from trame.widgets import client, html
+    from trame.widgets import vuetify3 as v3
+
+    server = get_server(name, client_type="vue3")
+    with VAppLayout(server) as layout:
+        with html.Div(classes="a"), html.Div(classes="b"), html.Div(classes="c"):
+            v3.VSlider(v_model=("nested_value", 0.5), min=0, max=1)
+            client.Style(".x { color: red; }")
+    # the widgets' running ids (`w123-`) and the inline styles' state keys count across servers: compared by shape
+    template = re.sub(r"w\d+-|trame__inline_style_\d+", "#", layout.html)
+    return template, server.state.nested_value
+
+
+def test_a_template_rendered_once_is_the_template_rendered_at_every_exit(monkeypatch):
+    from trame_client.widgets import core, vue
+
+    exit_before = core.AbstractElement.__exit__
+    renders = []
+    render = vue.HtmlElement.render  # what a widget's `html` calls (trame-client's Vue implementation)
+    monkeypatch.setattr(vue.HtmlElement, "render", lambda self: renders.append(1) or render(self))
+    every_exit, default_every_exit = _nested_page("trame-adapter-every-exit")
+    n_every_exit, renders[:] = len(renders), []
+    with trame_adapter.rendered_once():
+        once, default_once = _nested_page("trame-adapter-once")
+    assert core.AbstractElement.__exit__ is exit_before, "rendered_once left the widgets' exit replaced"
+    assert once == every_exit, f"{where('trame-client', 11)}: rendered once, the page differs"
+    assert default_once == default_every_exit == 0.5, f"{where('trame-client', 11)}: a v_model default no longer reaches the state"
+    assert len(renders) < n_every_exit / 2, (len(renders), n_every_exit)

@@ -19,6 +19,7 @@ from explorer.rendering.charts import CHART_CSS, DISTANCE_BOX
 from explorer.rendering.palette import CHARACTER_TITLES, CHARACTERS, COMPARED, PINNED, WARNING, class_color, display_name
 from explorer.rendering.scene import CHARACTER_KEYS
 from explorer.rendering.view_stream import ViewStream
+from explorer.trame_adapter import rendered_once
 
 if TYPE_CHECKING:
     from explorer.rendering.scene import Scene
@@ -93,7 +94,7 @@ def build_layout(page: LayoutParts) -> VAppLayout:
     # Built from VAppLayout rather than trame's SinglePageWithDrawerLayout: that one adds a footer (hidden here anyway)
     # whose list of trame versions reads every installed package's metadata, ~0.2 s at every tab's start.
     page.server.state.trame__title = "IMM Studio"
-    with VAppLayout(page.server, full_height=True) as layout:
+    with rendered_once(), VAppLayout(page.server, full_height=True) as layout:
         with v3.VAppBar(density="compact", color="#263238", theme="dark"):
             v3.VAppBarNavIcon(click="main_drawer = !main_drawer")
             v3.VToolbarTitle("IMM Studio", style="flex: 0 0 auto")
