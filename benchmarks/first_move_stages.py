@@ -1,13 +1,14 @@
 """Where a tab's first slider move spends the time its later moves do not: each move split into stages timed in the
 page and in the studio process, for the first move of each tab against the later ones.
 
-    .venv/bin/python benchmarks/first_move_stages.py [--tabs 6] [--moves 4]
+    .venv/bin/python benchmarks/first_move_stages.py [--tabs 6] [--moves 4] [--rest 3]
 
 Starts a studio with the bundled models whose processes write a timestamp (wall clock, ms) as a message arrives, as the
 new mix is synthesized, as the picture is rendered and encoded and as it goes out (a `sitecustomize` module wrapping
 those functions, written to a temporary folder put on PYTHONPATH: the studio's code is not changed). Then opens `--tabs`
 tabs one after another in headless chromium (each closed before the next opens), makes `--moves` class-slider moves in
-each, as `explorer_latency.py` does, and prints each move's stages and their medians, the first moves apart:
+each, as `explorer_latency.py` does (0.25 s apart; with `--rest S` the last move of each tab comes S seconds after the
+one before), and prints each move's stages and their medians, the first moves and the rested ones apart:
 
   page -> sent         the key to the page's websocket message
   sent -> server       the message through the launcher's proxy to the studio process
@@ -16,7 +17,8 @@ each, as `explorer_latency.py` does, and prints each move's stages and their med
   -> render            until the picture's render starts
   render               the picture rendered (at the draft's size)
   render -> sent       encoded and handed to the websocket
-  sent -> picture in   through the proxy to the page's image URL
+  sent -> relayed      until the launcher's proxy sends it on to the page
+  relayed -> picture   from the proxy's send to the page's image URL
   picture -> shown     decoded and shown
 """
 
@@ -57,6 +59,8 @@ def _wrap(owner, name, label):
             finally:
                 _stamp(label + " out")
     setattr(owner, name, functools.wraps(fn)(wrapped))
+import aiohttp.web_ws as _web_ws
+_wrap(_web_ws.WebSocketResponse, "send_bytes", "websocket out")  # the studio's (wslink) and the launcher's (the proxy)
 import explorer.serving.worker as _worker
 _start_index = _worker.start_index
 def _patched(*a, **k):  # the zygote calls this once it has loaded, before it imports the page's modules
@@ -77,12 +81,13 @@ _worker.start_index = _patched
 '''
 
 STAGES = ("page -> sent", "sent -> server", "server -> synthesis", "synthesis", "-> render", "render", "render -> sent",
-          "sent -> picture in", "picture -> shown", "total")
+          "sent -> relayed", "relayed -> picture", "picture -> shown", "total")
 EPOCH_MS = "(performance.timeOrigin + performance.now())"
 
 
-def moves(page, count: int) -> list[dict]:
-    """`count` class-slider moves -> each one's page times (epoch ms): key, sent, picture in, shown."""
+def moves(page, count: int, rest_s: float = 0.0) -> list[dict]:
+    """`count` class-slider moves -> each one's page times (epoch ms): key, sent, picture in, shown; the last one
+    `rest_s` after the one before when given."""
     page.evaluate(f"""(sel) => {{ if (window.__immMoves) return; const m = window.__immMoves = {{keys: [], shown: []}};
         document.addEventListener('keydown', () => m.keys.push({EPOCH_MS}), true);
         document.querySelector(sel).addEventListener('load', () => m.shown.push({EPOCH_MS})); }}""", probe.VIEW_IMG)
@@ -92,6 +97,8 @@ def moves(page, count: int) -> list[dict]:
     css = f".slider-{names[(own + 1) % len(names)].replace(' ', '_')}"
     out = []
     for k in range(count):
+        if rest_s and k == count - 1:
+            time.sleep(rest_s)
         n_shown, n_key = page.evaluate("() => [window.__immMoves.shown.length, window.__immMoves.keys.length]")
         probe.press_slider(page, css, "End" if k % 2 == 0 else "Home")
         page.wait_for_function("([k, n]) => { const m = window.__immMoves; return m.keys.length > k && "
@@ -104,13 +111,13 @@ def moves(page, count: int) -> list[dict]:
     return out
 
 
-def stages(move: dict, stamps: list[tuple[float, str]]) -> dict | None:
-    """One move's STAGES in ms, from its page times and the studio's stamps (None when a stamp is missing)."""
+def stages(move: dict, stamps: list[tuple[float, int, str]]) -> dict | None:
+    """One move's STAGES in ms, from its page times and the processes' stamps (None when a stamp is missing)."""
     key = move["key"]
-    events = [(t - key, what) for t, what in stamps if key - 5 <= t <= move["shown"] + 5]
+    events = [(t - key, pid, what) for t, pid, what in stamps if key - 5 <= t <= move["shown"] + 5]
 
-    def first(what: str, after: float = -1e9) -> float:
-        return next(t for t, w in events if w == what and t >= after)
+    def first(what: str, after: float = -1e9, not_pid: int | None = None) -> float:
+        return next(t for t, p, w in events if w == what and t >= after and p != not_pid)
 
     try:
         sent = move["sent"] - key
@@ -120,20 +127,25 @@ def stages(move: dict, stamps: list[tuple[float, str]]) -> dict | None:
         render_in = first("render in", synth_out)
         render_out = first("render out", render_in)
         out = first("send in", render_out)
+        studio = next(p for t, p, w in events if w == "send in" and t == out)
+        relayed = first("websocket out in", out, not_pid=studio)  # the launcher's next send after the studio's
     except (StopIteration, TypeError):
         return None
     picture, shown = move["picture"] - key, move["shown"] - key
     return dict(zip(STAGES, (sent, arrived - sent, synth_in - arrived, synth_out - synth_in, render_in - synth_out,
-                             render_out - render_in, out - render_out, picture - out, shown - picture, shown), strict=True))
+                             render_out - render_in, out - render_out, relayed - out, picture - relayed, shown - picture,
+                             shown), strict=True))
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tabs", type=int, default=6, help="tabs, one after another (each closed before the next opens)")
     ap.add_argument("--moves", type=int, default=4, help="slider moves in each tab")
+    ap.add_argument("--rest", type=float, default=0.0, help="seconds the page rests before each tab's last move")
     args = ap.parse_args()
-    if args.tabs < 1 or args.moves < 2:
-        ap.error("--tabs must be at least 1 and --moves at least 2 (a first move and a later one)")
+    if args.tabs < 1 or args.moves < 2 + (args.rest > 0) or args.rest < 0:
+        ap.error("--tabs must be at least 1, --moves at least 2 (3 with --rest: a first, a later and a rested move), "
+                 "--rest at least 0")
     from playwright.sync_api import sync_playwright
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -146,19 +158,19 @@ def main() -> int:
             browser = probe.launch_chromium(pw)
             for tab in range(args.tabs):
                 page = probe.open_studio(browser, studio.url)
-                results += [(tab, k, m) for k, m in enumerate(moves(page, args.moves))]
+                results += [(tab, k, m) for k, m in enumerate(moves(page, args.moves, args.rest))]
                 page.close()
         stamps = []
         for line in stamp_file.read_text().splitlines():
-            t, _, what = line.split(None, 2)
-            stamps.append((float(t), what))
-    rows: dict[str, list[dict]] = {"first": [], "later": []}
+            t, pid, what = line.split(None, 2)
+            stamps.append((float(t), int(pid), what))
+    rows: dict[str, list[dict]] = {"first": [], "later": [], "rested": []}
     for tab, k, move in results:
         split = stages(move, stamps)
         if split is None:
             print(f"tab {tab + 1} move {k + 1}: a stage went unstamped; left out")
             continue
-        rows["first" if k == 0 else "later"].append(split)
+        rows["first" if k == 0 else "rested" if args.rest and k == args.moves - 1 else "later"].append(split)
         print(f"tab {tab + 1} move {k + 1}: " + ", ".join(f"{n} {v:.1f}" for n, v in split.items()))
     print("medians (ms):")
     for kind, split in rows.items():
