@@ -83,3 +83,31 @@ def test_at_laptop_sizes_the_latent_map_keeps_its_legend_and_plot_clear(browser,
         assert covered(parts["modebar"], parts["entries"]) == [], parts
     finally:
         page.close()
+
+
+# Keys every 100 ms from the first picture on for 2.5 s, then none: the pause latent_map.js waits for (1 s) comes only
+# once they stop, and a page thread held up for less than 0.9 s cannot fake one.
+KEYS_FOR_A_WHILE_JS = """() => new Promise((done) => {
+  const start = performance.now();
+  const id = setInterval(() => {
+    document.dispatchEvent(new KeyboardEvent('keydown', {key: 'Shift'}));
+    if (performance.now() - start > 2500) { clearInterval(id); done(performance.now()); }
+  }, 100);
+})"""
+PLOTLY_REQUESTED_JS = ("() => performance.getEntriesByType('resource').filter((e) => e.name.includes('plotly'))"
+                       ".map((e) => e.startTime)")
+
+
+def test_plotly_js_waits_until_the_user_pauses_after_the_first_picture(browser, studio):
+    """The map's plotly.js (4.8 MB) is neither fetched nor evaluated while the user keeps moving after the first picture:
+    both held the first slider moves' pictures back (docs/experiments/studio-performance.md). Once the keys stop,
+    the map comes."""
+    page = probe.open_studio(browser, studio.url, 1366, 768)
+    try:
+        stopped = page.evaluate(KEYS_FOR_A_WHILE_JS)
+        assert page.evaluate(PLOTLY_REQUESTED_JS) == [], "plotly.js was requested while keys were pressed"
+        page.wait_for_selector(probe.LATENT_POINTS, timeout=60000)
+        requested = page.evaluate(PLOTLY_REQUESTED_JS)
+        assert requested and min(requested) >= stopped, (requested, stopped)
+    finally:
+        page.close()
