@@ -445,5 +445,6 @@ def test_a_page_whose_layout_never_comes_is_loaded_again_and_keeps_its_studio(br
     finally:
         pg.close()
     said = [ln for ln in studio.read_log() if ln.startswith("a tab's page was loaded again")]
-    assert len(said) == 1 and "vuetify3.css" in said[0], said  # the launcher names what held the page
-    probe.StudioProcess.noticed.remove(studio)  # expected here: not a fault for the run's summary
+    assert len([ln for ln in said if "vuetify3.css" in ln]) == 1, said  # the launcher names what held the page
+    if len(said) == 1:  # expected here: not a fault for the run's summary (another page's, on a busy machine, stays)
+        probe.StudioProcess.noticed.remove(studio)
