@@ -1,10 +1,11 @@
 """Where a tab's first slider move spends the time its later moves do not: each move split into stages timed in the
-page and in the studio process, for the first move of each tab against the later ones.
+page, in the studio process and in the launcher, for the first move of each tab against the later ones.
 
     .venv/bin/python benchmarks/first_move_stages.py [--tabs 6] [--moves 4] [--rest 3]
 
 Starts a studio with the bundled models whose processes write a timestamp (wall clock, ms) as a message arrives, as the
-new mix is synthesized, as the picture is rendered and encoded and as it goes out (a `sitecustomize` module wrapping
+new mix is synthesized, as the picture is rendered and encoded and as it goes out (the launcher's too, as its proxy
+sends it on) (a `sitecustomize` module wrapping
 those functions, written to a temporary folder put on PYTHONPATH: the studio's code is not changed). Then opens `--tabs`
 tabs one after another in headless chromium (each closed before the next opens), makes `--moves` class-slider moves in
 each, as `explorer_latency.py` does (0.25 s apart; with `--rest S` the last move of each tab comes S seconds after the
