@@ -111,3 +111,24 @@ def test_plotly_js_waits_until_the_user_pauses_after_the_first_picture(browser, 
         assert requested and min(requested) >= stopped, (requested, stopped)
     finally:
         page.close()
+
+
+HIDDEN_JS = """() => { window.__immHidden = true;
+  Object.defineProperty(document, 'hidden', {configurable: true, get: () => window.__immHidden}); }"""
+
+
+def test_a_tab_out_of_sight_loads_its_map_once_it_is_looked_at(browser, studio):
+    """A tab in the background (document.hidden) does not fetch or evaluate plotly.js, however long it is quiet; shown,
+    it draws its map."""
+    context = browser.new_context(viewport={"width": 1366, "height": 768})
+    try:
+        context.add_init_script(HIDDEN_JS.join(("(", ")()")))
+        page = context.new_page()
+        page.goto(studio.url, timeout=120000)
+        probe.wait_for_view(page)
+        page.evaluate("() => new Promise((done) => setTimeout(done, 2500))")  # quiet for well over the 1 s it waits
+        assert page.evaluate(PLOTLY_REQUESTED_JS) == [], "plotly.js was requested by a page out of sight"
+        page.evaluate("() => { window.__immHidden = false; }")
+        page.wait_for_selector(probe.LATENT_POINTS, timeout=60000)
+    finally:
+        context.close()

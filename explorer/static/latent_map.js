@@ -4,7 +4,7 @@
 // server to open and play it (trigger `latent_pick`); a box or lasso selection sets `latent_selection`.
 //
 // plotly.js is 4.8 MB: it is fetched and evaluated once the 3D view has shown its first picture and the user has not
-// pressed a key, clicked or dragged for QUIET_MS since, however long that takes, so that the page opens as fast as it
+// pressed a key, clicked or dragged for QUIET_MS since, with the page in sight, however long that takes, so that the page opens as fast as it
 // does without it (benchmarks/explorer_startup.py) and the first slider moves after it do not wait for it
 // (benchmarks/explorer_latency.py): evaluating it holds the page's thread for up to two seconds on a busy machine
 // (forced 10 s after the first picture, it froze a slider that never rested for 1.3 s), and fetching it beside the
@@ -40,8 +40,10 @@
     });
   }
 
-  function whenQuiet(quietMs, since = 0) {  // no key, click or drag for quietMs, counted from `since` at the earliest
-    return until(() => performance.now() - Math.max(lastInput, since) >= quietMs);
+  // No key, click or drag for quietMs, counted from `since` at the earliest, and the page in sight: a tab in the
+  // background waits until it is looked at rather than take the cores from the one in use.
+  function whenQuiet(quietMs, since = 0) {
+    return until(() => !document.hidden && performance.now() - Math.max(lastInput, since) >= quietMs);
   }
 
   function firstPicture() {  // the 3D view's first picture shown, or FIRST_PICTURE_WAIT_MS passed without one
