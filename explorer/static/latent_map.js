@@ -3,12 +3,12 @@
 // trame's state; the layout calls immLatent.draw / immLatent.marks when they change. A click on a point asks the
 // server to open and play it (trigger `latent_pick`); a box or lasso selection sets `latent_selection`.
 //
-// plotly.js is 4.8 MB: it is fetched and evaluated once the 3D view has shown its first picture and the user has not
-// pressed a key, clicked or dragged for QUIET_MS since, with the page in sight, however long that takes, so that the page opens as fast as it
-// does without it (benchmarks/explorer_startup.py) and the first slider moves after it do not wait for it
-// (benchmarks/explorer_latency.py): evaluating it holds the page's thread for up to two seconds on a busy machine
-// (forced 10 s after the first picture, it froze a slider that never rested for 1.3 s), and fetching it beside the
-// first moves, or counting the pause from the page's load rather than its first picture, held their pictures back.
+// plotly.js is 4.8 MB: it is fetched (into the browser's cache) once the 3D view shows its first picture, so the
+// page opens as fast as it does without it (benchmarks/explorer_startup.py), and evaluated once the user has not
+// pressed a key, clicked or dragged for QUIET_MS, however long that takes: evaluating it holds the page's thread for
+// up to two seconds on a busy machine, and a slider moved meanwhile showed its picture that much later
+// (benchmarks/explorer_latency.py, the first changes; forced 10 s after the first picture, it froze a slider that
+// never rested for 1.3 s).
 // The launcher serves it for every tab at one path above the tab's /s/<id>/ (a reverse proxy's prefix kept: the path
 // is relative), so the browser's cache serves a second tab; explorer/serving/page_shell.py puts plotly.js's version
 // into its name.
@@ -40,10 +40,8 @@
     });
   }
 
-  // No key, click or drag for quietMs, counted from `since` at the earliest, and the page in sight: a tab in the
-  // background waits until it is looked at rather than take the cores from the one in use.
-  function whenQuiet(quietMs, since = 0) {
-    return until(() => !document.hidden && performance.now() - Math.max(lastInput, since) >= quietMs);
+  function whenQuiet(quietMs) {
+    return until(() => performance.now() - lastInput >= quietMs);
   }
 
   function firstPicture() {  // the 3D view's first picture shown, or FIRST_PICTURE_WAIT_MS passed without one
@@ -56,16 +54,17 @@
 
   function plotly() {
     if (!loading) {
-      loading = firstPicture()
-        .then(() => whenQuiet(QUIET_MS, performance.now()))
-        .then(() => new Promise((resolve, reject) => {
-          const script = document.createElement('script');
-          script.src = PLOTLY_SRC;
-          script.async = true;
-          script.onload = () => resolve(window.Plotly);
-          script.onerror = () => reject(new Error('the latent map could not load plotly.js'));
-          document.head.appendChild(script);
-        }));
+      loading = firstPicture().then(() => {
+        fetch(PLOTLY_SRC).then((r) => r.blob()).catch(() => {});  // into the cache: the script below takes it there
+        return whenQuiet(QUIET_MS);
+      }).then(() => new Promise((resolve, reject) => {
+        const script = document.createElement('script');
+        script.src = PLOTLY_SRC;
+        script.async = true;
+        script.onload = () => resolve(window.Plotly);
+        script.onerror = () => reject(new Error('the latent map could not load plotly.js'));
+        document.head.appendChild(script);
+      }));
     }
     return loading;
   }
