@@ -39,12 +39,23 @@ def test_the_shells_index_names_trames_files_under_the_launchers_static_key(tmp_
 
 def test_the_page_loads_plotly_js_by_its_version_from_the_launchers_static_path():
     """static/latent_map.js names plotly.min.js above the tab's /s/<id>/ (one URL for every tab, so the browser's
-    cache serves the next one); the page names it with the plotly package's plotly.js version."""
+    cache serves the next one); the page names the vendored bundle, whose name carries the version its first lines
+    state (the browser keeps it a year under that name)."""
     import re
 
-    head = page_shell.plotly_js().read_bytes()[:200]
-    version = re.search(rb"plotly\.js v(\S+)", head).group(1).decode()
-    assert page_shell.plotly_name() == f"plotly-{version}.min.js"
+    head = page_shell.PLOTLY_JS.read_bytes()[:200]
+    version = re.search(rb"plotly\.js \(basic - minified\) v(\S+)", head).group(1).decode()
+    assert page_shell.PLOTLY_JS.name == f"plotly-basic-{version}.min.js"
     assert f"'../../{page_shell.PLOTLY_SRC}'" in page_shell.LATENT_SCRIPT.read_text()
     index = page_shell.shell_index(f"<head>{page_shell.ANCHOR}</head>")
-    assert f"'../../static/plotly-{version}.min.js'" in index and page_shell.PLOTLY_SRC not in index
+    assert f"'../../static/plotly-basic-{version}.min.js'" in index and page_shell.PLOTLY_SRC not in index
+
+
+def test_the_latent_map_draws_only_traces_plotlys_basic_bundle_has():
+    """The vendored bundle registers scatter, bar and pie only: a trace of another type (scattergl, say) would draw
+    nothing and log an error in the page."""
+    import re
+
+    registered = set(re.findall(r'moduleType:"trace",name:"(\w+)"', page_shell.PLOTLY_JS.read_text()))
+    used = set(re.findall(r"\btype: '(\w+)'", page_shell.LATENT_SCRIPT.read_text()))
+    assert registered == {"scatter", "bar", "pie"} and used and used <= registered, (registered, used)

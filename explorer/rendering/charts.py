@@ -1,7 +1,7 @@
 """The per-frame distance chart, drawn as HTML + SVG markup that the page shows with `v-html`.
 
 Written by hand rather than with Plotly: it needs lines, shaded bands and a click that seeks, which a few lines of
-markup do, and it is on screen from the page's first picture, before Plotly's 4.8 MB have loaded (the latent map,
+markup do, and it is on screen from the page's first picture, before plotly.js has loaded (the latent map,
 which needs zoom, pan and selection, is a Plotly figure loaded after that picture: explorer/ui/latent_panel.py). The frame
 cursor is not in the markup: the layout binds it to `frame`, so playback does not resend the chart.
 

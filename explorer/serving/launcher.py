@@ -241,13 +241,9 @@ class Launcher:
             self.pool.spares.append(first)
             from aiohttp import web
 
-            from explorer.serving.page_shell import plotly_js, plotly_name
+            from explorer.serving.page_shell import PLOTLY_JS
 
-            try:
-                self.assets = {plotly_name(): plotly_js()}
-            except (ImportError, OSError) as err:
-                raise LaunchError(str(err)) from None
-
+            self.assets = {PLOTLY_JS.name: PLOTLY_JS}
             await first.ready  # bad data/checkpoint fail here, before any URL is printed
         except LaunchError:
             await self.pool.shutdown()

@@ -2,9 +2,10 @@
 studio process as its main web content. Binary websocket messages then reach wslink as bytes instead of Blobs that
 it reads back asynchronously (~20 ms between a picture's arrival and its display, measured in docs/experiments/studio-performance.md).
 The shell also carries static/page_aids.js (the 3D view's joint readout, a row scrolled into sight) and
-static/latent_map.js, the latent map's Plotly figure. That script loads plotly.js (from the
-plotly package, 4.8 MB) after the page's first picture from the launcher's /static/, at one path for every tab with
-the plotly.js version in its name (plotly_name).
+static/latent_map.js, the latent map's Plotly figure. That script loads plotly.js after the page's first picture from
+the launcher's /static/, at one path for every tab with the plotly.js version in its name: plotly.js's basic bundle
+(its scatter, bar and pie traces; 1.2 MB, evaluated in a fifth of the full bundle's time), vendored in static/vendor/
+because no Python package carries it (static/vendor/README.md).
 
 The rest of what the page loads (vue, vuetify and its fonts, trame's client: 2.3 MB) also comes from the launcher,
 at /static/<the shell's key>/: trame's index.html names its files there, and the module scripts and styles trame's
@@ -18,9 +19,7 @@ later studio process; the launcher serves that folder's files (the studio proces
 
 from __future__ import annotations
 
-import functools
 import hashlib
-import importlib.util
 import json
 import os
 import re
@@ -34,8 +33,8 @@ STATIC = Path(__file__).resolve().parents[1] / "static"  # explorer/static
 BYTES_SCRIPT = STATIC / "websocket_bytes.js"
 LATENT_SCRIPT = STATIC / "latent_map.js"
 AIDS_SCRIPT = STATIC / "page_aids.js"  # the 3D view's joint readout, a table row scrolled into sight
-PLOTLY_SRC = "static/plotly.min.js"  # in static/latent_map.js: named with its version in the page
-PLOTLY_VERSION = re.compile(rb"plotly\.js v([0-9][0-9A-Za-z.+-]*)")  # the file's first line: "* plotly.js v4.1.1"
+PLOTLY_SRC = "static/plotly.min.js"  # in static/latent_map.js: PLOTLY_JS's name in the page
+PLOTLY_JS = STATIC / "vendor" / "plotly-basic-4.1.1.min.js"  # a new version must have a new name: browsers keep it a year
 ANCHOR = CLIENT_FIRST_SCRIPT  # trame's first script: ours go before it
 SHARED = "../../static/"  # from the tab's page (<prefix>/s/<id>/) to the launcher's /static/ (a proxy's prefix kept)
 FILE_URL = re.compile(r'\b(src|href)="(?:\./)?([\w.-]+(?:/[\w.-]+)*)"')  # a file of trame's client, in its index
@@ -55,32 +54,12 @@ def shell_key(shell: Path) -> str:
     return shell.name.removeprefix("page-")
 
 
-def plotly_js() -> Path:
-    """The plotly package's plotly.min.js (found without importing plotly)."""
-    spec = importlib.util.find_spec("plotly")
-    if spec is None or not spec.submodule_search_locations:
-        raise ImportError("the studio's latent map needs plotly (pip install 'imm-studio[studio]')")
-    return Path(spec.submodule_search_locations[0]) / "package_data" / "plotly.min.js"
-
-
-@functools.cache
-def plotly_name() -> str:
-    """plotly.min.js's name under the launcher's /static/: plotly-<plotly.js version>.min.js, read from the file's
-    first line (the browser keeps the file for a year: a new version must have a new name); a content hash for a
-    file that names no version."""
-    path = plotly_js()
-    with path.open("rb") as f:
-        found = PLOTLY_VERSION.search(f.read(200))
-    tag = found.group(1).decode() if found else hashlib.sha256(path.read_bytes()).hexdigest()[:16]
-    return f"plotly-{tag}.min.js"
-
-
 def shell_index(trame_index: str, shared: str = "", files: frozenset[str] = frozenset()) -> str:
     """trame's index.html -> the studio's: the websocket and latent map scripts inline, before trame's scripts; the
     `files` of trame's client that it names, from `shared` + their path."""
     if ANCHOR not in trame_index:
         return trame_index  # another trame client layout: serve it unchanged rather than guess
-    latent = LATENT_SCRIPT.read_text().replace(PLOTLY_SRC, f"static/{plotly_name()}")
+    latent = LATENT_SCRIPT.read_text().replace(PLOTLY_SRC, f"static/{PLOTLY_JS.name}")
     scripts = "".join(f"<script>{text}</script>" for text in (BYTES_SCRIPT.read_text(), latent, AIDS_SCRIPT.read_text()))
     head, rest = trame_index.split(ANCHOR, 1)
 

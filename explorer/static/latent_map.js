@@ -3,12 +3,11 @@
 // trame's state; the layout calls immLatent.draw / immLatent.marks when they change. A click on a point asks the
 // server to open and play it (trigger `latent_pick`); a box or lasso selection sets `latent_selection`.
 //
-// plotly.js is 4.8 MB: it is fetched (into the browser's cache) once the 3D view shows its first picture, so the
-// page opens as fast as it does without it (benchmarks/explorer_startup.py), and evaluated once the user has not
-// pressed a key, clicked or dragged for QUIET_MS, however long that takes: evaluating it holds the page's thread for
-// up to two seconds on a busy machine, and a slider moved meanwhile showed its picture that much later
-// (benchmarks/explorer_latency.py, the first changes; forced 10 s after the first picture, it froze a slider that
-// never rested for 1.3 s).
+// plotly.js (its basic bundle, 1.2 MB: explorer/static/vendor/README.md) is fetched (into the browser's cache) once the
+// 3D view shows its first picture, so the page opens as fast as it does without it (benchmarks/explorer_startup.py),
+// and evaluated once the user has not pressed a key, clicked or dragged for QUIET_MS, however long that takes:
+// evaluating it holds the page's thread (0.3-0.5 s on 2 cores; the full bundle up to two seconds), and a slider moved
+// meanwhile showed its picture that much later (benchmarks/explorer_latency.py, the first changes).
 // The launcher serves it for every tab at one path above the tab's /s/<id>/ (a reverse proxy's prefix kept: the path
 // is relative), so the browser's cache serves a second tab; explorer/serving/page_shell.py puts plotly.js's version
 // into its name.
