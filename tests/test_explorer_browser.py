@@ -88,7 +88,10 @@ def test_a_slider_move_re_renders_the_slider_and_what_it_changed_not_the_drawer(
 
 def test_a_label_changes_first_picture_is_a_stretched_draft_then_full_size(page):
     """explorer/rendering/view_stream.py: the picture right after a slider move is rendered at half the view's width and
-    height and shown stretched over the whole view; the still picture that follows is full size."""
+    height and shown stretched over the whole view; the still picture that follows is full size. The map drawn first:
+    while the page evaluates plotly.js it reports no picture shown, and the still replaces the draft held back (the
+    latest picture wins, view_stream.PictureGate), as a page busy for 0.6 s after a move showed."""
+    page.wait_for_selector(probe.LATENT_POINTS, timeout=60000)
     page.evaluate(f"""() => {{ window.__sizes = []; const i = document.querySelector('{probe.VIEW_IMG}');
         i.addEventListener('load', () => window.__sizes.push([i.naturalWidth, i.clientWidth, i.clientHeight])); }}""")
     names = probe.state(page, "class_names")
