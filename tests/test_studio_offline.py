@@ -113,8 +113,10 @@ def test_the_address_bar_follows_what_plays(browser, studio):
         probe.wait_state(page, "s.get('playing') === true")
         current, items = probe.state(page, "sequence_index"), probe.state(page, "sequence_items")
         target = next(it["value"] for it in items[len(items) // 2:] + items if it["value"] != current)
+        shown = probe.state(page, "sequence_title")
         probe.set_state(page, "sequence_index", target)
-        probe.wait_state(page, f"s.get('sequence_index') === {target} && s.get('sequence_title') !== ''")
+        # the page sets the index at once; the title (and the address) come with the server's answer
+        probe.wait_state(page, f"s.get('sequence_index') === {target} && s.get('sequence_title') !== {shown!r}")
         sid = probe.state(page, "sequence_title").split(" · ")[0]
         probe.wait_state(page, f"decodeURIComponent(window.location.search).includes('seq={sid}&')", timeout_ms=30000)
         assert probe.state(page, "playing") and "frame=" not in page.url, page.url
