@@ -19,8 +19,9 @@ import tempfile
 import threading
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the studio driver lives beside the tests
 from explorer.serving.page_shell import PLOTLY_JS  # noqa: E402
+from tests import studio_probe as probe  # noqa: E402
 
 
 class Quiet(http.server.SimpleHTTPRequestHandler):
@@ -64,8 +65,7 @@ def main() -> int:
         url = f"http://127.0.0.1:{server.server_address[1]}/index.html"
         try:
             with sync_playwright() as pw:
-                browser = pw.chromium.launch(executable_path="/usr/bin/chromium",
-                                             args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"])
+                browser = probe.launch_chromium(pw)
                 for r in range(args.rounds):
                     for i, (name, path) in enumerate(bundles.items()):
                         ctx = browser.new_context()
