@@ -251,6 +251,21 @@ def wait_state(page, expression: str, timeout_ms: int = 15000) -> None:
     page.wait_for_function(f"() => {{ const s = window.trame.state; return {expression}; }}", timeout=timeout_ms)
 
 
+# what the page knows of its map, for a test whose map did not come in time
+MAP_STATE_JS = """() => { const s = window.trame.state; const p = s.get('latent_points');
+    return {error: s.get('error'), projection: s.get('projection'), fitting: s.get('projection_busy'),
+            points_sent: p ? p.x.length : 0, plotly_loaded: !!window.Plotly}; }"""
+
+
+def wait_for_latent_points(page, timeout_ms: int = 60000) -> None:
+    """Wait until Plotly has drawn the latent map's points; past the timeout, fail with what the page knows of the map
+    (the fit still running, an error, the points sent but plotly.js not loaded)."""
+    try:
+        page.wait_for_selector(LATENT_POINTS, timeout=timeout_ms)
+    except Exception as err:
+        raise AssertionError(f"no latent map after {timeout_ms / 1000:.0f} s: {page.evaluate(MAP_STATE_JS)}") from err
+
+
 def shot(page, name: str) -> Path:
     """A screenshot of the whole page in test-artifacts/."""
     ARTIFACTS.mkdir(exist_ok=True)

@@ -47,6 +47,8 @@ def test_a_corrupt_checkpoint_ends_the_run_in_one_line(tmp_path):
     ("first_move_stages.py", ["--moves", "2", "--rest", "3"], "--tabs must be at least 1, --moves at least 2 (3 with --rest"),
     ("plotly_bundle.py", ["--rounds", "0"], "--rounds must be at least 1"),
     ("plotly_bundle.py", ["--other", "no/such/plotly.min.js"], "--other: no file no/such/plotly.min.js"),
+    ("latent_map_fit.py", ["--busy", "-1"], "--busy must be at least 0 and --rounds at least 1"),
+    ("latent_map_fit.py", ["--rounds", "0"], "--busy must be at least 0 and --rounds at least 1"),
 ])
 def test_out_of_range_benchmark_arguments_are_one_line_before_anything_loads(script, args, says):
     out = subprocess.run([sys.executable, str(BENCHMARK.parent / script), *args], capture_output=True, text=True, timeout=120)

@@ -91,7 +91,7 @@ def test_a_label_changes_first_picture_is_a_stretched_draft_then_full_size(page)
     height and shown stretched over the whole view; the still picture that follows is full size. The map drawn first:
     while the page evaluates plotly.js it reports no picture shown, and the still replaces the draft held back (the
     latest picture wins, view_stream.PictureGate), as a page busy for 0.6 s after a move showed."""
-    page.wait_for_selector(probe.LATENT_POINTS, timeout=60000)
+    probe.wait_for_latent_points(page, 60000)
     page.evaluate(f"""() => {{ window.__sizes = []; const i = document.querySelector('{probe.VIEW_IMG}');
         i.addEventListener('load', () => window.__sizes.push([i.naturalWidth, i.clientWidth, i.clientHeight])); }}""")
     names = probe.state(page, "class_names")
@@ -166,7 +166,7 @@ POINT_PIXELS_JS = """() => { const el = document.getElementById('latent-plotly')
 
 
 def wait_for_map(page, afd: bool = False) -> None:
-    page.wait_for_selector(probe.LATENT_POINTS, timeout=30000)
+    probe.wait_for_latent_points(page, 30000)
     if afd:  # the per-sequence AFDs are computed once, a moment after the first page opened
         probe.wait_state(page, "s.get('latent_points') && !!s.get('latent_points').afd", timeout_ms=60000)
         page.wait_for_function("() => document.querySelector('#latent-plotly').data.some((t) => t.customdata &&"

@@ -144,6 +144,65 @@ def test_a_fit_in_another_process_is_taken_not_repeated(tmp_path, sample_data):
         asyncio.run(lm.fit_elsewhere("pca"))
 
 
+def test_the_fit_runs_at_the_studios_priority(tmp_path, sample_data):
+    """The page waits for its map: the fitting process keeps the studio's priority (the AFD scorer, background work,
+    runs below it). Seen once it has opened the cache file's lock (which this test holds), past where it would lower
+    its priority."""
+    import fcntl
+    import subprocess
+    import sys
+    import time
+
+    from explorer.session import latent
+
+    lm = latent.LatentMap.build(TinyModel(sample_data), sample_data, tmp_path, "k4", methods=())
+    ours = os.getpriority(os.PRIO_PROCESS, 0)
+    with open(lm.path.with_suffix(".lock"), "a") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)
+        fitter = subprocess.Popen([sys.executable, "-m", "explorer.session.latent", str(lm.path), "tsne"], stderr=subprocess.PIPE)
+        lock, deadline = str(lm.path.with_suffix(".lock")), time.monotonic() + 60
+
+        def has_the_lock_open() -> bool:
+            with contextlib.suppress(OSError):
+                return any(os.readlink(f"/proc/{fitter.pid}/fd/{fd}") == lock for fd in os.listdir(f"/proc/{fitter.pid}/fd"))
+            return False
+
+        while not has_the_lock_open():
+            assert fitter.poll() is None and time.monotonic() < deadline, "the fitter ended or never opened the lock"
+            time.sleep(0.01)
+        assert os.getpriority(os.PRIO_PROCESS, fitter.pid) == ours
+    assert fitter.wait(60) == 0, fitter.stderr.read()
+    assert latent.LatentMap.load(lm.path).has("tsne")
+
+
+def test_a_save_keeps_a_map_fitted_while_it_was_being_written(tmp_path, sample_data, monkeypatch):
+    """Two processes on one cache file: the AFD scorer saves its scores just as a fit saves its map. The scorer's save
+    holds the file's lock from its read of the file to its write, so the fit's map, saved after, is kept beside the
+    scores (without the lock the scorer's write, from a read before the fit's, dropped the map)."""
+    import threading
+
+    from explorer.session import latent
+
+    scorer = latent.LatentMap.build(TinyModel(sample_data), sample_data, tmp_path, "k5", methods=())
+    fitter = latent.LatentMap(scorer.latents.copy(), path=scorer.path)  # the other process's map, read at its start
+    fit = threading.Thread(target=fitter.ensure, args=("tsne",))
+    read = latent.LatentMap.reload
+
+    def reload_then_let_the_fit_run(self):
+        read(self)
+        if self is scorer and not fit.is_alive():
+            fit.start()
+            fit.join(timeout=5)  # the fit's save waits for this save: it cannot end meanwhile
+
+    monkeypatch.setattr(latent.LatentMap, "reload", reload_then_let_the_fit_run)
+    scorer.afd = np.ones(len(sample_data), np.float32)
+    scorer.save()
+    fit.join(60)
+    saved = latent.LatentMap.load(scorer.path)
+    assert saved.has("tsne") and saved.afd is not None
+    np.testing.assert_array_equal(saved.coords["tsne"], fitter.coords["tsne"])
+
+
 def test_the_fit_command_answers_bad_arguments_in_one_line(tmp_path):
     import subprocess
     import sys

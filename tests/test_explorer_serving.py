@@ -106,7 +106,7 @@ def test_behind_a_reverse_proxy_with_a_path_prefix(browser, tmp_path):
             probe.press_slider(pg, f".slider-{names[2].replace(' ', '_')}", "End")
             pg.wait_for_function("(n) => window.trame.state.get('mix_count') > n", arg=n_mix, timeout=15000)
             # plotly.js from the launcher's /imm/static/; the map of a cold cache, as the other cold starts wait for it
-            pg.wait_for_selector(probe.LATENT_POINTS, timeout=60000)
+            probe.wait_for_latent_points(pg, 60000)
             pg.close()
     finally:
         proxy.close()
@@ -294,7 +294,7 @@ def test_a_second_tab_takes_plotly_and_trames_files_from_the_browsers_cache(stud
             pg = context.new_page()
             log = _network_log(pg)
             pg.goto(studio.url, timeout=90000)
-            pg.wait_for_selector(probe.LATENT_POINTS, timeout=60000)
+            probe.wait_for_latent_points(pg, 60000)
             deadline = time.monotonic() + 5  # the network log's last events arrive as Playwright waits
             while not all("bytes" in x for x in _libraries(log)) and time.monotonic() < deadline:
                 pg.wait_for_timeout(100)

@@ -54,7 +54,7 @@ def test_at_laptop_sizes_the_latent_map_keeps_its_legend_and_plot_clear(browser,
     three quarters of its width and 200 px."""
     page = probe.open_studio(browser, studio.url, width, height)
     try:
-        page.wait_for_selector(probe.LATENT_POINTS, timeout=60000)
+        probe.wait_for_latent_points(page, 60000)
         page.hover("#latent-plotly .nsewdrag")
         page.wait_for_selector("#latent-plotly .modebar .modebar-btn", state="visible")
         parts = page.evaluate(PARTS_JS)

@@ -47,7 +47,7 @@ def test_a_tour_asks_only_the_studio_and_nothing_fails(browser, studio, tmp_path
         probe.press_slider(page, f".slider-{names[other].replace(' ', '_')}", "End")
         probe.wait_state(page, f"s.get('mix_count') > {count}")
 
-        page.wait_for_selector(probe.LATENT_POINTS, timeout=60000)
+        probe.wait_for_latent_points(page, 60000)
         titles = page.evaluate(MODEBAR_TITLES_JS)
         assert any("Zoom" in t for t in titles), titles  # the tool bar is there ...
         assert not [t for t in titles if "Share" in t or "Chart Studio" in t or "Cloud" in t], titles  # ... with no upload

@@ -116,7 +116,7 @@ def test_at_laptop_sizes_the_review_leaves_the_slider_chart_and_map_their_width(
     and the 3D view keeps a usable size; the toolbar's chips and buttons are not cut off; nothing scrolls the page."""
     page = probe.open_studio(browser, studio.url, width, height)
     try:
-        page.wait_for_selector(probe.LATENT_POINTS, timeout=60000)
+        probe.wait_for_latent_points(page, 60000)
         assert page.evaluate(CLIPPED_JS, width) == []
         page.click("#review-open")
         page.wait_for_selector("#review-table", timeout=30000)

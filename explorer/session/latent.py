@@ -29,9 +29,10 @@ from imm_model.data.dataset import InteractionDataset
 from imm_model.evaluation.metrics import afd
 
 METHODS = ("tsne", "umap")
-# the projection fitter and the AFD scorer (`main`) run below the studio's priority: on a small machine they share
-# the cores with the page's first slider moves, which go first (in the studio's own process the scoring added up
-# to one synthesis, 20-30 ms, to a move: docs/experiments/studio-performance.md)
+# the AFD scorer (`main`) runs below the studio's priority: on a small machine it shares the cores with the page's
+# first slider moves, which go first (in the studio's own process the scoring added up to one synthesis, 20-30 ms, to
+# a move). The projection fitter does not: the page waits for its map, and at nice 10 beside two busy processes a
+# 2.5 s t-SNE fit took 82 s (docs/experiments/studio-performance.md)
 BACKGROUND_NICE = 10
 CACHE_VERSION = "1"  # bump when embeddings or projections are computed differently
 KNN = 8
@@ -111,7 +112,6 @@ class LatentMap:
     afd: np.ndarray | None = None  # (N,) per-sequence AFD under its own label; None until scored (afd_scores)
     # one fit per method at a time: a second request for a method being fitted waits for that fit
     _locks: dict[str, threading.Lock] = field(default_factory=lambda: {m: threading.Lock() for m in METHODS}, repr=False)
-    _save_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     @classmethod
     def build(cls, model, data: InteractionDataset, cache_dir: Path | None, key: str | None, methods=("tsne",)) -> LatentMap:
@@ -157,7 +157,7 @@ class LatentMap:
                 self.reload()
             if method not in self.coords:
                 self.coords[method] = project(self.latents, method)
-                self.save()
+                self._write()
         return self.coords[method]
 
     @contextlib.contextmanager
@@ -171,16 +171,20 @@ class LatentMap:
             yield
 
     def save(self) -> None:
+        """Write the cache file under the file lock a fit holds: a save read between another process's read and write
+        of the file would drop what that process saved (an AFD scorer finishing as a fit did lost the fitted map)."""
+        with self._file_lock():
+            self._write()
+
+    def _write(self) -> None:
+        """Write the cache file, keeping what other processes saved; the caller holds the file lock."""
         if not self.path:
             return
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        with self._save_lock:
-            self.reload()  # keep what other processes saved
-            # a unique temporary name: threads of one process and other studio processes may save at once
-            with tempfile.NamedTemporaryFile(dir=self.path.parent, prefix=self.path.name, suffix=".tmp", delete=False) as f:
-                extra = {} if self.afd is None else {"afd": self.afd}
-                np.savez(f, latents=self.latents, **dict(self.coords), **extra)
-            Path(f.name).replace(self.path)  # atomic
+        self.reload()
+        with tempfile.NamedTemporaryFile(dir=self.path.parent, prefix=self.path.name, suffix=".tmp", delete=False) as f:
+            extra = {} if self.afd is None else {"afd": self.afd}
+            np.savez(f, latents=self.latents, **dict(self.coords), **extra)
+        Path(f.name).replace(self.path)  # atomic: a reader never sees half a file
 
     def afd_scores(self, model, data: InteractionDataset) -> Iterator[None]:
         """Score every sequence's AFD under its own one-hot label, one sequence per step (a generator: the studio runs
@@ -268,8 +272,8 @@ def main(argv: list[str] | None = None) -> int:
     """`python -m explorer.session.latent <cache file> <method> [--while-stdin-open]`: fit one projection of a cached map
     and save it; `... <cache file> afd <checkpoint> <data> [--while-stdin-open]`: score every sequence's AFD with that
     model (`LatentMap.afd_scores`) and save them, once across processes (a second scorer waits for the first and reads
-    its scores). Either stops if stdin closes first and runs at BACKGROUND_NICE. Bad arguments get one line on stderr
-    and exit code 2 (the studio shows that line)."""
+    its scores) at BACKGROUND_NICE. Either stops if stdin closes first. Bad arguments get one line on stderr and exit
+    code 2 (the studio shows that line)."""
     args = sys.argv[1:] if argv is None else argv
     if args[-1:] == [WHILE_STDIN_OPEN]:
         args = args[:-1]
@@ -279,7 +283,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"usage: python -m explorer.session.latent <cache file> <{'|'.join(METHODS)}> [{WHILE_STDIN_OPEN}], or <cache file> "
               f"afd <checkpoint> <data> [{WHILE_STDIN_OPEN}], not {' '.join(args)!r}", file=sys.stderr)  # fmt: skip
         return 2
-    os.nice(BACKGROUND_NICE)
+    if task == "afd":
+        os.nice(BACKGROUND_NICE)
     latent_map = LatentMap.load(Path(args[0]))
     if latent_map is None:
         print(f"latent map cache {args[0]} cannot be read", file=sys.stderr)
