@@ -311,6 +311,39 @@ def test_the_selection_list_sorts_worst_first_by_id_or_class(sample_data):
     assert by_class == sorted(by_class) and {r["held"] for r in panel.rows(range(len(sample_data)), "id")} == {True, False}
 
 
+def test_the_fit_at_a_pages_start_waits_for_its_slider_moves_to_rest(monkeypatch):
+    """A cold cache's fit starts FIT_DELAY_S after the page opens, once no follower has been drawn for FIT_QUIET_S: a
+    series of slider moves goes first. A page that never rests gets its fit FIT_LATEST_S after it opened."""
+    import asyncio
+    import time
+
+    from explorer.ui import latent_panel
+
+    monkeypatch.setattr(latent_panel, "FIT_DELAY_S", 0.1)
+    monkeypatch.setattr(latent_panel, "FIT_QUIET_S", 0.3)
+    monkeypatch.setattr(latent_panel, "FIT_LATEST_S", 1.5)
+    panel = latent_panel.LatentPanel.__new__(latent_panel.LatentPanel)  # _rest needs only the time of the last draw
+    panel._last_redraw = 0.0
+
+    async def started_after(moves_for: float) -> tuple[float, float]:
+        """-> (seconds until the fit may start, seconds until the last follower drawn), followers drawn every 50 ms."""
+        start = time.monotonic()
+        rest = asyncio.ensure_future(panel._rest())
+        while time.monotonic() - start < moves_for and not rest.done():
+            panel._last_redraw = time.monotonic()
+            await asyncio.sleep(0.05)
+        last = panel._last_redraw - start
+        await rest
+        return time.monotonic() - start, last
+
+    waited, _ = asyncio.run(started_after(0))
+    assert 0.1 <= waited < 1.0  # nothing drawn: the delay only
+    waited, last = asyncio.run(started_after(0.6))
+    assert waited >= last + 0.3 and waited >= 0.6  # after the moves, and a rest of FIT_QUIET_S
+    waited, last = asyncio.run(started_after(10))
+    assert 1.5 <= waited < 5 and last >= 1.4  # moves that go on: at FIT_LATEST_S, while they still came
+
+
 def test_a_fit_ends_when_the_studio_process_that_started_it_does(tmp_path, sample_data):
     """The studio holds the fit's stdin open: once it closes (the tab's process ended, the studio stopped) the fit
     stops instead of running on with no one to take its result."""

@@ -6,13 +6,15 @@ out, and a click on a point that opens that sequence and plays it.
 
 A method not fitted yet (UMAP until asked for; t-SNE too on a cold cache) is fitted in a separate process while
 the page works, with a progress message (explorer/session/latent.py keeps one fit per method at a time, across the
-studio's processes). The per-sequence AFDs are computed once, a sequence at a time between the page's own work
-once it is up, and cached.
+studio's processes). The fit a page needs at its start waits for the page's first slider moves to rest, as the next
+spare process does (explorer/serving/pool.py): it runs at the studio's priority and would share the cores with them.
+The per-sequence AFDs are computed once, a sequence at a time between the page's own work once it is up, and cached.
 """
 
 from __future__ import annotations
 
 import asyncio
+import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -28,6 +30,11 @@ if TYPE_CHECKING:
 SORT_KEYS = ("afd", "id", "class")
 AFD_DELAY_S = 2.0  # the per-sequence AFDs wait this long after the page opens: its first picture goes first
 AFD_STEP_S = 0.01  # ... and, scored in the studio process (no cache file), yield this long after each sequence
+# The map's fit at a page's start (a cold cache) begins FIT_DELAY_S after the page opens, once no follower has been
+# drawn for FIT_QUIET_S, and at the latest FIT_LATEST_S after it opens (a page that plays or steers on never rests)
+FIT_DELAY_S = 2.0
+FIT_QUIET_S = 1.0
+FIT_LATEST_S = 20.0
 
 
 class LatentPanel:
@@ -37,6 +44,7 @@ class LatentPanel:
         self.latent = latent
         self.open_sequence = open_sequence
         self._drawn = ""  # the method whose points the page holds
+        self._last_redraw = 0.0  # time.monotonic() of the last follower drawn (redraw is called after each)
         self._fitting: set[str] = set()  # methods being fitted (explorer/session/latent.py fit_elsewhere)
         page.state.update({
             "latent_points": None,  # the figure's points (static/latent_map.js draws them)
@@ -53,7 +61,7 @@ class LatentPanel:
         page.ctrl.pick_latent_point = page.guarded(self.pick_point)
         page.ctrl.open_listed = page.guarded(self.open_listed)
         page.trigger("latent_pick")(page.guarded(self.pick_point))
-        page.ctrl.on_server_ready.add(lambda **_: self.on_projection_change(page.state.projection or "tsne"))
+        page.ctrl.on_server_ready.add(lambda **_: self.open_map(page.state.projection or "tsne"))
         page.ctrl.on_server_ready.add(lambda **_: asynchronous.create_task(self._score()))
 
     def points(self, method: str) -> dict:
@@ -77,6 +85,7 @@ class LatentPanel:
         """The map for the chosen method (nothing while that method is still being fitted). Its points are sent
         when the method changes; after that only the current sequence's ring and the mix's star move."""
         s, ses = self.page.state, self.page.session
+        self._last_redraw = time.monotonic()
         method = s.projection or "tsne"
         if not self.latent.has(method):
             return
@@ -90,7 +99,11 @@ class LatentPanel:
             "star": None if star is None else [float(v) for v in star],
         }
 
-    def on_projection_change(self, projection, **_):
+    def open_map(self, projection: str) -> None:
+        """The page has opened: its map, fitted once its first slider moves have rested when the cache lacks it."""
+        self.on_projection_change(projection, after_rest=True)
+
+    def on_projection_change(self, projection, after_rest: bool = False, **_):
         if projection not in METHODS:
             return
         if self.latent.has(projection):
@@ -99,11 +112,22 @@ class LatentPanel:
         self.page.state.projection_busy = True
         if projection not in self._fitting:
             self._fitting.add(projection)
-            asynchronous.create_task(self._fit(projection))
+            asynchronous.create_task(self._fit(projection, after_rest))
 
-    async def _fit(self, method: str):
+    async def _rest(self) -> None:
+        """Returns FIT_DELAY_S from now once no follower has been drawn for FIT_QUIET_S, or FIT_LATEST_S from now."""
+        start = time.monotonic()
+        while (now := time.monotonic()) < start + FIT_LATEST_S:
+            due = max(start + FIT_DELAY_S, self._last_redraw + FIT_QUIET_S)
+            if now >= due:
+                return
+            await asyncio.sleep(min(due, start + FIT_LATEST_S) - now)
+
+    async def _fit(self, method: str, after_rest: bool = False):
         state = self.page.state
         try:
+            if after_rest:
+                await self._rest()
             await self.latent.fit_elsewhere(method)
         except Exception as err:
             with state:
