@@ -32,7 +32,7 @@ METHODS = ("tsne", "umap")
 # the AFD scorer (`main`) runs below the studio's priority: on a small machine it shares the cores with the page's
 # first slider moves, which go first (in the studio's own process the scoring added up to one synthesis, 20-30 ms, to
 # a move). The projection fitter does not: the page waits for its map, and at nice 10 beside two busy processes a
-# 2.5 s t-SNE fit took 82 s (docs/experiments/studio-performance.md)
+# 2.5 s t-SNE fit took 90 s (benchmarks/latent_map_fit.py; docs/experiments/studio-performance.md)
 BACKGROUND_NICE = 10
 CACHE_VERSION = "1"  # bump when embeddings or projections are computed differently
 KNN = 8
