@@ -81,10 +81,29 @@ def check_against_the_reactor(model, data, test) -> float:
     return worst
 
 
+def table_row(model, data, judges) -> dict:
+    """The LOSO table's figures of `model` (anything with `synthesize_batch_canonical`) on the fold of `judges`."""
+    from imm_model.evaluation import control
+    from imm_model.evaluation.loso import method_scores, variations
+
+    y, c = data.actions[judges.test], len(data.class_names)
+    labels = np.eye(c, dtype=np.float32)[y]
+    predictions = dict(zip(map(int, judges.test), model.synthesize_batch_canonical(judges.leaders, labels), strict=True))
+    scores = method_scores(data, judges, predictions)
+    matrix, _ = control.adherence_matrix(
+        lambda lab: judges.follower_view(judges.judge, model.synthesize_batch_canonical(judges.leaders, lab)), y, c)
+    spread = variations(model, data, judges, predictions)
+    p = scores["plausibility"]
+    return {"afd": float(np.mean([v["afd"] for v in scores["classes"].values()])), "afd_best_of_5": spread["afd_best_of_n"],
+            "fid": scores["fid"], "off_label": control.off_diagonal_mean(matrix),
+            "interior_limb_speed_ratio": p["interior_limb_speed_ratio"], "jitter_ratio": scores["intervals"]["jitter_ratio"],
+            "foot_skate_mps": p["foot_skate_mps"], "multimodality_m": spread["multimodality_m"],
+            "judge_real_accuracy": judges.real_accuracy["follower_judge"]}
+
+
 def main() -> None:
     from imm_model.data.dataset import InteractionDataset
-    from imm_model.evaluation import control
-    from imm_model.evaluation.loso import EvalOptions, FoldJudges, method_scores, prepare_model, variations
+    from imm_model.evaluation.loso import EvalOptions, FoldJudges, prepare_model
     from imm_model.inference import ReactionModel
     from imm_model.paths import SAMPLE_DATA
 
@@ -105,7 +124,6 @@ def main() -> None:
     data = InteractionDataset.load(SAMPLE_DATA)
     opts = EvalOptions(baselines=(), progress=False)
     judges = FoldJudges(data, args.fold, opts)
-    y, c = data.actions[judges.test], len(data.class_names)
     for mode in args.modes:
         model = ReactionModel.load(args.checkpoint)
         (model.takes or model).resample = windows.RESAMPLE  # a model reads it when it loads: --set's value
@@ -118,18 +136,7 @@ def main() -> None:
         if mode == "online":
             row["reactor_difference_m"] = check_against_the_reactor(model, data, judges.test)
             model.synthesize_batch_canonical = lambda leaders, labels, seeds=None, m=model: online_followers(m, leaders, labels, seeds)
-        labels = np.eye(c, dtype=np.float32)[y]
-        predictions = dict(zip(map(int, judges.test), model.synthesize_batch_canonical(judges.leaders, labels), strict=True))
-        scores = method_scores(data, judges, predictions)
-        matrix, _ = control.adherence_matrix(
-            lambda lab, m=model: judges.follower_view(judges.judge, m.synthesize_batch_canonical(judges.leaders, lab)), y, c)
-        spread = variations(model, data, judges, predictions)
-        p = scores["plausibility"]
-        row |= {"afd": float(np.mean([v["afd"] for v in scores["classes"].values()])), "afd_best_of_5": spread["afd_best_of_n"],
-                "fid": scores["fid"], "off_label": control.off_diagonal_mean(matrix),
-                "interior_limb_speed_ratio": p["interior_limb_speed_ratio"], "jitter_ratio": scores["intervals"]["jitter_ratio"],
-                "foot_skate_mps": p["foot_skate_mps"], "multimodality_m": spread["multimodality_m"],
-                "judge_real_accuracy": judges.real_accuracy["follower_judge"]}
+        row |= table_row(model, data, judges)
         record(row, args.out)
 
 

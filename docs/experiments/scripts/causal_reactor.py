@@ -1,0 +1,411 @@
+"""A reaction model that is causal by construction, trained and scored against the shipped live reactor on a LOSO fold.
+
+The live reactor samples the clip denoiser in overlapping windows and averages them (imm_model/families/diffusion/
+windows.py); the denoiser never learnt to continue a given past, and the live reaction stays further from the leader
+and reads as asked less often than the clip sampled whole (docs/experiments/long-takes.md, "What limits it"). This
+model predicts each follower frame from the leader up to LOOKAHEAD frames ahead and the follower's own past, as
+Ready-to-React (ICLR 2025) and ARMFlow (CVPR 2026) do:
+
+- causal temporal convolutions read, at frame t, the leader's frames t .. t + LOOKAHEAD and the follower's frame
+  t - 1 (its own output when it reacts; in training the recorded one, through noise of a random size per row, so that
+  its own errors are no surprise), and the same of the RECEPTIVE - 1 frames before (a GRU carrying everything before
+  trained 4 x slower on one CPU thread);
+- a small diffusion head draws the follower's next CHUNK frames (t .. t + CHUNK - 1) from that state and the label,
+  in SAMPLE_STEPS DDIM steps; frame t is emitted, the rest only teach the head where the motion goes;
+- the signed label is composed at every head step as the clip sampler composes it (`Guidance.label_scale`):
+  x0 = x0(no label) + s * sum_c v_c * (x0(c) - x0(no label)), the label-free term learnt by dropping the label.
+
+So the reaction it makes offline is the one it makes live, for a take of any length. Scored here like
+`online_fold.py` scores the shipped reactor (AFD single and best of 5, FID, off-label, limbs, jitter, feet,
+variations; the fold's own judges) and, leader by leader with a seed each, the closest hands and the torso distance
+against the clip model's offline reaction (the issue's engagement bar: hands <= + 0.05 m, torso <= + 0.08 m).
+
+    OMP_NUM_THREADS=1 python docs/experiments/scripts/causal_reactor.py --fold s04 \\
+        --clip-model sample_data/imm_diffusion.safetensors --out docs/experiments/data/causal-reactor.jsonl
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+LOOKAHEAD = 4  # leader frames beyond the one a follower frame answers (the live reactor's)
+CHUNK = 8  # follower frames the head draws at once (its plan); the first is emitted
+DIFFUSION_STEPS = 100  # the forward process's steps (cosine schedule)
+SAMPLE_STEPS = 4  # DDIM steps a frame takes
+LABEL_DROP = 0.15  # training rows that see no label (the label-free term)
+PAST_NOISE = 1.0  # the largest noise (training stds) on the follower's past frame in training
+# each push starts its plan from the last push's, one frame on, noised to this level (t / T) and denoised in
+# SAMPLE_STEPS steps: the reaction keeps to the plan it drew (the first push starts from pure noise)
+CARRY_LEVEL = 0.6
+HEAD_ROWS = 8  # frames of each training row the diffusion head learns from at a step (on average)
+CLIP = 6.0  # x0 predictions clamped to this many training stds, as the clip sampler does
+
+
+def sinusoid(x: torch.Tensor, width: int) -> torch.Tensor:
+    half = width // 2
+    freq = torch.exp(-math.log(10_000.0) * torch.arange(half, dtype=torch.float32) / half)
+    angle = x.float()[..., None] * freq
+    return torch.cat([angle.sin(), angle.cos()], -1)
+
+
+class CausalConv(nn.Module):
+    """A residual block of a causal temporal convolution: frame t reads frames t - 2 * dilation .. t."""
+
+    def __init__(self, width: int, dilation: int):
+        super().__init__()
+        self.pad = 2 * dilation
+        self.conv = nn.Conv1d(width, width, 3, dilation=dilation)
+        self.mix = nn.Conv1d(width, width, 1)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:  # (B, W, T)
+        return x + self.mix(nn.functional.silu(self.conv(nn.functional.pad(x, (self.pad, 0)))))
+
+
+DILATIONS = (1, 2, 4, 8, 16)  # the context's causal convolutions: it reads the last RECEPTIVE frames
+RECEPTIVE = 1 + 2 * sum(DILATIONS)
+
+
+class CausalReactor(nn.Module):
+    def __init__(self, dims: int, classes: int, hidden: int = 128, head: int = 384):
+        super().__init__()
+        self.dims, self.classes, self.hidden = dims, classes, hidden
+        self.inp = nn.Linear((LOOKAHEAD + 1) * dims + dims + 1 + classes + 1, hidden)
+        self.convs = nn.Sequential(*(CausalConv(hidden, d) for d in DILATIONS))
+        self.label = nn.Linear(classes, head)
+        self.absent = nn.Parameter(torch.zeros(head))
+        self.level = nn.Sequential(nn.Linear(64, head), nn.SiLU(), nn.Linear(head, head))
+        self.head_in = nn.Linear(CHUNK * dims + hidden, head)
+        self.blocks = nn.ModuleList(nn.Sequential(nn.LayerNorm(head), nn.Linear(head, 2 * head), nn.SiLU(),
+                                                  nn.Dropout(0.1), nn.Linear(2 * head, head)) for _ in range(3))
+        self.out = nn.Sequential(nn.LayerNorm(head), nn.Linear(head, CHUNK * dims))
+        for name in ("leader_mean", "leader_std", "follower_mean", "follower_std"):
+            self.register_buffer(name, torch.zeros(dims) if name.endswith("mean") else torch.ones(dims))
+
+    def context(self, leader_windows, past, past_on, label, label_on):
+        """(B, T, (L+1) D), (B, T, D), (B, T, 1), label (B, C), label_on (B,) -> (B, T, H): frame t's context, from
+        frames <= t of each and the row's label (or none)."""
+        b, t, _ = past.shape
+        on = label_on.float()[:, None]
+        labels = torch.cat([label * on, on], -1)[:, None].expand(b, t, -1)
+        x = self.inp(torch.cat([leader_windows, past * past_on, past_on, labels], -1)).transpose(1, 2)
+        return nn.functional.silu(self.convs(x)).transpose(1, 2)
+
+    def denoise(self, x_t, level, h, label, label_on):
+        """x_t (N, CHUNK*D), level (N,), h (N, H), label (N, C), label_on (N,) -> x0 (N, CHUNK*D)."""
+        cond = self.level(sinusoid(level, 64)) + torch.where(label_on[:, None], self.label(label), self.absent)
+        z = self.head_in(torch.cat([x_t, h], -1)) + cond
+        for block in self.blocks:
+            z = z + block(z)
+        return self.out(z)
+
+
+def cosine_alpha_bar(steps: int) -> np.ndarray:
+    s = 0.008
+    t = np.arange(steps + 1) / steps
+    f = np.cos((t + s) / (1 + s) * math.pi / 2) ** 2
+    return np.clip(f[1:] / f[0], 1e-5, 1.0)
+
+
+def leader_windows(leader: np.ndarray) -> np.ndarray:
+    """(T, D) -> (T, (L+1) D): frame t's leader frames t .. t + L, the last frame repeated past the end."""
+    idx = np.minimum(np.arange(len(leader))[:, None] + np.arange(LOOKAHEAD + 1)[None], len(leader) - 1)
+    return leader[idx].reshape(len(leader), -1)
+
+
+def chunks(follower: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(T, D) -> targets (T, CHUNK*D) of frames t .. t + CHUNK - 1, and which of them exist (T, CHUNK)."""
+    t = len(follower)
+    idx = np.arange(t)[:, None] + np.arange(CHUNK)[None]
+    return follower[np.minimum(idx, t - 1)].reshape(t, -1), idx < t
+
+
+def train(data, train_idx, steps: int, seed: int, batch: int = 32, lr: float = 5e-4, log=print) -> CausalReactor:
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
+    pairs = [data.canonical(int(i)) for i in train_idx]
+    leaders = [a.reshape(len(a), -1).astype(np.float32) for a, _ in pairs]
+    followers = [b.reshape(len(b), -1).astype(np.float32) for _, b in pairs]
+    labels = np.eye(len(data.class_names), dtype=np.float32)[data.actions[train_idx]]
+    d = leaders[0].shape[1]
+    net = CausalReactor(d, len(data.class_names))
+    stats = {}
+    for who, frames in (("leader", np.concatenate(leaders)), ("follower", np.concatenate(followers))):
+        stats[who] = frames.mean(0), np.maximum(frames.std(0), 0.01)
+        getattr(net, f"{who}_mean").copy_(torch.as_tensor(stats[who][0]))
+        getattr(net, f"{who}_std").copy_(torch.as_tensor(stats[who][1]))
+    norm = lambda x, who: (x - stats[who][0]) / stats[who][1]  # noqa: E731
+    rows = []
+    for a, b in zip(leaders, followers, strict=True):
+        a, b = norm(a, "leader"), norm(b, "follower")
+        target, present = chunks(b)
+        past = np.concatenate([np.zeros((1, d), np.float32), b[:-1]])
+        rows.append((leader_windows(a), past, target, present))
+    alpha_bar = torch.as_tensor(cosine_alpha_bar(DIFFUSION_STEPS), dtype=torch.float32)
+    opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=1e-4)
+    # a linear warm-up over 200 steps, then a cosine down to a tenth, as the clip model's recipe
+    sched = torch.optim.lr_scheduler.LambdaLR(
+        opt, lambda s: min(1.0, (s + 1) / 200) * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * s / steps))))
+    t0 = time.perf_counter()
+    for step in range(steps):
+        pick = rng.choice(len(rows), batch)
+        tmax = max(len(rows[i][0]) for i in pick)
+
+        def padded(k, width, pick=pick, tmax=tmax):
+            out = np.zeros((batch, tmax, width), np.float32)
+            for j, i in enumerate(pick):
+                out[j, :len(rows[i][k])] = rows[i][k]
+            return torch.as_tensor(out)
+
+        lw, past, target = padded(0, rows[0][0].shape[1]), padded(1, d), padded(2, CHUNK * d)
+        present = padded(3, CHUNK)
+        valid = present[..., 0] > 0  # (B, T) frames that exist
+        past_on = torch.ones(batch, tmax, 1)
+        past_on[:, 0] = 0
+        sigma = torch.as_tensor(rng.uniform(0, PAST_NOISE, (batch, 1, 1)), dtype=torch.float32)
+        past = past + sigma * torch.randn_like(past)
+        row_labels = torch.as_tensor(labels[pick])
+        row_on = torch.as_tensor(rng.random(batch) >= LABEL_DROP)
+        h = net.context(lw, past, past_on, row_labels, row_on)
+        # the head learns from HEAD_ROWS frames of each row (the GRU reads them all): the head is the costly part
+        chosen = valid & (torch.rand(valid.shape) < HEAD_ROWS / valid.sum(1, keepdim=True).clamp(min=1))
+        x0, hv, pv = target[chosen], h[chosen], present[chosen]  # (N, ...)
+        n = len(x0)
+        level = torch.randint(0, DIFFUSION_STEPS, (n,))
+        noise = torch.randn_like(x0)
+        ab = alpha_bar[level][:, None]
+        x_t = ab.sqrt() * x0 + (1 - ab).sqrt() * noise
+        per_row = chosen.sum(1)
+        lab = row_labels.repeat_interleave(per_row, 0)
+        label_on = row_on.repeat_interleave(per_row, 0)
+        pred = net.denoise(x_t, level, hv, lab, label_on)
+        w = pv.repeat_interleave(d, -1)
+        err = ((pred - x0) ** 2 * w).sum() / w.sum()
+        wv = (pv[:, 1:] * pv[:, :-1])[..., None]
+        moved = pred.view(n, CHUNK, d).diff(dim=1) - x0.view(n, CHUNK, d).diff(dim=1)
+        verr = (moved ** 2 * wv).sum() / (wv.sum() * d).clamp(min=1)
+        loss = err + verr
+        opt.zero_grad()
+        loss.backward()
+        nn.utils.clip_grad_norm_(net.parameters(), 1.0)
+        opt.step()
+        sched.step()
+        if step % 500 == 0 or step == steps - 1:
+            log(f"step {step}: loss {loss.item():.4f} (x0 {err.item():.4f}, velocity {verr.item():.4f}), {time.perf_counter() - t0:.0f} s")
+    return net.eval()
+
+
+class Streamer:
+    """`synthesize_batch_canonical` as the evaluation calls it: every leader streamed frame by frame in lockstep, each
+    frame knowing the leader up to LOOKAHEAD ahead and its own past only; then the online clean-up."""
+
+    def __init__(self, net: CausalReactor, skeleton, bone_lengths, label_scale: float):
+        self.net, self.skeleton, self.bone_lengths, self.label_scale = net, skeleton, bone_lengths, label_scale
+        self.alpha_bar = cosine_alpha_bar(DIFFUSION_STEPS)
+
+    @torch.inference_mode()
+    def synthesize_batch_canonical(self, leaders, labels, seeds=None):
+        from imm_model.cleanup import OnlineCleanup
+
+        net, d = self.net, self.net.dims
+        n = len(leaders)
+        seeds = [0] * n if seeds is None else [int(s) for s in seeds]
+        lengths = [len(a) for a in leaders]
+        lm, ls = net.leader_mean.numpy(), net.leader_std.numpy()
+        fm, fs = net.follower_mean.numpy(), net.follower_std.numpy()
+        windows = [leader_windows((a.reshape(len(a), -1) - lm) / ls).astype(np.float32) for a in leaders]
+        noises = [np.random.default_rng(s).standard_normal((t, CHUNK * d)).astype(np.float32) for s, t in zip(seeds, lengths, strict=True)]
+        labels = np.asarray(labels, np.float32)
+        # one row per term: each leader's label-free term, then one per class its label names
+        owner = [i for i in range(n) for _ in range(1 + int(np.count_nonzero(labels[i])))]
+        onehots = np.zeros((len(owner), labels.shape[1]), np.float32)
+        label_on = np.zeros(len(owner), bool)
+        weight = np.zeros(len(owner), np.float32)
+        r = 0
+        for i in range(n):
+            r += 1
+            for c in np.flatnonzero(labels[i]):
+                onehots[r, c], label_on[r], weight[r] = 1, True, labels[i, c]
+                r += 1
+        owner = np.asarray(owner)
+        out = [np.zeros((t, d), np.float32) for t in lengths]
+        pasts = [np.zeros((t, d), np.float32) for t in lengths]  # the follower frames made so far, normalized
+        plans = np.zeros((n, CHUNK * d), np.float32)  # each leader's last plan (x0 of its chunk)
+        full = np.linspace(DIFFUSION_STEPS - 1, 0, SAMPLE_STEPS).round().astype(int)
+        carried = np.linspace(round(CARRY_LEVEL * (DIFFUSION_STEPS - 1)), 0, SAMPLE_STEPS).round().astype(int)
+        for t in range(max(lengths)):
+            live = np.array([i for i in range(n) if t < lengths[i]])
+            rows = np.flatnonzero(np.isin(owner, live))
+            first = max(0, t + 1 - RECEPTIVE)  # the frames the context reads; before them, the zeros it was trained on
+            span = t + 1 - first
+            lw = np.stack([windows[i][first:t + 1] for i in live])
+            prev = np.zeros((len(live), span, d), np.float32)
+            on = np.ones((len(live), span, 1), np.float32)
+            for k, i in enumerate(live):
+                prev[k, 1:] = pasts[i][first:t]
+                if first > 0:
+                    prev[k, 0] = pasts[i][first - 1]
+                else:
+                    on[k, 0] = 0
+            at = np.searchsorted(live, owner[rows])  # each term row's leader among the live ones
+            h = net.context(torch.as_tensor(lw[at]), torch.as_tensor(prev[at]), torch.as_tensor(on[at]),
+                            torch.as_tensor(onehots[rows]), torch.as_tensor(label_on[rows]))[:, -1]
+            noise = np.stack([noises[i][t] for i in live])
+            if t == 0:
+                steps, x = full, noise
+            else:  # the last plan one frame on (its last frame held), noised to CARRY_LEVEL
+                plan = plans[live].reshape(len(live), CHUNK, d)
+                plan = np.concatenate([plan[:, 1:], plan[:, -1:]], 1).reshape(len(live), -1)
+                steps, a = carried, self.alpha_bar[carried[0]]
+                x = (math.sqrt(a) * plan + math.sqrt(1 - a) * noise).astype(np.float32)
+            free = ~label_on[rows]
+            for j, step in enumerate(steps):
+                pred = net.denoise(torch.as_tensor(x[at]), torch.full((len(rows),), int(step)), h,
+                                   torch.as_tensor(onehots[rows]), torch.as_tensor(label_on[rows])).numpy()
+                base = pred[free]  # one per live leader, in live's order
+                guided = base.copy()
+                for k in np.flatnonzero(~free):
+                    guided[at[k]] += self.label_scale * weight[rows[k]] * (pred[k] - base[at[k]])
+                x0 = np.clip(guided, -CLIP, CLIP)
+                if j + 1 < len(steps):
+                    a, a_next = self.alpha_bar[step], self.alpha_bar[steps[j + 1]]
+                    eps = (x - math.sqrt(a) * x0) / math.sqrt(1 - a)
+                    x = (math.sqrt(a_next) * x0 + math.sqrt(1 - a_next) * eps).astype(np.float32)
+            plans[live] = x0
+            for k, i in enumerate(live):
+                pasts[i][t] = x0[k, :d]
+                out[i][t] = x0[k, :d] * fs + fm
+        j = len(self.skeleton.joint_names)
+        return [OnlineCleanup(self.skeleton, self.bone_lengths)(o.reshape(len(o), j, 3)).astype(np.float32) for o in out]
+
+
+def engagement(data, judges, streamer, clip_model, bases) -> dict:
+    """Per leader and seed: closest hands and torso distance of the causal reaction and of the shipped live reactor
+    (the clip model's windows, `online_fold.online_followers`), each minus the clip model's offline reaction with the
+    same seed; means with 95 % t intervals over the takes."""
+    from long_takes import copy_figures
+    from long_takes_seeds import interval
+    from online_fold import online_followers
+
+    y = data.actions[judges.test]
+    labels = np.eye(len(data.class_names), dtype=np.float32)[y]
+    figures = {"causal": [], "shipped_live": [], "offline": []}
+    for base in bases:
+        seeds = [base * 1000 + k for k in range(len(y))]
+        made = {"causal": streamer.synthesize_batch_canonical(judges.leaders, labels, seeds),
+                "shipped_live": online_followers(clip_model, judges.leaders, labels, seeds),
+                "offline": clip_model.synthesize_batch_canonical(judges.leaders, labels, seeds)}
+        for who, followers in made.items():
+            figures[who] += [copy_figures(a, f, data.skeleton, 1)[0] for a, f in zip(judges.leaders, followers, strict=True)]
+    out = {}
+    for who in figures:
+        for key in ("hands", "torso"):
+            values = np.array([f[key] for f in figures[who]])
+            out[f"{who}_{key}"] = float(values.mean())
+            if who != "offline":
+                diff = values - np.array([f[key] for f in figures["offline"]])
+                out[f"{who}_{key}_minus_offline"] = [float(v) for v in interval(diff)]  # mean, low, high
+    return out
+
+
+def long_takes(data, judges, streamer, repeats=(1, 4, 8)) -> dict:
+    """Each held-out leader played k times in a row (copies joined end to end), true class, seed 0: per copy the closest
+    hands and the torso distance averaged over leaders (`long_takes.py`'s "repeat" takes)."""
+    from long_takes import copy_figures, take
+
+    y = data.actions[judges.test]
+    labels = np.eye(len(data.class_names), dtype=np.float32)[y]
+    out = {}
+    for k in repeats:
+        leaders = [take(a, k, "repeat") for a in judges.leaders]
+        followers = streamer.synthesize_batch_canonical(leaders, labels)
+        per = [copy_figures(a, f, data.skeleton, k) for a, f in zip(leaders, followers, strict=True)]
+        for key in ("hands", "torso"):
+            out[f"repeat{k}_{key}_per_copy"] = [round(float(np.mean([p[c][key] for p in per])), 4) for c in range(k)]
+    return out
+
+
+def causality_gap(streamer, leader: np.ndarray, label: np.ndarray, cut: int) -> float:
+    """The largest change (m) of the follower's frames 0 .. cut - LOOKAHEAD - 1 when the leader's frames from `cut` on
+    are replaced by others: 0 for a reaction that reads no further ahead than its lookahead."""
+    other = leader.copy()
+    other[cut:] = leader[::-1][: len(leader) - cut]
+    keep = cut - LOOKAHEAD
+    one, two = (streamer.synthesize_batch_canonical([a], label[None], [0])[0] for a in (leader, other))
+    return float(np.abs(one[:keep] - two[:keep]).max())
+
+
+def push_ms(streamer, leaders, labels, count: int = 8) -> float:
+    """Median milliseconds a frame takes for one leader streamed alone (as the studio's live mode streams)."""
+    times = []
+    for a, lab in zip(leaders[:count], labels[:count], strict=True):
+        start = time.perf_counter()
+        streamer.synthesize_batch_canonical([a], lab[None], [0])
+        times.append((time.perf_counter() - start) / len(a) * 1000)
+    return float(np.median(times))
+
+
+def main() -> None:
+    from diffusion_fold import record
+    from online_fold import table_row
+
+    from imm_model.cleanup import follower_bone_lengths
+    from imm_model.data.dataset import InteractionDataset
+    from imm_model.data.splits import loso_fold
+    from imm_model.evaluation.loso import EvalOptions, FoldJudges, prepare_model
+    from imm_model.inference import ReactionModel
+    from imm_model.paths import SAMPLE_DATA
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--fold", required=True)
+    ap.add_argument("--steps", type=int, default=6000, help="optimizer steps")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--label-scale", type=float, nargs="+", default=[2.5])
+    ap.add_argument("--clip-model", type=Path, required=True, help="the fold's clip diffusion checkpoint (engagement's reference)")
+    ap.add_argument("--bases", type=int, nargs="+", default=[0, 1, 2], help="seed bases of the engagement's takes")
+    ap.add_argument("--save", type=Path, default=None, help="keep the trained network's weights here")
+    ap.add_argument("--load", type=Path, default=None, help="score these weights (from --save) instead of training")
+    ap.add_argument("--variant", default="", help="a name recorded with each row")
+    ap.add_argument("--out", type=Path, default=None)
+    args = ap.parse_args()
+    torch.set_num_threads(1)
+    data = InteractionDataset.load(SAMPLE_DATA)
+    train_idx = loso_fold(data.subject_pairs, args.fold).train
+    t0 = time.perf_counter()
+    if args.load:
+        net = CausalReactor(data.canonical(0)[0][0].size, len(data.class_names))
+        net.load_state_dict(torch.load(args.load, weights_only=True))
+        net.eval()
+    else:
+        net = train(data, train_idx, args.steps, args.seed)
+    minutes = (time.perf_counter() - t0) / 60
+    if args.save and not args.load:
+        torch.save(net.state_dict(), args.save)
+    bones = np.asarray(follower_bone_lengths([data.canonical(int(i))[1] for i in train_idx], data.skeleton))
+    opts = EvalOptions(baselines=(), progress=False)
+    judges = FoldJudges(data, args.fold, opts)
+    clip_model = ReactionModel.load(args.clip_model)
+    prepare_model(clip_model, data, args.fold, opts)
+    for scale in args.label_scale:
+        streamer = Streamer(net, data.skeleton, bones, scale)
+        row = {"fold": args.fold, "mode": "causal", "variant": args.variant, "label_scale": scale, "steps": args.steps, "seed": args.seed,
+               "train_minutes": round(minutes, 1), "leaders": len(judges.test),
+               "settings": {"LOOKAHEAD": LOOKAHEAD, "CHUNK": CHUNK, "SAMPLE_STEPS": SAMPLE_STEPS, "PAST_NOISE": PAST_NOISE,
+                            "CARRY_LEVEL": CARRY_LEVEL, "label_in_context": True}}
+        labels = np.eye(len(data.class_names), dtype=np.float32)[data.actions[judges.test]]
+        row["causality_gap_m"] = causality_gap(streamer, judges.leaders[0], labels[0], len(judges.leaders[0]) // 2)
+        row["push_ms_median"] = push_ms(streamer, judges.leaders, labels)
+        row |= table_row(streamer, data, judges)
+        row |= long_takes(data, judges, streamer)
+        row |= engagement(data, judges, streamer, clip_model, args.bases)
+        record(row, args.out)
+
+
+if __name__ == "__main__":
+    main()
