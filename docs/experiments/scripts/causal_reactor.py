@@ -40,7 +40,15 @@ CHUNK = 8  # follower frames the head draws at once (its plan); the first is emi
 DIFFUSION_STEPS = 100  # the forward process's steps (cosine schedule)
 SAMPLE_STEPS = 4  # DDIM steps a frame takes
 LABEL_DROP = 0.15  # training rows that see no label (the label-free term)
-PAST_NOISE = 1.0  # the largest noise (training stds) on the follower's past frame in training
+# training rows that see no leader (a learnt "absent" input), so that the label alone must say what the reaction is:
+# SBU's leader shows its class, and a network that always sees it has no use for the label
+LEADER_DROP = 0.0
+PAST_NOISE = 1.0  # the largest noise (training stds) on the follower's past frames in training
+# the follower's own frames before t that the network reads: by default only the head, and only the last PAST_FRAMES
+# (continuity); with PAST_IN_CONTEXT the context reads its past over the whole receptive field too (which class it is
+# performing shows there, and the network learns to read the class from it instead of the label)
+PAST_FRAMES = 2
+PAST_IN_CONTEXT = False
 # each push starts its plan from the last push's, one frame on, noised to this level (t / T) and denoised in
 # SAMPLE_STEPS steps: the reaction keeps to the plan it drew (the first push starts from pure noise)
 CARRY_LEVEL = 0.6
@@ -76,31 +84,36 @@ class CausalReactor(nn.Module):
     def __init__(self, dims: int, classes: int, hidden: int = 128, head: int = 384):
         super().__init__()
         self.dims, self.classes, self.hidden = dims, classes, hidden
-        self.inp = nn.Linear((LOOKAHEAD + 1) * dims + dims + 1 + classes + 1, hidden)
+        past_in = (dims + 1) if PAST_IN_CONTEXT else 0
+        self.inp = nn.Linear((LOOKAHEAD + 1) * dims + 1 + past_in + classes + 1, hidden)
         self.convs = nn.Sequential(*(CausalConv(hidden, d) for d in DILATIONS))
         self.label = nn.Linear(classes, head)
         self.absent = nn.Parameter(torch.zeros(head))
         self.level = nn.Sequential(nn.Linear(64, head), nn.SiLU(), nn.Linear(head, head))
-        self.head_in = nn.Linear(CHUNK * dims + hidden, head)
+        self.head_in = nn.Linear(CHUNK * dims + hidden + PAST_FRAMES * (dims + 1), head)
         self.blocks = nn.ModuleList(nn.Sequential(nn.LayerNorm(head), nn.Linear(head, 2 * head), nn.SiLU(),
                                                   nn.Dropout(0.1), nn.Linear(2 * head, head)) for _ in range(3))
         self.out = nn.Sequential(nn.LayerNorm(head), nn.Linear(head, CHUNK * dims))
         for name in ("leader_mean", "leader_std", "follower_mean", "follower_std"):
             self.register_buffer(name, torch.zeros(dims) if name.endswith("mean") else torch.ones(dims))
 
-    def context(self, leader_windows, past, past_on, label, label_on):
-        """(B, T, (L+1) D), (B, T, D), (B, T, 1), label (B, C), label_on (B,) -> (B, T, H): frame t's context, from
-        frames <= t of each and the row's label (or none)."""
-        b, t, _ = past.shape
+    def context(self, leader_windows, past, past_on, label, label_on, leader_on=None):
+        """(B, T, (L+1) D), (B, T, D), (B, T, 1), label (B, C), label_on (B,), leader_on (B,) -> (B, T, H): frame t's
+        context, from frames <= t of each and the row's label (or none), the leader (or none; default: there)."""
+        b, t, _ = leader_windows.shape
         on = label_on.float()[:, None]
         labels = torch.cat([label * on, on], -1)[:, None].expand(b, t, -1)
-        x = self.inp(torch.cat([leader_windows, past * past_on, past_on, labels], -1)).transpose(1, 2)
+        lead = torch.ones(b, 1, 1) if leader_on is None else leader_on.float()[:, None, None]
+        leaders = [leader_windows * lead, lead.expand(b, t, 1)]
+        pasts = [past * past_on, past_on] if PAST_IN_CONTEXT else []
+        x = self.inp(torch.cat([*leaders, *pasts, labels], -1)).transpose(1, 2)
         return nn.functional.silu(self.convs(x)).transpose(1, 2)
 
-    def denoise(self, x_t, level, h, label, label_on):
-        """x_t (N, CHUNK*D), level (N,), h (N, H), label (N, C), label_on (N,) -> x0 (N, CHUNK*D)."""
+    def denoise(self, x_t, level, h, recent, label, label_on):
+        """x_t (N, CHUNK*D), level (N,), h (N, H), recent (N, PAST_FRAMES*(D+1)): the follower's last frames, each with
+        a flag that it exists; label (N, C), label_on (N,) -> x0 (N, CHUNK*D)."""
         cond = self.level(sinusoid(level, 64)) + torch.where(label_on[:, None], self.label(label), self.absent)
-        z = self.head_in(torch.cat([x_t, h], -1)) + cond
+        z = self.head_in(torch.cat([x_t, h, recent], -1)) + cond
         for block in self.blocks:
             z = z + block(z)
         return self.out(z)
@@ -117,6 +130,17 @@ def leader_windows(leader: np.ndarray) -> np.ndarray:
     """(T, D) -> (T, (L+1) D): frame t's leader frames t .. t + L, the last frame repeated past the end."""
     idx = np.minimum(np.arange(len(leader))[:, None] + np.arange(LOOKAHEAD + 1)[None], len(leader) - 1)
     return leader[idx].reshape(len(leader), -1)
+
+
+def recent_frames(follower: np.ndarray) -> np.ndarray:
+    """(T, D) -> (T, PAST_FRAMES*(D+1)): for frame t, frames t-1 .. t-PAST_FRAMES with a flag each (zeros before the
+    first frame, flag 0)."""
+    t, d = follower.shape
+    out = np.zeros((t, PAST_FRAMES, d + 1), np.float32)
+    for k in range(1, PAST_FRAMES + 1):
+        out[k:, k - 1, :d] = follower[:-k] if k < t else 0
+        out[k:, k - 1, d] = 1
+    return out.reshape(t, -1)
 
 
 def chunks(follower: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -146,7 +170,7 @@ def train(data, train_idx, steps: int, seed: int, batch: int = 32, lr: float = 5
         a, b = norm(a, "leader"), norm(b, "follower")
         target, present = chunks(b)
         past = np.concatenate([np.zeros((1, d), np.float32), b[:-1]])
-        rows.append((leader_windows(a), past, target, present))
+        rows.append((leader_windows(a), past, target, present, recent_frames(b)))
     alpha_bar = torch.as_tensor(cosine_alpha_bar(DIFFUSION_STEPS), dtype=torch.float32)
     opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=1e-4)
     # a linear warm-up over 200 steps, then a cosine down to a tenth, as the clip model's recipe
@@ -165,17 +189,20 @@ def train(data, train_idx, steps: int, seed: int, batch: int = 32, lr: float = 5
 
         lw, past, target = padded(0, rows[0][0].shape[1]), padded(1, d), padded(2, CHUNK * d)
         present = padded(3, CHUNK)
+        recent = padded(4, PAST_FRAMES * (d + 1)).view(batch, tmax, PAST_FRAMES, d + 1)
         valid = present[..., 0] > 0  # (B, T) frames that exist
         past_on = torch.ones(batch, tmax, 1)
         past_on[:, 0] = 0
         sigma = torch.as_tensor(rng.uniform(0, PAST_NOISE, (batch, 1, 1)), dtype=torch.float32)
         past = past + sigma * torch.randn_like(past)
+        recent[..., :d] = (recent[..., :d] + sigma[..., None] * torch.randn_like(recent[..., :d])) * recent[..., d:]
+        recent = recent.flatten(2)
         row_labels = torch.as_tensor(labels[pick])
         row_on = torch.as_tensor(rng.random(batch) >= LABEL_DROP)
-        h = net.context(lw, past, past_on, row_labels, row_on)
+        h = net.context(lw, past, past_on, row_labels, row_on, torch.as_tensor(rng.random(batch) >= LEADER_DROP))
         # the head learns from HEAD_ROWS frames of each row (the GRU reads them all): the head is the costly part
         chosen = valid & (torch.rand(valid.shape) < HEAD_ROWS / valid.sum(1, keepdim=True).clamp(min=1))
-        x0, hv, pv = target[chosen], h[chosen], present[chosen]  # (N, ...)
+        x0, hv, pv, rv = target[chosen], h[chosen], present[chosen], recent[chosen]  # (N, ...)
         n = len(x0)
         level = torch.randint(0, DIFFUSION_STEPS, (n,))
         noise = torch.randn_like(x0)
@@ -184,7 +211,7 @@ def train(data, train_idx, steps: int, seed: int, batch: int = 32, lr: float = 5
         per_row = chosen.sum(1)
         lab = row_labels.repeat_interleave(per_row, 0)
         label_on = row_on.repeat_interleave(per_row, 0)
-        pred = net.denoise(x_t, level, hv, lab, label_on)
+        pred = net.denoise(x_t, level, hv, rv, lab, label_on)
         w = pv.repeat_interleave(d, -1)
         err = ((pred - x0) ** 2 * w).sum() / w.sum()
         wv = (pv[:, 1:] * pv[:, :-1])[..., None]
@@ -264,9 +291,14 @@ class Streamer:
                 plan = np.concatenate([plan[:, 1:], plan[:, -1:]], 1).reshape(len(live), -1)
                 steps, a = carried, self.alpha_bar[carried[0]]
                 x = (math.sqrt(a) * plan + math.sqrt(1 - a) * noise).astype(np.float32)
+            recent = np.zeros((len(live), PAST_FRAMES, d + 1), np.float32)
+            for k, i in enumerate(live):
+                for back in range(1, min(PAST_FRAMES, t) + 1):
+                    recent[k, back - 1, :d], recent[k, back - 1, d] = pasts[i][t - back], 1
+            recent = torch.as_tensor(recent.reshape(len(live), -1)[at])
             free = ~label_on[rows]
             for j, step in enumerate(steps):
-                pred = net.denoise(torch.as_tensor(x[at]), torch.full((len(rows),), int(step)), h,
+                pred = net.denoise(torch.as_tensor(x[at]), torch.full((len(rows),), int(step)), h, recent,
                                    torch.as_tensor(onehots[rows]), torch.as_tensor(label_on[rows])).numpy()
                 base = pred[free]  # one per live leader, in live's order
                 guided = base.copy()
@@ -372,9 +404,16 @@ def main() -> None:
     ap.add_argument("--save", type=Path, default=None, help="keep the trained network's weights here")
     ap.add_argument("--load", type=Path, default=None, help="score these weights (from --save) instead of training")
     ap.add_argument("--variant", default="", help="a name recorded with each row")
+    ap.add_argument("--leader-drop", type=float, default=0.0, help="share of training rows without their leader (LEADER_DROP)")
+    ap.add_argument("--past-in-context", action="store_true",
+                    help="the context reads the follower's past, the head none of it (PAST_IN_CONTEXT, PAST_FRAMES 0)")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     torch.set_num_threads(1)
+    global PAST_IN_CONTEXT, PAST_FRAMES, LEADER_DROP
+    LEADER_DROP = args.leader_drop
+    if args.past_in_context:  # the context reads the past; the head reads none of it
+        PAST_IN_CONTEXT, PAST_FRAMES = True, 0
     data = InteractionDataset.load(SAMPLE_DATA)
     train_idx = loso_fold(data.subject_pairs, args.fold).train
     t0 = time.perf_counter()
@@ -397,7 +436,8 @@ def main() -> None:
         row = {"fold": args.fold, "mode": "causal", "variant": args.variant, "label_scale": scale, "steps": args.steps, "seed": args.seed,
                "train_minutes": round(minutes, 1), "leaders": len(judges.test),
                "settings": {"LOOKAHEAD": LOOKAHEAD, "CHUNK": CHUNK, "SAMPLE_STEPS": SAMPLE_STEPS, "PAST_NOISE": PAST_NOISE,
-                            "CARRY_LEVEL": CARRY_LEVEL, "label_in_context": True}}
+                            "CARRY_LEVEL": CARRY_LEVEL, "PAST_FRAMES": PAST_FRAMES, "PAST_IN_CONTEXT": PAST_IN_CONTEXT,
+                            "LEADER_DROP": LEADER_DROP}}
         labels = np.eye(len(data.class_names), dtype=np.float32)[data.actions[judges.test]]
         row["causality_gap_m"] = causality_gap(streamer, judges.leaders[0], labels[0], len(judges.leaders[0]) // 2)
         row["push_ms_median"] = push_ms(streamer, judges.leaders, labels)
