@@ -6,22 +6,27 @@ and reads as asked less often than the clip sampled whole (docs/experiments/long
 model predicts each follower frame from the leader up to LOOKAHEAD frames ahead and the follower's own past, as
 Ready-to-React (ICLR 2025) and ARMFlow (CVPR 2026) do:
 
-- causal temporal convolutions read, at frame t, the leader's frames t .. t + LOOKAHEAD and the follower's frame
-  t - 1 (its own output when it reacts; in training the recorded one, through noise of a random size per row, so that
-  its own errors are no surprise), and the same of the RECEPTIVE - 1 frames before (a GRU carrying everything before
-  trained 4 x slower on one CPU thread);
-- a small diffusion head draws the follower's next CHUNK frames (t .. t + CHUNK - 1) from that state and the label,
-  in SAMPLE_STEPS DDIM steps; frame t is emitted, the rest only teach the head where the motion goes;
+- causal temporal convolutions (the context) read, at frame t, the leader's frames t .. t + LOOKAHEAD and the label,
+  and the same of the RECEPTIVE - 1 frames before (a GRU carrying everything before trained 4 x slower on one CPU
+  thread); with --past-in-context they also read the follower's frame t - 1 at each frame;
+- the follower's past is its own output when it reacts; in training, the recorded one through noise of a random size
+  per row, so that its own errors are no surprise;
+- a small diffusion head draws the follower's next CHUNK frames (t .. t + CHUNK - 1, its plan) from the context, the
+  label and (unless --past-in-context) the follower's last PAST_FRAMES frames, in SAMPLE_STEPS DDIM steps starting
+  from the last push's plan (CARRY_LEVEL); frame t is emitted;
 - the signed label is composed at every head step as the clip sampler composes it (`Guidance.label_scale`):
   x0 = x0(no label) + s * sum_c v_c * (x0(c) - x0(no label)), the label-free term learnt by dropping the label.
 
 So the reaction it makes offline is the one it makes live, for a take of any length. Scored here like
 `online_fold.py` scores the shipped reactor (AFD single and best of 5, FID, off-label, limbs, jitter, feet,
 variations; the fold's own judges) and, leader by leader with a seed each, the closest hands and the torso distance
-against the clip model's offline reaction (the issue's engagement bar: hands <= + 0.05 m, torso <= + 0.08 m).
+against the clip model's offline reaction (the live engagement bar: hands <= + 0.05 m, torso <= + 0.08 m).
 
     OMP_NUM_THREADS=1 python docs/experiments/scripts/causal_reactor.py --fold s04 \\
-        --clip-model sample_data/imm_diffusion.safetensors --out docs/experiments/data/causal-reactor.jsonl
+        --clip-model sample_data/imm_diffusion.safetensors [--past-in-context] [--leader-drop 0.25] \\
+        --variant NAME --out docs/experiments/data/causal-reactor.jsonl
+
+Record: docs/experiments/causal-reactor.md.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """How engaged the shipped live reactor stays against the clip sampled whole, on any LOSO fold: per held-out leader
 and seed, the closest hands and the torso distance of the live reaction (`online_fold.online_followers`, the fold's
 clip model at the live reactor's settings) minus the clip model's offline reaction with the same seed; means with 95 %
-t intervals over the takes (the issue's bar: hands <= + 0.05 m, torso <= + 0.08 m).
+t intervals over the takes (the live bar: hands <= + 0.05 m, torso <= + 0.08 m).
 
     OMP_NUM_THREADS=1 python docs/experiments/scripts/live_engagement_folds.py --fold s02 \\
         --checkpoint runs/teachers/fold-s02/final.safetensors --out docs/experiments/data/live-engagement-folds.jsonl
