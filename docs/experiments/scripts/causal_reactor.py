@@ -40,6 +40,9 @@ import numpy as np
 import torch
 from torch import nn
 
+from imm_model.families.diffusion.denoiser import sinusoid
+from imm_model.families.diffusion.sampler import cosine_alpha_bar
+
 LOOKAHEAD = 4  # leader frames beyond the one a follower frame answers (the live reactor's)
 CHUNK = 8  # follower frames the head draws at once (its plan); the first is emitted
 DIFFUSION_STEPS = 100  # the forward process's steps (cosine schedule)
@@ -59,13 +62,6 @@ PAST_IN_CONTEXT = False
 CARRY_LEVEL = 0.6
 HEAD_ROWS = 8  # frames of each training row the diffusion head learns from at a step (on average)
 CLIP = 6.0  # x0 predictions clamped to this many training stds, as the clip sampler does
-
-
-def sinusoid(x: torch.Tensor, width: int) -> torch.Tensor:
-    half = width // 2
-    freq = torch.exp(-math.log(10_000.0) * torch.arange(half, dtype=torch.float32) / half)
-    angle = x.float()[..., None] * freq
-    return torch.cat([angle.sin(), angle.cos()], -1)
 
 
 class CausalConv(nn.Module):
@@ -122,13 +118,6 @@ class CausalReactor(nn.Module):
         for block in self.blocks:
             z = z + block(z)
         return self.out(z)
-
-
-def cosine_alpha_bar(steps: int) -> np.ndarray:
-    s = 0.008
-    t = np.arange(steps + 1) / steps
-    f = np.cos((t + s) / (1 + s) * math.pi / 2) ** 2
-    return np.clip(f[1:] / f[0], 1e-5, 1.0)
 
 
 def leader_windows(leader: np.ndarray) -> np.ndarray:
@@ -325,30 +314,14 @@ class Streamer:
 def engagement(data, judges, streamer, clip_model, bases) -> dict:
     """Per leader and seed: closest hands and torso distance of the causal reaction and of the shipped live reactor
     (the clip model's windows, `online_fold.online_followers`), each minus the clip model's offline reaction with the
-    same seed; means with 95 % t intervals over the takes."""
-    from long_takes import copy_figures
-    from long_takes_seeds import interval
+    same seed; means with 95 % t intervals over the takes (`live_engagement_folds.minus_offline`)."""
+    from live_engagement_folds import minus_offline
     from online_fold import online_followers
 
-    y = data.actions[judges.test]
-    labels = np.eye(len(data.class_names), dtype=np.float32)[y]
-    figures = {"causal": [], "shipped_live": [], "offline": []}
-    for base in bases:
-        seeds = [base * 1000 + k for k in range(len(y))]
-        made = {"causal": streamer.synthesize_batch_canonical(judges.leaders, labels, seeds),
-                "shipped_live": online_followers(clip_model, judges.leaders, labels, seeds),
-                "offline": clip_model.synthesize_batch_canonical(judges.leaders, labels, seeds)}
-        for who, followers in made.items():
-            figures[who] += [copy_figures(a, f, data.skeleton, 1)[0] for a, f in zip(judges.leaders, followers, strict=True)]
-    out = {}
-    for who in figures:
-        for key in ("hands", "torso"):
-            values = np.array([f[key] for f in figures[who]])
-            out[f"{who}_{key}"] = float(values.mean())
-            if who != "offline":
-                diff = values - np.array([f[key] for f in figures["offline"]])
-                out[f"{who}_{key}_minus_offline"] = [float(v) for v in interval(diff)]  # mean, low, high
-    return out
+    labels = np.eye(len(data.class_names), dtype=np.float32)[data.actions[judges.test]]
+    makers = {"causal": lambda seeds: streamer.synthesize_batch_canonical(judges.leaders, labels, seeds),
+              "shipped_live": lambda seeds: online_followers(clip_model, judges.leaders, labels, seeds)}
+    return minus_offline(judges.leaders, labels, clip_model, makers, data.skeleton, bases)
 
 
 def long_takes(data, judges, streamer, repeats=(1, 4, 8)) -> dict:
