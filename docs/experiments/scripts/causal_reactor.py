@@ -60,6 +60,12 @@ PAST_IN_CONTEXT = False
 # each push starts its plan from the last push's, one frame on, noised to this level (t / T) and denoised in
 # SAMPLE_STEPS steps: the reaction keeps to the plan it drew (the first push starts from pure noise)
 CARRY_LEVEL = 0.6
+# the frame emitted is the mean of what the last ENSEMBLE plans drew for it (temporal ensembling, as ACT, Zhao et al.
+# 2023, smooths overlapping action chunks; 1: the newest plan's alone)
+ENSEMBLE = 1
+# the plan's noise drawn once per frame of the take, not once per push: successive pushes noise a frame alike, so
+# their plans agree where the noise alone made them differ
+FRAME_NOISE = False
 HEAD_ROWS = 8  # frames of each training row the diffusion head learns from at a step (on average)
 CLIP = 6.0  # x0 predictions clamped to this many training stds, as the clip sampler does
 
@@ -144,15 +150,93 @@ def chunks(follower: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return follower[np.minimum(idx, t - 1)].reshape(t, -1), idx < t
 
 
-def train(data, train_idx, steps: int, seed: int, batch: int = 32, lr: float = 5e-4, log=print) -> CausalReactor:
-    torch.manual_seed(seed)
-    rng = np.random.default_rng(seed)
+def recorded_rows(data, train_idx) -> tuple[list, list, np.ndarray]:
+    """The fold's recorded training pairs: canonical leaders and followers (T, D) and their one-hot labels (N, C)."""
     pairs = [data.canonical(int(i)) for i in train_idx]
     leaders = [a.reshape(len(a), -1).astype(np.float32) for a, _ in pairs]
     followers = [b.reshape(len(b), -1).astype(np.float32) for _, b in pairs]
-    labels = np.eye(len(data.class_names), dtype=np.float32)[data.actions[train_idx]]
+    return leaders, followers, np.eye(len(data.class_names), dtype=np.float32)[data.actions[train_idx]]
+
+
+def teacher_rows(teacher, data, train_idx, per_leader: int, seed: int, part_share: float = 0.0, batch: int = 64,
+                 log=print) -> tuple[list, list, np.ndarray]:
+    """The clip model's own reactions to the fold's training leaders, `per_leader` each, under labels drawn as the
+    distilled student's pool draws them (distill.py `pool_labels`: one class, a signed value, two-class mixes, A and -B,
+    three signed classes) and a seed each, the clip sampled whole as the studio samples it: leaders (T, D), the
+    teacher's followers (T, D) and the label vectors (N, C). So leader and label disagree in training as users make
+    them disagree, and a seed's variation is in the targets. With `part_share`, labels are per body part (N, 2C)."""
+    from imm_model.families.diffusion.distill import pool_labels
+
+    rng = np.random.default_rng((seed, 7))
+    canon = [data.canonical(int(i))[0] for i in train_idx]
+    which = np.repeat(np.arange(len(canon)), per_leader)
+    labels = pool_labels(rng, len(which), len(data.class_names))
+    if part_share:  # (N, 2C): a label per body part, which the teacher's sampler joins (Guidance.part_join)
+        labels = with_parts(rng, labels, part_share)
+    # rows asking for the same classes side by side: the sampler composes one term per class any row of a batch weighs
+    order = np.argsort((labels != 0) @ (1 << np.arange(labels.shape[1])), kind="stable")
+    which, labels = which[order], labels[order]
+    seeds = rng.integers(0, 2**31 - 1, len(which))
+    leaders, followers = [], []
+    t0 = time.perf_counter()
+    for start in range(0, len(which), batch):
+        rows = range(start, min(len(which), start + batch))
+        made = teacher._sample([canon[which[r]] for r in rows], labels[list(rows)], [int(seeds[r]) for r in rows])
+        leaders += [canon[which[r]].reshape(len(canon[which[r]]), -1).astype(np.float32) for r in rows]
+        followers += [f.reshape(len(f), -1).astype(np.float32) for f in made]
+        if start // batch % 10 == 0:
+            log(f"teacher reactions {start + len(rows)}/{len(which)}, {time.perf_counter() - t0:.0f} s")
+    return leaders, followers, labels
+
+
+def with_parts(rng: np.random.Generator, labels: np.ndarray, share: float) -> np.ndarray:
+    """(N, C) whole-body labels -> (N, 2C), upper then lower: the same label on both parts, except for a `share` of
+    the rows, whose lower body gets another drawn label (distill.py `pool_labels`) than the upper."""
+    from imm_model.families.diffusion.distill import pool_labels
+
+    lower = labels.copy()
+    differ = rng.random(len(labels)) < share
+    lower[differ] = pool_labels(rng, int(differ.sum()), labels.shape[1])
+    return np.concatenate([labels, lower], 1)
+
+
+def teacher_takes(teacher, data, train_idx, count: int, seed: int, part_share: float,
+                  log=print) -> tuple[list, list, np.ndarray]:
+    """`count` long takes: a training leader played 2-4 times in a row (repeated, or forwards then backwards), a label
+    drawn as `teacher_rows` draws them and a seed, and the clip model's reaction to it made as the studio makes a long
+    take's (windows.py `take_windows`, in windows of its clip length, each continuing the last): leaders (T, D),
+    followers (T, D), labels. A network that reads the last RECEPTIVE frames sees, in clips alone, only the first
+    46 frames of an interaction; here it learns the reaction that stays engaged beyond them."""
+    from long_takes import take
+
+    from imm_model.families.diffusion.distill import pool_labels
+    from imm_model.families.diffusion.windows import take_windows
+
+    rng = np.random.default_rng((seed, 11))
+    labels = pool_labels(rng, count, len(data.class_names))
+    if part_share:
+        labels = with_parts(rng, labels, part_share)
+    leaders, followers = [], []
+    t0 = time.perf_counter()
+    for n in range(count):
+        clip = data.canonical(int(rng.choice(train_idx)))[0]
+        leader = take(clip, int(rng.integers(2, 5)), ("repeat", "pingpong")[int(rng.integers(2))]).astype(np.float32)
+        made = take_windows(teacher, leader, teacher._label_input(labels[n:n + 1])[0], int(rng.integers(2**31 - 1)))
+        leaders.append(leader.reshape(len(leader), -1))
+        followers.append(made.reshape(len(made), -1).astype(np.float32))
+        if n % 20 == 0:
+            log(f"teacher long takes {n + 1}/{count}, {time.perf_counter() - t0:.0f} s")
+    return leaders, followers, labels
+
+
+def train(leaders, followers, labels, steps: int, seed: int, batch: int = 32, lr: float = 5e-4, by_frames: bool = False,
+          log=print) -> CausalReactor:
+    """Canonical leaders and followers (T, D) with their label vectors (N, C) -> the trained network. Rows are drawn
+    alike, or with `by_frames` by their length (every frame alike: long takes as often as their frames say)."""
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
     d = leaders[0].shape[1]
-    net = CausalReactor(d, len(data.class_names))
+    net = CausalReactor(d, labels.shape[1])
     stats = {}
     for who, frames in (("leader", np.concatenate(leaders)), ("follower", np.concatenate(followers))):
         stats[who] = frames.mean(0), np.maximum(frames.std(0), 0.01)
@@ -165,6 +249,8 @@ def train(data, train_idx, steps: int, seed: int, batch: int = 32, lr: float = 5
         target, present = chunks(b)
         past = np.concatenate([np.zeros((1, d), np.float32), b[:-1]])
         rows.append((leader_windows(a), past, target, present, recent_frames(b)))
+    lengths = np.array([len(a) for a in leaders], float)
+    chance = lengths / lengths.sum() if by_frames else None
     alpha_bar = torch.as_tensor(cosine_alpha_bar(DIFFUSION_STEPS), dtype=torch.float32)
     opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=1e-4)
     # a linear warm-up over 200 steps, then a cosine down to a tenth, as the clip model's recipe
@@ -172,7 +258,7 @@ def train(data, train_idx, steps: int, seed: int, batch: int = 32, lr: float = 5
         opt, lambda s: min(1.0, (s + 1) / 200) * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * s / steps))))
     t0 = time.perf_counter()
     for step in range(steps):
-        pick = rng.choice(len(rows), batch)
+        pick = rng.choice(len(rows), batch, p=chance)
         tmax = max(len(rows[i][0]) for i in pick)
 
         def padded(k, width, pick=pick, tmax=tmax):
@@ -226,9 +312,29 @@ class Streamer:
     """`synthesize_batch_canonical` as the evaluation calls it: every leader streamed frame by frame in lockstep, each
     frame knowing the leader up to LOOKAHEAD ahead and its own past only; then the online clean-up."""
 
-    def __init__(self, net: CausalReactor, skeleton, bone_lengths, label_scale: float):
+    def __init__(self, net: CausalReactor, skeleton, bone_lengths, label_scale: float, composed: bool = True):
+        """`composed`: the signed label composed from one term per class it names, as the clip sampler composes it (a
+        network trained on recorded pairs, which saw one-hot labels); else the label vector is read whole (a student
+        of the clip model's composed reactions), guided around the label-free term by `label_scale` (1: not guided,
+        one network call a step)."""
         self.net, self.skeleton, self.bone_lengths, self.label_scale = net, skeleton, bone_lengths, label_scale
+        self.composed = composed
         self.alpha_bar = cosine_alpha_bar(DIFFUSION_STEPS)
+
+    def terms(self, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Labels (N, C) -> per network row: its leader, its label input, whether it has one, its weight in the
+        guided sum. Each leader's label-free row comes first, unless the label is read whole and not guided."""
+        free_row = self.composed or self.label_scale != 1
+        owner, inputs, on, weight = [], [], [], []
+        for i, label in enumerate(labels):
+            terms = [(np.eye(len(label))[c], label[c]) for c in np.flatnonzero(label)] if self.composed else [(label, 1.0)]
+            for vector, w in ([(np.zeros_like(label), 0.0)] if free_row else []) + terms:
+                owner.append(i)
+                inputs.append(vector)
+                on.append(w != 0 or not free_row)
+                weight.append(w)
+        return (np.asarray(owner), np.asarray(inputs, np.float32), np.asarray(on, bool),
+                np.asarray(weight, np.float32))
 
     @torch.inference_mode()
     def synthesize_batch_canonical(self, leaders, labels, seeds=None):
@@ -241,23 +347,18 @@ class Streamer:
         lm, ls = net.leader_mean.numpy(), net.leader_std.numpy()
         fm, fs = net.follower_mean.numpy(), net.follower_std.numpy()
         windows = [leader_windows((a.reshape(len(a), -1) - lm) / ls).astype(np.float32) for a in leaders]
-        noises = [np.random.default_rng(s).standard_normal((t, CHUNK * d)).astype(np.float32) for s, t in zip(seeds, lengths, strict=True)]
+        # FRAME_NOISE: one draw per frame of the take (each push's plan noises frame t + k with frame t + k's draw)
+        shape = (lambda t: (t + CHUNK, d)) if FRAME_NOISE else (lambda t: (t, CHUNK * d))
+        noises = [np.random.default_rng(s).standard_normal(shape(t)).astype(np.float32) for s, t in zip(seeds, lengths, strict=True)]
         labels = np.asarray(labels, np.float32)
-        # one row per term: each leader's label-free term, then one per class its label names
-        owner = [i for i in range(n) for _ in range(1 + int(np.count_nonzero(labels[i])))]
-        onehots = np.zeros((len(owner), labels.shape[1]), np.float32)
-        label_on = np.zeros(len(owner), bool)
-        weight = np.zeros(len(owner), np.float32)
-        r = 0
-        for i in range(n):
-            r += 1
-            for c in np.flatnonzero(labels[i]):
-                onehots[r, c], label_on[r], weight[r] = 1, True, labels[i, c]
-                r += 1
-        owner = np.asarray(owner)
+        if labels.shape[1] * 2 == net.classes:  # a whole-body label to a network that reads one per part: on both
+            labels = np.concatenate([labels, labels], 1)
+        owner, onehots, label_on, weight = self.terms(labels)
+        guided_terms = self.composed or self.label_scale != 1
         out = [np.zeros((t, d), np.float32) for t in lengths]
         pasts = [np.zeros((t, d), np.float32) for t in lengths]  # the follower frames made so far, normalized
         plans = np.zeros((n, CHUNK * d), np.float32)  # each leader's last plan (x0 of its chunk)
+        history = np.zeros((n, ENSEMBLE, CHUNK * d), np.float32)  # each leader's last ENSEMBLE plans, newest first
         full = np.linspace(DIFFUSION_STEPS - 1, 0, SAMPLE_STEPS).round().astype(int)
         carried = np.linspace(round(CARRY_LEVEL * (DIFFUSION_STEPS - 1)), 0, SAMPLE_STEPS).round().astype(int)
         for t in range(max(lengths)):
@@ -277,7 +378,7 @@ class Streamer:
             at = np.searchsorted(live, owner[rows])  # each term row's leader among the live ones
             h = net.context(torch.as_tensor(lw[at]), torch.as_tensor(prev[at]), torch.as_tensor(on[at]),
                             torch.as_tensor(onehots[rows]), torch.as_tensor(label_on[rows]))[:, -1]
-            noise = np.stack([noises[i][t] for i in live])
+            noise = np.stack([noises[i][t:t + CHUNK].reshape(-1) if FRAME_NOISE else noises[i][t] for i in live])
             if t == 0:
                 steps, x = full, noise
             else:  # the last plan one frame on (its last frame held), noised to CARRY_LEVEL
@@ -290,7 +391,7 @@ class Streamer:
                 for back in range(1, min(PAST_FRAMES, t) + 1):
                     recent[k, back - 1, :d], recent[k, back - 1, d] = pasts[i][t - back], 1
             recent = torch.as_tensor(recent.reshape(len(live), -1)[at])
-            free = ~label_on[rows]
+            free = ~label_on[rows] if guided_terms else np.ones(len(rows), bool)
             for j, step in enumerate(steps):
                 pred = net.denoise(torch.as_tensor(x[at]), torch.full((len(rows),), int(step)), h, recent,
                                    torch.as_tensor(onehots[rows]), torch.as_tensor(label_on[rows])).numpy()
@@ -304,9 +405,13 @@ class Streamer:
                     eps = (x - math.sqrt(a) * x0) / math.sqrt(1 - a)
                     x = (math.sqrt(a_next) * x0 + math.sqrt(1 - a_next) * eps).astype(np.float32)
             plans[live] = x0
-            for k, i in enumerate(live):
-                pasts[i][t] = x0[k, :d]
-                out[i][t] = x0[k, :d] * fs + fm
+            history[live] = np.roll(history[live], 1, axis=1)
+            history[live, 0] = x0
+            for i in live:
+                # frame t as the last ENSEMBLE plans drew it (the plan made k frames ago: its frame k)
+                votes = [history[i, back, back * d:(back + 1) * d] for back in range(min(ENSEMBLE, t + 1))]
+                pasts[i][t] = np.mean(votes, 0)
+                out[i][t] = pasts[i][t] * fs + fm
         j = len(self.skeleton.joint_names)
         return [OnlineCleanup(self.skeleton, self.bone_lengths)(o.reshape(len(o), j, 3)).astype(np.float32) for o in out]
 
@@ -376,7 +481,11 @@ def main() -> None:
     ap.add_argument("--fold", required=True)
     ap.add_argument("--steps", type=int, default=6000, help="optimizer steps")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--label-scale", type=float, nargs="+", default=[2.5])
+    ap.add_argument("--label-scale", type=float, nargs="+", default=None,
+                    help="label guidance (default: 2.5 composed per class; 1, not guided, for a student of the teacher)")
+    ap.add_argument("--teacher-pool", type=int, default=0,
+                    help="train on this many of the clip model's reactions per training leader (`teacher_rows`), the "
+                         "label vector read whole, instead of the recorded pairs")
     ap.add_argument("--clip-model", type=Path, required=True, help="the fold's clip diffusion checkpoint (engagement's reference)")
     ap.add_argument("--bases", type=int, nargs="+", default=[0, 1, 2], help="seed bases of the engagement's takes")
     ap.add_argument("--save", type=Path, default=None, help="keep the trained network's weights here")
@@ -385,36 +494,59 @@ def main() -> None:
     ap.add_argument("--leader-drop", type=float, default=0.0, help="share of training rows without their leader (LEADER_DROP)")
     ap.add_argument("--past-in-context", action="store_true",
                     help="the context reads the follower's past, the head none of it (PAST_IN_CONTEXT, PAST_FRAMES 0)")
+    ap.add_argument("--long-takes", type=int, default=0,
+                    help="with --teacher-pool: also this many of the clip model's long takes (`teacher_takes`)")
+    ap.add_argument("--part-share", type=float, default=0.0,
+                    help="with --teacher-pool: the share of its labels that differ per body part (the network then "
+                         "reads a label per part)")
+    ap.add_argument("--carry-level", type=float, default=0.6, help="CARRY_LEVEL")
+    ap.add_argument("--ensemble", type=int, default=1, help="ENSEMBLE (at most CHUNK)")
+    ap.add_argument("--frame-noise", action="store_true", help="FRAME_NOISE")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     torch.set_num_threads(1)
-    global PAST_IN_CONTEXT, PAST_FRAMES, LEADER_DROP
-    LEADER_DROP = args.leader_drop
+    global PAST_IN_CONTEXT, PAST_FRAMES, LEADER_DROP, CARRY_LEVEL, ENSEMBLE, FRAME_NOISE
+    LEADER_DROP, CARRY_LEVEL, ENSEMBLE, FRAME_NOISE = args.leader_drop, args.carry_level, args.ensemble, args.frame_noise
     if args.past_in_context:  # the context reads the past; the head reads none of it
         PAST_IN_CONTEXT, PAST_FRAMES = True, 0
     data = InteractionDataset.load(SAMPLE_DATA)
     train_idx = loso_fold(data.subject_pairs, args.fold).train
+    clip_model = ReactionModel.load(args.clip_model)
+    composed = args.teacher_pool == 0
+    scales = args.label_scale or [2.5 if composed else 1.0]
     t0 = time.perf_counter()
+    pool_minutes = 0.0
     if args.load:
-        net = CausalReactor(data.canonical(0)[0][0].size, len(data.class_names))
+        net = CausalReactor(data.canonical(0)[0][0].size, len(data.class_names) * (2 if args.part_share else 1))
         net.load_state_dict(torch.load(args.load, weights_only=True))
         net.eval()
     else:
-        net = train(data, train_idx, args.steps, args.seed)
-    minutes = (time.perf_counter() - t0) / 60
+        if composed:
+            rows = recorded_rows(data, train_idx)
+        else:
+            rows = teacher_rows(clip_model, data, train_idx, args.teacher_pool, args.seed, args.part_share)
+            if args.long_takes:
+                more = teacher_takes(clip_model, data, train_idx, args.long_takes, args.seed, args.part_share)
+                rows = rows[0] + more[0], rows[1] + more[1], np.concatenate([rows[2], more[2]])
+            pool_minutes = (time.perf_counter() - t0) / 60
+        net = train(*rows, args.steps, args.seed, by_frames=args.long_takes > 0)
+    minutes = (time.perf_counter() - t0) / 60 - pool_minutes
     if args.save and not args.load:
         torch.save(net.state_dict(), args.save)
     bones = np.asarray(follower_bone_lengths([data.canonical(int(i))[1] for i in train_idx], data.skeleton))
     opts = EvalOptions(baselines=(), progress=False)
     judges = FoldJudges(data, args.fold, opts)
-    clip_model = ReactionModel.load(args.clip_model)
     prepare_model(clip_model, data, args.fold, opts)
-    for scale in args.label_scale:
-        streamer = Streamer(net, data.skeleton, bones, scale)
+    for scale in scales:
+        streamer = Streamer(net, data.skeleton, bones, scale, composed)
         row = {"fold": args.fold, "mode": "causal", "variant": args.variant, "label_scale": scale, "steps": args.steps, "seed": args.seed,
+               "teacher_pool": args.teacher_pool, "long_takes": args.long_takes, "part_share": args.part_share,
+               "pool_minutes": round(pool_minutes, 1),
                "train_minutes": round(minutes, 1), "leaders": len(judges.test),
                "settings": {"LOOKAHEAD": LOOKAHEAD, "CHUNK": CHUNK, "SAMPLE_STEPS": SAMPLE_STEPS, "PAST_NOISE": PAST_NOISE,
-                            "CARRY_LEVEL": CARRY_LEVEL, "PAST_FRAMES": PAST_FRAMES, "PAST_IN_CONTEXT": PAST_IN_CONTEXT,
+                            "CARRY_LEVEL": CARRY_LEVEL, "ENSEMBLE": ENSEMBLE, "FRAME_NOISE": FRAME_NOISE,
+                            "PAST_FRAMES": PAST_FRAMES,
+                            "PAST_IN_CONTEXT": PAST_IN_CONTEXT,
                             "LEADER_DROP": LEADER_DROP}}
         labels = np.eye(len(data.class_names), dtype=np.float32)[data.actions[judges.test]]
         row["causality_gap_m"] = causality_gap(streamer, judges.leaders[0], labels[0], len(judges.leaders[0]) // 2)

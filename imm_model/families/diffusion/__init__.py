@@ -19,9 +19,13 @@ def _recipes():
 
 
 def _train(cfg, data, subject, out_dir, device="cpu", resume: bool = False, progress: bool = True) -> Trained:
+    if cfg.teacher and resume:
+        raise ValueError("--resume: a student or a live reactor is trained in one go; run it again without --resume")
+    if cfg.live_pool:
+        from imm_model.families.diffusion.live_train import train_live
+
+        return train_live(cfg, data, subject, out_dir, device, progress)
     if cfg.teacher:
-        if resume:
-            raise ValueError("--resume: a student is trained in one go (minutes); run it again without --resume")
         from imm_model.families.diffusion.distill import distill
 
         return distill(cfg, data, subject, out_dir, device, progress)

@@ -43,6 +43,9 @@ class DiffusionReactionModel(ReactionModel):
         # the model its long takes and live reactions come from: a student's teacher (`teacher_for_takes`), which
         # continues a window better than the student learnt to; None: this model itself
         self.takes: DiffusionReactionModel | None = None
+        # the network that reacts live, frame by frame (live.py), when one was trained for this model and lies beside
+        # its checkpoint; None: it reacts live in windows (windows.py OnlineReactor)
+        self.live = None
         self.resample = RESAMPLE  # times a long take's window takes each sampler step again (windows.py; a draft's 0)
         # the sampling loop, sampler.py `sample` (an experiment may put another with its signature here: it gets the
         # network call, the normalized leaders and masks, labels, starting noise, guidance, steps, seeds, and the
@@ -109,7 +112,10 @@ class DiffusionReactionModel(ReactionModel):
     def from_checkpoint(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], path: Path, device: str = "cpu",
                         data: Path | None = None):
         from imm_model.checkpoint import check_state
+        from imm_model.families.diffusion.live import KIND, describe, live_for
 
+        if meta.get("kind") == KIND:
+            raise CheckpointError(f"{path}: {describe(meta)}")
         cfg, weights = described_weights(arrays, meta, path, DiffusionConfig, cls.weights_prefix)
         try:
             guidance = Guidance.from_dict(meta["guidance"])
@@ -119,6 +125,7 @@ class DiffusionReactionModel(ReactionModel):
         model = cls({k: np.ascontiguousarray(v, np.float32) for k, v in weights.items()}, cfg, guidance, meta, path, device)
         if model.fast is None:
             model.net  # noqa: B018 - built (and moved to the GPU) now, not at the first synthesis
+        model.live = live_for(model, path)
         model.takes = teacher_for_takes(meta, path, device)
         if model.takes is not None:  # what a moving slider draws of a long take: the student's own windows, the faster
             model.draft = copy.copy(model)
@@ -246,8 +253,14 @@ class DiffusionReactionModel(ReactionModel):
         draws a clip itself, at once."""
         return None if self.takes is not None and frames <= self.window else self.draft
 
-    def online(self, label, scale: float = 1.0, seed: int = 0) -> OnlineReactor:
-        return OnlineReactor(self.takes or self, label, scale, seed)
+    def online(self, label, scale: float = 1.0, seed: int = 0):
+        """Its live reactor's reaction (live.py) where the model that makes its long takes has one, else windows'."""
+        from imm_model.families.diffusion.live import LiveReactor
+
+        takes = self.takes or self
+        if takes.live is not None:
+            return LiveReactor(self, takes.live, label, scale, seed)
+        return OnlineReactor(takes, label, scale, seed)
 
     @contextlib.contextmanager
     def probing(self):

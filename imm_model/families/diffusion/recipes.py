@@ -1,12 +1,14 @@
 """The diffusion family's recipes: a typed config (each field's accepted values declared beside it,
 imm_model/typed_config.py) and the named recipes `imm-diffusion` (the bundled model's), `imm-diffusion-mixed`,
-`imm-diffusion-parts` and `imm-diffusion-student` (a few-step student distilled from a teacher's sampler)."""
+`imm-diffusion-parts`, `imm-diffusion-student` (a few-step student distilled from a teacher's sampler) and
+`imm-diffusion-live` (a teacher's live reactor, live.py)."""
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
 from typing import Any, ClassVar
 
+from imm_model.families.diffusion.live import LiveConfig
 from imm_model.families.diffusion.sampler import DiffusionConfig, Guidance
 from imm_model.typed_config import FieldsOf, Interval, ListOf, Name, OneOf, PathText, checked_kwargs, param, validate
 
@@ -78,6 +80,12 @@ class DiffusionTrainConfig:
     # weight of a frozen follower classifier's cross-entropy for the classes a row performs, on a student's reaction
     # (training/label_critic.py: trained on the fold's real training followers; the evaluation judges with others)
     lambda_label: float = param(0.0, Interval(float, 0, None))
+    # the teacher's reactions per training leader a live reactor learns from (live_train.py): the run trains the
+    # teacher's live reactor, not a denoiser; 0: a denoiser
+    live_pool: int = param(0, Interval(int, 0, 10_000))
+    live_takes: int = param(0, Interval(int, 0, 100_000))  # the teacher's long takes (windows.py) it learns from too
+    live_part_share: float = param(0.0, FRACTION)  # share of those reactions whose label differs per body part
+    live: dict[str, Any] = param(check=FieldsOf(LiveConfig), factory=dict)  # the live reactor's network (live.py)
     checkpoint_every: int = param(1000, Interval(int, 1, None))  # steps between resumable checkpoints
     seed: int = param(0, Interval(int, 0, 2**31 - 1))  # initial weights, batches, noise and augmentation
 
@@ -88,8 +96,11 @@ class DiffusionTrainConfig:
              ("part_drop", lambda c: c.part_drop == 0 or c.model.get("part_labels") is True, "0 unless model.part_labels is true"),
              ("given_prob", lambda c: c.given_prob == 0 or c.model.get("given_frames") is True,
               "0 unless model.given_frames is true"),
-             ("teacher", lambda c: bool(c.teacher) == (c.model.get("composed_label") is True),
-              "a checkpoint path exactly when model.composed_label is true (a student is distilled from a teacher)"),
+             ("teacher", lambda c: bool(c.teacher) == (c.model.get("composed_label") is True or c.live_pool > 0),
+              "a checkpoint path exactly when model.composed_label is true or live_pool is above 0 (a student and a "
+              "live reactor learn from a teacher)"),
+             ("live_takes", lambda c: c.live_takes == 0 or c.live_pool > 0, "0 unless live_pool is above 0"),
+             ("live_part_share", lambda c: c.live_part_share == 0 or c.live_pool > 0, "0 unless live_pool is above 0"),
              ("lambda_adversarial", lambda c: c.lambda_adversarial == 0 or bool(c.teacher),
               "0 unless a teacher is set (the critic judges a student's reactions)"),
              ("lambda_label", lambda c: c.lambda_label == 0 or bool(c.teacher),
@@ -166,6 +177,21 @@ IMM_DIFFUSION_STUDENT = DiffusionTrainConfig(
     lambda_label=0.6,
 )
 
+# The live reactor of `imm-diffusion` (live.py, live_train.py): a network causal by construction, reading the leader 4
+# frames ahead, trained for 6000 steps of batch 32 on the teacher's reactions to each training leader 32 times (labels
+# drawn as the student's are, a fifth of them per body part) and on 200 of its long takes; each frame the mean of
+# the last 2 plans' (docs/experiments/causal-reactor.md). The teacher's run folder is runs/imm-diffusion; the result
+# goes beside it as final_live.safetensors.
+IMM_DIFFUSION_LIVE = DiffusionTrainConfig(
+    name="imm-diffusion-live",
+    teacher="runs/imm-diffusion/fold-{fold}/final.safetensors",
+    live_pool=32,
+    live_takes=200,
+    live_part_share=0.2,
+    live=dict(ensemble=2),
+)
+
 NAMED: dict[str, DiffusionTrainConfig] = {"imm-diffusion": IMM_DIFFUSION, "imm-diffusion-mixed": IMM_DIFFUSION_MIXED,
                                           "imm-diffusion-parts": IMM_DIFFUSION_PARTS,
-                                          "imm-diffusion-student": IMM_DIFFUSION_STUDENT}
+                                          "imm-diffusion-student": IMM_DIFFUSION_STUDENT,
+                                          "imm-diffusion-live": IMM_DIFFUSION_LIVE}
