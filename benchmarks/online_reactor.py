@@ -9,7 +9,8 @@ reactor for each label (one class; three signed classes; a label per body part),
 reaction of the same take, so that both meet the same load. Prints the median and p95 push, the share of pushes
 slower than a frame at 15 fps (66.7 ms), and the offline reaction's time per frame. `--online-windows` times reactors
 reading that many leader frames a push (windows.ONLINE_WINDOW), and `--live-steps` reactors taking that many sampler
-steps a push (windows.LIVE_STEPS), each pair one after another on each take, so that they meet the same load.
+steps a push (windows.LIVE_STEPS), each pair one after another on each take, so that they meet the same load. A model
+with a live reactor beside it (live.py) is timed with it too, on the same takes: "live reactor" against the windows.
 """
 
 from __future__ import annotations
@@ -51,24 +52,31 @@ def main() -> None:
     takes = [np.concatenate([data.world(i)[0]] * args.repeats) for i in range(args.leaders)]
     print(f"checkpoint {args.checkpoint}; threads {args.threads}; {len(takes)} takes of {sum(map(len, takes))} frames; "
           f"lookahead {windows.LOOKAHEAD} frames")
+    source = model.takes or model  # the model whose live reactor (or windows) react live
+    live = source.live
     for title, label in labels.items():
-        variants = [(w, s) for w in args.online_windows for s in args.live_steps]
+        variants = ([("live reactor", None, None)] if live is not None else []) + [
+            ("windows", w, s) for w in args.online_windows for s in args.live_steps]
         pushes, offline = {v: [] for v in variants}, []
         for take in takes:
-            for w, s in variants:
-                windows.ONLINE_WINDOW, windows.LIVE_STEPS = w, s
+            for kind, w, s in variants:
+                source.live = live if kind == "live reactor" else None
+                if kind == "windows":
+                    windows.ONLINE_WINDOW, windows.LIVE_STEPS = w, s
                 reactor = model.online(label)
                 for frame in take:
                     t = time.perf_counter()
                     reactor.push(frame)
-                    pushes[w, s].append((time.perf_counter() - t) * 1000)
+                    pushes[kind, w, s].append((time.perf_counter() - t) * 1000)
                 reactor.flush()
+            source.live = live
             t = time.perf_counter()
             model.synthesize(take, label)
             offline.append((time.perf_counter() - t) * 1000 / len(take))
-        for (w, s), times in pushes.items():
+        for (kind, w, s), times in pushes.items():
             times = np.array(times)
-            print(f"{title}, window {min(w, model.window)}, {s} steps: push median {np.median(times):.1f} ms, p95 "
+            what = kind if w is None else f"window {min(w, model.window)}, {s} steps"
+            print(f"{title}, {what}: push median {np.median(times):.1f} ms, p95 "
                   f"{np.percentile(times, 95):.1f} ms, {(times > FRAME_MS).mean():.1%} slower than a frame")
         print(f"{title}: offline {np.median(offline):.2f} ms a frame")
 

@@ -1,5 +1,6 @@
-"""Leaders of any length and live reactions (imm_model/families/diffusion/windows.py): the take in windows, the online
-reactor's causality, steering and bounds, and the refusals. The bundled diffusion model on real SBU leaders."""
+"""Leaders of any length and live reactions in windows (imm_model/families/diffusion/windows.py): the take in windows,
+the windows' online reactor's causality, steering and bounds, and the refusals. The bundled diffusion model on real SBU
+leaders."""
 
 from __future__ import annotations
 
@@ -16,7 +17,9 @@ from imm_model.paths import SAMPLE_DEFAULT, SAMPLE_DIFFUSION, SAMPLE_GAN, SAMPLE
 
 @pytest.fixture(scope="module")
 def model():
+    """The bundled diffusion model reacting live in windows: its live reactor set aside (test_live_reactor.py)."""
     m = ReactionModel.load(SAMPLE_DIFFUSION)
+    m.live = None
     yield m
     m.raw = False
 

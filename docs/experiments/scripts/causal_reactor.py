@@ -41,6 +41,7 @@ import torch
 from torch import nn
 
 from imm_model.families.diffusion.denoiser import sinusoid
+from imm_model.families.diffusion.live_train import CausalConv
 from imm_model.families.diffusion.sampler import cosine_alpha_bar
 
 LOOKAHEAD = 4  # leader frames beyond the one a follower frame answers (the live reactor's)
@@ -68,19 +69,6 @@ ENSEMBLE = 1
 FRAME_NOISE = False
 HEAD_ROWS = 8  # frames of each training row the diffusion head learns from at a step (on average)
 CLIP = 6.0  # x0 predictions clamped to this many training stds, as the clip sampler does
-
-
-class CausalConv(nn.Module):
-    """A residual block of a causal temporal convolution: frame t reads frames t - 2 * dilation .. t."""
-
-    def __init__(self, width: int, dilation: int):
-        super().__init__()
-        self.pad = 2 * dilation
-        self.conv = nn.Conv1d(width, width, 3, dilation=dilation)
-        self.mix = nn.Conv1d(width, width, 1)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:  # (B, W, T)
-        return x + self.mix(nn.functional.silu(self.conv(nn.functional.pad(x, (self.pad, 0)))))
 
 
 DILATIONS = (1, 2, 4, 8, 16)  # the context's causal convolutions: it reads the last RECEPTIVE frames
@@ -158,81 +146,9 @@ def recorded_rows(data, train_idx) -> tuple[list, list, np.ndarray]:
     return leaders, followers, np.eye(len(data.class_names), dtype=np.float32)[data.actions[train_idx]]
 
 
-def teacher_rows(teacher, data, train_idx, per_leader: int, seed: int, part_share: float = 0.0, batch: int = 64,
-                 log=print) -> tuple[list, list, np.ndarray]:
-    """The clip model's own reactions to the fold's training leaders, `per_leader` each, under labels drawn as the
-    distilled student's pool draws them (distill.py `pool_labels`: one class, a signed value, two-class mixes, A and -B,
-    three signed classes) and a seed each, the clip sampled whole as the studio samples it: leaders (T, D), the
-    teacher's followers (T, D) and the label vectors (N, C). So leader and label disagree in training as users make
-    them disagree, and a seed's variation is in the targets. With `part_share`, labels are per body part (N, 2C)."""
-    from imm_model.families.diffusion.distill import pool_labels
-
-    rng = np.random.default_rng((seed, 7))
-    canon = [data.canonical(int(i))[0] for i in train_idx]
-    which = np.repeat(np.arange(len(canon)), per_leader)
-    labels = pool_labels(rng, len(which), len(data.class_names))
-    if part_share:  # (N, 2C): a label per body part, which the teacher's sampler joins (Guidance.part_join)
-        labels = with_parts(rng, labels, part_share)
-    # rows asking for the same classes side by side: the sampler composes one term per class any row of a batch weighs
-    order = np.argsort((labels != 0) @ (1 << np.arange(labels.shape[1])), kind="stable")
-    which, labels = which[order], labels[order]
-    seeds = rng.integers(0, 2**31 - 1, len(which))
-    leaders, followers = [], []
-    t0 = time.perf_counter()
-    for start in range(0, len(which), batch):
-        rows = range(start, min(len(which), start + batch))
-        made = teacher._sample([canon[which[r]] for r in rows], labels[list(rows)], [int(seeds[r]) for r in rows])
-        leaders += [canon[which[r]].reshape(len(canon[which[r]]), -1).astype(np.float32) for r in rows]
-        followers += [f.reshape(len(f), -1).astype(np.float32) for f in made]
-        if start // batch % 10 == 0:
-            log(f"teacher reactions {start + len(rows)}/{len(which)}, {time.perf_counter() - t0:.0f} s")
-    return leaders, followers, labels
-
-
-def with_parts(rng: np.random.Generator, labels: np.ndarray, share: float) -> np.ndarray:
-    """(N, C) whole-body labels -> (N, 2C), upper then lower: the same label on both parts, except for a `share` of
-    the rows, whose lower body gets another drawn label (distill.py `pool_labels`) than the upper."""
-    from imm_model.families.diffusion.distill import pool_labels
-
-    lower = labels.copy()
-    differ = rng.random(len(labels)) < share
-    lower[differ] = pool_labels(rng, int(differ.sum()), labels.shape[1])
-    return np.concatenate([labels, lower], 1)
-
-
-def teacher_takes(teacher, data, train_idx, count: int, seed: int, part_share: float,
-                  log=print) -> tuple[list, list, np.ndarray]:
-    """`count` long takes: a training leader played 2-4 times in a row (repeated, or forwards then backwards), a label
-    drawn as `teacher_rows` draws them and a seed, and the clip model's reaction to it made as the studio makes a long
-    take's (windows.py `take_windows`, in windows of its clip length, each continuing the last): leaders (T, D),
-    followers (T, D), labels. A network that reads the last RECEPTIVE frames sees, in clips alone, only the first
-    46 frames of an interaction; here it learns the reaction that stays engaged beyond them."""
-    from long_takes import take
-
-    from imm_model.families.diffusion.distill import pool_labels
-    from imm_model.families.diffusion.windows import take_windows
-
-    rng = np.random.default_rng((seed, 11))
-    labels = pool_labels(rng, count, len(data.class_names))
-    if part_share:
-        labels = with_parts(rng, labels, part_share)
-    leaders, followers = [], []
-    t0 = time.perf_counter()
-    for n in range(count):
-        clip = data.canonical(int(rng.choice(train_idx)))[0]
-        leader = take(clip, int(rng.integers(2, 5)), ("repeat", "pingpong")[int(rng.integers(2))]).astype(np.float32)
-        made = take_windows(teacher, leader, teacher._label_input(labels[n:n + 1])[0], int(rng.integers(2**31 - 1)))
-        leaders.append(leader.reshape(len(leader), -1))
-        followers.append(made.reshape(len(made), -1).astype(np.float32))
-        if n % 20 == 0:
-            log(f"teacher long takes {n + 1}/{count}, {time.perf_counter() - t0:.0f} s")
-    return leaders, followers, labels
-
-
-def train(leaders, followers, labels, steps: int, seed: int, batch: int = 32, lr: float = 5e-4, by_frames: bool = False,
+def train(leaders, followers, labels, steps: int, seed: int, batch: int = 32, lr: float = 5e-4,
           log=print) -> CausalReactor:
-    """Canonical leaders and followers (T, D) with their label vectors (N, C) -> the trained network. Rows are drawn
-    alike, or with `by_frames` by their length (every frame alike: long takes as often as their frames say)."""
+    """Canonical leaders and followers (T, D) with their label vectors (N, C) -> the trained network."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     d = leaders[0].shape[1]
@@ -249,8 +165,6 @@ def train(leaders, followers, labels, steps: int, seed: int, batch: int = 32, lr
         target, present = chunks(b)
         past = np.concatenate([np.zeros((1, d), np.float32), b[:-1]])
         rows.append((leader_windows(a), past, target, present, recent_frames(b)))
-    lengths = np.array([len(a) for a in leaders], float)
-    chance = lengths / lengths.sum() if by_frames else None
     alpha_bar = torch.as_tensor(cosine_alpha_bar(DIFFUSION_STEPS), dtype=torch.float32)
     opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=1e-4)
     # a linear warm-up over 200 steps, then a cosine down to a tenth, as the clip model's recipe
@@ -258,7 +172,7 @@ def train(leaders, followers, labels, steps: int, seed: int, batch: int = 32, lr
         opt, lambda s: min(1.0, (s + 1) / 200) * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * s / steps))))
     t0 = time.perf_counter()
     for step in range(steps):
-        pick = rng.choice(len(rows), batch, p=chance)
+        pick = rng.choice(len(rows), batch)
         tmax = max(len(rows[i][0]) for i in pick)
 
         def padded(k, width, pick=pick, tmax=tmax):
@@ -466,6 +380,23 @@ def push_ms(streamer, leaders, labels, count: int = 8) -> float:
     return float(np.median(times))
 
 
+def save_live_reactor(path: Path, live_net, clip_model, args, pool_rows: int) -> None:
+    """The trained live reactor as the product loads it beside its clip model (live.py `live_for`)."""
+    import os
+
+    import imm_model
+    from imm_model.checkpoint import DIGEST
+    from imm_model.families.diffusion.live_train import save_live
+
+    save_live(path, live_net, {
+        "family": "diffusion", "code_version": imm_model.__version__,
+        "teacher": {"path": os.path.relpath(Path(args.clip_model).resolve(), Path(path).resolve().parent),
+                    DIGEST: clip_model.info.get(DIGEST)},
+        "training": {"fold": f"loso-{args.fold}", "step": args.steps, "seed": args.seed, "pool_rows": pool_rows,
+                     "live_pool": args.teacher_pool, "live_takes": args.long_takes, "live_part_share": args.part_share,
+                     "script": "docs/experiments/scripts/causal_reactor.py"}})
+
+
 def main() -> None:
     from diffusion_fold import record
     from online_fold import table_row
@@ -484,8 +415,8 @@ def main() -> None:
     ap.add_argument("--label-scale", type=float, nargs="+", default=None,
                     help="label guidance (default: 2.5 composed per class; 1, not guided, for a student of the teacher)")
     ap.add_argument("--teacher-pool", type=int, default=0,
-                    help="train on this many of the clip model's reactions per training leader (`teacher_rows`), the "
-                         "label vector read whole, instead of the recorded pairs")
+                    help="train the product's live reactor (live_train.py) on this many of the clip model's reactions "
+                         "per training leader, the label per part read whole, instead of this network on recorded pairs")
     ap.add_argument("--clip-model", type=Path, required=True, help="the fold's clip diffusion checkpoint (engagement's reference)")
     ap.add_argument("--bases", type=int, nargs="+", default=[0, 1, 2], help="seed bases of the engagement's takes")
     ap.add_argument("--save", type=Path, default=None, help="keep the trained network's weights here")
@@ -495,10 +426,11 @@ def main() -> None:
     ap.add_argument("--past-in-context", action="store_true",
                     help="the context reads the follower's past, the head none of it (PAST_IN_CONTEXT, PAST_FRAMES 0)")
     ap.add_argument("--long-takes", type=int, default=0,
-                    help="with --teacher-pool: also this many of the clip model's long takes (`teacher_takes`)")
+                    help="with --teacher-pool: also this many of the clip model's long takes (live_train.py)")
     ap.add_argument("--part-share", type=float, default=0.0,
-                    help="with --teacher-pool: the share of its labels that differ per body part (the network then "
-                         "reads a label per part)")
+                    help="with --teacher-pool: the share of its labels that differ per body part")
+    ap.add_argument("--save-live", type=Path, default=None,
+                    help="with --teacher-pool: save the network as the clip model's live reactor checkpoint here")
     ap.add_argument("--carry-level", type=float, default=0.6, help="CARRY_LEVEL")
     ap.add_argument("--ensemble", type=int, default=1, help="ENSEMBLE (at most CHUNK)")
     ap.add_argument("--frame-noise", action="store_true", help="FRAME_NOISE")
@@ -507,6 +439,8 @@ def main() -> None:
     torch.set_num_threads(1)
     global PAST_IN_CONTEXT, PAST_FRAMES, LEADER_DROP, CARRY_LEVEL, ENSEMBLE, FRAME_NOISE
     LEADER_DROP, CARRY_LEVEL, ENSEMBLE, FRAME_NOISE = args.leader_drop, args.carry_level, args.ensemble, args.frame_noise
+    if args.teacher_pool and not args.past_in_context:
+        ap.error("--teacher-pool trains the product's live reactor, whose context reads the past: add --past-in-context")
     if args.past_in_context:  # the context reads the past; the head reads none of it
         PAST_IN_CONTEXT, PAST_FRAMES = True, 0
     data = InteractionDataset.load(SAMPLE_DATA)
@@ -517,19 +451,26 @@ def main() -> None:
     t0 = time.perf_counter()
     pool_minutes = 0.0
     if args.load:
-        net = CausalReactor(data.canonical(0)[0][0].size, len(data.class_names) * (2 if args.part_share else 1))
+        net = CausalReactor(data.canonical(0)[0][0].size, len(data.class_names) * (1 if composed else 2))
         net.load_state_dict(torch.load(args.load, weights_only=True))
         net.eval()
     else:
         if composed:
-            rows = recorded_rows(data, train_idx)
-        else:
-            rows = teacher_rows(clip_model, data, train_idx, args.teacher_pool, args.seed, args.part_share)
-            if args.long_takes:
-                more = teacher_takes(clip_model, data, train_idx, args.long_takes, args.seed, args.part_share)
-                rows = rows[0] + more[0], rows[1] + more[1], np.concatenate([rows[2], more[2]])
+            net = train(*recorded_rows(data, train_idx), args.steps, args.seed)
+        else:  # the product's live reactor (imm_model/families/diffusion/live_train.py), scored here in lockstep
+            from imm_model.families.diffusion.live import LiveConfig
+            from imm_model.families.diffusion.live_train import fit, teacher_pool
+
+            cfg = LiveConfig(num_joints=data.skeleton.num_joints, num_classes=len(data.class_names),
+                             carry_level=CARRY_LEVEL, ensemble=ENSEMBLE)
+            pool = teacher_pool(clip_model, data, train_idx, args.teacher_pool, args.long_takes, args.part_share, args.seed)
             pool_minutes = (time.perf_counter() - t0) / 60
-        net = train(*rows, args.steps, args.seed, by_frames=args.long_takes > 0)
+            live_net = fit(cfg, *pool, args.steps, args.seed)
+            net = CausalReactor(cfg.pose_dim, 2 * cfg.num_classes)
+            net.load_state_dict(live_net.state_dict())
+            net.eval()
+            if args.save_live:
+                save_live_reactor(args.save_live, live_net, clip_model, args, len(pool[0]))
     minutes = (time.perf_counter() - t0) / 60 - pool_minutes
     if args.save and not args.load:
         torch.save(net.state_dict(), args.save)

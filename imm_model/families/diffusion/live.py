@@ -25,18 +25,16 @@ from typing import Any, ClassVar
 import numpy as np
 
 from imm_model.data.canonical import CanonicalFrame
-from imm_model.data.sequence import check_world_positions
-from imm_model.errors import CheckpointError, DataFormatError
+from imm_model.errors import CheckpointError
 from imm_model.families.diffusion.denoiser_numpy import _layer_norm, sinusoid
 from imm_model.families.diffusion.sampler import cosine_alpha_bar
+from imm_model.families.diffusion.steering import SteeredReaction
 from imm_model.typed_config import Interval, ListOf, checked_kwargs, param, validate
 
 KIND = "live_reactor"  # a live reactor checkpoint's sidecar "kind"
 SUFFIX = "_live"  # a model's live reactor is the checkpoint beside it named <model's stem>_live.safetensors
 LEVEL_FEATURES = 64  # sinusoidal features of the head's noise level
 CLIP = 6.0  # x0 predictions clamped to this many training stds, as the clip sampler does
-# frames over which a label changed live moves from the old values to the new (0.53 s at 15 fps), as the windows' do
-LABEL_RAMP = 8
 
 
 @dataclass(frozen=True)
@@ -148,7 +146,7 @@ def leader_windows(leader: np.ndarray, lookahead: int) -> np.ndarray:
     return leader[idx].reshape(len(leader), -1)
 
 
-class LiveReactor:
+class LiveReactor(SteeredReaction):
     """A reaction to a leader streamed frame by frame, made by a live reactor network (`ReactionModel.online`'s API:
     windows.py `OnlineReactor` is the same for a model without one).
 
@@ -163,9 +161,7 @@ class LiveReactor:
 
         self.model, self.net, self.cfg, self.seed = model, live, live.cfg, int(seed)
         self.lookahead = self.cfg.lookahead
-        self._label, self._scale = label, float(scale)
-        self._vector = self._label_input(label, scale)
-        self._ramp_from, self._ramped = self._vector, LABEL_RAMP
+        super().__init__(label, scale)
         self._noise = np.random.default_rng(self.seed)
         d = self.cfg.pose_dim
         self._world = np.zeros((0, model.skeleton.num_joints, 3))  # leader frames not standardized yet (the first ones)
@@ -183,42 +179,10 @@ class LiveReactor:
         vec = self.model.label_vector(label, scale)
         return np.concatenate([vec, vec]) if len(vec) == self.cfg.num_classes else vec
 
-    @property
-    def label(self):
-        return self._label
-
-    @label.setter
-    def label(self, label) -> None:
-        self._steer(self._label_input(label, self._scale))
-        self._label = label
-
-    @property
-    def scale(self) -> float:
-        return self._scale
-
-    @scale.setter
-    def scale(self, scale: float) -> None:
-        self._steer(self._label_input(self._label, scale))
-        self._scale = float(scale)
-
-    def _steer(self, vector: np.ndarray) -> None:
-        self._ramp_from, self._ramped, self._vector = self._current(), 0, vector
-
-    def _current(self) -> np.ndarray:
-        weight = min(self._ramped / LABEL_RAMP, 1.0)
-        return ((1 - weight) * self._ramp_from + weight * self._vector).astype(np.float32)
-
     def push(self, frame) -> np.ndarray | None:
         """The leader's next world frame (J, 3) metres -> the follower's frame `lookahead` frames behind it (J, 3)
         float32 world, or None while the first `lookahead` frames come in."""
-        joints = self.model.skeleton.num_joints
-        try:
-            frame = np.asarray(frame, np.float64)
-        except (TypeError, ValueError):
-            raise DataFormatError(f"leader frame must be a numeric ({joints}, 3) array") from None
-        if frame.shape != (joints, 3):
-            raise DataFormatError(f"leader frame has shape {frame.shape}; expected ({joints}, 3)")
-        check_world_positions(frame, f"leader frame {self.frames_in}")
+        frame = self._checked(frame)
         self._world = np.concatenate([self._world, frame[None]])
         self.frames_in += 1
         if self.frames_in - self.frames_out <= self.lookahead:

@@ -28,9 +28,8 @@ import numpy as np
 
 from imm_model.cleanup import OnlineCleanup
 from imm_model.data.canonical import CanonicalFrame
-from imm_model.data.sequence import check_world_positions
-from imm_model.errors import DataFormatError
 from imm_model.families.diffusion.sampler import LEADER_NOISE_STREAM, initial_noise, leader_noise
+from imm_model.families.diffusion.steering import SteeredReaction
 
 WINDOW = 30  # leader frames each window of a long take reads (the follower's given past, its blend and its new frames)
 # leader frames each step of the online reactor reads (the frames before the one it makes given): 16 read as asked
@@ -57,7 +56,6 @@ REANCHOR_DEG = 30.0  # ... or the leader has turned this far from its facing
 # a push in 0.6-0.67x the time; on the live LOSO table every figure within the folds' spread of 7's but the jitter,
 # +0.035 on the dev folds, still under real followers'; docs/experiments/long-takes.md)
 LIVE_STEPS = 4
-LABEL_RAMP = 8  # frames over which a label changed live moves from the old values to the new (0.53 s at 15 fps)
 # live, each follower frame is sampled by every window from the one that first reaches it to the one that returns it
 # (up to LOOKAHEAD + 1, each reading the leader no further than its lookahead); the frame returned is their weighted
 # mean, the later windows (more of the leader seen) weighing more by this factor each: one window alone made every
@@ -126,7 +124,7 @@ def live(model):
     return fast
 
 
-class OnlineReactor:
+class OnlineReactor(SteeredReaction):
     """A reaction to a leader streamed frame by frame (`ReactionModel.online`).
 
     `push(frame)` takes the leader's next world frame (J, 3) and returns the follower's frame `lookahead` frames
@@ -139,9 +137,7 @@ class OnlineReactor:
 
     def __init__(self, model, label, scale: float = 1.0, seed: int = 0):
         self.model, self.seed, self.lookahead, self.window = live(model), int(seed), LOOKAHEAD, min(ONLINE_WINDOW, model.window)
-        self._scale, self._label = float(scale), label
-        self._vector = self._label_input(label, scale)
-        self._ramp_from, self._ramped = self._vector, LABEL_RAMP  # the values a label change moves from, frames since
+        super().__init__(label, scale)
         joints, d = model.skeleton.num_joints, model.config.pose_dim
         self._noise_stream = np.random.default_rng(self.seed)  # initial_noise's stream, drawn a frame at a time
         self._leader_noise_stream = np.random.default_rng((self.seed, LEADER_NOISE_STREAM))  # leader_noise's
@@ -159,45 +155,10 @@ class OnlineReactor:
     def _label_input(self, label, scale: float) -> np.ndarray:
         return self.model._label_input(self.model.label_vector(label, scale)[None])[0]
 
-    @property
-    def label(self):
-        return self._label
-
-    @label.setter
-    def label(self, label) -> None:
-        self._steer(self._label_input(label, self._scale))
-        self._label = label
-
-    @property
-    def scale(self) -> float:
-        return self._scale
-
-    @scale.setter
-    def scale(self, scale: float) -> None:
-        self._steer(self._label_input(self._label, scale))
-        self._scale = float(scale)
-
-    def _steer(self, vector: np.ndarray) -> None:
-        """A new label from the next frame on, reached over LABEL_RAMP frames from the values in use now: a reaction
-        steered mid-take turns, it does not jump (a step to a far label moved joints up to 1 m in one frame)."""
-        self._ramp_from, self._ramped, self._vector = self._current(), 0, vector
-
-    def _current(self) -> np.ndarray:
-        """The label values the next frame is sampled with."""
-        weight = min(self._ramped / LABEL_RAMP, 1.0)
-        return ((1 - weight) * self._ramp_from + weight * self._vector).astype(np.float32)
-
     def push(self, frame) -> np.ndarray | None:
         """The leader's next world frame (J, 3) metres -> the follower's frame `lookahead` frames behind it (J, 3)
         float32 world, or None while the first `lookahead` frames come in."""
-        joints = self.model.skeleton.num_joints
-        try:
-            frame = np.asarray(frame, np.float64)
-        except (TypeError, ValueError):
-            raise DataFormatError(f"leader frame must be a numeric ({joints}, 3) array") from None
-        if frame.shape != (joints, 3):
-            raise DataFormatError(f"leader frame has shape {frame.shape}; expected ({joints}, 3)")
-        check_world_positions(frame, f"leader frame {self.frames_in}")
+        frame = self._checked(frame)
         d = self.model.config.pose_dim
         self._leader = np.concatenate([self._leader, frame[None]])
         self._noise = np.concatenate([self._noise, self._noise_stream.standard_normal((1, d)).astype(np.float32)])
