@@ -147,14 +147,10 @@ def leader_windows(leader: np.ndarray, lookahead: int) -> np.ndarray:
 
 
 class LiveReactor(SteeredReaction):
-    """A reaction to a leader streamed frame by frame, made by a live reactor network (`ReactionModel.online`'s API:
-    windows.py `OnlineReactor` is the same for a model without one).
-
-    `push(frame)` takes the leader's next world frame (J, 3) and returns the follower's frame `lookahead` frames behind
-    it (J, 3), or None while the first `lookahead` frames come in; `flush()` returns the frames still owed. `label` and
-    `scale` may change between pushes: the reaction turns towards the new values over LABEL_RAMP frames from the next
-    frame on. The canonical frame is the leader's first frames' (the lookahead's); the frames returned go through the
-    causal clean-up unless the model is `raw`. Memory is bounded: the network reads the last `receptive` frames."""
+    """A reaction to a leader streamed frame by frame (steering.py `SteeredReaction`), made by a live reactor network
+    (windows.py `OnlineReactor` does it for a model without one). The canonical frame is the leader's first frames'
+    (the lookahead's); the frames returned go through the causal clean-up unless the model is `raw`. Memory is bounded:
+    the network reads the last `receptive` frames."""
 
     def __init__(self, model, live: LiveNet, label, scale: float = 1.0, seed: int = 0):
         from imm_model.cleanup import OnlineCleanup
@@ -170,8 +166,6 @@ class LiveReactor(SteeredReaction):
         self._past = np.zeros((0, d), np.float32)  # normalized follower frames made, kept alike
         self._plans = np.zeros((0, self.cfg.chunk * d), np.float32)  # the last `ensemble` plans, newest last
         self._first = 0  # the take's frame the kept buffers start at
-        self.frames_in = 0  # leader frames pushed
-        self.frames_out = 0  # follower frames returned
         self._alpha_bar = cosine_alpha_bar(self.cfg.diffusion_steps)
         self._clean = None if model.raw else OnlineCleanup(model.skeleton, model.bone_lengths)
 
@@ -179,22 +173,8 @@ class LiveReactor(SteeredReaction):
         vec = self.model.label_vector(label, scale)
         return np.concatenate([vec, vec]) if len(vec) == self.cfg.num_classes else vec
 
-    def push(self, frame) -> np.ndarray | None:
-        """The leader's next world frame (J, 3) metres -> the follower's frame `lookahead` frames behind it (J, 3)
-        float32 world, or None while the first `lookahead` frames come in."""
-        frame = self._checked(frame)
+    def _take(self, frame: np.ndarray) -> None:
         self._world = np.concatenate([self._world, frame[None]])
-        self.frames_in += 1
-        if self.frames_in - self.frames_out <= self.lookahead:
-            return None
-        return self._emit(1)[0]
-
-    def flush(self) -> np.ndarray:
-        """The follower frames still owed at the end of the take, (n, J, 3) float32 world (n <= lookahead)."""
-        owed = self.frames_in - self.frames_out
-        if owed == 0:
-            return np.zeros((0, self.model.skeleton.num_joints, 3), np.float32)
-        return self._emit(owed)
 
     def _standardize(self) -> None:
         """The leader frames pushed, into the kept buffer: standardized in the take's canonical frame (fixed by the

@@ -12,17 +12,45 @@ LABEL_RAMP = 8  # frames over which a label changed live moves from the old valu
 
 
 class SteeredReaction:
-    """A reaction steered while it plays. A subclass says what its network reads of a label (`_label_input`), sets
-    `model` before calling this __init__, and counts `frames_in`; it samples each frame with `_current()` and
-    counts it in `_ramped`."""
+    """A reaction to a leader streamed frame by frame, steered while it plays (`ReactionModel.online`'s API).
+
+    `push(frame)` takes the leader's next world frame (J, 3) and returns the follower's frame `lookahead` frames behind
+    it (J, 3), or None while the first `lookahead` frames come in; `flush()` returns the frames still owed at the end
+    of the take. A subclass sets `model` and `lookahead` before calling this __init__ and says what its network reads
+    of a label (`_label_input`), how it keeps a pushed frame (`_take`) and how it makes the next n frames (`_emit`,
+    counting them in `frames_out`, each sampled with `_current()` and counted in `_ramped`)."""
 
     def __init__(self, label, scale: float):
         self._scale, self._label = float(scale), label
         self._vector = self._label_input(label, scale)
         self._ramp_from, self._ramped = self._vector, LABEL_RAMP  # the values a label change moves from, frames since
+        self.frames_in = 0  # leader frames pushed
+        self.frames_out = 0  # follower frames returned
 
     def _label_input(self, label, scale: float) -> np.ndarray:
         raise NotImplementedError
+
+    def _take(self, frame: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def _emit(self, n: int) -> np.ndarray:
+        raise NotImplementedError
+
+    def push(self, frame) -> np.ndarray | None:
+        """The leader's next world frame (J, 3) metres -> the follower's frame `lookahead` frames behind it (J, 3)
+        float32 world, or None while the first `lookahead` frames come in."""
+        self._take(self._checked(frame))
+        self.frames_in += 1
+        if self.frames_in - self.frames_out <= self.lookahead:
+            return None
+        return self._emit(1)[0]
+
+    def flush(self) -> np.ndarray:
+        """The follower frames still owed at the end of the take, (n, J, 3) float32 world (n <= lookahead)."""
+        owed = self.frames_in - self.frames_out
+        if owed == 0:
+            return np.zeros((0, self.model.skeleton.num_joints, 3), np.float32)
+        return self._emit(owed)
 
     @property
     def label(self):

@@ -125,13 +125,9 @@ def live(model):
 
 
 class OnlineReactor(SteeredReaction):
-    """A reaction to a leader streamed frame by frame (`ReactionModel.online`).
-
-    `push(frame)` takes the leader's next world frame (J, 3) and returns the follower's frame `lookahead` frames
-    behind it (J, 3), or None while the first `lookahead` frames come in; `flush()` returns the frames still owed
-    (n, J, 3) at the end of the take. `label` (and `scale`) may change between pushes: the reaction changes from the
-    next frame on. The frames it returns go through a causal clean-up (cleanup.py OnlineCleanup) unless the model is
-    `raw`. It makes the frames a long take's windows make (`take_windows`), one at a time: every frame is sampled
+    """A reaction to a leader streamed frame by frame (steering.py `SteeredReaction`), for a model without a live
+    reactor (live.py). The frames it returns go through a causal clean-up (cleanup.py OnlineCleanup) unless the model
+    is `raw`. It makes the frames a long take's windows make (`take_windows`), one at a time: every frame is sampled
     knowing only the leader up to its lookahead and the follower frames before it, by each window from the one that
     first reaches it to the one that returns it, and returned as their mean (`Votes`)."""
 
@@ -147,38 +143,22 @@ class OnlineReactor(SteeredReaction):
         self._noise = np.zeros((0, d), np.float32)
         self._leader_z = np.zeros((0, d))
         self._first = 0  # the take's frame the buffers start at
-        self.frames_in = 0  # leader frames pushed
-        self.frames_out = 0  # follower frames returned
         self._frame = None  # the canonical frame the last window was sampled in (`anchored`)
         self._clean = None if model.raw else OnlineCleanup(model.skeleton, model.bone_lengths)
 
     def _label_input(self, label, scale: float) -> np.ndarray:
         return self.model._label_input(self.model.label_vector(label, scale)[None])[0]
 
-    def push(self, frame) -> np.ndarray | None:
-        """The leader's next world frame (J, 3) metres -> the follower's frame `lookahead` frames behind it (J, 3)
-        float32 world, or None while the first `lookahead` frames come in."""
-        frame = self._checked(frame)
+    def _take(self, frame: np.ndarray) -> None:
         d = self.model.config.pose_dim
         self._leader = np.concatenate([self._leader, frame[None]])
         self._noise = np.concatenate([self._noise, self._noise_stream.standard_normal((1, d)).astype(np.float32)])
         self._leader_z = np.concatenate([self._leader_z, self._leader_noise_stream.standard_normal((1, d))])
-        self.frames_in += 1
         drop = len(self._leader) - self.window
         if drop > 0:  # only the window's frames are kept: a take of any length runs in bounded memory
             self._leader, self._noise, self._leader_z = self._leader[drop:], self._noise[drop:], self._leader_z[drop:]
             self._follower = self._follower[drop:]
             self._first += drop
-        if self.frames_in - self.frames_out <= self.lookahead:
-            return None
-        return self._emit(1)[0]
-
-    def flush(self) -> np.ndarray:
-        """The follower frames still owed at the end of the take, (n, J, 3) float32 world (n <= lookahead)."""
-        owed = self.frames_in - self.frames_out
-        if owed == 0:
-            return np.zeros((0, self.model.skeleton.num_joints, 3), np.float32)
-        return self._emit(owed)
 
     def _emit(self, n: int) -> np.ndarray:
         known = self.frames_out - self._first
