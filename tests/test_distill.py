@@ -325,7 +325,7 @@ def test_a_student_with_a_critic_trains_both_and_logs_their_terms(teacher_runs, 
 
 @pytest.mark.parametrize("extra, message", [([], "the student's teacher not found (train it first: imm train --config "
                                                  "imm-diffusion --fold s04"),
-                                            (["--resume"], "--resume: a student is trained in one go")])
+                                            (["--resume"], "--resume: a student or a live reactor is trained in one go")])
 def test_the_student_recipe_at_the_command_line_says_what_is_missing_in_one_line(tmp_path, monkeypatch, capsys, extra,
                                                                                  message):
     from imm_model.cli import main

@@ -194,3 +194,28 @@ def test_training_learns_and_saves_what_the_reactor_loads(tmp_path, sample_data)
     np.testing.assert_allclose(m.live.w["follower_std"], net.follower_std.numpy())
     _, _, out = react(m, sample_data.world(3)[0], {"punching": 1.0})
     assert np.isfinite(out).all()
+
+
+def test_the_live_recipe_at_the_command_line_trains_a_reactor_its_teacher_finds(tmp_path, monkeypatch, capsys):
+    """`imm train` with the imm-diffusion-live recipe, shrunk (one reaction per training leader, one long take, two
+    steps, a small network): the teacher's reactions drawn, the network saved, and put beside a copy of its teacher, it
+    is that model's live reactor."""
+    from imm_model.cli import main
+
+    teacher_dir = tmp_path / "teacher"
+    teacher, _ = beside(teacher_dir, random_net(), "0" * 64)  # a copy of the bundled model (and another's reactor)
+    (teacher_dir / "imm_diffusion_live.safetensors").unlink()
+    recipe = tmp_path / "tiny.json"
+    recipe.write_text(json.dumps({"base": "imm-diffusion-live", "teacher": str(teacher), "live_pool": 1, "live_takes": 1,
+                                  "steps": 2, "live": {"width": 16, "dilations": [1], "head_width": 32,
+                                                       "head_blocks": 1}}))
+    monkeypatch.chdir(tmp_path)
+    assert main(["train", "--config", str(recipe), "--fold", "s04", "--out", "runs", "--quiet", "--threads", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "put it beside its teacher as imm_diffusion_live.safetensors" in out
+    made = tmp_path / "runs" / "fold-s04" / "final.safetensors"
+    shutil.copy(made, teacher_dir / "imm_diffusion_live.safetensors")
+    shutil.copy(sidecar_path(made), sidecar_path(teacher_dir / "imm_diffusion_live.safetensors"))
+    m = ReactionModel.load(teacher)
+    assert m.live is not None and m.live.cfg.width == 16
+    assert isinstance(m.online({"kicking": 1.0}), LiveReactor)

@@ -224,7 +224,6 @@ def train_live(cfg, data: InteractionDataset, subject: str | None, out_dir: Path
     train_idx = np.arange(len(data)) if subject is None else loso_fold(data.subject_pairs, subject).train
     log = print if progress else (lambda *_: None)
     live_cfg = LiveConfig.from_dict(cfg.live | {"num_joints": data.skeleton.num_joints, "num_classes": len(data.class_names)})
-    torch.set_num_threads(max(1, min(torch.get_num_threads(), os.cpu_count() or 1)))
     pool = teacher_pool(teacher, data, train_idx, cfg.live_pool, cfg.live_takes, cfg.live_part_share, cfg.seed, log)
     net = fit(live_cfg, *pool, cfg.steps, cfg.seed, cfg.batch_size, cfg.lr, cfg.warmup_steps, cfg.weight_decay,
               cfg.label_drop, cfg.lambda_velocity, log)
