@@ -330,7 +330,7 @@ class Streamer:
         return [OnlineCleanup(self.skeleton, self.bone_lengths)(o.reshape(len(o), j, 3)).astype(np.float32) for o in out]
 
 
-def engagement(data, judges, streamer, clip_model, bases) -> dict:
+def engagement(data, judges, streamer, clip_model, bases, windows: bool = True) -> dict:
     """Per leader and seed: closest hands and torso distance of the causal reaction and of the shipped live reactor
     (the clip model's windows, `online_fold.online_followers`), each minus the clip model's offline reaction with the
     same seed; means with 95 % t intervals over the takes (`live_engagement_folds.minus_offline`)."""
@@ -338,8 +338,9 @@ def engagement(data, judges, streamer, clip_model, bases) -> dict:
     from online_fold import online_followers
 
     labels = np.eye(len(data.class_names), dtype=np.float32)[data.actions[judges.test]]
-    makers = {"causal": lambda seeds: streamer.synthesize_batch_canonical(judges.leaders, labels, seeds),
-              "shipped_live": lambda seeds: online_followers(clip_model, judges.leaders, labels, seeds)}
+    makers = {"causal": lambda seeds: streamer.synthesize_batch_canonical(judges.leaders, labels, seeds)}
+    if windows:  # the windows' live reaction too (live_engagement_folds.py measures it alone)
+        makers["shipped_live"] = lambda seeds: online_followers(clip_model, judges.leaders, labels, seeds)
     return minus_offline(judges.leaders, labels, clip_model, makers, data.skeleton, bases)
 
 
@@ -434,6 +435,8 @@ def main() -> None:
     ap.add_argument("--carry-level", type=float, default=0.6, help="CARRY_LEVEL")
     ap.add_argument("--ensemble", type=int, default=1, help="ENSEMBLE (at most CHUNK)")
     ap.add_argument("--frame-noise", action="store_true", help="FRAME_NOISE")
+    ap.add_argument("--no-windows", action="store_true",
+                    help="leave the windows' live engagement out (live_engagement_folds.py measures it by fold)")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     torch.set_num_threads(1)
@@ -494,7 +497,7 @@ def main() -> None:
         row["push_ms_median"] = push_ms(streamer, judges.leaders, labels)
         row |= table_row(streamer, data, judges)
         row |= long_takes(data, judges, streamer)
-        row |= engagement(data, judges, streamer, clip_model, args.bases)
+        row |= engagement(data, judges, streamer, clip_model, args.bases, not args.no_windows)
         record(row, args.out)
 
 
