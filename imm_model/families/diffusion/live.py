@@ -26,7 +26,7 @@ import numpy as np
 
 from imm_model.data.canonical import CanonicalFrame
 from imm_model.errors import CheckpointError
-from imm_model.families.diffusion.denoiser_numpy import _layer_norm, sinusoid
+from imm_model.families.diffusion.denoiser_numpy import _layer_norm, _silu, sinusoid
 from imm_model.families.diffusion.sampler import cosine_alpha_bar
 from imm_model.families.diffusion.steering import SteeredReaction
 from imm_model.typed_config import Interval, ListOf, checked_kwargs, param, validate
@@ -98,10 +98,6 @@ def expected_shapes(cfg: LiveConfig) -> dict[str, tuple[int, ...]]:
     for who in ("leader", "follower"):
         shapes |= {f"{who}_mean": (d,), f"{who}_std": (d,)}
     return shapes
-
-
-def _silu(x: np.ndarray) -> np.ndarray:
-    return x / (1.0 + np.exp(-x))
 
 
 class LiveNet:
@@ -213,7 +209,7 @@ class LiveReactor(SteeredReaction):
         cfg, d = self.cfg, self.cfg.pose_dim
         t = self.frames_out - self._first  # the frame made, in the kept buffers
         start = max(0, t + 1 - cfg.receptive)
-        windows = leader_windows(self._leader, cfg.lookahead)[start:t + 1]
+        windows = leader_windows(self._leader[start:], cfg.lookahead)[:t + 1 - start]  # the frames the context reads
         past = np.zeros((len(windows), d), np.float32)
         on = np.ones((len(windows), 1), np.float32)
         past[1:] = self._past[start:t]
