@@ -23,6 +23,10 @@ from imm_model.contact import CONTACT_M
 from imm_model.skeleton import Skeleton
 
 EASE_FRAMES = 2
+# live, a planted foot is held where it touched down until the network's foot has slid this far from it, then dragged
+# along this far behind: a follower that walks on (after a walking leader) with its feet sliding on the floor otherwise
+# left a foot behind the body until it lifted and snapped back (1.2 m in one frame); a real planted foot moves less
+PIN_REACH_M = 0.15
 
 
 def clean_follower(follower: np.ndarray, skeleton: Skeleton, bone_lengths: np.ndarray | None = None) -> np.ndarray:
@@ -104,8 +108,9 @@ def follower_bone_lengths(followers: list[np.ndarray], skeleton: Skeleton) -> li
 class OnlineCleanup:
     """The clean-up of a follower made frame by frame (the online reactor's): what `clean_follower` does, from the
     frames so far only. Bones rigid per frame; the floor is the lowest foot height so far; a foot on it is held where
-    it touched down (the offline clean-up holds the contact's mean, which needs the contact's last frame) and eased back
-    to the network's path over EASE_FRAMES frames once lifted."""
+    it touched down (the offline clean-up holds the contact's mean, which needs the contact's last frame), never more
+    than PIN_REACH_M behind the network's foot, and eased back to the network's path over EASE_FRAMES frames once
+    lifted."""
 
     def __init__(self, skeleton: Skeleton, bone_lengths: np.ndarray | None = None):
         self.skeleton, self.bone_lengths = skeleton, bone_lengths
@@ -130,6 +135,10 @@ class OnlineCleanup:
                 if target[up] < self.floor + CONTACT_M:
                     if self.pins[foot] is None:
                         self.pins[foot] = target[horizontal].copy()
+                    slid = target[horizontal] - self.pins[foot]
+                    far = float(np.linalg.norm(slid))
+                    if far > PIN_REACH_M:
+                        self.pins[foot] = self.pins[foot] + slid * (1 - PIN_REACH_M / far)
                     target[horizontal] = self.pins[foot]
                 elif self.pins[foot] is not None or foot in self.lifted:
                     pin, since = (self.pins[foot], 0) if self.pins[foot] is not None else self.lifted[foot]

@@ -253,6 +253,23 @@ def test_online_cleanup_holds_a_planted_foot(model, sample_data):
     assert out[5, foot, 0] > out[0, foot, 0] + 0.05
 
 
+def test_online_cleanup_drags_a_foot_sliding_far_along_rather_than_leave_it_behind(model, sample_data):
+    """A follower sliding 1 m over the floor (as a live follower made to walk on may): a planted foot is held only
+    until the network's foot is PIN_REACH_M from it, then dragged along, so that it never lags the body and snaps back
+    when lifted."""
+    pose = sample_data.world(0)[1][0].astype(np.float64)
+    names, up = model.skeleton.joint_names, model.skeleton.vertical_axis
+    foot = min((names.index("left_foot"), names.index("right_foot")), key=lambda j: pose[j, up])
+    frames = np.repeat(pose[None], 21, 0)
+    frames[:, :, 0] += np.linspace(0, 1.0, 21)[:, None]  # the whole body slides 5 cm a frame
+    clean = OnlineCleanup(model.skeleton, model.bone_lengths)
+    out = np.concatenate([clean(frames[t:t + 1]) for t in range(21)])
+    horizontal = [a for a in range(3) if a != up]
+    lag = np.linalg.norm(out[:, foot, horizontal] - frames[:, foot, horizontal], axis=-1)
+    assert lag.max() <= 0.2, lag.round(3)  # held where it touched down, it would lag up to the leg's reach
+    assert lag[:3].max() > 0.04  # held at first: a planted foot still does not skate
+
+
 def test_the_command_line_reacts_to_a_long_take(sample_data, tmp_path, capsys):
     """`imm generate --leader` with a BVH take longer than any training clip: a follower for every frame."""
     from imm_model.cli import main

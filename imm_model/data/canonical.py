@@ -101,3 +101,20 @@ class CanonicalFrame:
         """(T, J, 3) canonical -> (T, J, 3) world, float64. Exact inverse of `to_canonical`."""
         rot = yaw_rotation(self.yaw, skeleton)
         return np.einsum("tij,tkj->tki", rot, positions) + self.origin[:, None, :]
+
+
+def joined(clips: list[tuple[np.ndarray, ...]], skeleton: Skeleton) -> tuple[tuple[np.ndarray, ...], list[int]]:
+    """Clips as (leader, motions moved with it...) (T_i, J, 3) -> one continuous take of each, every clip moved rigidly
+    (turned about the vertical, shifted) so that its leader starts where and as the leader before it ended (its first
+    root on the last one's last, its first frames' facing the last ones'), and the frame each clip starts at. A long
+    take made of short recorded ones, in which the leader walks on and never jumps back."""
+    out, starts = [list(clips[0])], [0]
+    for clip in clips[1:]:
+        prev = out[-1][0]
+        tail = CanonicalFrame.from_leader(prev[::-1], skeleton)  # the facing over the last frames
+        own = CanonicalFrame.from_leader(clip[0], skeleton)
+        n = len(clip[0])
+        there = CanonicalFrame(np.full(n, tail.yaw[0]), np.repeat(prev[-1:, skeleton.root], n, 0), "first_frame")
+        starts.append(starts[-1] + len(prev))
+        out.append([there.to_world(own.to_canonical(m, skeleton), skeleton) for m in clip])
+    return tuple(np.concatenate(parts) for parts in zip(*out, strict=True)), starts

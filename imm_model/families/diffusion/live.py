@@ -35,6 +35,13 @@ KIND = "live_reactor"  # a live reactor checkpoint's sidecar "kind"
 SUFFIX = "_live"  # a model's live reactor is the checkpoint beside it named <model's stem>_live.safetensors
 LEVEL_FEATURES = 64  # sinusoidal features of the head's noise level
 CLIP = 6.0  # x0 predictions clamped to this many training stds, as the clip sampler does
+# the take's canonical frame follows the leader (shifted, not turned) so that the leader's root stays within this
+# distance of its origin (horizontally): the network learnt leaders who start at the origin and move less than 0.83 m in a
+# clip (0.79 m for 99 in 100 SBU clips), and a leader who walks on left that, the follower behind (K3HI's walking
+# leaders, 4 in a row: hands in the last copy 0.89 m from the leader's, against 1.25 m in a fixed frame;
+# docs/experiments/causal-reactor.md). Its facing is not followed: over 10 frames it turns up to 96 degrees within nine
+# in ten SBU clips, too unsteady to follow.
+REANCHOR_M = 0.75
 
 
 @dataclass(frozen=True)
@@ -180,12 +187,32 @@ class LiveReactor(SteeredReaction):
         if self._frame is None:
             first = CanonicalFrame.from_leader(self._world, self.model.skeleton, self.model.canonical_mode)
             self._frame = CanonicalFrame(first.yaw[:1], first.origin[:1], first.mode)
+        else:
+            self._follow(self._world[-1])
         n = len(self._world)
         frame = CanonicalFrame(np.repeat(self._frame.yaw, n), np.repeat(self._frame.origin, n, 0), self._frame.mode)
         canon = frame.to_canonical(self._world, self.model.skeleton).reshape(n, -1)
         w = self.net.w
         self._leader = np.concatenate([self._leader, ((canon - w["leader_mean"]) / w["leader_std"]).astype(np.float32)])
         self._world = self._world[:0]
+
+    def _follow(self, newest: np.ndarray) -> None:
+        """The canonical frame shifted towards the leader's newest root until that lies REANCHOR_M from its origin, and
+        the frames kept (leader, follower, plans) re-expressed in it: what they are in the world is unchanged."""
+        skeleton, up = self.model.skeleton, self.model.skeleton.vertical_axis
+        offset = self._frame.to_canonical(newest[None, skeleton.root:skeleton.root + 1], skeleton)[0, 0]
+        offset[up] = 0.0  # heights stay measured from the take's start
+        away = float(np.linalg.norm(offset))
+        if away <= REANCHOR_M:
+            return
+        offset *= 1 - REANCHOR_M / away  # the origin follows the leader, REANCHOR_M behind it
+        origin = self._frame.to_world(offset[None, None], skeleton)[0]  # (1, 3): the offset's point, in the world
+        self._frame = CanonicalFrame(self._frame.yaw, origin, self._frame.mode)
+        shift = np.tile(offset, skeleton.num_joints).astype(np.float32)
+        w = self.net.w
+        self._leader = self._leader - shift / w["leader_std"]
+        self._past = self._past - shift / w["follower_std"]
+        self._plans = self._plans - np.tile(shift / w["follower_std"], self.cfg.chunk)
 
     def _emit(self, n: int) -> np.ndarray:
         self._standardize()
