@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from imm_model.data.canonical import FACING_WINDOW, CanonicalFrame, facing_direction
+from imm_model.data.canonical import FACING_WINDOW, CanonicalFrame, facing_direction, joined
 from imm_model.data.dataset import InteractionDataset
 from imm_model.data.sbu import read_sbu_sequence
 from imm_model.skeleton import KINECT15
@@ -78,3 +78,25 @@ def test_role_swap_recanonicalizes_on_the_follower(sample_data):
         np.testing.assert_allclose(new_follower_w, leader_w, atol=1e-5)
         np.testing.assert_allclose(swapped.canonical(i)[0][0, KINECT15.root], 0.0, atol=1e-5)
     assert swapped.sequence_ids[0].endswith(":swapped") and swapped.action_name(1) == sub.action_name(1)
+
+
+def test_joined_clips_go_on_where_the_one_before_ended(sample_data):
+    """A take of recorded clips joined (`joined`): each leader starts above where the one before ended, facing as it
+    faced, on its own floor; every motion of a clip moves with its leader (the partner stays where it stood to it)."""
+    clips = [sample_data.world(i) for i in (0, 40, 80)]
+    (leader, follower), starts = joined(clips, KINECT15)
+    assert starts == [0, len(clips[0][0]), len(clips[0][0]) + len(clips[1][0])]
+    assert leader.shape == follower.shape == (sum(len(a) for a, _ in clips), 15, 3)
+    up, root = KINECT15.vertical_axis, KINECT15.root
+    horizontal = [a for a in range(3) if a != up]
+    for k, s in enumerate(starts[1:], 1):
+        np.testing.assert_allclose(leader[s, root, horizontal], leader[s - 1, root, horizontal], atol=1e-9)
+        assert leader[s, root, up] == pytest.approx(clips[k][0][0, root, up])  # its own height
+        before = CanonicalFrame.from_leader(leader[:s][::-1], KINECT15).yaw[0]
+        after = CanonicalFrame.from_leader(leader[s:], KINECT15).yaw[0]
+        assert abs((after - before + np.pi) % (2 * np.pi) - np.pi) < 1e-6
+        for moved, recorded in ((leader, clips[k][0]), (follower, clips[k][1])):
+            np.testing.assert_allclose(KINECT15.bone_lengths(moved[s:s + len(recorded)]), KINECT15.bone_lengths(recorded),
+                                       atol=1e-9)
+        apart = np.linalg.norm(follower[s, root] - leader[s, root])
+        assert apart == pytest.approx(np.linalg.norm(clips[k][1][0, root] - clips[k][0][0, root]))

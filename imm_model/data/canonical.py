@@ -106,15 +106,17 @@ class CanonicalFrame:
 def joined(clips: list[tuple[np.ndarray, ...]], skeleton: Skeleton) -> tuple[tuple[np.ndarray, ...], list[int]]:
     """Clips as (leader, motions moved with it...) (T_i, J, 3) -> one continuous take of each, every clip moved rigidly
     (turned about the vertical, shifted) so that its leader starts where and as the leader before it ended (its first
-    root on the last one's last, its first frames' facing the last ones'), and the frame each clip starts at. A long
+    root above the last one's last, its first frames' facing the last ones'), and the frame each clip starts at. A long
     take made of short recorded ones, in which the leader walks on and never jumps back."""
     out, starts = [list(clips[0])], [0]
     for clip in clips[1:]:
         prev = out[-1][0]
         tail = CanonicalFrame.from_leader(prev[::-1], skeleton)  # the facing over the last frames
         own = CanonicalFrame.from_leader(clip[0], skeleton)
-        n = len(clip[0])
-        there = CanonicalFrame(np.full(n, tail.yaw[0]), np.repeat(prev[-1:, skeleton.root], n, 0), "first_frame")
+        n, up = len(clip[0]), skeleton.vertical_axis
+        start = prev[-1, skeleton.root].copy()
+        start[up] = clip[0][0, skeleton.root, up]  # its own height: the floor stays the floor
+        there = CanonicalFrame(np.full(n, tail.yaw[0]), np.repeat(start[None], n, 0), "first_frame")
         starts.append(starts[-1] + len(prev))
         out.append([there.to_world(own.to_canonical(m, skeleton), skeleton) for m in clip])
     return tuple(np.concatenate(parts) for parts in zip(*out, strict=True)), starts
