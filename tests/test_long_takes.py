@@ -266,7 +266,7 @@ def test_online_cleanup_drags_a_foot_sliding_far_along_rather_than_leave_it_behi
     out = np.concatenate([clean(frames[t:t + 1]) for t in range(21)])
     horizontal = [a for a in range(3) if a != up]
     lag = np.linalg.norm(out[:, foot, horizontal] - frames[:, foot, horizontal], axis=-1)
-    assert lag.max() <= 0.2, lag.round(3)  # held where it touched down, it would lag up to the leg's reach
+    assert lag.max() <= 0.35, lag.round(3)  # held where it touched down, it lags 0.58 m (the leg cannot reach it)
     assert lag[:3].max() > 0.04  # held at first: a planted foot still does not skate
 
 

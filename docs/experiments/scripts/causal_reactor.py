@@ -381,6 +381,27 @@ def push_ms(streamer, leaders, labels, count: int = 8) -> float:
     return float(np.median(times))
 
 
+def joined_takes(teacher, data, train_idx, count: int, part_share: float, seed: int) -> tuple[list, list, np.ndarray]:
+    """`count` more long takes for the pool, each 2-4 training leaders one after another, every one going on where the
+    one before ended (canonical.py `joined`), reacted to by the teacher's windows as `teacher_pool`'s long takes are."""
+    from imm_model.data.canonical import joined
+    from imm_model.families.diffusion.distill import pool_labels
+    from imm_model.families.diffusion.live_train import with_parts
+    from imm_model.families.diffusion.windows import take_windows
+
+    rng = np.random.default_rng((seed, 11))
+    canon = [data.canonical(int(i))[0] for i in train_idx]
+    labels = with_parts(rng, pool_labels(rng, count, len(data.class_names)), part_share)
+    leaders, followers = [], []
+    for n in range(count):
+        picks = rng.integers(len(canon), size=int(rng.integers(2, 5)))
+        (leader,), _ = joined([(canon[int(i)],) for i in picks], data.skeleton)
+        made = take_windows(teacher, leader, teacher._label_input(labels[n:n + 1])[0], int(rng.integers(2**31 - 1)))
+        leaders.append(leader.reshape(len(leader), -1).astype(np.float32))
+        followers.append(made.reshape(len(made), -1).astype(np.float32))
+    return leaders, followers, labels
+
+
 def save_live_reactor(path: Path, live_net, clip_model, args, pool_rows: int) -> None:
     """The trained live reactor as the product loads it beside its clip model (live.py `live_for`)."""
     import os
@@ -428,6 +449,8 @@ def main() -> None:
                     help="the context reads the follower's past, the head none of it (PAST_IN_CONTEXT, PAST_FRAMES 0)")
     ap.add_argument("--long-takes", type=int, default=0,
                     help="with --teacher-pool: also this many of the clip model's long takes (live_train.py)")
+    ap.add_argument("--joined-takes", type=int, default=0,
+                    help="with --teacher-pool: also this many long takes of training leaders joined (`joined_takes`)")
     ap.add_argument("--part-share", type=float, default=0.0,
                     help="with --teacher-pool: the share of its labels that differ per body part")
     ap.add_argument("--save-live", type=Path, default=None,
@@ -467,6 +490,9 @@ def main() -> None:
             cfg = LiveConfig(num_joints=data.skeleton.num_joints, num_classes=len(data.class_names),
                              carry_level=CARRY_LEVEL, ensemble=ENSEMBLE)
             pool = teacher_pool(clip_model, data, train_idx, args.teacher_pool, args.long_takes, args.part_share, args.seed)
+            if args.joined_takes:
+                more = joined_takes(clip_model, data, train_idx, args.joined_takes, args.part_share, args.seed)
+                pool = (pool[0] + more[0], pool[1] + more[1], np.concatenate([pool[2], more[2]]))
             pool_minutes = (time.perf_counter() - t0) / 60
             live_net = fit(cfg, *pool, args.steps, args.seed)
             net = CausalReactor(cfg.pose_dim, 2 * cfg.num_classes)
@@ -484,8 +510,8 @@ def main() -> None:
     for scale in scales:
         streamer = Streamer(net, data.skeleton, bones, scale, composed)
         row = {"fold": args.fold, "mode": "causal", "variant": args.variant, "label_scale": scale, "steps": args.steps, "seed": args.seed,
-               "teacher_pool": args.teacher_pool, "long_takes": args.long_takes, "part_share": args.part_share,
-               "pool_minutes": round(pool_minutes, 1),
+               "teacher_pool": args.teacher_pool, "long_takes": args.long_takes, "joined_takes": args.joined_takes,
+               "part_share": args.part_share, "pool_minutes": round(pool_minutes, 1),
                "train_minutes": round(minutes, 1), "leaders": len(judges.test),
                "settings": {"LOOKAHEAD": LOOKAHEAD, "CHUNK": CHUNK, "SAMPLE_STEPS": SAMPLE_STEPS, "PAST_NOISE": PAST_NOISE,
                             "CARRY_LEVEL": CARRY_LEVEL, "ENSEMBLE": ENSEMBLE, "FRAME_NOISE": FRAME_NOISE,
