@@ -258,8 +258,8 @@ def test_the_bundled_live_reactor_reads_as_asked_and_stays_as_near_as_the_clip(s
 def test_the_bundled_live_reactor_walks_on_with_a_leader_who_walks(k3hi_root):
     """Real walking (K3HI's "approaching" leaders, 4 in a row, each going on where the one before ended: about 170
     frames, 1-2 m from the start), asked to shake hands: the take's canonical frame follows the leader (live.py
-    REANCHOR_M), so the follower's torso stays within 1.35 m of the leader's over the last quarter of the take, on
-    average over 4 takes (1.14 m here; 1.56 m with the frame fixed at the start, where the network never saw a leader)."""
+    REANCHOR_M), so the follower's torso stays within 1.2 m of the leader's over the last quarter of the take, on
+    average over 4 takes (1.02 m here; 1.44 m with the frame fixed at the start, where the network never saw a leader)."""
     from imm_model.data.canonical import joined
     from imm_model.data.k3hi import load_k3hi
 
@@ -271,4 +271,4 @@ def test_the_bundled_live_reactor_walks_on_with_a_leader_who_walks(k3hi_root):
         (leader,), _ = joined([(walking[k + 8 * c],) for c in range(4)], model.skeleton)
         follower = react(model, leader, {"shaking_hands": 1.0})[2]
         apart.append(np.linalg.norm(follower[-len(leader) // 4:, torso] - leader[-len(leader) // 4:, torso], axis=-1).mean())
-    assert np.mean(apart) <= 1.35, np.round(apart, 2)
+    assert np.mean(apart) <= 1.2, np.round(apart, 2)
