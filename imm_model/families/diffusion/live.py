@@ -152,8 +152,8 @@ def leader_windows(leader: np.ndarray, lookahead: int) -> np.ndarray:
 class LiveReactor(SteeredReaction):
     """A reaction to a leader streamed frame by frame (steering.py `SteeredReaction`), made by a live reactor network
     (windows.py `OnlineReactor` does it for a model without one). The canonical frame is the leader's first frames'
-    (the lookahead's); the frames returned go through the causal clean-up unless the model is `raw`. Memory is bounded:
-    the network reads the last `receptive` frames."""
+    (the lookahead's), moved with a leader who walks on (REANCHOR_M); the frames returned go through the causal
+    clean-up unless the model is `raw`. Memory is bounded: the network reads the last `receptive` frames."""
 
     def __init__(self, model, live: LiveNet, label, scale: float = 1.0, seed: int = 0):
         from imm_model.cleanup import OnlineCleanup
@@ -180,8 +180,8 @@ class LiveReactor(SteeredReaction):
         self._world = np.concatenate([self._world, frame[None]])
 
     def _standardize(self) -> None:
-        """The leader frames pushed, into the kept buffer: standardized in the take's canonical frame (fixed by the
-        first frames seen) and normalized."""
+        """The leader frames pushed, into the kept buffer: standardized in the take's canonical frame (set by the
+        first frames seen, then following the leader, `_follow`) and normalized."""
         if len(self._world) == 0:
             return
         if self._frame is None:
