@@ -10,9 +10,10 @@ Two kinds of take:
 
 Each reaction seed 0. Per copy: the closest hand-to-hand distance and the mean torso distance (as `long_takes.py`),
 averaged over takes; per take the mean torso distance over its last quarter and the largest joint step from one
-frame to the next (a jump). Reactions: the live reactor (`model.online`, live.py) with its frame moved onto the leader
-at `--reanchor` metres (live.REANCHOR_M; `inf`: fixed at the take's start), the windows' live reaction (windows.py
-`OnlineReactor`), the offline long take (windows) and, for `sbu`, the recorded followers.
+frame to the next (a jump); and the share of frames with a bone folded onto itself (`--raw`: the network's own
+frames). Reactions: the live reactor (`model.online`, live.py) with its frame following the leader at `--reanchor`
+metres (live.REANCHOR_M; `inf`: fixed at the take's start), the windows' live reaction (windows.py `OnlineReactor`),
+the offline long take (windows) and, for `sbu`, the recorded followers.
 
     OMP_NUM_THREADS=1 python docs/experiments/scripts/continuous_takes.py --source sbu --reanchor inf \\
         --out docs/experiments/data/continuous-takes.jsonl
@@ -38,6 +39,7 @@ from imm_model.families.diffusion import live
 from imm_model.families.diffusion.windows import OnlineReactor
 
 WALK_TAKES = 8
+FOLDED = 0.3  # a bone shorter than this share of its length is folded onto itself (a knee on its foot)
 
 
 def per_copy(leader: np.ndarray, follower: np.ndarray, starts: list[int], skeleton) -> list[dict]:
@@ -82,6 +84,7 @@ def main() -> None:
                     choices=("real", "live", "windows", "offline"))
     ap.add_argument("--reanchor", type=float, default=None,
                     help="live.REANCHOR_M: the live reactor's frame follows the leader this far behind (inf: fixed)")
+    ap.add_argument("--raw", action="store_true", help="the network's own frames, no clean-up (the folded bones' share)")
     ap.add_argument("--limit", type=int, default=None, help="the first N takes only")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
@@ -89,6 +92,8 @@ def main() -> None:
         live.REANCHOR_M = args.reanchor
 
     model = ReactionModel.load(args.checkpoint)
+    model.raw = args.raw
+    lengths = np.asarray(model.bone_lengths)
     sk, torso = model.skeleton, model.skeleton.joint_names.index("torso")
     if args.source == "sbu":
         takes = sbu_takes(load_any(paths.SAMPLE_DATA), model, args.copies)
@@ -98,7 +103,7 @@ def main() -> None:
     for mode in args.modes:
         if mode == "real" and takes[0][1] is None:
             continue
-        copies, last, jumps = [], [], []
+        copies, last, jumps, folded = [], [], [], []
         for leader, real, starts, label in takes:
             if mode == "real":
                 follower = real
@@ -114,12 +119,15 @@ def main() -> None:
             apart = np.linalg.norm(follower[:, torso] - leader[:, torso], axis=-1)
             last.append(float(apart[-len(leader) // 4:].mean()))
             jumps.append(float(np.linalg.norm(np.diff(follower, axis=0), axis=-1).max()))
+            folded.append((sk.bone_lengths(follower) / lengths).min(1) < FOLDED)
         hands = np.array([[c["hands"] for c in r] for r in copies])
         torso_d = np.array([[c["torso"] for c in r] for r in copies])
         row = {"source": args.source, "mode": mode, "fold": model.held_out_subject, "copies": args.copies,
-               "takes": len(takes), "reanchor_m": live.REANCHOR_M if mode == "live" else None,
+               "takes": len(takes), "raw": args.raw, "reanchor_m": live.REANCHOR_M if mode == "live" else None,
                "hands_per_copy": hands.mean(0).round(4).tolist(), "torso_per_copy": torso_d.mean(0).round(4).tolist(),
                "torso_last_quarter": round(float(np.mean(last)), 4), "torso_last_quarter_max": round(max(last), 4),
+               "folded_frames": round(float(np.concatenate(folded).mean()), 4),
+               "takes_with_folded": int(sum(f.any() for f in folded)),
                "largest_step_m": round(float(np.mean(jumps)), 4), "largest_step_max_m": round(max(jumps), 4),
                "hands_per_take": hands.round(4).tolist(), "torso_per_take": torso_d.round(4).tolist(),
                "torso_last_quarter_per_take": np.round(last, 4).tolist(), "largest_step_per_take": np.round(jumps, 4).tolist()}
