@@ -161,6 +161,18 @@ def test_a_long_take_is_made_a_few_frames_at_a_time(model, take, sample_data):
     assert steps[still].max() < 0.25  # no window starts anew somewhere else (a jump of metres)
 
 
+def test_a_long_take_continues_given_frames_and_keeps_them(model, take):
+    """`take_windows(..., given=)`: the follower's first frames kept exactly as given (none crossfaded), the rest made
+    from there."""
+    from imm_model.families.diffusion.windows import take_windows
+
+    label = model._label_input(model.label_vector({"pushing": 1.0})[None])[0]
+    given = np.full((40, *take.shape[1:]), 0.5)  # anywhere: nothing the sampler would have made
+    made = take_windows(model, take, label, 3, given=given)
+    np.testing.assert_array_equal(made[:40], given.astype(np.float32))
+    assert made.shape == take.shape and np.isfinite(made).all() and np.abs(made[40:] - 0.5).max() > 0.1
+
+
 def test_any_length_is_taken_up_to_the_bound(model, sample_data):
     leader = np.concatenate([sample_data.world(3)[0]] * 20)  # 20 copies: beyond the old 10x the longest clip
     assert len(leader) > 10 * model.window

@@ -233,6 +233,7 @@ class Streamer:
         one network call a step)."""
         self.net, self.skeleton, self.bone_lengths, self.label_scale = net, skeleton, bone_lengths, label_scale
         self.composed = composed
+        self.raw = False  # the network's own frames, without the clean-up
         self.alpha_bar = cosine_alpha_bar(DIFFUSION_STEPS)
 
     def terms(self, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -327,6 +328,8 @@ class Streamer:
                 pasts[i][t] = np.mean(votes, 0)
                 out[i][t] = pasts[i][t] * fs + fm
         j = len(self.skeleton.joint_names)
+        if self.raw:
+            return [o.reshape(len(o), j, 3) for o in out]
         return [OnlineCleanup(self.skeleton, self.bone_lengths)(o.reshape(len(o), j, 3)).astype(np.float32) for o in out]
 
 
@@ -402,6 +405,35 @@ def joined_takes(teacher, data, train_idx, count: int, part_share: float, seed: 
     return leaders, followers, labels
 
 
+def dagger_rows(net, teacher, data, train_idx, count: int, part_share: float, seed: int) -> tuple[list, list, np.ndarray, list]:
+    """`count` long takes (a training leader 2-4 times in a row, repeated or forwards then backwards) reacted to by the
+    network itself, each continued by the teacher's windows from a frame drawn between the middle of the first copy and
+    the take's end: rows whose past is the network's own frames and whose targets are what the teacher would make from
+    there (DAgger, Ross et al. 2011); and the frame each row's learning starts at."""
+    from imm_model.families.diffusion.distill import pool_labels
+    from imm_model.families.diffusion.live_train import with_parts
+    from imm_model.families.diffusion.windows import take_windows
+
+    rng = np.random.default_rng((seed, 13))
+    canon = [data.canonical(int(i))[0] for i in train_idx]
+    labels = with_parts(rng, pool_labels(rng, count, len(data.class_names)), part_share)
+    leaders, cuts = [], []
+    for _ in range(count):
+        clip = canon[int(rng.integers(len(canon)))]
+        copies, repeat = int(rng.integers(2, 5)), rng.random() < 0.5
+        leaders.append(np.concatenate([clip if repeat or c % 2 == 0 else clip[::-1] for c in range(copies)]))
+        cuts.append(int(rng.integers(len(clip) // 2, len(leaders[-1]) - CHUNK)))
+    streamer = Streamer(net, data.skeleton, None, 1.0, composed=False)
+    streamer.raw = True
+    own = streamer.synthesize_batch_canonical(leaders, labels, rng.integers(0, 2**31 - 1, count))
+    followers = []
+    for n, (leader, mine, cut) in enumerate(zip(leaders, own, cuts, strict=True)):
+        made = take_windows(teacher, leader, teacher._label_input(labels[n:n + 1])[0], int(rng.integers(2**31 - 1)),
+                            given=mine[:cut])
+        followers.append(made.reshape(len(made), -1).astype(np.float32))
+    return [a.reshape(len(a), -1).astype(np.float32) for a in leaders], followers, labels, cuts
+
+
 def save_live_reactor(path: Path, live_net, clip_model, args, pool_rows: int) -> None:
     """The trained live reactor as the product loads it beside its clip model (live.py `live_for`)."""
     import os
@@ -451,6 +483,9 @@ def main() -> None:
                     help="with --teacher-pool: also this many of the clip model's long takes (live_train.py)")
     ap.add_argument("--joined-takes", type=int, default=0,
                     help="with --teacher-pool: also this many long takes of training leaders joined (`joined_takes`)")
+    ap.add_argument("--dagger-takes", type=int, default=0,
+                    help="with --teacher-pool: then this many long takes of the network's own, continued by the teacher "
+                         "(`dagger_rows`), and the network trained anew on both")
     ap.add_argument("--part-share", type=float, default=0.0,
                     help="with --teacher-pool: the share of its labels that differ per body part")
     ap.add_argument("--save-live", type=Path, default=None,
@@ -498,6 +533,13 @@ def main() -> None:
             net = CausalReactor(cfg.pose_dim, 2 * cfg.num_classes)
             net.load_state_dict(live_net.state_dict())
             net.eval()
+            if args.dagger_takes:
+                more = dagger_rows(net, clip_model, data, train_idx, args.dagger_takes, args.part_share, args.seed)
+                starts = [0] * len(pool[0]) + more[3]
+                pool = (pool[0] + more[0], pool[1] + more[1], np.concatenate([pool[2], more[2]]))
+                live_net = fit(cfg, *pool, args.steps, args.seed, learn_from=starts)
+                net.load_state_dict(live_net.state_dict())
+                net.eval()
             if args.save_live:
                 save_live_reactor(args.save_live, live_net, clip_model, args, len(pool[0]))
     minutes = (time.perf_counter() - t0) / 60 - pool_minutes
@@ -511,7 +553,7 @@ def main() -> None:
         streamer = Streamer(net, data.skeleton, bones, scale, composed)
         row = {"fold": args.fold, "mode": "causal", "variant": args.variant, "label_scale": scale, "steps": args.steps, "seed": args.seed,
                "teacher_pool": args.teacher_pool, "long_takes": args.long_takes, "joined_takes": args.joined_takes,
-               "part_share": args.part_share, "pool_minutes": round(pool_minutes, 1),
+               "dagger_takes": args.dagger_takes, "part_share": args.part_share, "pool_minutes": round(pool_minutes, 1),
                "train_minutes": round(minutes, 1), "leaders": len(judges.test),
                "settings": {"LOOKAHEAD": LOOKAHEAD, "CHUNK": CHUNK, "SAMPLE_STEPS": SAMPLE_STEPS, "PAST_NOISE": PAST_NOISE,
                             "CARRY_LEVEL": CARRY_LEVEL, "ENSEMBLE": ENSEMBLE, "FRAME_NOISE": FRAME_NOISE,

@@ -132,9 +132,10 @@ def teacher_pool(teacher, data: InteractionDataset, train_idx: np.ndarray, per_l
 
 def fit(cfg: LiveConfig, leaders: list, followers: list, labels: np.ndarray, steps: int, seed: int, batch: int = 32,
         lr: float = 5e-4, warmup: int = 200, weight_decay: float = 1e-4, label_drop: float = 0.15,
-        lambda_velocity: float = 1.0, log=print) -> LiveNet:
+        lambda_velocity: float = 1.0, log=print, learn_from: list[int] | None = None) -> LiveNet:
     """Canonical leaders and followers (T, D), labels (N, 2C) -> the trained network. Rows are drawn by their
-    length (every frame alike); each sees its follower's past through noise of a random size up to PAST_NOISE."""
+    length (every frame alike); each sees its follower's past through noise of a random size up to PAST_NOISE.
+    `learn_from`: per row, the first frame whose plan is learnt (the frames before are only read as the past)."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     d, chunk = cfg.pose_dim, cfg.chunk
@@ -145,10 +146,12 @@ def fit(cfg: LiveConfig, leaders: list, followers: list, labels: np.ndarray, ste
         getattr(net, f"{who}_mean").copy_(torch.as_tensor(stats[who][0]))
         getattr(net, f"{who}_std").copy_(torch.as_tensor(stats[who][1]))
     rows = []
-    for a, b in zip(leaders, followers, strict=True):
+    for n, (a, b) in enumerate(zip(leaders, followers, strict=True)):
         a, b = (a - stats["leader"][0]) / stats["leader"][1], (b - stats["follower"][0]) / stats["follower"][1]
         idx = np.arange(len(b))[:, None] + np.arange(chunk)[None]
         target, present = b[np.minimum(idx, len(b) - 1)].reshape(len(b), -1), idx < len(b)
+        if learn_from is not None:
+            present[:learn_from[n]] = False
         rows.append((leader_windows(a, cfg.lookahead), np.concatenate([np.zeros((1, d)), b[:-1]]), target, present))
     lengths = np.array([len(a) for a in leaders], float)
     alpha_bar = torch.as_tensor(cosine_alpha_bar(cfg.diffusion_steps), dtype=torch.float32)

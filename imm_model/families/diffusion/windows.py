@@ -92,19 +92,23 @@ def window_follower(model, leader: np.ndarray, follower: np.ndarray, known: int,
     return frame.to_world(out, skeleton)
 
 
-def take_windows(model, leader: np.ndarray, label: np.ndarray, seed: int) -> np.ndarray:
+def take_windows(model, leader: np.ndarray, label: np.ndarray, seed: int, given: np.ndarray | None = None) -> np.ndarray:
     """A canonical leader (T, J, 3) + the sampler's label input (L,) + seed -> the follower (T, J, 3) in the same
     frame, STRIDE frames at a time. Each window samples the last BLEND frames made again, and those are crossfaded
-    from the frames made to the window's: the window's first frame need not continue the last one made exactly."""
+    from the frames made to the window's: the window's first frame need not continue the last one made exactly.
+    `given`: the follower's first frames (G, J, 3), kept as they are and continued."""
     frames, d = len(leader), model.config.pose_dim
     noise, leader_z = initial_noise(seed, frames, d), leader_noise(seed, frames, d)
     follower = np.zeros(leader.shape, np.float64)
     done, frame = 0, None
+    if given is not None:
+        follower[:len(given)], done = given, len(given)
+    kept = done  # the given frames are not blended
     while done < frames:
         end = min(done + STRIDE + TAKE_LOOKAHEAD, frames)
         start = max(0, end - WINDOW)
         keep = STRIDE if end < frames else frames - done
-        blend = min(BLEND, done - start)
+        blend = min(BLEND, done - start, done - kept)
         frame = anchored(model, leader[start:end], frame)
         made = window_follower(model, leader[start:end], follower[start:end], done - start - blend, label, seed,
                                noise[start:end], leader_z[start:end], frame, (model.resample, [(seed, done)]))
