@@ -411,7 +411,7 @@ def dagger_rows(net, teacher, data, train_idx, count: int, part_share: float, se
     the take's end: rows whose past is the network's own frames and whose targets are what the teacher would make from
     there (DAgger, Ross et al. 2011); and the frame each row's learning starts at."""
     from imm_model.families.diffusion.distill import pool_labels
-    from imm_model.families.diffusion.live_train import with_parts
+    from imm_model.families.diffusion.live_train import long_leader, with_parts
     from imm_model.families.diffusion.windows import take_windows
 
     rng = np.random.default_rng((seed, 13))
@@ -419,9 +419,8 @@ def dagger_rows(net, teacher, data, train_idx, count: int, part_share: float, se
     labels = with_parts(rng, pool_labels(rng, count, len(data.class_names)), part_share)
     leaders, cuts = [], []
     for _ in range(count):
-        clip = canon[int(rng.integers(len(canon)))]
-        copies, repeat = int(rng.integers(2, 5)), rng.random() < 0.5
-        leaders.append(np.concatenate([clip if repeat or c % 2 == 0 else clip[::-1] for c in range(copies)]))
+        leader, clip = long_leader(rng, canon)
+        leaders.append(leader)
         cuts.append(int(rng.integers(len(clip) // 2, len(leaders[-1]) - CHUNK)))
     streamer = Streamer(net, data.skeleton, None, 1.0, composed=False)
     streamer.raw = True

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
+from long_takes import online_follower
 
 from imm_model import cleanup, paths
 from imm_model.data.bundle import load_any
@@ -33,9 +34,7 @@ def main() -> None:
         cleanup.PIN_REACH_M = reach
         skate, steps = [], []
         for i in held_out:
-            reactor = model.online({data.class_names[data.actions[i]]: 1.0}, seed=0)
-            frames = [f for f in (reactor.push(x) for x in data.world(int(i))[0]) if f is not None]
-            follower = np.concatenate([np.stack(frames), reactor.flush()])
+            follower = online_follower(model, data.world(int(i))[0], {data.class_names[data.actions[i]]: 1.0}, 0)[0]
             skate.append(foot_skate_mps(follower, model.skeleton, fps))
             steps.append(np.linalg.norm(np.diff(follower, axis=0), axis=-1).max())
         print(f"reach {reach} m: foot skate {np.mean(skate):.4f} m/s, largest joint step {np.mean(steps):.3f} m "

@@ -38,7 +38,7 @@ CLIP = 6.0  # x0 predictions clamped to this many training stds, as the clip sam
 # the take's canonical frame follows the leader (shifted, not turned) so that the leader's root stays within this
 # distance of its origin (horizontally): the network learnt leaders who start at the origin and move less than 0.83 m in a
 # clip (0.79 m for 99 in 100 SBU clips), and a leader who walks on left that, the follower behind (K3HI's walking
-# leaders, 4 in a row: hands in the last copy 0.89 m from the leader's, against 1.25 m in a fixed frame;
+# leaders, 4 in a row: hands in the last copy 0.92 m from the leader's, against 1.26 m in a fixed frame;
 # docs/experiments/causal-reactor.md). Its facing is not followed: over 10 frames it turns up to 96 degrees within nine
 # in ten SBU clips, too unsteady to follow.
 REANCHOR_M = 0.75

@@ -94,6 +94,14 @@ def with_parts(rng: np.random.Generator, labels: np.ndarray, share: float) -> np
     return np.concatenate([labels, lower], 1)
 
 
+def long_leader(rng: np.random.Generator, clips: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """A long take's leader drawn from `clips`: one of them 2-4 times in a row, repeated or forwards then backwards
+    (half each); and the clip."""
+    clip = clips[int(rng.integers(len(clips)))]
+    copies, repeat = int(rng.integers(2, 5)), rng.random() < 0.5
+    return np.concatenate([clip if repeat or c % 2 == 0 else clip[::-1] for c in range(copies)]), clip
+
+
 def teacher_pool(teacher, data: InteractionDataset, train_idx: np.ndarray, per_leader: int, takes: int,
                  part_share: float, seed: int, log=print) -> tuple[list, list, np.ndarray]:
     """The teacher's reactions (module docstring): canonical leaders and followers (T, D) and labels (N, 2C)."""
@@ -119,9 +127,7 @@ def teacher_pool(teacher, data: InteractionDataset, train_idx: np.ndarray, per_l
         log(f"teacher reactions {start + len(rows)}/{len(which)}, {time.perf_counter() - t0:.0f} s")
     take_labels = with_parts(rng, pool_labels(rng, takes, classes), part_share)
     for n in range(takes):
-        clip = canon[int(rng.integers(len(canon)))]
-        copies, repeat = int(rng.integers(2, 5)), rng.random() < 0.5
-        leader = np.concatenate([clip if repeat or c % 2 == 0 else clip[::-1] for c in range(copies)])
+        leader, _ = long_leader(rng, canon)
         made = take_windows(teacher, leader, teacher._label_input(take_labels[n:n + 1])[0], int(rng.integers(2**31 - 1)))
         leaders.append(leader.reshape(len(leader), -1))
         followers.append(made.reshape(len(made), -1).astype(np.float32))
