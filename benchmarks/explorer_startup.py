@@ -1,4 +1,4 @@
-"""Where the studio's start-to-interactive time goes (targets: <= 4 s warm, <= 6 s cold).
+"""Where the studio's start-to-interactive time goes (targets: <= 3 s warm, <= 5 s cold, on an idle machine).
 
 Starts `imm explore` twice on one latent cache folder (cold, then warm) and opens it in headless chromium. Prints,
 per start: when the address was printed, and in the page (ms after navigation) when the websocket opened, when
