@@ -13,6 +13,7 @@ MIX_SHARE = 0.25 or more) and with the fold's own whole-body judge beside it:
 
     OMP_NUM_THREADS=1 python docs/experiments/scripts/two_class_judge.py --fold s04 \\
         --checkpoint sample_data/imm_diffusion_student.safetensors --out docs/experiments/data/two-class-judge.jsonl
+    python docs/experiments/scripts/two_class_judge.py --table docs/experiments/data/two-class-judge.jsonl
 """
 
 from __future__ import annotations
@@ -72,13 +73,35 @@ def two_or_more(p: np.ndarray) -> np.ndarray:
     return (p >= MIX_SHARE).sum(1) >= 2
 
 
+def table(path: Path) -> None:
+    """The rows of `path` as a markdown table, and each judge's means over the dev and the test folds (a fold's
+    composites' seeds averaged first)."""
+    rows = [json.loads(line) for line in open(path)]
+    keys = ("real_accuracy", "real_read_as_two", "composites_read_as_both", "model_mixes_read_as_both",
+            "model_mix_pairs_under_0.10", "model_single_read_as_asked", "model_single_read_as_two")
+    print("| fold (seed) | judge | " + " | ".join(keys) + " |")
+    print("|---|---|" + "---:|" * len(keys))
+    for r in rows:
+        print(f"| {r['fold']} ({r['seed']}) | {r['judge']} | " + " | ".join(f"{r[k]:.3f}" if isinstance(r[k], float) else str(r[k])
+                                                                     for k in keys) + " |")
+    for group, folds in (("dev", ("s01", "s03", "s04")), ("test", ("s02", "s05", "s06", "s07"))):
+        for judge in dict.fromkeys(r["judge"] for r in rows):
+            per_fold = [[r for r in rows if r["fold"] == f and r["judge"] == judge] for f in folds]
+            per_fold = [fold_rows for fold_rows in per_fold if fold_rows]
+            means = {k: np.mean([np.mean([r[k] for r in fold_rows]) for fold_rows in per_fold]) for k in keys}
+            print(f"{group} ({len(per_fold)} folds), {judge}: " + ", ".join(f"{k} {v:.3f}" for k, v in means.items()))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--table", type=Path, help="print the rows of this file as a table, and nothing else")
     ap.add_argument("--fold", default="s04")
     ap.add_argument("--checkpoint", default="sample_data/imm_diffusion_student.safetensors")
     ap.add_argument("--seed", type=int, default=0, help="the composites drawn for training")
     ap.add_argument("--out", type=Path)
     args = ap.parse_args()
+    if args.table:
+        return table(args.table)
     torch.set_num_threads(1)
     data = load_any(paths.SAMPLE_DATA)
     opts = EvalOptions(baselines=(), progress=False)
