@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import torch
 import torch.nn as nn
+from diffusion_fold import record
 
 from imm_model import paths
 from imm_model.data.bundle import load_any
@@ -121,7 +122,7 @@ def main() -> None:
             fb = by_class[b][rng.integers(len(by_class[b]))][1]
             sequences.append(compose_parts(resample(fa, len(fb))[None], fb[None], upper_joints, centre)[0])
             targets.append((np.eye(c)[a] + np.eye(c)[b]) / 2)
-    inputs = classifiers.motion_inputs([np.zeros_like(s) for s in sequences], sequences, "follower")
+    inputs = classifiers.motion_inputs([], sequences, "follower")  # the follower alone: no leader read
     two_class = train_soft(opts.judge, inputs, np.array(targets))
 
     def read(clf, leaders, followers) -> np.ndarray:
@@ -158,10 +159,7 @@ def main() -> None:
                "model_single_read_as_asked": float((p_single.argmax(1) == y).mean()),
                "model_single_read_as_two": float(two_or_more(p_single).mean()),
                "model_mixes_per_pair": {k: round(v, 3) for k, v in mix.items()}}
-        print(json.dumps(row), flush=True)
-        if args.out:
-            with open(args.out, "a") as fh:
-                fh.write(json.dumps(row) + "\n")
+        record(row, args.out)
 
 
 if __name__ == "__main__":
